@@ -1,0 +1,77 @@
+"""Atomic output files: write to a temporary file beside the target, then rename.
+
+A crash, ``SIGKILL`` or Ctrl-C while writing never leaves a half-written output: the
+target either keeps its old content or gets the complete new one (``os.replace`` is
+atomic on POSIX within one file system). Outputs equal to an input are refused so that
+nothing a user handed in is ever overwritten.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from typing import IO, Iterable, Iterator
+
+from .errors import InputError
+
+__all__ = ["atomic_path", "atomic_open", "refuse_overwrite_of_inputs", "check_input_file"]
+
+_TMP_PREFIX = ".brdfkit-tmp-"
+
+
+@contextlib.contextmanager
+def atomic_path(path: str | os.PathLike) -> Iterator[str]:
+    """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
+
+    The temporary file is removed if the body raises (``KeyboardInterrupt`` included).
+    """
+    path = os.fspath(path)
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise InputError(f"{path}: output folder {folder} does not exist")
+    if os.path.isdir(path):
+        raise InputError(f"{path}: is a directory, expected an output file path")
+    fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, suffix=os.path.basename(path), dir=folder)
+    os.close(fd)
+    try:
+        yield tmp
+        with open(tmp, "rb+") as f:
+            os.fsync(f.fileno())
+        os.replace(tmp, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def atomic_open(path: str | os.PathLike, mode: str = "w", **kwargs) -> Iterator[IO]:
+    """``open`` for writing, atomically (see :func:`atomic_path`)."""
+    if not mode.startswith("w"):
+        raise ValueError("atomic_open is for writing only")
+    with atomic_path(path) as tmp, open(tmp, mode, **kwargs) as f:
+        yield f
+
+
+def refuse_overwrite_of_inputs(output: str | os.PathLike | None,
+                               inputs: Iterable[str | os.PathLike]) -> None:
+    """Raise :class:`InputError` if ``output`` names the same file as any input."""
+    if output is None:
+        return
+    out = os.path.realpath(os.fspath(output))
+    for item in inputs:
+        if item is not None and os.path.realpath(os.fspath(item)) == out:
+            raise InputError(f"{os.fspath(output)}: output path is also an input; refusing to overwrite it")
+
+
+def check_input_file(path: str | os.PathLike) -> str:
+    """Return ``path`` as a string if it names a readable regular file, else raise."""
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise InputError(f"{path}: no such file")
+    if os.path.isdir(path):
+        raise InputError(f"{path}: is a directory, expected a file")
+    if not os.access(path, os.R_OK):
+        raise InputError(f"{path}: not readable (permission denied)")
+    return path

@@ -1,0 +1,99 @@
+"""The ``brdfkit`` command line: a thin Click group over the library.
+
+Subcommands live in their own modules (``brdfkit/cli/<name>.py``, each defining
+``command``) and are imported only when run, so ``brdfkit --help`` starts without torch,
+mitsuba or colour-science. Errors a user can fix (:class:`brdfkit.errors.BrdfkitError`)
+become one line on stderr and exit code 2.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.util
+import os
+import sys
+
+import click
+
+from ..errors import BrdfkitError
+
+# name -> one-line help, shown by ``brdfkit --help`` without importing the module.
+COMMANDS = {
+    "demo": "Run the main job on built-in synthetic data (no download).",
+    "synth": "Write a library of synthetic (GGX) materials as MERL tables.",
+    "sample": "Draw N measurements of a MERL table into a CSV sample set.",
+    "fit": "Train a hypernetwork (or a baseline) on MERL tables.",
+    "encode": "Compress MERL tables into embedding (.emb) files.",
+    "decode": "Expand an embedding into a dense MERL table.",
+    "sparse": "Reconstruct a dense MERL table from sparse samples.",
+    "interpolate": "Blend two embeddings (material editing).",
+    "render": "Render a BRDF in the reference scene or a Mitsuba scene.",
+    "metrics": "Image and BRDF-space errors between predictions and references.",
+    "bench": "Error-against-run-time benchmark of the reconstruction methods.",
+}
+
+
+def _available(name: str) -> bool:
+    return importlib.util.find_spec(f"brdfkit.cli.{name}") is not None
+
+
+class LazyGroup(click.Group):
+    def list_commands(self, ctx):
+        return [n for n in COMMANDS if _available(n)]
+
+    def get_command(self, ctx, name):
+        if name not in COMMANDS or not _available(name):
+            return None
+        return importlib.import_module(f"brdfkit.cli.{name}").command
+
+    def format_commands(self, ctx, formatter):
+        rows = [(n, COMMANDS[n]) for n in self.list_commands(ctx)]
+        if rows:
+            with formatter.section("Commands"):
+                formatter.write_dl(rows)
+
+
+@click.group(cls=LazyGroup, context_settings={"help_option_names": ["-h", "--help"]})
+@click.version_option(package_name="brdfkit")
+def cli():
+    """brdfkit: measured BRDFs and hypernetwork neural BRDFs.
+
+    Reads and writes MERL .binary tables; turns any set of BRDF samples into a tiny
+    neural BRDF (Gokbudak et al., ECCV 2024); renders and scores the result.
+    Start with `brdfkit demo`.
+    """
+
+
+def fail(message: str, code: int = 2):
+    """Print ``brdfkit: error: message`` on stderr and exit with ``code``."""
+    click.echo(f"brdfkit: error: {message}", err=True)
+    sys.exit(code)
+
+
+def main(argv=None):
+    """Console-script entry point: runs the group and maps errors to exit codes."""
+    try:
+        rv = cli.main(args=argv, prog_name="brdfkit", standalone_mode=False)
+    except BrdfkitError as e:
+        fail(str(e), e.exit_code)
+    except click.exceptions.Abort:
+        fail("interrupted", 130)
+    except KeyboardInterrupt:
+        fail("interrupted", 130)
+    except click.ClickException as e:
+        e.show()
+        sys.exit(e.exit_code)
+    except click.exceptions.Exit as e:
+        sys.exit(e.exit_code)
+    except BrokenPipeError:
+        sys.exit(1)
+    except MemoryError:
+        fail("out of memory", 1)
+    except OSError as e:
+        where = f"{e.filename}: " if getattr(e, "filename", None) else ""
+        fail(f"{where}{e.strerror or e}", 2 if e.filename else 1)
+    except Exception as e:  # a bug, not bad input: one line unless asked for the traceback
+        if os.environ.get("BRDFKIT_DEBUG"):
+            raise
+        fail(f"internal error: {type(e).__name__}: {e} (set BRDFKIT_DEBUG=1 for the traceback)", 1)
+    sys.exit(rv if isinstance(rv, int) else 0)

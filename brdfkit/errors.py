@@ -1,0 +1,43 @@
+"""Errors that brdfkit reports to a user rather than as a traceback.
+
+Every problem with what a user handed in (a file, an option, a CSV row) is raised as
+:class:`BrdfkitError` or a subclass. The CLI turns it into one line on stderr and exit
+code 2; the library lets it propagate so callers can catch it.
+"""
+
+from __future__ import annotations
+
+import os
+
+__all__ = ["BrdfkitError", "InputError", "FormatError", "ModelMismatchError"]
+
+
+class BrdfkitError(Exception):
+    """A problem the user can fix; its message is one line, fit for stderr."""
+
+    exit_code = 2
+
+
+class InputError(BrdfkitError, ValueError):
+    """An input (file, value or option) that cannot be used as given."""
+
+
+class FormatError(InputError):
+    """A file whose content does not follow the format it claims.
+
+    Parameters
+    ----------
+    path
+        The offending file.
+    problem
+        What is wrong, as a short clause ("truncated: 12 of 34992012 bytes").
+    """
+
+    def __init__(self, path: str | os.PathLike, problem: str):
+        self.path = os.fspath(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
+
+
+class ModelMismatchError(InputError):
+    """An embedding or file made with a different model than the one given."""
