@@ -1,0 +1,258 @@
+"""Model files: one ``.safetensors`` file holding a trained hypernetwork.
+
+A model file (``docs/formats.md``, "Model files") holds, with no pickled Python at all:
+
+* every tensor of ``HyperBRDF.state_dict()`` as float32, named ``net.<state_dict name>``;
+* ``rho_ref``: the reference table of the log-relative mapping (Gokbudak et al. 2024,
+  eq. 1), float32 ``(90, 90, 180, 3)`` in 1/sr, NaN where no training material is
+  measured;
+* string metadata: ``format = "brdfkit-model"``, ``version = "1"``, ``config`` (the
+  :class:`~brdfkit.hypernet.HyperConfig` as JSON), ``fingerprint`` (see
+  :func:`weights_fingerprint`) and ``meta`` (JSON: training materials, steps, ...).
+
+The fingerprint identifies the weights: an embedding records the fingerprint of the model
+that made it, and decoding it with another model is refused
+(:class:`~brdfkit.errors.ModelMismatchError`). Loading recomputes it, so a file whose
+weights were altered or damaged is refused too.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+
+import numpy as np
+
+from .atomic import atomic_path, check_input_file
+from .errors import FormatError
+
+__all__ = ["MODEL_FORMAT", "MODEL_VERSION", "NeuralModel", "save_model", "load_model",
+           "weights_fingerprint"]
+
+MODEL_FORMAT = "brdfkit-model"
+MODEL_VERSION = "1"
+_PREFIX = "net."
+_REF_SHAPE = (90, 90, 180, 3)
+_HEADER_LIMIT = 100 * 1024 * 1024  # safetensors' own limit on the JSON header
+
+
+@dataclasses.dataclass
+class NeuralModel:
+    """A loaded model file.
+
+    Attributes
+    ----------
+    net
+        :class:`~brdfkit.hypernet.HyperBRDF` in eval mode on ``device``.
+    cfg
+        Its :class:`~brdfkit.hypernet.HyperConfig`.
+    rho_ref
+        float32 ``(90, 90, 180, 3)`` reference table (1/sr), NaN where unmeasured.
+    fingerprint
+        sha256 hex of the weights (:func:`weights_fingerprint`).
+    meta
+        Training provenance (materials, steps, ...), as saved.
+    device
+        ``torch.device`` the network lives on.
+    path
+        The file it was loaded from.
+    """
+
+    net: object
+    cfg: object
+    rho_ref: np.ndarray
+    fingerprint: str
+    meta: dict
+    device: object
+    path: str
+
+    @property
+    def short_fingerprint(self) -> str:
+        return self.fingerprint[:12]
+
+
+def _unwrap(net):
+    """The bare network inside DDP / ``torch.compile`` wrappers (whose state_dict names
+    carry a prefix)."""
+    while not hasattr(net, "cfg") and (hasattr(net, "module") or hasattr(net, "_orig_mod")):
+        net = getattr(net, "module", None) or getattr(net, "_orig_mod")
+    return net
+
+
+def weights_fingerprint(net) -> str:
+    """sha256 hex of a network's weights.
+
+    For each name of ``net.state_dict()`` in sorted order: the UTF-8 name, then the
+    tensor's float32 bytes (C order, native little-endian). Independent of device and of
+    how the tensors are laid out in memory.
+    """
+    h = hashlib.sha256()
+    sd = _unwrap(net).state_dict()
+    for name in sorted(sd):
+        h.update(name.encode())
+        h.update(sd[name].detach().cpu().float().contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | None = None) -> str:
+    """Write a model file atomically.
+
+    Parameters
+    ----------
+    path
+        Output ``.safetensors`` file.
+    net
+        :class:`~brdfkit.hypernet.HyperBRDF` on any device; a DDP (``.module``) or
+        ``torch.compile`` (``._orig_mod``) wrapper is unwrapped.
+    rho_ref
+        ``(90, 90, 180, 3)`` reference table, 1/sr, NaN where unmeasured.
+    meta
+        JSON-serialisable provenance (training materials, steps, ...).
+
+    Returns
+    -------
+    str
+        The weights fingerprint written into the file.
+    """
+    import torch
+    from safetensors.torch import save_file
+
+    net = _unwrap(net)
+    ref = np.ascontiguousarray(rho_ref, dtype=np.float32)
+    if ref.shape != _REF_SHAPE:
+        raise ValueError(f"reference table must have shape {_REF_SHAPE}, not {ref.shape}")
+    tensors = {_PREFIX + name: t.detach().cpu().float().contiguous().clone()
+               for name, t in net.state_dict().items()}
+    tensors["rho_ref"] = torch.from_numpy(ref.copy())
+    fingerprint = weights_fingerprint(net)
+    metadata = {
+        "format": MODEL_FORMAT,
+        "version": MODEL_VERSION,
+        "config": net.cfg.to_json(),
+        "fingerprint": fingerprint,
+        "meta": json.dumps(meta or {}, sort_keys=True, default=str),
+    }
+    with atomic_path(path) as tmp:
+        save_file(tensors, tmp, metadata=metadata)
+    return fingerprint
+
+
+def _check_header(path: str) -> None:
+    """Refuse files that are not safetensors before handing them to the parser, with a
+    message that says what they look like."""
+    size = os.path.getsize(path)
+    with open(path, "rb") as f:
+        head = f.read(8)
+        if size < 8:
+            raise FormatError(path, f"not a brdfkit model file: {size} bytes, too short for a safetensors header")
+        if head[:1] == b"\x80" or head[:2] == b"PK":
+            raise FormatError(path, "not a brdfkit model file: this is a pickle / torch.save file, "
+                                    "which brdfkit never loads (model files are .safetensors)")
+        n = int.from_bytes(head, "little")
+        if n > _HEADER_LIMIT or n < 2:
+            raise FormatError(path, "not a brdfkit model file: not a safetensors file (bad header length)")
+        if 8 + n > size:
+            raise FormatError(path, f"truncated: {size} bytes, the safetensors header alone needs {8 + n}")
+        try:
+            header = json.loads(f.read(n))
+            ends = [int(v["data_offsets"][1]) for k, v in header.items() if k != "__metadata__"]
+        except (ValueError, TypeError, KeyError, IndexError, AttributeError, UnicodeDecodeError):
+            raise FormatError(path, "not a brdfkit model file: not a safetensors file (header is not "
+                                    "safetensors JSON)") from None
+    need = 8 + n + max(ends, default=0)
+    if size < need:
+        raise FormatError(path, f"truncated: {size} bytes, its safetensors header describes {need}")
+
+
+def _resolve_device(device):
+    import torch
+
+    if device is None:
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(device)
+
+
+def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
+    """Load a model file written by :func:`save_model`; nothing is unpickled.
+
+    Parameters
+    ----------
+    path
+        The ``.safetensors`` file.
+    device
+        ``torch.device`` or string; ``None``: CUDA when available, else CPU.
+
+    Returns
+    -------
+    NeuralModel
+
+    Raises
+    ------
+    FormatError
+        Not a safetensors file (a pickle, truncated, other content), another kind of
+        safetensors file, an unknown version, a bad config, missing or misshapen tensors,
+        or weights that do not match the recorded fingerprint. One line naming the file.
+    """
+    import torch
+    from safetensors import SafetensorError, safe_open
+
+    from .hypernet import HyperBRDF, HyperConfig
+
+    path = check_input_file(path)
+    _check_header(path)
+    try:
+        with safe_open(path, framework="pt", device="cpu") as f:
+            md = f.metadata() or {}
+            if md.get("format") != MODEL_FORMAT:
+                raise FormatError(path, f"not a brdfkit model file (format {md.get('format')!r}, "
+                                        f"expected {MODEL_FORMAT!r})")
+            if md.get("version") != MODEL_VERSION:
+                raise FormatError(path, f"model file version {md.get('version')!r} is not supported "
+                                        f"(this brdfkit reads version {MODEL_VERSION})")
+            try:
+                cfg = HyperConfig.from_json(md["config"])
+                meta = json.loads(md.get("meta") or "{}")
+            except (KeyError, TypeError, ValueError) as e:
+                raise FormatError(path, f"bad model config in metadata ({e})") from None
+            if not isinstance(meta, dict):
+                raise FormatError(path, "bad 'meta' in metadata: not a JSON object")
+            names = set(f.keys())
+            if "rho_ref" not in names:
+                raise FormatError(path, "missing tensor 'rho_ref' (the reference table)")
+            ref = f.get_tensor("rho_ref")
+            state = {n[len(_PREFIX):]: f.get_tensor(n) for n in names if n.startswith(_PREFIX)}
+    except SafetensorError as e:
+        raise FormatError(path, f"not a valid safetensors file ({str(e).splitlines()[0]})") from None
+    if tuple(ref.shape) != _REF_SHAPE:
+        raise FormatError(path, f"reference table has shape {tuple(ref.shape)}, expected {_REF_SHAPE}")
+    try:
+        net = HyperBRDF(cfg)
+    except (TypeError, ValueError, RuntimeError) as e:
+        raise FormatError(path, f"model config cannot be built ({e})") from None
+    expected = net.state_dict()
+    missing = sorted(set(expected) - set(state))
+    extra = sorted(set(state) - set(expected))
+    if missing or extra:
+        what = f"missing tensor(s) {', '.join(missing[:3])}" if missing else \
+            f"unexpected tensor(s) {', '.join(extra[:3])}"
+        more = len(missing or extra) - 3
+        raise FormatError(path, f"{what}{f' and {more} more' if more > 0 else ''} for its config")
+    for name, t in expected.items():
+        if tuple(state[name].shape) != tuple(t.shape):
+            raise FormatError(path, f"tensor {_PREFIX}{name} has shape {tuple(state[name].shape)}, "
+                                    f"the config needs {tuple(t.shape)}")
+    net.load_state_dict({k: v.float() for k, v in state.items()})
+    fingerprint = weights_fingerprint(net)
+    recorded = md.get("fingerprint")
+    if recorded != fingerprint:
+        raise FormatError(path, f"weights do not match the recorded fingerprint "
+                                f"({str(recorded)[:12]} recorded, {fingerprint[:12]} computed): "
+                                f"the file is damaged or was altered")
+    dev = _resolve_device(device)
+    net = net.to(dev).eval()
+    for p in net.parameters():
+        p.requires_grad_(False)
+    return NeuralModel(net=net, cfg=cfg, rho_ref=ref.numpy().astype(np.float32, copy=False),
+                       fingerprint=fingerprint, meta=meta, device=dev, path=path)
