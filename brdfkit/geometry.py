@@ -275,8 +275,9 @@ def lookup_trilinear(table, theta_h, theta_d, phi_d, fill=float("nan")):
                 v = flat[kk + N_PHI_D * (jj + N_THETA_D * ii)]
                 w = (wh * wd * wp)[..., None]
                 ok = ~xp.isnan(v)
-                wv = xp.where(ok, w * xp.where(ok, v, 0 * v), 0 * v)
-                wk = xp.where(ok, w, 0 * w)
+                # zeros_like, not 0 * v: 0 * NaN is NaN and would poison the sum.
+                wv = w * xp.where(ok, v, xp.zeros_like(v))
+                wk = xp.where(ok, w, xp.zeros_like(w))
                 acc = wv if acc is None else acc + wv
                 wsum = wk if wsum is None else wsum + wk
     out = acc / xp.where(wsum > 0, wsum, 1 + 0 * wsum)

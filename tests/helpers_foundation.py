@@ -1,0 +1,89 @@
+"""Shared helpers of the foundation tests (MERL I/O, geometry, mapping, samples, CLI).
+
+Not a conftest: plain functions imported by the test modules that need them.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from functools import lru_cache
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from brdfkit.geometry import GRID_SHAPE, N_CELLS, valid_mask
+
+# ../shared beside the checkout; the tests that need it are marked `proxy` and skip.
+SHARED = Path(__file__).resolve().parents[2] / "shared"
+NBRDF_TO_MERL = SHARED / "tools" / "nbrdf_to_merl.py"
+MERL_SIZE = 34_992_012
+
+
+def brdfkit_command() -> list[str]:
+    """The installed console script, or the same entry point through ``python -c``."""
+    script = Path(sys.executable).with_name("brdfkit")
+    if script.exists():
+        return [str(script)]
+    return [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+
+
+def run_brdfkit(args, cwd=None, timeout=120, env=None) -> subprocess.CompletedProcess:
+    """Run ``brdfkit ARGS`` in a subprocess, as a user would; text output captured."""
+    return subprocess.run(brdfkit_command() + [str(a) for a in args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+@lru_cache(maxsize=1)
+def measured_mask() -> np.ndarray:
+    """``valid_mask()`` (bool ``(90, 90, 180)``), computed once per test process."""
+    mask = valid_mask()
+    mask.setflags(write=False)
+    return mask
+
+
+def random_table(seed: int = 0) -> np.ndarray:
+    """A cheap physically plausible table: log-uniform values in [1e-4, 1e3] 1/sr on the
+    measured cells, NaN elsewhere; float64 ``(90, 90, 180, 3)``."""
+    rng = np.random.default_rng(seed)
+    table = 10.0 ** rng.uniform(-4, 3, GRID_SHAPE + (3,))
+    table[~measured_mask()] = np.nan
+    return table
+
+
+def merl_bytes(stored_channel_major: np.ndarray, dims=(90, 90, 180)) -> bytes:
+    """The bytes of a MERL file: int32 dims, then the stored values (3, N) as float64."""
+    return np.asarray(dims, dtype="<i4").tobytes() + \
+        np.ascontiguousarray(stored_channel_major, dtype="<f8").tobytes()
+
+
+def random_stored(seed: int = 0) -> np.ndarray:
+    """Stored MERL values ``(3, N_CELLS)``: random doubles over 14 decades (so that many
+    of them are not recovered by ``value * scale / scale``), -1 where not measured."""
+    rng = np.random.default_rng(seed)
+    stored = rng.random((3, N_CELLS)) * 10.0 ** rng.uniform(-8, 6, (3, N_CELLS))
+    stored[:, ~measured_mask().reshape(-1)] = -1.0
+    return stored
+
+
+def proxy_material(tmp_path_factory, name: str = "teflon") -> Path:
+    """A genuine MERL table decoded from the shared NBRDF fits, written once per test
+    session into pytest's temporary folder (never into the repository or /work/proxy).
+    Skips the test when ``../shared`` is absent."""
+    if not NBRDF_TO_MERL.exists():
+        pytest.skip(f"reference data absent ({SHARED})")
+    folder = tmp_path_factory.getbasetemp() / "proxy-merl"
+    path = folder / f"{name}.binary"
+    if not (path.exists() and path.stat().st_size == MERL_SIZE):
+        folder.mkdir(exist_ok=True)
+        subprocess.run([sys.executable, str(NBRDF_TO_MERL), "merl", str(folder), name],
+                       check=True, capture_output=True, timeout=300)
+    assert path.stat().st_size == MERL_SIZE
+    return path
+
+
+def tmp_leftovers(folder) -> list[str]:
+    """Temporary files of :mod:`brdfkit.atomic` left in ``folder``."""
+    return sorted(n for n in os.listdir(folder) if n.startswith(".brdfkit-tmp-"))
