@@ -95,7 +95,7 @@ def read_merl(path: str | os.PathLike) -> np.ndarray:
         raise FormatError(path, f"not a MERL table: {size} bytes, too short for the 12-byte header")
     dims = tuple(int(d) for d in np.fromfile(path, dtype="<i4", count=3))
     if dims != GRID_SHAPE:
-        shown = dims if all(0 <= d < 100000 for d in dims) else "not plausible dimensions"
+        shown = f"are {dims}" if all(0 <= d < 100000 for d in dims) else "are not plausible"
         raise FormatError(path, f"not a MERL table: header dimensions {shown}, expected {GRID_SHAPE}")
     if size != MERL_FILE_SIZE:
         what = "truncated" if size < MERL_FILE_SIZE else "too long"
