@@ -52,7 +52,9 @@ def to_mapped(rho, rho_ref):
     """
     xp = _xp(rho)
     rho = xp.clip(rho, 0.0, None) if xp is not np else np.clip(np.asarray(rho, dtype=np.float64), 0.0, None)
-    return xp.log((rho + EPS) / (rho_ref + EPS) + 1.0)
+    # log1p, not log(x + 1): x is ~1e-8 for a dark cell over a bright reference, where
+    # adding 1 first would drop digits that from_mapped needs to recover rho.
+    return xp.log1p((rho + EPS) / (rho_ref + EPS))
 
 
 def from_mapped(mapped, rho_ref):
