@@ -130,7 +130,9 @@ def write_samples(path: str | os.PathLike, samples: SampleSet) -> None:
         np.savetxt(f, data, fmt="%.17g", delimiter=",")
 
 
-_ROW_RE = re.compile(r"row (\d+)")
+# Line breaks as editors count them (str.splitlines also splits on form feeds and
+# Unicode separators, which would shift the line numbers in messages).
+_LINE_BREAK = re.compile(r"\r\n|\r|\n")
 
 
 def read_samples(path: str | os.PathLike) -> SampleSet:
@@ -163,7 +165,7 @@ def read_samples(path: str | os.PathLike) -> SampleSet:
     except UnicodeDecodeError as e:
         raise FormatError(path, f"not UTF-8 text (byte {e.start})") from None
     del raw
-    lines = text.splitlines()
+    lines = _LINE_BREAK.split(text)
     numbered = [(i + 1, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
     del lines, text
     if not numbered:
@@ -196,11 +198,7 @@ def read_samples(path: str | os.PathLike) -> SampleSet:
         data = np.loadtxt([r for _, r in rows], delimiter=",", dtype=np.float64, ndmin=2,
                           comments=None)
     except ValueError as e:
-        m = _ROW_RE.search(str(e))
-        line = int(linenos[int(m.group(1)) - 1]) if m else None
-        detail = str(e).split(" at row")[0].strip()
-        where = f"line {line}: " if line else ""
-        raise FormatError(path, f"{where}{detail}") from None
+        raise _row_error(path, rows, ncol, e) from None
     if data.shape[1] != ncol:
         raise FormatError(path, f"line {int(linenos[0])}: {data.shape[1]} fields, the header names {ncol}")
     data = data[:, [columns.index(c) for c in (ANGLE_COLUMNS if kind == "angles" else VECTOR_COLUMNS)]]
@@ -231,8 +229,25 @@ def read_samples(path: str | os.PathLike) -> SampleSet:
                "direction below the horizon (z < 0)")
         refuse(np.einsum("ij,ij->i", wi, wo) < -1 + 1e-12, "wi and wo are opposite (no half vector)")
         th, _, td, pd = half_diff_from_io(wi, wo)
-    return SampleSet(np.asarray(th, np.float64), np.asarray(td, np.float64),
-                     np.asarray(pd, np.float64) % np.pi, np.ascontiguousarray(rgb), os.path.basename(path))
+    pd = np.asarray(pd, np.float64) % np.pi
+    pd[pd >= np.pi] = 0.0  # -1e-17 % pi rounds to pi itself; fold it to 0 as well
+    return SampleSet(np.asarray(th, np.float64), np.asarray(td, np.float64), pd,
+                     np.ascontiguousarray(rgb), os.path.basename(path))
+
+
+def _row_error(path: str, rows, ncol: int, error: ValueError) -> FormatError:
+    """The first malformed row, located in Python: ``np.loadtxt`` numbers rows from 0 in
+    conversion errors but from 1 in field-count errors, and blames the second row when
+    the first one has the wrong number of fields."""
+    for line, text in rows:
+        fields = text.split(",")
+        if len(fields) != ncol:
+            return FormatError(path, f"line {line}: {len(fields)} fields, the header names {ncol}")
+        for field in fields:
+            # float() also takes '1_000' and non-ASCII digits, which loadtxt refuses.
+            if "_" in field or not field.isascii() or not _is_number(field):
+                return FormatError(path, f"line {line}: {field.strip()!r} is not a number")
+    return FormatError(path, str(error).split(" at row")[0].split(";")[0])
 
 
 def _is_number(s: str) -> bool:
