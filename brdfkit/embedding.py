@@ -179,8 +179,8 @@ def check_compatible(emb: Embedding, model, name: str = "") -> None:
     if emb.model_fingerprint == model.fingerprint and emb.latent_dim == model_dim:
         return
     what = f"embedding {name}" if name else "embedding"
-    where = f" ({os.path.basename(model.path)})" if getattr(model, "path", "") else ""
+    where = f"{os.path.basename(model.path)}, " if getattr(model, "path", "") else ""
     raise ModelMismatchError(
         f"{what} was made by model {emb.model_fingerprint[:12]} (latent {emb.latent_dim}), "
-        f"not by the given model {model.fingerprint[:12]}{where} (latent {model_dim}); "
+        f"not by the given model {model.fingerprint[:12]} ({where}latent {model_dim}); "
         f"encode the material again with this model")

@@ -1,0 +1,191 @@
+"""The library interface: load a model, encode, decode, reconstruct from sparse samples,
+interpolate, train.
+
+Everything a user does with a trained hypernetwork (Gokbudak et al. 2024) in a few calls::
+
+    import brdfkit
+    model = brdfkit.load_model("model.safetensors")
+    emb = brdfkit.encode(model, "teflon.binary")        # a MERL table -> 40 numbers
+    table = brdfkit.decode(model, emb)                   # -> (90, 90, 180, 3), 1/sr
+    table, emb = brdfkit.sparse(model, "samples.csv")    # N measurements -> dense table
+    mix = brdfkit.interpolate(emb_a, emb_b, 0.3)         # material editing
+
+Errors about what was passed in are :class:`~brdfkit.errors.InputError` (or its
+subclasses ``FormatError`` and ``ModelMismatchError``) with a one-line message.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from .embedding import Embedding
+from .errors import InputError, ModelMismatchError
+
+__all__ = ["load_model", "encode", "decode", "sparse", "interpolate", "fit"]
+
+
+def load_model(path: str | os.PathLike, device=None):
+    """Load a model file (``.safetensors``, never pickle).
+
+    Parameters
+    ----------
+    path
+        File written by ``brdfkit fit`` / :func:`brdfkit.modelfile.save_model`.
+    device
+        ``torch.device`` or string; ``None``: CUDA when available, else CPU.
+
+    Returns
+    -------
+    brdfkit.modelfile.NeuralModel
+    """
+    from .modelfile import load_model as _load
+
+    return _load(path, device)
+
+
+def _load_input(obj, source: str):
+    """A ``SampleSet`` or a dense table from what :func:`encode` accepts, and a source
+    name for provenance."""
+    from .samples import SampleSet
+
+    if isinstance(obj, SampleSet):
+        return obj, source or obj.source
+    if isinstance(obj, (str, os.PathLike)):
+        path = os.fspath(obj)
+        name = source or os.path.basename(path)
+        if path.lower().endswith(".csv"):
+            from .samples import read_samples
+            return read_samples(path), name
+        from .merl import read_merl
+        return read_merl(path), name
+    if isinstance(obj, np.ndarray) or hasattr(obj, "__array__"):
+        arr = np.asarray(obj, dtype=np.float64)
+        if arr.shape != (90, 90, 180, 3):
+            raise InputError(f"{source or 'table'}: shape {arr.shape}, expected a dense table "
+                             f"(90, 90, 180, 3) or a SampleSet")
+        return arr, source
+    raise InputError(f"cannot encode a {type(obj).__name__}: pass a SampleSet, a (90, 90, 180, 3) "
+                     f"table, or the path of a .binary or .csv file")
+
+
+def encode(model, samples_or_table, *, source: str = "") -> Embedding:
+    """Encode a material into an embedding.
+
+    Parameters
+    ----------
+    model
+        :class:`~brdfkit.modelfile.NeuralModel` (from :func:`load_model`).
+    samples_or_table
+        A :class:`~brdfkit.samples.SampleSet` (any ``N >= 1``), a dense table
+        ``(90, 90, 180, 3)`` in 1/sr with NaN where unmeasured (all measured cells are
+        used), or the path of a MERL ``.binary`` or a ``.csv`` sample set.
+    source
+        Provenance recorded in the embedding; defaults to the file name or the sample
+        set's source.
+
+    Returns
+    -------
+    Embedding
+        float32 latent of the model's size, with the model's fingerprint and the number
+        of samples averaged.
+    """
+    from .neural import encode_samples, encode_table
+
+    data, name = _load_input(samples_or_table, source)
+    if isinstance(data, np.ndarray):
+        return encode_table(model, data, name)
+    return encode_samples(model, data, name)
+
+
+def decode(model, embedding) -> np.ndarray:
+    """Decode an embedding into a dense table.
+
+    Parameters
+    ----------
+    model
+        The model that made the embedding (else
+        :class:`~brdfkit.errors.ModelMismatchError`).
+    embedding
+        :class:`Embedding` or the path of an ``.emb`` file.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 ``(90, 90, 180, 3)``, 1/sr, NaN where the model's reference table is
+        unmeasured (below the horizon).
+    """
+    from .neural import NeuralBRDF
+
+    name = ""
+    if isinstance(embedding, (str, os.PathLike)):
+        from .embedding import read_embedding
+        name = os.fspath(embedding)
+        embedding = read_embedding(embedding)
+    return NeuralBRDF.from_embedding(model, embedding, name).to_table()
+
+
+def sparse(model, samples, *, source: str = ""):
+    """Reconstruct a dense table from sparse measurements (the paper's main use).
+
+    Parameters
+    ----------
+    samples
+        :class:`~brdfkit.samples.SampleSet` or the path of a ``.csv`` sample set.
+
+    Returns
+    -------
+    tuple
+        ``(table, embedding)``: float64 ``(90, 90, 180, 3)`` in 1/sr (NaN below the
+        horizon) and the :class:`Embedding` it was decoded from.
+    """
+    if isinstance(samples, (str, os.PathLike)) and not os.fspath(samples).lower().endswith(".csv"):
+        raise InputError(f"{os.fspath(samples)}: sparse reconstruction takes a .csv sample set "
+                         f"(make one with `brdfkit sample`)")
+    emb = encode(model, samples, source=source)
+    return decode(model, emb), emb
+
+
+def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool = False) -> Embedding:
+    """Blend two embeddings of the same model: ``(1 - t) a + t b``.
+
+    Computed in float64 and rounded to float32, so ``t = 0`` gives ``a`` and ``t = 1``
+    gives ``b`` exactly.
+
+    Raises
+    ------
+    ModelMismatchError
+        The embeddings come from different models (fingerprints or latent sizes differ).
+    InputError
+        ``t`` not a finite number, or outside ``[0, 1]`` without ``allow_extrapolation``.
+    """
+    try:
+        t = float(t)
+    except (TypeError, ValueError):
+        raise InputError(f"t: {t!r} is not a number") from None
+    if not math.isfinite(t):
+        raise InputError(f"t: {t!r} is not a finite number")
+    if not allow_extrapolation and not 0.0 <= t <= 1.0:
+        raise InputError(f"t = {t:g} is outside [0, 1]; pass allow_extrapolation=True "
+                         f"(--allow-extrapolation) to extrapolate")
+    if a.model_fingerprint != b.model_fingerprint or a.latent_dim != b.latent_dim:
+        raise ModelMismatchError(
+            f"cannot interpolate embeddings of different models: {a.source or 'a'} is from model "
+            f"{a.model_fingerprint[:12]} (latent {a.latent_dim}), {b.source or 'b'} from model "
+            f"{b.model_fingerprint[:12]} (latent {b.latent_dim})")
+    la = a.latent.astype(np.float64)
+    lb = b.latent.astype(np.float64)
+    latent = ((1.0 - t) * la + t * lb).astype(np.float32)
+    if not np.isfinite(latent).all():
+        raise InputError(f"t = {t:g} extrapolates beyond float32 range")
+    return Embedding(latent, a.model_fingerprint,
+                     f"interpolate({a.source or 'a'}, {b.source or 'b'}, t={t:g})", 0)
+
+
+def fit(*args, **kwargs):
+    """Train a hypernetwork; see :func:`brdfkit.training.fit` (imported on first use)."""
+    from .training import fit as _fit
+
+    return _fit(*args, **kwargs)

@@ -1,0 +1,353 @@
+"""One material's neural BRDF: the hyponet that a model decodes from an embedding.
+
+Gokbudak et al. 2024, Sec. 3: the hypernetwork decoder turns a latent ``z`` into the
+weights of a small MLP (the hyponet, ``6 -> 60 x 4 -> 3``) that maps the HD vector of a
+direction pair (half and difference vectors, ``phi_h = 0``) to the log-relative mapped
+RGB value ``rho'``. :class:`NeuralBRDF` holds those weights and evaluates the BRDF in
+physical units by inverting the mapping (:func:`brdfkit.mapping.from_mapped`) with the
+model's reference table ``rho_ref`` at the query angles.
+
+This module also holds the encoding side (:func:`encode_samples`, :func:`encode_table`):
+sample values go through :func:`brdfkit.mapping.to_mapped` with ``rho_ref`` at the
+samples' own angles, and the set encoder averages over all of them.
+
+Where ``rho_ref`` is undefined (no training material measured that cell, or all corners
+of a trilinear lookup unmeasured) the median of ``rho_ref`` over its measured cells is
+used instead, so every direction above the horizon has a mapping.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .embedding import Embedding, check_compatible
+from .errors import InputError
+from .geometry import N_CELLS, cell_angles, cell_index, half_diff_from_io, hd_vectors, \
+    lookup_trilinear
+
+__all__ = ["NeuralBRDF", "encode_samples", "encode_table", "grid_hd", "DECODE_BLOCK",
+           "ENCODE_CHUNK"]
+
+# Rows per hyponet block: (block x 60) float32 activations (480 kB) stay in a core's L2
+# cache; 1024-2048 measured fastest on the project machine, 8192 and up 2-3x slower
+# (docs/model.md).
+DECODE_BLOCK = 2048
+# Samples per encoder chunk: bounds memory (chunk x 128 float32 activations per layer).
+ENCODE_CHUNK = 1 << 16
+# A sample within this many radians of a cell's own angles takes that cell's rho_ref.
+_GRID_TOL = 1e-7
+
+_grid_hd_cache: np.ndarray | None = None
+
+
+def grid_hd() -> np.ndarray:
+    """HD vectors of all MERL grid cells, float32 ``(1458000, 6)`` in flat-index order.
+
+    Computed once per process (float64, then rounded) and shared: decoding every table
+    and encoding every dense file reuse it.
+    """
+    global _grid_hd_cache
+    if _grid_hd_cache is None:
+        th, td, pd = cell_angles(np.arange(N_CELLS))
+        hd = hd_vectors(th, td, pd).astype(np.float32)
+        hd.setflags(write=False)
+        _grid_hd_cache = hd
+    return _grid_hd_cache
+
+
+def _model_cache(model) -> dict:
+    """Per-model derived data (measured cells, torch copies of rho_ref), kept on the
+    model object so that it lives exactly as long as the model."""
+    cache = getattr(model, "_brdfkit_cache", None)
+    if cache is None:
+        cache = {}
+        model._brdfkit_cache = cache
+    return cache
+
+
+def _ref_fallback(model) -> np.ndarray:
+    """Per-channel median of ``rho_ref`` over its measured cells, float64 ``(3,)``."""
+    cache = _model_cache(model)
+    if "fallback" not in cache:
+        flat = model.rho_ref.reshape(N_CELLS, 3)
+        ok = np.isfinite(flat).all(axis=1)
+        if not ok.any():
+            raise InputError(f"{model.path}: the model's reference table has no measured cell")
+        cache["fallback"] = np.median(flat[ok].astype(np.float64), axis=0)
+    return cache["fallback"]
+
+
+def _ref_measured(model) -> np.ndarray:
+    """Flat indices of the cells where ``rho_ref`` is measured (all three channels)."""
+    cache = _model_cache(model)
+    if "measured" not in cache:
+        cache["measured"] = np.flatnonzero(np.isfinite(model.rho_ref.reshape(N_CELLS, 3)).all(axis=1))
+    return cache["measured"]
+
+
+def _ref_with_mask(model) -> np.ndarray:
+    """float32 ``(90, 90, 180, 4)``: ``rho_ref`` with NaN set to 0, and a 0/1 "measured"
+    channel. Interpolating both linearly and dividing gives the NaN-aware trilinear
+    lookup (unmeasured corners left out, the other weights renormalised)."""
+    cache = _model_cache(model)
+    if "ref_mask" not in cache:
+        ref = model.rho_ref.astype(np.float32, copy=False)
+        ok = np.isfinite(ref).all(axis=-1, keepdims=True)
+        cache["ref_mask"] = np.concatenate([np.where(ok, ref, 0), ok], axis=-1).astype(np.float32)
+    return cache["ref_mask"]
+
+
+def _ref_torch(model):
+    """:func:`_ref_with_mask` and the fallback as torch tensors on the model device."""
+    import torch
+
+    cache = _model_cache(model)
+    key = ("ref_torch", str(model.device))
+    if key not in cache:
+        cache[key] = (torch.from_numpy(_ref_with_mask(model)).to(model.device),
+                      torch.tensor(_ref_fallback(model), dtype=torch.float32, device=model.device))
+    return cache[key]
+
+
+def _interp_ref(table4, fallback, theta_h, theta_d, phi_d):
+    """NaN-aware trilinear ``rho_ref`` at arbitrary angles from a :func:`_ref_with_mask`
+    table (NumPy or torch); the fallback where no corner is measured."""
+    v = lookup_trilinear(table4, theta_h, theta_d, phi_d, fill=0.0)
+    w = v[..., 3:]
+    ok = w > 1e-6
+    return (v[..., :3] / (w * ok + ~ok)) * ok + fallback * ~ok
+
+
+def reference_at(model, theta_h, theta_d, phi_d) -> np.ndarray:
+    """``rho_ref`` at sample angles, float64 ``(N, 3)``.
+
+    A sample at a grid cell's own angles takes that cell's value exactly (the grid
+    samples of ``brdfkit sample`` and of dense tables); any other angles, and grid cells
+    where ``rho_ref`` is unmeasured, are interpolated trilinearly (NaN-aware). Where no
+    neighbouring cell is measured the fallback median is used.
+    """
+    th, td, pd = (np.asarray(a, dtype=np.float64).reshape(-1) for a in (theta_h, theta_d, phi_d))
+    flat = model.rho_ref.reshape(N_CELLS, 3)
+    idx = cell_index(th, td, pd)
+    ch, cd, cp = cell_angles(idx)
+    at_grid = (np.abs(th - ch) < _GRID_TOL) & (np.abs(td - cd) < _GRID_TOL) & \
+        (np.abs(np.mod(pd, np.pi) - cp) < _GRID_TOL)
+    ref = flat[idx].astype(np.float64)
+    redo = ~at_grid | ~np.isfinite(ref).all(axis=1)
+    if redo.any():
+        ref[redo] = _interp_ref(_ref_with_mask(model), _ref_fallback(model), th[redo], td[redo], pd[redo])
+    return ref
+
+
+def _encode_arrays(model, hd: np.ndarray, rgb: np.ndarray, ref: np.ndarray) -> np.ndarray:
+    """Set-encoder mean over ``N`` samples, chunked: the encoder is a per-sample MLP
+    followed by a mean, so per-chunk sums (float64) divided by ``N`` equal the one-shot
+    mean without holding all activations. Returns float32 ``(L,)``."""
+    import torch
+
+    from .mapping import to_mapped
+
+    n = hd.shape[0]
+    mlp = model.net.encoder.net
+    total = torch.zeros(model.cfg.latent_dim, dtype=torch.float64, device=model.device)
+    with torch.inference_mode():
+        for s in range(0, n, ENCODE_CHUNK):
+            e = min(n, s + ENCODE_CHUNK)
+            mapped = to_mapped(rgb[s:e], ref[s:e]).astype(np.float32)
+            x = np.concatenate([hd[s:e].astype(np.float32, copy=False), mapped], axis=1)
+            feats = mlp(torch.from_numpy(x).to(model.device))
+            total += feats.sum(dim=0, dtype=torch.float64)
+    return (total / n).float().cpu().numpy()
+
+
+def encode_samples(model, samples, source: str = "") -> Embedding:
+    """Embedding of a :class:`~brdfkit.samples.SampleSet` (any ``N >= 1``, any order).
+
+    Parameters
+    ----------
+    model
+        :class:`~brdfkit.modelfile.NeuralModel`.
+    samples
+        The measurements (angles in radians, RGB in 1/sr).
+    source
+        Provenance; defaults to ``samples.source``.
+    """
+    n = len(samples)
+    if n < 1:
+        raise InputError(f"{source or samples.source or 'samples'}: no samples to encode")
+    hd = np.asarray(samples.hd(), dtype=np.float64)
+    ref = reference_at(model, samples.theta_h, samples.theta_d, samples.phi_d)
+    latent = _encode_arrays(model, hd, np.asarray(samples.rgb, dtype=np.float64), ref)
+    return Embedding(latent, model.fingerprint, source or samples.source, n)
+
+
+def encode_table(model, table: np.ndarray, source: str = "") -> Embedding:
+    """Embedding of a dense ``(90, 90, 180, 3)`` table (1/sr, NaN where unmeasured) from
+    all its measured cells; ``sample_count`` records how many."""
+    arr = np.asarray(table)
+    if arr.shape != (90, 90, 180, 3):
+        raise InputError(f"{source or 'table'}: shape {arr.shape}, expected (90, 90, 180, 3)")
+    flat = arr.reshape(N_CELLS, 3)
+    idx = np.flatnonzero(np.isfinite(flat).all(axis=1))
+    if idx.size == 0:
+        raise InputError(f"{source or 'table'}: no measured cells to encode")
+    ref = model.rho_ref.reshape(N_CELLS, 3)[idx].astype(np.float64)
+    bad = ~np.isfinite(ref)
+    if bad.any():
+        ref = np.where(bad, _ref_fallback(model)[None, :], ref)
+    latent = _encode_arrays(model, grid_hd()[idx], flat[idx].astype(np.float64, copy=False), ref)
+    return Embedding(latent, model.fingerprint, source, int(idx.size))
+
+
+class NeuralBRDF:
+    """One material's hyponet, decoded from an embedding.
+
+    Attributes
+    ----------
+    model
+        The :class:`~brdfkit.modelfile.NeuralModel` that decoded it.
+    embedding
+        The :class:`~brdfkit.embedding.Embedding`.
+    weights
+        Hyponet weights for a batch of one material: per layer ``W (1, in, out)`` and
+        ``b (1, 1, out)``, float32 on the model device
+        (see :func:`brdfkit.hypernet.hyponet_forward`).
+    """
+
+    def __init__(self, model, embedding: Embedding, weights):
+        self.model = model
+        self.embedding = embedding
+        self.weights = weights
+
+    @classmethod
+    def from_embedding(cls, model, emb: Embedding, name: str = "") -> "NeuralBRDF":
+        """Decode ``emb`` with ``model`` (refused with
+        :class:`~brdfkit.errors.ModelMismatchError` if another model made it)."""
+        import torch
+
+        check_compatible(emb, model, name)
+        with torch.no_grad():
+            z = torch.from_numpy(np.asarray(emb.latent, np.float32).copy()).to(model.device)[None]
+            weights = [(w.contiguous(), b.contiguous()) for w, b in model.net.hyponet_weights(z)]
+        return cls(model, emb, weights)
+
+    def _mapped(self, hd):
+        """Hyponet on ``hd (N, 6)`` float32 (model device) -> mapped RGB ``(N, 3)``; 2-D
+        ``addmm`` on the batch-of-one weights (cheaper than ``baddbmm``)."""
+        import torch
+
+        h = hd
+        last = len(self.weights) - 1
+        for i, (w, b) in enumerate(self.weights):
+            h = torch.addmm(b[0, 0], h, w[0])
+            if i < last:
+                h = h.relu_()
+        return h
+
+    def _eval_angles(self, hd, th, td, pd):
+        import torch
+
+        from .mapping import from_mapped
+
+        table4, fallback = _ref_torch(self.model)
+        out = torch.empty(hd.shape[0], 3, dtype=torch.float32, device=self.model.device)
+        with torch.no_grad():
+            for s in range(0, hd.shape[0], 1 << 16):
+                e = min(hd.shape[0], s + (1 << 16))
+                ref = _interp_ref(table4, fallback, th[s:e], td[s:e], pd[s:e]).float()
+                out[s:e] = from_mapped(self._mapped(hd[s:e]), ref)
+        return out
+
+    def eval_hd(self, hd):
+        """BRDF at HD vectors.
+
+        Parameters
+        ----------
+        hd
+            torch ``(N, 6)``: ``(hx, hy, hz, dx, dy, dz)`` with ``phi_h = 0``
+            (:func:`brdfkit.geometry.hd_vectors`), any float dtype and device.
+
+        Returns
+        -------
+        torch.Tensor
+            ``(N, 3)`` float32 on ``hd``'s device, BRDF in 1/sr, ``>= 0``: the inverse
+            mapping with ``rho_ref`` interpolated trilinearly at the query angles.
+        """
+        import torch
+
+        dev = self.model.device
+        x = hd.to(device=dev, dtype=torch.float32).reshape(-1, 6)
+        x64 = x.double()
+        th = torch.atan2(x64[:, 0], x64[:, 2])
+        td = torch.atan2(torch.sqrt(x64[:, 3] ** 2 + x64[:, 4] ** 2), x64[:, 5])
+        pd = torch.atan2(x64[:, 4], x64[:, 3])
+        return self._eval_angles(x, th, td, pd).to(hd.device)
+
+    def eval_dirs(self, wi, wo):
+        """BRDF for direction pairs, for a renderer.
+
+        Parameters
+        ----------
+        wi, wo
+            torch ``(N, 3)`` unit vectors in the local frame (``z`` the normal), incident
+            and outgoing, both pointing away from the surface.
+
+        Returns
+        -------
+        torch.Tensor
+            ``(N, 3)`` float32 on ``wi``'s device, BRDF in 1/sr; 0 where either
+            direction is at or below the horizon. ``phi_d`` is folded into ``[0, pi)``
+            (reciprocity), as on the MERL grid the model was trained on.
+        """
+        import math
+
+        import torch
+
+        dev = self.model.device
+        wi_ = wi.to(device=dev, dtype=torch.float64).reshape(-1, 3)
+        wo_ = wo.to(device=dev, dtype=torch.float64).reshape(-1, 3)
+        th, _, td, pd = half_diff_from_io(wi_, wo_)
+        pd = torch.remainder(pd, math.pi)
+        # phi_d a rounding error below 0 is the grid's phi_d = 0, not one just below pi.
+        pd = torch.where(pd > math.pi - 1e-9, pd - math.pi, pd)
+        hd = hd_vectors(th, td, pd).float()
+        rho = self._eval_angles(hd, th, td, pd)
+        above = (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
+        return torch.where(above[:, None], rho, torch.zeros_like(rho)).to(wi.device)
+
+    def to_table(self) -> np.ndarray:
+        """The dense decode: the BRDF on the MERL grid.
+
+        Only the cells where the model's ``rho_ref`` is measured (the cells above the
+        horizon) are evaluated, in blocks of :data:`DECODE_BLOCK` rows, with float32
+        matrix products and ``rho_ref`` taken at each cell exactly.
+
+        Returns
+        -------
+        numpy.ndarray
+            float64 ``(90, 90, 180, 3)``, 1/sr, ``>= 0``, NaN on the other cells.
+        """
+        import torch
+
+        from .mapping import from_mapped
+
+        model = self.model
+        cache = _model_cache(model)
+        key = ("decode_inputs", str(model.device))
+        if key not in cache:
+            idx = _ref_measured(model)
+            cache[key] = (
+                idx,
+                torch.from_numpy(np.ascontiguousarray(grid_hd()[idx])).to(model.device),
+                torch.from_numpy(model.rho_ref.reshape(N_CELLS, 3)[idx].copy()).to(model.device),
+            )
+        idx, hd, ref = cache[key]
+        m = idx.size
+        vals = torch.empty(m, 3, dtype=torch.float32, device=model.device)
+        with torch.inference_mode():
+            for s in range(0, m, DECODE_BLOCK):
+                e = min(m, s + DECODE_BLOCK)
+                vals[s:e] = from_mapped(self._mapped(hd[s:e]), ref[s:e])
+        table = np.full((N_CELLS, 3), np.nan)
+        table[idx] = vals.cpu().numpy()
+        return table.reshape(90, 90, 180, 3)
