@@ -1,0 +1,36 @@
+"""``brdfkit decode``: expand an embedding into a dense MERL table."""
+
+from __future__ import annotations
+
+import click
+
+from .common import console, model_option, require_model
+
+
+@click.command("decode")
+@click.argument("embedding", type=click.Path(dir_okay=False))
+@model_option
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None,
+              help="Output MERL .binary; default: <stem>.binary beside the embedding.")
+def command(embedding, model_path, output):
+    """Decode EMBEDDING (.emb) with the model that made it into a MERL .binary table.
+
+    Cells below the horizon are written as -1 (MERL's "not measured").
+    """
+    import os
+
+    from ..api import load_model
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..embedding import read_embedding
+    from ..merl import write_merl
+    from ..neural import NeuralBRDF
+
+    if output is None:
+        output = os.path.splitext(embedding)[0] + ".binary"
+    model_path = require_model(model_path)
+    refuse_overwrite_of_inputs(output, [embedding, model_path])
+    emb = read_embedding(embedding)
+    model = load_model(model_path)
+    table = NeuralBRDF.from_embedding(model, emb, embedding).to_table()
+    write_merl(output, table)
+    console().print(f"decoded {embedding} into {output}")

@@ -1,0 +1,71 @@
+"""``brdfkit encode``: compress MERL tables (or CSV sample sets) into ``.emb`` files."""
+
+from __future__ import annotations
+
+import click
+
+from .common import console, model_option, require_model
+
+
+@click.command("encode")
+@click.argument("inputs", nargs=-1, required=True, type=click.Path(dir_okay=False))
+@model_option
+@click.option("-o", "--output-dir", type=click.Path(file_okay=False), default=None,
+              help="Folder for the .emb files (created if missing); default: beside each input.")
+def command(inputs, model_path, output_dir):
+    """Encode each BRDF (.binary MERL table or .csv sample set) into <stem>.emb.
+
+    A MERL table is encoded from all its measured cells. A bad input is reported and
+    skipped; the others are still encoded, and the exit code is 2 if any failed.
+    """
+    import os
+
+    from ..api import encode, load_model
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..embedding import write_embedding
+    from ..errors import BrdfkitError, InputError
+
+    model = load_model(require_model(model_path))
+    if output_dir:
+        os.makedirs(output_dir, exist_ok=True)
+    out = console()
+    failures: list[str] = []
+    planned: dict[str, str] = {}
+    done = 0
+
+    def one(path: str) -> None:
+        stem = os.path.splitext(os.path.basename(path))[0]
+        target = os.path.join(output_dir if output_dir else os.path.dirname(path) or ".", stem + ".emb")
+        key = os.path.realpath(target)
+        if key in planned:
+            raise InputError(f"{path}: would write {target}, already written for {planned[key]}; "
+                             f"rename one of them")
+        refuse_overwrite_of_inputs(target, [*inputs, model_path])
+        emb = encode(model, path)
+        write_embedding(target, emb)
+        planned[key] = path
+
+    if len(inputs) > 1:
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
+
+        with Progress(TextColumn("encoding"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
+                      TextColumn("{task.description}"), console=out, transient=True) as bar:
+            task = bar.add_task("", total=len(inputs))
+            for path in inputs:
+                bar.update(task, description=os.path.basename(path))
+                try:
+                    one(path)
+                    done += 1
+                except (BrdfkitError, OSError) as e:
+                    failures.append(str(e) if isinstance(e, BrdfkitError) else f"{path}: {e.strerror or e}")
+                bar.advance(task)
+    else:
+        one(inputs[0])
+        done = 1
+    where = output_dir if output_dir else "beside the inputs"
+    out.print(f"encoded {done} of {len(inputs)} file{'s' if len(inputs) != 1 else ''} "
+              f"(latent {model.cfg.latent_dim}, model {model.short_fingerprint}) into {where}")
+    if failures:
+        for msg in failures:
+            click.echo(f"brdfkit: error: {msg}", err=True)
+        raise click.exceptions.Exit(2)

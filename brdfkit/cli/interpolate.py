@@ -1,0 +1,43 @@
+"""``brdfkit interpolate``: blend two embeddings (material editing)."""
+
+from __future__ import annotations
+
+import click
+
+from .common import console, model_option, parse_float, require_model
+
+
+@click.command("interpolate")
+@click.argument("a", type=click.Path(dir_okay=False))
+@click.argument("b", type=click.Path(dir_okay=False))
+@click.option("-t", "--t", "t_text", required=True, metavar="T",
+              help="Blend weight: 0 gives A, 1 gives B.")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output .emb.")
+@click.option("--binary", "binary", type=click.Path(dir_okay=False), default=None,
+              help="Also decode the blend into this MERL .binary (needs the model).")
+@click.option("--allow-extrapolation", is_flag=True, help="Accept T outside [0, 1].")
+@model_option
+def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
+    """Write the embedding (1 - T) A + T B; both must come from the same model."""
+    from ..api import interpolate, load_model
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..embedding import read_embedding, write_embedding
+
+    t = parse_float(t_text, "--t")
+    refuse_overwrite_of_inputs(output, [a, b, model_path])
+    refuse_overwrite_of_inputs(binary, [a, b, model_path, output])
+    ea, eb = read_embedding(a), read_embedding(b)
+    ea.source, eb.source = ea.source or a, eb.source or b
+    mix = interpolate(ea, eb, t, allow_extrapolation=allow_extrapolation)
+    table = None
+    if binary:
+        from ..neural import NeuralBRDF
+
+        model = load_model(require_model(model_path))
+        table = NeuralBRDF.from_embedding(model, mix, output).to_table()
+    write_embedding(output, mix)
+    if table is not None:
+        from ..merl import write_merl
+
+        write_merl(binary, table)
+    console().print(f"wrote {output}{f' and {binary}' if binary else ''} (t = {t:g})")

@@ -1,0 +1,54 @@
+"""``brdfkit sparse``: reconstruct a dense MERL table from sparse samples."""
+
+from __future__ import annotations
+
+import click
+
+from .common import console, model_option, require_model
+
+
+def _hypernet(samples, model_path):
+    """The paper's method: encode the samples, decode the hyponet on the whole grid."""
+    from ..api import load_model, sparse
+
+    model = load_model(require_model(model_path))
+    return sparse(model, samples)
+
+
+# method name -> function(samples: SampleSet, model_path: str | None) -> (table, Embedding | None)
+METHODS = {"hypernet": _hypernet}
+
+
+@click.command("sparse")
+@click.argument("samples", type=click.Path(dir_okay=False))
+@model_option
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
+              help="Output dense MERL .binary table.")
+@click.option("--emb", "emb_path", type=click.Path(dir_okay=False), default=None,
+              help="Also write the embedding (.emb) (hypernet only).")
+@click.option("--method", type=click.Choice(sorted(METHODS)), default="hypernet", show_default=True,
+              help="Reconstruction method.")
+def command(samples, model_path, output, emb_path, method):
+    """Reconstruct a dense MERL table from the sample set SAMPLES (.csv).
+
+    Make a sample set with `brdfkit sample`; its format is in docs/formats.md.
+    Cells below the horizon are written as -1.
+    """
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..embedding import write_embedding
+    from ..errors import InputError
+    from ..merl import write_merl
+    from ..samples import read_samples
+
+    inputs = [samples, model_path]
+    refuse_overwrite_of_inputs(output, inputs)
+    refuse_overwrite_of_inputs(emb_path, inputs + [output])
+    data = read_samples(samples)
+    table, emb = METHODS[method](data, model_path)
+    if emb_path and emb is None:
+        raise InputError(f"--emb: method {method!r} makes no embedding")
+    write_merl(output, table)
+    if emb_path:
+        write_embedding(emb_path, emb)
+    extra = f" and {emb_path}" if emb_path else ""
+    console().print(f"reconstructed {output}{extra} from {len(data)} samples ({method})")
