@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import contextlib
 import os
-import tempfile
+import secrets
 from typing import IO, Iterable, Iterator
 
 from .errors import InputError
@@ -18,6 +18,7 @@ from .errors import InputError
 __all__ = ["atomic_path", "atomic_open", "refuse_overwrite_of_inputs", "check_input_file"]
 
 _TMP_PREFIX = ".brdfkit-tmp-"
+_O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 
 
 @contextlib.contextmanager
@@ -32,16 +33,25 @@ def atomic_path(path: str | os.PathLike) -> Iterator[str]:
         raise InputError(f"{path}: output folder {folder} does not exist")
     if os.path.isdir(path):
         raise InputError(f"{path}: is a directory, expected an output file path")
-    fd, tmp = tempfile.mkstemp(prefix=_TMP_PREFIX, suffix=os.path.basename(path), dir=folder)
-    os.close(fd)
+    tmp = None
     try:
+        # Created inside the try (not with mkstemp before it), so that a Ctrl-C landing
+        # right after the file appears still removes it; mode 0666 & ~umask like any
+        # output (mkstemp would make it private).
+        while tmp is None:
+            tmp = os.path.join(folder, f"{_TMP_PREFIX}{secrets.token_hex(8)}-{os.path.basename(path)}")
+            try:
+                os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _O_CLOEXEC, 0o666))
+            except FileExistsError:  # someone else's file: pick another name
+                tmp = None
         yield tmp
         with open(tmp, "rb+") as f:
             os.fsync(f.fileno())
         os.replace(tmp, path)
     except BaseException:
-        with contextlib.suppress(FileNotFoundError):
-            os.unlink(tmp)
+        if tmp is not None:
+            with contextlib.suppress(OSError):  # never mask the error that got us here
+                os.unlink(tmp)
         raise
 
 
