@@ -150,5 +150,7 @@ def write_merl(path: str | os.PathLike, table) -> None:
     payload = stored.reshape(N_CELLS, 3).T  # cell-major -> channel-major
     with atomic_path(path) as tmp:
         with open(tmp, "wb") as f:
-            np.array(GRID_SHAPE, dtype="<i4").tofile(f)
-            np.ascontiguousarray(payload, dtype="<f8").tofile(f)
+            # f.write, not ndarray.tofile(f): tofile turns a Ctrl-C that lands while it
+            # writes into "TypeError: expected str ... not BufferedWriter".
+            f.write(np.array(GRID_SHAPE, dtype="<i4").tobytes())
+            f.write(memoryview(np.ascontiguousarray(payload, dtype="<f8").reshape(-1)).cast("B"))
