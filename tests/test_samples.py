@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -265,3 +266,25 @@ def test_fuzz_read_merl_full_size(tmp_path, seed):
         assert "value in the payload" in str(e)
     else:
         assert t.shape == GRID_SHAPE + (3,) and not np.isinf(t).any()
+
+
+# --- through a command that reads CSV --------------------------------------------------
+
+@pytest.mark.parametrize("name", ["text_in_number", "negative_brdf", "vector_not_unit"])
+def test_bad_csv_through_cli(tmp_path, name):
+    from brdfkit.cli import cli
+    from helpers_foundation import run_brdfkit
+
+    if "sparse" not in cli.list_commands(None):
+        pytest.skip("no CLI command reading CSV yet")
+    content, line, _ = BAD[name]
+    path = tmp_path / f"{name}.csv"
+    path.write_text(content)
+    env = {k: v for k, v in os.environ.items() if k != "BRDFKIT_MODEL"}
+    res = run_brdfkit(["sparse", path, "-o", tmp_path / "out.binary"], env=env)
+    if "no model given" in res.stderr:
+        pytest.skip("`brdfkit sparse` now asks for the model before reading the samples")
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+    lines = res.stderr.strip().splitlines()
+    assert len(lines) == 1 and f"{path}: line {line}: " in lines[0]
+    assert not (tmp_path / "out.binary").exists() and not tmp_leftovers(tmp_path)
