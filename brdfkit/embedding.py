@@ -32,6 +32,7 @@ EMBEDDING_FORMAT = "brdfkit-embedding"
 EMBEDDING_VERSION = 1
 # An embedding of any sensible latent size is a few kB; refuse to parse anything huge.
 _MAX_BYTES = 1 << 20
+_F32_MAX = float(np.finfo(np.float32).max)
 
 
 @dataclasses.dataclass
@@ -143,7 +144,7 @@ def read_embedding(path: str | os.PathLike) -> Embedding:
     for i, x in enumerate(latent):
         if not (isinstance(x, (int, float)) and not isinstance(x, bool)):
             raise FormatError(path, f"latent[{i}] is {x!r}, not a number")
-        if not math.isfinite(x) or abs(x) > np.finfo(np.float32).max:
+        if not math.isfinite(x) or abs(x) > _F32_MAX:
             raise FormatError(path, f"latent[{i}] is {x!r}, not a finite float32 value")
     fp = doc.get("model_fingerprint")
     if not isinstance(fp, str) or not fp:

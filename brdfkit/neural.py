@@ -85,37 +85,28 @@ def _ref_measured(model) -> np.ndarray:
     return cache["measured"]
 
 
-def _ref_with_mask(model) -> np.ndarray:
-    """float32 ``(90, 90, 180, 4)``: ``rho_ref`` with NaN set to 0, and a 0/1 "measured"
-    channel. Interpolating both linearly and dividing gives the NaN-aware trilinear
-    lookup (unmeasured corners left out, the other weights renormalised)."""
-    cache = _model_cache(model)
-    if "ref_mask" not in cache:
-        ref = model.rho_ref.astype(np.float32, copy=False)
-        ok = np.isfinite(ref).all(axis=-1, keepdims=True)
-        cache["ref_mask"] = np.concatenate([np.where(ok, ref, 0), ok], axis=-1).astype(np.float32)
-    return cache["ref_mask"]
-
-
 def _ref_torch(model):
-    """:func:`_ref_with_mask` and the fallback as torch tensors on the model device."""
+    """``rho_ref`` (float32, NaN kept) and the fallback as torch tensors on the model
+    device."""
     import torch
 
     cache = _model_cache(model)
     key = ("ref_torch", str(model.device))
     if key not in cache:
-        cache[key] = (torch.from_numpy(_ref_with_mask(model)).to(model.device),
+        cache[key] = (torch.from_numpy(np.ascontiguousarray(model.rho_ref, np.float32)).to(model.device),
                       torch.tensor(_ref_fallback(model), dtype=torch.float32, device=model.device))
     return cache[key]
 
 
-def _interp_ref(table4, fallback, theta_h, theta_d, phi_d):
-    """NaN-aware trilinear ``rho_ref`` at arbitrary angles from a :func:`_ref_with_mask`
-    table (NumPy or torch); the fallback where no corner is measured."""
-    v = lookup_trilinear(table4, theta_h, theta_d, phi_d, fill=0.0)
-    w = v[..., 3:]
-    ok = w > 1e-6
-    return (v[..., :3] / (w * ok + ~ok)) * ok + fallback * ~ok
+def _interp_ref(table, fallback, theta_h, theta_d, phi_d):
+    """NaN-aware trilinear ``rho_ref`` at arbitrary angles (NumPy or torch, like
+    ``table``); the fallback where no corner is measured."""
+    v = lookup_trilinear(table, theta_h, theta_d, phi_d)
+    if isinstance(v, np.ndarray):
+        return np.where(np.isnan(v), fallback, v)
+    import torch
+
+    return torch.where(torch.isnan(v), fallback.to(v.dtype), v)
 
 
 def reference_at(model, theta_h, theta_d, phi_d) -> np.ndarray:
@@ -135,7 +126,7 @@ def reference_at(model, theta_h, theta_d, phi_d) -> np.ndarray:
     ref = flat[idx].astype(np.float64)
     redo = ~at_grid | ~np.isfinite(ref).all(axis=1)
     if redo.any():
-        ref[redo] = _interp_ref(_ref_with_mask(model), _ref_fallback(model), th[redo], td[redo], pd[redo])
+        ref[redo] = _interp_ref(model.rho_ref, _ref_fallback(model), th[redo], td[redo], pd[redo])
     return ref
 
 
@@ -249,12 +240,12 @@ class NeuralBRDF:
 
         from .mapping import from_mapped
 
-        table4, fallback = _ref_torch(self.model)
+        table, fallback = _ref_torch(self.model)
         out = torch.empty(hd.shape[0], 3, dtype=torch.float32, device=self.model.device)
         with torch.no_grad():
             for s in range(0, hd.shape[0], 1 << 16):
                 e = min(hd.shape[0], s + (1 << 16))
-                ref = _interp_ref(table4, fallback, th[s:e], td[s:e], pd[s:e]).float()
+                ref = _interp_ref(table, fallback, th[s:e], td[s:e], pd[s:e]).float()
                 out[s:e] = from_mapped(self._mapped(hd[s:e]), ref)
         return out
 

@@ -1,0 +1,45 @@
+"""Shared helpers of the model tests (model files, embeddings, api, model CLI).
+
+Not a conftest: plain functions imported by the test modules that need them. Models are
+untrained (the tests check plumbing, invariances and formats, not accuracy), saved with
+the real :func:`brdfkit.modelfile.save_model` and loaded with the real loader.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+
+# A hypernetwork small enough that a dense encode or decode takes a fraction of a second.
+TINY_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
+                   decoder_hidden=16, decoder_layers=1)
+
+
+@functools.lru_cache(maxsize=None)
+def material_table(index: int = 0) -> np.ndarray:
+    """A synthetic MERL-grid table (computed once per test process; read-only).
+
+    ``0``: the stiff white dielectric, used as the models' reference table;
+    ``1``: a random GGX material of ``synthetic.library(seed=3)``.
+    """
+    from brdfkit import synthetic
+
+    mat = synthetic.STIFF[2] if index == 0 else synthetic.library(2, seed=3, stiff=False)[index - 1]
+    t = synthetic.table(mat)
+    t.setflags(write=False)
+    return t
+
+
+def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) -> str:
+    """Save an untrained model (``TINY_CONFIG`` unless ``config`` is given; ``{}`` is the
+    paper's default architecture) and return its fingerprint."""
+    import torch
+
+    from brdfkit.hypernet import HyperBRDF, HyperConfig
+    from brdfkit.modelfile import save_model
+
+    torch.manual_seed(seed)
+    cfg = HyperConfig(**(TINY_CONFIG if config is None else config))
+    ref = material_table(0) if rho_ref is None else rho_ref
+    return save_model(path, HyperBRDF(cfg), ref, {"materials": ["stiff-white"], "steps": 0})
