@@ -1,0 +1,242 @@
+"""The model commands as a user runs them: encode, decode, sparse, interpolate.
+
+A few runs go through a real subprocess (the installed ``brdfkit`` script: exit codes,
+one-line errors, no traceback); the rest call the same entry point in-process, which is
+faster and exercises the same code.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+import pytest
+
+from brdfkit import api
+from brdfkit.cli import main
+from brdfkit.embedding import read_embedding, write_embedding
+from brdfkit.merl import MERL_FILE_SIZE, read_merl, write_merl
+from brdfkit.samples import draw_samples, write_samples
+
+from helpers_foundation import run_brdfkit
+from helpers_model import make_model, material_table
+
+
+def _env():
+    env = dict(os.environ)
+    env.pop("BRDFKIT_MODEL", None)
+    # One thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
+    # threads slow small matrix products down many times.
+    env.update(OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
+    return env
+
+
+def _run(args):
+    return run_brdfkit([str(a) for a in args], env=_env(), timeout=300)
+
+
+def _cli(capsys, args):
+    """Run the CLI in-process; returns ``(exit code, stderr)``."""
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    return e.value.code, capsys.readouterr().err
+
+
+def _one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1, err
+    assert lines[0].startswith("brdfkit: error: ") and "Traceback" not in err
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    d = tmp_path_factory.mktemp("cli-model")
+    make_model(d / "model.safetensors", seed=0)
+    make_model(d / "other.safetensors", seed=1)
+    write_merl(d / "mat.binary", material_table(1))
+    write_samples(d / "samples.csv", draw_samples(material_table(1), 300, seed=0))
+    return d
+
+
+@pytest.fixture(autouse=True)
+def _no_model_env(monkeypatch):
+    monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
+
+
+def test_encode_continues_past_bad_files(files, tmp_path):
+    junk = tmp_path / "junk.binary"
+    junk.write_bytes(b"not a MERL table")
+    out = tmp_path / "embs"
+    r = _run(["encode", files / "mat.binary", junk, tmp_path / "missing.binary", files / "samples.csv",
+              "-m", files / "model.safetensors", "-o", out])
+    assert r.returncode == 2, r.stderr
+    assert sorted(os.listdir(out)) == ["mat.emb", "samples.emb"]
+    errors = [ln for ln in r.stderr.splitlines() if ln.startswith("brdfkit: error: ")]
+    assert len(errors) == 2 and "Traceback" not in r.stderr
+    assert str(junk) in errors[0] and "not a MERL table" in errors[0]
+    assert "missing.binary" in errors[1] and "no such file" in errors[1]
+    assert "encoded 2 of 4 files" in r.stderr
+    m = api.load_model(files / "model.safetensors", "cpu")
+    e = read_embedding(out / "mat.emb")
+    np.testing.assert_allclose(e.latent, api.encode(m, material_table(1)).latent, atol=1e-6)
+    assert e.source == "mat.binary" and e.model_fingerprint == m.fingerprint
+
+
+def test_encode_beside_input_and_env_model(files, tmp_path, capsys, monkeypatch):
+    src = tmp_path / "copy.binary"
+    src.write_bytes((files / "mat.binary").read_bytes())
+    monkeypatch.setenv("BRDFKIT_MODEL", str(files / "model.safetensors"))
+    code, err = _cli(capsys, ["encode", src])
+    assert code == 0, err
+    assert read_embedding(tmp_path / "copy.emb").sample_count == int(np.isfinite(material_table(1)).all(-1).sum())
+
+
+def test_encode_same_stem_twice_is_refused(files, tmp_path, capsys):
+    (tmp_path / "a").mkdir()
+    (tmp_path / "a" / "mat.binary").write_bytes((files / "mat.binary").read_bytes())
+    code, err = _cli(capsys, ["encode", files / "mat.binary", tmp_path / "a" / "mat.binary",
+                              "-m", files / "model.safetensors", "-o", tmp_path / "out"])
+    assert code == 2 and "already written for" in err
+    assert os.listdir(tmp_path / "out") == ["mat.emb"]
+
+
+def test_encode_without_model(files, capsys):
+    code, err = _cli(capsys, ["encode", files / "mat.binary"])
+    assert code == 2 and "no model given" in _one_error_line(err)
+
+
+def test_decode_writes_a_merl_file(files, tmp_path, capsys):
+    m = api.load_model(files / "model.safetensors", "cpu")
+    emb = api.encode(m, files / "samples.csv")
+    write_embedding(tmp_path / "x.emb", emb)
+    out = tmp_path / "x.binary"
+    r = _run(["decode", tmp_path / "x.emb", "-m", files / "model.safetensors", "-o", out])
+    assert r.returncode == 0, r.stderr
+    assert os.path.getsize(out) == MERL_FILE_SIZE == 34_992_012
+    table = read_merl(out)
+    unmeasured = ~np.isfinite(m.rho_ref).all(-1)
+    np.testing.assert_array_equal(np.isnan(table).any(-1), unmeasured)
+    raw = np.fromfile(out, "<f8", offset=12).reshape(3, -1)
+    assert (raw[:, unmeasured.reshape(-1)] == -1).all()
+    np.testing.assert_allclose(table, api.decode(m, emb), rtol=1e-12, equal_nan=True)
+    # Default output: beside the embedding.
+    code, err = _cli(capsys, ["decode", tmp_path / "x.emb", "-m", files / "model.safetensors"])
+    assert code == 0 and (tmp_path / "x.binary").exists()
+
+
+def test_decode_other_models_embedding_refused(files, tmp_path):
+    m = api.load_model(files / "model.safetensors", "cpu")
+    write_embedding(tmp_path / "x.emb", api.encode(m, files / "samples.csv"))
+    r = _run(["decode", tmp_path / "x.emb", "-m", files / "other.safetensors", "-o", tmp_path / "y.binary"])
+    assert r.returncode == 2
+    line = _one_error_line(r.stderr)
+    assert "x.emb" in line and m.fingerprint[:12] in line and "other.safetensors" in line
+    assert not (tmp_path / "y.binary").exists()
+
+
+@pytest.mark.parametrize("case", ["pickle model", "truncated model", "bad emb", "output is input"])
+def test_decode_bad_inputs(files, tmp_path, capsys, case):
+    import pickle
+
+    m = api.load_model(files / "model.safetensors", "cpu")
+    emb = tmp_path / "x.emb"
+    write_embedding(emb, api.encode(m, files / "samples.csv"))
+    model = files / "model.safetensors"
+    out = tmp_path / "y.binary"
+    if case == "pickle model":
+        model = tmp_path / "m.safetensors"
+        model.write_bytes(pickle.dumps({"weights": [1, 2, 3]}))
+    elif case == "truncated model":
+        model = tmp_path / "m.safetensors"
+        model.write_bytes((files / "model.safetensors").read_bytes()[:1000])
+    elif case == "bad emb":
+        emb.write_text("{not json")
+    else:
+        out = emb
+    code, err = _cli(capsys, ["decode", emb, "-m", model, "-o", out])
+    assert code == 2
+    line = _one_error_line(err)
+    assert {"pickle model": "pickle", "truncated model": "truncated", "bad emb": "not JSON",
+            "output is input": "refusing to overwrite"}[case] in line
+    assert not (tmp_path / "y.binary").exists()
+
+
+def test_sparse(files, tmp_path, capsys):
+    out, emb = tmp_path / "s.binary", tmp_path / "s.emb"
+    code, err = _cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
+                              "-o", out, "--emb", emb])
+    assert code == 0, err
+    m = api.load_model(files / "model.safetensors", "cpu")
+    table, e = api.sparse(m, files / "samples.csv")
+    np.testing.assert_allclose(read_merl(out), table, rtol=1e-12, equal_nan=True)
+    np.testing.assert_array_equal(read_embedding(emb).latent, e.latent)
+    assert read_embedding(emb).sample_count == 300
+
+
+def test_sparse_bad_method_and_overwrite(files, tmp_path, capsys):
+    code, err = _cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
+                              "-o", tmp_path / "s.binary", "--method", "magic"])
+    assert code == 2 and "magic" in err
+    code, err = _cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
+                              "-o", files / "samples.csv"])
+    assert code == 2 and "refusing to overwrite" in _one_error_line(err)
+
+
+@pytest.fixture(scope="module")
+def two_embs(files, tmp_path_factory):
+    d = tmp_path_factory.mktemp("interp")
+    m = api.load_model(files / "model.safetensors", "cpu")
+    write_embedding(d / "a.emb", api.encode(m, files / "mat.binary"))
+    write_embedding(d / "b.emb", api.encode(m, material_table(0), source="white"))
+    o = api.load_model(files / "other.safetensors", "cpu")
+    write_embedding(d / "o.emb", api.encode(o, files / "samples.csv"))
+    return d
+
+
+def test_interpolate_t_not_a_number(two_embs, tmp_path):
+    r = _run(["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "abc", "-o", tmp_path / "c.emb"])
+    assert r.returncode == 2
+    assert "--t: 'abc' is not a number" in _one_error_line(r.stderr)
+    assert not (tmp_path / "c.emb").exists()
+
+
+def test_interpolate(files, two_embs, tmp_path, capsys):
+    a, b = read_embedding(two_embs / "a.emb"), read_embedding(two_embs / "b.emb")
+    for t, want in (("0", a.latent), ("1", b.latent)):
+        code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", t,
+                                  "-o", tmp_path / "c.emb"])
+        assert code == 0, err
+        np.testing.assert_array_equal(read_embedding(tmp_path / "c.emb").latent, want)
+    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "0.3",
+                              "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary",
+                              "-m", files / "model.safetensors"])
+    assert code == 0, err
+    m = api.load_model(files / "model.safetensors", "cpu")
+    mix = read_embedding(tmp_path / "m.emb")
+    np.testing.assert_allclose(read_merl(tmp_path / "m.binary"), api.decode(m, mix), rtol=1e-12, equal_nan=True)
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--t", "1.5"], "outside [0, 1]"),
+    (["--t", "nan"], "not a finite number"),
+    (["--t", "0.5", "--binary", "{tmp}/m.binary"], "no model given"),
+    (["--t", "0.5", "-o", "{embs}/a.emb"], "refusing to overwrite"),
+])
+def test_interpolate_refusals(two_embs, tmp_path, capsys, args, message):
+    args = [a.format(tmp=tmp_path, embs=two_embs) for a in args]
+    if "-o" not in args:
+        args += ["-o", str(tmp_path / "c.emb")]
+    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", *args])
+    assert code == 2 and message in _one_error_line(err)
+    assert not (tmp_path / "c.emb").exists() and not (tmp_path / "m.binary").exists()
+
+
+def test_interpolate_extrapolation_and_mismatch(two_embs, tmp_path, capsys):
+    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "1.5",
+                              "--allow-extrapolation", "-o", tmp_path / "c.emb"])
+    assert code == 0, err
+    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--t", "0.5",
+                              "-o", tmp_path / "d.emb"])
+    assert code == 2 and "different models" in _one_error_line(err)
+    assert not (tmp_path / "d.emb").exists()
