@@ -80,9 +80,12 @@ def main(argv=None):
         fail("interrupted", 130)
     except KeyboardInterrupt:
         fail("interrupted", 130)
+    except click.UsageError as e:
+        # One line, like every other bad input; Click's usage block is one --help away.
+        cmd = e.ctx.command_path if e.ctx is not None else "brdfkit"
+        fail(f"{e.format_message()} (see '{cmd} --help')", e.exit_code)
     except click.ClickException as e:
-        e.show()
-        sys.exit(e.exit_code)
+        fail(e.format_message(), e.exit_code)
     except click.exceptions.Exit as e:
         sys.exit(e.exit_code)
     except BrokenPipeError:
