@@ -1,8 +1,10 @@
-"""Time the dense decode (``NeuralBRDF.to_table``) and the dense encode of one table.
+"""Time the dense decode (``NeuralBRDF.to_table``), the dense encode of one table, and
+``NeuralBRDF.eval_dirs`` on 262,144 random direction pairs (a 512 x 512 image's worth).
 
 Usage::
 
     python benchmarks/decode_speed.py [--model MODEL.safetensors] [--threads N] [--repeat 9]
+                                      [--decode-block B] [--encode-chunk C]
 
 Without ``--model`` an untrained model of the paper's default architecture is built
 (speed does not depend on the weights) with the reference table of a synthetic material,
@@ -28,6 +30,8 @@ def main(argv=None):
     p.add_argument("--threads", type=int, default=None, help="torch threads (default: torch's choice)")
     p.add_argument("--repeat", type=int, default=9)
     p.add_argument("--device", default="cpu")
+    p.add_argument("--decode-block", type=int, default=None, help="override neural.DECODE_BLOCK")
+    p.add_argument("--encode-chunk", type=int, default=None, help="override neural.ENCODE_CHUNK")
     args = p.parse_args(argv)
 
     import numpy as np
@@ -39,7 +43,13 @@ def main(argv=None):
     from brdfkit.embedding import Embedding
     from brdfkit.hypernet import HyperBRDF, HyperConfig
     from brdfkit.modelfile import save_model
+    from brdfkit import neural
     from brdfkit.neural import NeuralBRDF
+
+    if args.decode_block:
+        neural.DECODE_BLOCK = args.decode_block
+    if args.encode_chunk:
+        neural.ENCODE_CHUNK = args.encode_chunk
 
     table = synthetic.table(synthetic.STIFF[2])
     with tempfile.TemporaryDirectory() as tmp:
@@ -71,11 +81,16 @@ def main(argv=None):
     load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
     print(f"device {model.device}, torch threads {torch.get_num_threads()}, "
           f"{os.cpu_count()} CPUs, load average {load:.1f}; hyponet {model.cfg.hypo_hidden} x "
-          f"{model.cfg.hypo_layers}, latent {model.cfg.latent_dim}")
-    for name, fn in (("decode (to_table)", nb.to_table),
-                     ("encode dense table", lambda: api.encode(model, table))):
+          f"{model.cfg.hypo_layers}, latent {model.cfg.latent_dim}, decode block {neural.DECODE_BLOCK}, "
+          f"encode chunk {neural.ENCODE_CHUNK}")
+    v = rng.normal(size=(2, 262144, 3))
+    v[..., 2] = np.abs(v[..., 2])
+    wi, wo = torch.tensor(v / np.linalg.norm(v, axis=-1, keepdims=True), dtype=torch.float32)
+    for name, n, fn in (("decode (to_table)", f"{cells:,} cells", nb.to_table),
+                        ("encode dense table", f"{cells:,} cells", lambda: api.encode(model, table)),
+                        ("eval_dirs", "262,144 pairs", lambda: nb.eval_dirs(wi, wo))):
         wall, cpu = timed(fn)
-        print(f"{name:20s} {cells:,} cells: wall min {min(wall):.3f} s, median {statistics.median(wall):.3f} s;"
+        print(f"{name:18s} {n:>15s}: wall min {min(wall):.3f} s, median {statistics.median(wall):.3f} s;"
               f" CPU min {min(cpu):.3f} s, median {statistics.median(cpu):.3f} s")
     return 0
 
