@@ -151,6 +151,9 @@ def _check_header(path: str) -> None:
             raise FormatError(path, "not a brdfkit model file: this is a pickle / torch.save file, "
                                     "which brdfkit never loads (model files are .safetensors)")
         n = int.from_bytes(head, "little")
+        if head[:4] == b"\x5a\x00\x00\x00" and size == 34_992_012:
+            raise FormatError(path, "is a MERL BRDF table, not a brdfkit model file (-m takes the "
+                                    ".safetensors file written by `brdfkit fit`)")
         if n > _HEADER_LIMIT or n < 2:
             raise FormatError(path, "not a brdfkit model file: not a safetensors file (bad header length)")
         if 8 + n > size:

@@ -240,3 +240,10 @@ def test_interpolate_extrapolation_and_mismatch(two_embs, tmp_path, capsys):
                               "-o", tmp_path / "d.emb"])
     assert code == 2 and "different models" in _one_error_line(err)
     assert not (tmp_path / "d.emb").exists()
+
+
+def test_encode_folder_among_inputs_is_one_failure(files, tmp_path, capsys):
+    code, err = _cli(capsys, ["encode", tmp_path, files / "mat.binary", "-m", files / "model.safetensors",
+                              "-o", tmp_path / "out"])
+    assert code == 2 and "is a directory" in err
+    assert os.listdir(tmp_path / "out") == ["mat.emb"]

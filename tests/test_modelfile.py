@@ -204,3 +204,12 @@ def test_altered_weights_refused(model_path, tmp_path):
 def test_missing_file(tmp_path):
     with pytest.raises(InputError, match="no such file"):
         load_model(tmp_path / "nope.safetensors")
+
+
+def test_merl_table_given_as_model(tmp_path):
+    from brdfkit.merl import write_merl
+
+    path = tmp_path / "teflon.binary"
+    write_merl(path, material_table(0))
+    with pytest.raises(FormatError, match="is a MERL BRDF table, not a brdfkit model file"):
+        load_model(path)

@@ -8,7 +8,9 @@ from .common import console, model_option, require_model
 
 
 @click.command("encode")
-@click.argument("inputs", nargs=-1, required=True, type=click.Path(dir_okay=False))
+# No click-side checks of the inputs: a missing file or a folder among many is reported
+# with the other failures at the end instead of stopping the whole run.
+@click.argument("inputs", nargs=-1, required=True, type=click.Path())
 @model_option
 @click.option("-o", "--output-dir", type=click.Path(file_okay=False), default=None,
               help="Folder for the .emb files (created if missing); default: beside each input.")
