@@ -1,0 +1,356 @@
+"""The PCA baseline of Nielsen, Jensen and Ramamoorthi 2015, "On Optimal, Minimal BRDF
+Sampling for Reflectance Acquisition" (SIGGRAPH Asia), as compared against in Gokbudak et
+al. 2024: a linear basis of log-mapped measured BRDFs, fitted to sparse samples by
+regularised least squares.
+
+What is mapped
+--------------
+Each training table is cosine weighted and log-relative mapped, following the authors'
+published code (``MapBRDF`` of brdf.compute.dtu.dk)::
+
+    x    = rho * w,                w = cos(theta_i) cos(theta_o)
+    x'   = ln((x + eps) / (x_ref + eps)),   eps = 0.001
+
+with ``x_ref`` the per-cell median of the cosine-weighted training values (over every
+material *and* channel, see below). This is deliberately not
+:func:`brdfkit.mapping.to_mapped`, the hypernetwork paper's variant
+``ln((rho + 0.002) / (rho_ref + 0.002) + 1)``: its ``+ 1`` flattens every value below
+the reference towards 0, which throws away the dark half of the data a linear basis has
+to model. The inverse is ``rho = ((exp(x') (x_ref + eps) - eps) / w``, clamped at 0.
+
+Channels
+--------
+As in Nielsen et al., the three colour channels of a material are three separate
+observations of one shared basis: ``M`` training materials give ``3 M`` vectors (so the
+reference is one value per cell, the median over all ``3 M``). A sample set is fitted
+channel by channel with the same basis.
+
+Basis
+-----
+PCA over the cells measured by at least one training table (a training table missing a
+cell counts as the reference there, ``x' = 0``); the ``3 M x P`` matrix is centred and
+decomposed through its ``3 M x 3 M`` Gram matrix, so the cost is one pass of matrix
+products (seconds for 80 materials) and the memory the float32 matrix itself
+(``4 * 3 M * P`` bytes, about 1.1 GB for 80 MERL materials).
+
+Reconstruction
+--------------
+The mean, components and reference are interpolated trilinearly at each sample's angles
+(:func:`brdfkit.geometry.lookup_trilinear`; a sample on a cell's own angles reads that
+cell exactly), the sample is mapped with its exact ``w``, and the coefficients solve::
+
+    min_z || A diag(sigma) z - b ||^2 + lam ||z||^2,      c = sigma * z
+
+with ``A`` the components at the samples, ``b`` the mapped samples minus the mean and
+``sigma_k`` the standard deviation of the training coefficients of component ``k``: a
+ridge on coefficients measured in training standard deviations, i.e. a Gaussian prior
+fitted to the training set (Nielsen et al. regularise the singular-value-scaled
+components with one fixed ``eta`` in the same way). ``lam`` is :data:`DEFAULT_LAMBDA`
+unless given (see ``docs/baselines.md`` for how it was chosen).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import os
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from ..atomic import atomic_path, check_input_file
+from ..errors import FormatError, InputError
+from ..geometry import GRID_SHAPE, N_CELLS, grid_angles, io_from_half_diff, lookup_trilinear
+
+__all__ = ["IpcaModel", "fit_ipca", "load_ipca", "IPCA_FORMAT", "IPCA_VERSION", "EPS",
+           "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
+
+IPCA_FORMAT = "brdfkit-ipca"
+IPCA_VERSION = "1"
+EPS = 0.001
+DEFAULT_COMPONENTS = 8
+DEFAULT_LAMBDA = 1.0
+_TENSORS = ("cells", "reference", "mean", "components", "sigma")
+
+
+def cosine_weight(theta_h, theta_d, phi_d) -> np.ndarray:
+    """Nielsen's cosine weight ``max(cos theta_i, 0) * max(cos theta_o, 0)`` at
+    Rusinkiewicz angles (radians, broadcastable); float64 of the broadcast shape."""
+    wi, wo = io_from_half_diff(theta_h, theta_d, phi_d)
+    return np.clip(wi[..., 2], 0.0, None) * np.clip(wo[..., 2], 0.0, None)
+
+
+@functools.lru_cache(maxsize=1)
+def _grid_weight() -> np.ndarray:
+    """``cosine_weight`` at every MERL cell, flat ``(N_CELLS,)``, read-only (cached:
+    every decode needs it and it costs more than the decode itself)."""
+    th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
+    w = cosine_weight(th, td, pd).reshape(N_CELLS)
+    w.flags.writeable = False
+    return w
+
+
+@dataclasses.dataclass
+class IpcaModel:
+    """A PCA basis of cosine-weighted, log-mapped BRDF tables.
+
+    Attributes
+    ----------
+    cells
+        int64 ``(P,)``, sorted flat MERL indices of the cells the basis covers.
+    reference
+        float32 ``(P,)``, per-cell median of the cosine-weighted training values.
+    mean
+        float32 ``(P,)``, mean of the mapped training vectors.
+    components
+        float32 ``(K, P)``, orthonormal principal directions, strongest first.
+    sigma
+        float32 ``(K,)``, standard deviation of the training coefficients along each
+        component.
+    materials
+        Names of the training materials.
+    """
+
+    cells: np.ndarray
+    reference: np.ndarray
+    mean: np.ndarray
+    components: np.ndarray
+    sigma: np.ndarray
+    materials: list = dataclasses.field(default_factory=list)
+    _dense: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    @property
+    def n_components(self) -> int:
+        return int(self.components.shape[0])
+
+    def save(self, path: str | os.PathLike) -> None:
+        """Write the basis as one safetensors file (format ``brdfkit-ipca``), atomically."""
+        from safetensors.numpy import save_file
+
+        tensors = {"cells": np.ascontiguousarray(self.cells, dtype=np.int64),
+                   "reference": np.ascontiguousarray(self.reference, dtype=np.float32),
+                   "mean": np.ascontiguousarray(self.mean, dtype=np.float32),
+                   "components": np.ascontiguousarray(self.components, dtype=np.float32),
+                   "sigma": np.ascontiguousarray(self.sigma, dtype=np.float32)}
+        meta = {"format": IPCA_FORMAT, "version": IPCA_VERSION,
+                "n_components": str(self.n_components), "eps": repr(EPS),
+                "weight": "cos_i*cos_o", "channels": "separate observations, shared basis",
+                "materials": json.dumps(list(self.materials))}
+        with atomic_path(path) as tmp:
+            save_file(tensors, tmp, metadata=meta)
+
+    def _table(self) -> np.ndarray:
+        """Dense ``(N_CELLS, K + 2)`` float32 ``[reference, mean, components...]``, NaN
+        off the basis cells, built once for trilinear lookups."""
+        if self._dense is None:
+            dense = np.full((N_CELLS, self.n_components + 2), np.nan, dtype=np.float32)
+            dense[self.cells, 0] = self.reference
+            dense[self.cells, 1] = self.mean
+            dense[self.cells, 2:] = self.components.T
+            self._dense = dense
+        return self._dense
+
+    def coefficients(self, samples, lam: float | None = None) -> np.ndarray:
+        """Fit the basis to a sample set: coefficients ``(K, 3)``, one column per channel.
+
+        Parameters
+        ----------
+        samples
+            :class:`brdfkit.samples.SampleSet`; BRDF values in 1/sr.
+        lam
+            Ridge weight (``>= 0``; default :data:`DEFAULT_LAMBDA`), on coefficients in
+            units of the training standard deviations.
+        """
+        lam = DEFAULT_LAMBDA if lam is None else float(lam)
+        if not lam >= 0 or not np.isfinite(lam):
+            raise InputError(f"ridge lambda must be a finite number >= 0, got {lam}")
+        if len(samples) == 0:
+            raise InputError(f"{samples.source or 'samples'}: no samples to fit")
+        at = lookup_trilinear(self._table().reshape(GRID_SHAPE + (-1,)),
+                              samples.theta_h, samples.theta_d, samples.phi_d)
+        w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+        # Samples no basis cell reaches, or with no weight (on the horizon), say nothing.
+        use = np.isfinite(at).all(axis=1) & (w > 0)
+        if not use.any():
+            raise InputError(f"{samples.source or 'samples'}: no sample lies on a cell the PCA "
+                             f"basis covers")
+        at, w = at[use], w[use]
+        ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
+        x = np.clip(np.asarray(samples.rgb, np.float64)[use], 0.0, None) * w[:, None]
+        b = np.log((x + EPS) / (ref[:, None] + EPS)) - mean[:, None]
+        a = comp * self.sigma.astype(np.float64)[None, :]
+        lhs = a.T @ a + lam * np.eye(self.n_components)
+        z = np.linalg.lstsq(lhs, a.T @ b, rcond=None)[0] if lam == 0 else np.linalg.solve(lhs, a.T @ b)
+        return z * self.sigma.astype(np.float64)[:, None]
+
+    def decode(self, coefficients: np.ndarray) -> np.ndarray:
+        """Dense table from coefficients ``(K, 3)``: float64 ``(90, 90, 180, 3)``, 1/sr,
+        ``>= 0``, NaN off the basis cells."""
+        c = np.asarray(coefficients, np.float32)
+        mapped = self.mean[:, None] + self.components.T @ c  # (P, 3), float32
+        ref = self.reference[:, None].astype(np.float64)
+        # expm1 form of exp(x') (x_ref + eps) - eps: exact where x' ~ 0 and x_ref ~ 0.
+        x = np.expm1(mapped.astype(np.float64)) * (ref + EPS) + ref
+        w = _grid_weight()[self.cells]
+        out = np.full((N_CELLS, 3), np.nan)
+        out[self.cells] = np.clip(x / w[:, None], 0.0, None)
+        return out.reshape(GRID_SHAPE + (3,))
+
+    def reconstruct(self, samples, lam: float | None = None) -> np.ndarray:
+        """Dense table fitted to a sample set (see :meth:`coefficients`, :meth:`decode`)."""
+        return self.decode(self.coefficients(samples, lam))
+
+    def project(self, table: np.ndarray) -> np.ndarray:
+        """Least-squares coefficients ``(K, 3)`` of a dense table over all basis cells it
+        measures (no regulariser): the best this basis can do for that material."""
+        flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[self.cells]
+        w = _grid_weight()[self.cells]
+        ok = np.isfinite(flat).all(axis=1)
+        b = np.log((np.clip(flat[ok], 0, None) * w[ok, None] + EPS) /
+                   (self.reference[ok, None].astype(np.float64) + EPS)) - self.mean[ok, None]
+        a = self.components[:, ok].T.astype(np.float64)
+        return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
+def _load_table(item) -> tuple[np.ndarray, str | None]:
+    from ..merl import read_merl
+
+    if isinstance(item, (str, os.PathLike)):
+        return read_merl(item), os.path.splitext(os.path.basename(os.fspath(item)))[0]
+    arr = np.asarray(item)
+    if arr.shape != GRID_SHAPE + (3,):
+        raise InputError(f"a training table has shape {arr.shape}, expected (90, 90, 180, 3)")
+    return arr, None
+
+
+def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
+             names: Sequence[str] | None = None, chunk: int = 1 << 16) -> IpcaModel:
+    """Fit the PCA basis to training tables.
+
+    Parameters
+    ----------
+    tables_or_paths
+        ``(90, 90, 180, 3)`` arrays (1/sr, NaN where not measured) or MERL file paths,
+        read one at a time.
+    n_components
+        Number of principal components ``K`` kept (8 in Nielsen et al.); at most
+        ``3 M - 1`` for ``M`` tables.
+    names
+        Names of the materials for the file's metadata (default: file stems, or
+        ``table-<i>`` for arrays).
+    chunk
+        Cells per block in the median and matrix-product passes.
+
+    Returns
+    -------
+    IpcaModel
+    """
+    items = list(tables_or_paths)
+    if not items:
+        raise InputError("fitting a PCA basis needs at least one training table")
+    n_components = int(n_components)
+    if n_components < 1:
+        raise InputError(f"number of PCA components must be at least 1, got {n_components}")
+    rows = 3 * len(items)
+    if n_components > rows - 1:
+        raise InputError(f"{n_components} PCA components need at least {n_components + 1} training "
+                         f"channel vectors (3 per material), got {len(items)} material(s)")
+    w_all = _grid_weight()
+    cand = np.flatnonzero(w_all > 0)  # cells where both directions are above the horizon
+    w = w_all[cand].astype(np.float32)
+    data = np.empty((rows, cand.size), dtype=np.float32)
+    materials = []
+    for i, item in enumerate(items):
+        table, stem = _load_table(item)
+        materials.append(names[i] if names is not None else (stem or f"table-{i}"))
+        vals = np.asarray(table, np.float64).reshape(N_CELLS, 3)[cand]
+        data[3 * i:3 * i + 3] = (np.clip(vals, 0.0, None).T * w).astype(np.float32)
+        del table, vals
+    seen = np.isfinite(data).any(axis=0)
+    if not seen.all():
+        cand, data = cand[seen], data[:, seen]
+    if cand.size == 0:
+        raise InputError("the training tables have no measured cell in common with the MERL grid")
+    p = cand.size
+    reference = np.empty(p, dtype=np.float32)
+    mean = np.empty(p, dtype=np.float32)
+    import warnings
+    for s in range(0, p, chunk):
+        block = data[:, s:s + chunk]
+        if np.isnan(block).any():
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", RuntimeWarning)
+                reference[s:s + chunk] = np.nanmedian(block, axis=0)
+        else:
+            reference[s:s + chunk] = np.median(block, axis=0)
+        ref = reference[s:s + chunk]
+        np.log((block + np.float32(EPS)) / (ref + np.float32(EPS)), out=block)
+        np.nan_to_num(block, copy=False, nan=0.0)  # a missing value counts as the reference
+        mean[s:s + chunk] = block.mean(axis=0, dtype=np.float64)
+        block -= mean[s:s + chunk]
+    gram = np.zeros((rows, rows), dtype=np.float64)
+    for s in range(0, p, chunk):
+        block = data[:, s:s + chunk]
+        gram += (block @ block.T).astype(np.float64)
+    evals, evecs = np.linalg.eigh(gram)
+    order = np.argsort(evals)[::-1][:n_components]
+    evals, evecs = np.clip(evals[order], 0.0, None), evecs[:, order]
+    if evals[-1] <= 1e-12 * max(evals[0], 1e-30):
+        raise InputError(f"the training tables span fewer than {n_components} independent directions; "
+                         f"use fewer components or more materials")
+    components = np.empty((n_components, p), dtype=np.float32)
+    proj = (evecs / np.sqrt(evals)).astype(np.float32).T  # (K, rows)
+    for s in range(0, p, chunk):
+        components[:, s:s + chunk] = proj @ data[:, s:s + chunk]
+    del data
+    sigma = np.sqrt(evals / max(rows - 1, 1)).astype(np.float32)
+    return IpcaModel(cand.astype(np.int64), reference, mean, components, sigma, materials)
+
+
+def load_ipca(path: str | os.PathLike) -> IpcaModel:
+    """Read a basis written by :meth:`IpcaModel.save`.
+
+    Raises
+    ------
+    FormatError
+        Not a safetensors file, another format or version, missing or inconsistent
+        tensors, non-finite values.
+    """
+    from safetensors import SafetensorError, safe_open
+
+    path = check_input_file(path)
+    try:
+        with safe_open(path, framework="numpy") as f:
+            meta = f.metadata() or {}
+            if meta.get("format") != IPCA_FORMAT:
+                raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
+                                        f"expected {IPCA_FORMAT!r})")
+            if meta.get("version") != IPCA_VERSION:
+                raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
+                                        f"(this brdfkit reads version {IPCA_VERSION})")
+            missing = [k for k in _TENSORS if k not in f.keys()]
+            if missing:
+                raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
+            t = {k: f.get_tensor(k) for k in _TENSORS}
+    except SafetensorError as e:
+        raise FormatError(path, f"not a valid safetensors file ({e})") from None
+    except (OSError, ValueError) as e:
+        raise FormatError(path, f"not a valid safetensors file ({e})") from None
+    cells, comp = t["cells"], t["components"]
+    p = cells.shape[0] if cells.ndim == 1 else -1
+    if (cells.ndim != 1 or comp.ndim != 2 or comp.shape[1] != p or t["reference"].shape != (p,)
+            or t["mean"].shape != (p,) or t["sigma"].shape != (comp.shape[0],) or comp.shape[0] < 1):
+        raise FormatError(path, "PCA basis tensors have inconsistent shapes")
+    if p == 0 or cells.min() < 0 or cells.max() >= N_CELLS or (np.diff(cells) <= 0).any():
+        raise FormatError(path, "PCA basis cell indices are not sorted indices of the MERL grid")
+    for k in ("reference", "mean", "components", "sigma"):
+        if not np.isfinite(t[k]).all():
+            raise FormatError(path, f"PCA basis tensor {k!r} holds non-finite values")
+    try:
+        materials = json.loads(meta.get("materials", "[]"))
+    except json.JSONDecodeError:
+        raise FormatError(path, "PCA basis metadata 'materials' is not JSON") from None
+    return IpcaModel(cells.astype(np.int64), t["reference"].astype(np.float32),
+                     t["mean"].astype(np.float32), comp.astype(np.float32),
+                     t["sigma"].astype(np.float32), list(materials))

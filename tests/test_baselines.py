@@ -1,0 +1,255 @@
+"""The sparse-reconstruction baselines: Nielsen et al. 2015 PCA (``ipca``) and NBRDF
+(Sztrajman et al. 2021) fitted to the samples alone, and their common registry."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from brdfkit import synthetic
+from brdfkit.baselines import METHODS, get_method
+from brdfkit.baselines.ipca import fit_ipca, load_ipca
+from brdfkit.errors import FormatError, InputError
+from brdfkit.geometry import HALF_PI, io_from_half_diff, valid_mask
+from brdfkit.metrics import brdf_log_rmse
+from brdfkit.samples import SampleSet, draw_samples
+
+ALPHAS = (0.05, 0.15, 0.4)
+
+
+@pytest.fixture(scope="module")
+def lobes():
+    """GGX dielectric lobes (no diffuse part) on the MERL grid, one per roughness.
+
+    Evaluating a synthetic table costs about a second, so the library below is built
+    from these three evaluations instead of one per material."""
+    return [synthetic.table(synthetic.Material(f"lobe-{a}", "dielectric", a)) for a in ALPHAS]
+
+
+def _material(lobes, albedo, ks, mix):
+    """``albedo / pi + ks * sum_j mix_j lobe_j``: a Lambertian + GGX synthetic material."""
+    spec = sum(m * lobe for m, lobe in zip(mix, lobes))
+    return np.asarray(albedo)[None, None, None, :] / np.pi + ks * spec
+
+
+@pytest.fixture(scope="module")
+def library(lobes):
+    """12 training materials (3 roughnesses, random albedo and specular strength) and one
+    held-out material mixing two lobes with an albedo outside the training draws."""
+    rng = np.random.default_rng(7)
+    train = []
+    for i in range(12):
+        mix = np.eye(3)[i % 3]
+        train.append(_material(lobes, rng.uniform(0.02, 0.8, 3), rng.uniform(0.3, 1.5), mix))
+    held = _material(lobes, (0.6, 0.25, 0.05), 0.8, (0.0, 0.5, 0.5))
+    return train, held
+
+
+@pytest.fixture(scope="module")
+def basis(library):
+    train, _ = library
+    return fit_ipca(train, n_components=4, names=[f"m{i}" for i in range(len(train))])
+
+
+# --- IPCA -------------------------------------------------------------------------------------
+
+def test_ipca_basis_shapes_and_orthonormality(basis):
+    assert basis.n_components == 4
+    assert basis.materials == [f"m{i}" for i in range(12)]
+    p = basis.cells.size
+    assert basis.components.shape == (4, p) and basis.mean.shape == basis.reference.shape == (p,)
+    # The basis covers exactly the cells the training tables measure.
+    assert p == int(valid_mask().sum())
+    gram = basis.components.astype(np.float64) @ basis.components.T.astype(np.float64)
+    np.testing.assert_allclose(gram, np.eye(4), atol=1e-4)
+    assert np.all(np.diff(basis.sigma) <= 0) and basis.sigma[-1] > 0
+
+
+def test_ipca_reconstructs_a_training_material_from_2000_samples(basis, library):
+    train, _ = library
+    table = train[4]
+    rec = basis.reconstruct(draw_samples(table, 2000, seed=3))
+    assert rec.shape == (90, 90, 180, 3) and rec.dtype == np.float64
+    measured = np.isfinite(table).all(axis=-1)
+    assert np.isfinite(rec[measured]).all() and (rec[measured] >= 0).all()
+    assert np.isnan(rec[~measured]).all()
+    err = brdf_log_rmse(rec, table)
+    best = brdf_log_rmse(basis.decode(basis.project(table)), table)
+    # The training material lies (almost) in the span: close to the best the basis can do.
+    assert err < 0.02, err
+    assert err < best + 0.01, (err, best)
+
+
+def test_ipca_held_out_material_beats_the_mean(basis, library):
+    _, held = library
+    rec = basis.reconstruct(draw_samples(held, 2000, seed=4))
+    err = brdf_log_rmse(rec, held)
+    mean_only = brdf_log_rmse(basis.decode(np.zeros((4, 3))), held)
+    assert err < 0.6 * mean_only, (err, mean_only)
+
+
+def test_ipca_arbitrary_angles_and_tiny_sample_sets(basis, lobes, library):
+    # Off-grid angles read the basis trilinearly; the fit must still match the material.
+    rng = np.random.default_rng(0)
+    th, td, pd = rng.uniform(0, HALF_PI, 4000), rng.uniform(0, HALF_PI, 4000), rng.uniform(0, np.pi, 4000)
+    wi, wo = io_from_half_diff(th, td, pd)
+    keep = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    albedo = np.array([0.3, 0.5, 0.2])
+    spec = synthetic.evaluate(synthetic.Material("x", "dielectric", ALPHAS[1]), wi[keep], wo[keep])
+    off = SampleSet(th[keep], td[keep], pd[keep], albedo / np.pi + spec)
+    table = _material(lobes, albedo, 1.0, (0.0, 1.0, 0.0))
+    err = brdf_log_rmse(basis.reconstruct(off), table)
+    assert err < 0.03, err
+    # One sample is enough for a finite, non-negative table (the ridge keeps it posed).
+    one = draw_samples(library[0][0], 1, seed=0)
+    rec1 = basis.reconstruct(one)
+    assert np.isfinite(rec1[valid_mask()]).all() and (rec1[valid_mask()] >= 0).all()
+    with pytest.raises(InputError, match="lambda"):
+        basis.reconstruct(one, lam=-1)
+
+
+def test_ipca_save_load_round_trip(basis, library, tmp_path):
+    path = tmp_path / "basis.safetensors"
+    basis.save(path)
+    back = load_ipca(path)
+    for k in ("cells", "reference", "mean", "components", "sigma"):
+        np.testing.assert_array_equal(getattr(back, k), getattr(basis, k))
+    assert back.materials == basis.materials
+    samples = draw_samples(library[1], 300, seed=1)
+    np.testing.assert_array_equal(back.reconstruct(samples), basis.reconstruct(samples))
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".brdfkit-tmp-")]
+
+
+def test_ipca_load_refuses_other_files(basis, tmp_path):
+    text = tmp_path / "notes.safetensors"
+    text.write_text("not a safetensors file\n")
+    with pytest.raises(FormatError, match="notes.safetensors"):
+        load_ipca(text)
+    good = tmp_path / "b.safetensors"
+    basis.save(good)
+    cut = tmp_path / "cut.safetensors"
+    cut.write_bytes(good.read_bytes()[:100000])
+    with pytest.raises(FormatError, match="cut.safetensors"):
+        load_ipca(cut)
+    from brdfkit.mapping import save_reference
+    ref = tmp_path / "ref.safetensors"
+    save_reference(ref, np.zeros((90, 90, 180, 3), np.float32))
+    with pytest.raises(FormatError, match="not a brdfkit PCA basis"):
+        load_ipca(ref)
+    with pytest.raises(InputError, match="no such file"):
+        load_ipca(tmp_path / "missing.safetensors")
+
+
+def test_ipca_fit_refuses_too_many_components(library):
+    with pytest.raises(InputError, match="components"):
+        fit_ipca(library[0][:2], n_components=8)
+    with pytest.raises(InputError, match="shape"):
+        fit_ipca([np.zeros((3, 3))], n_components=1)
+
+
+# --- NBRDF ------------------------------------------------------------------------------------
+
+def _analytic_samples(material, n, seed=0):
+    """``n`` samples of an analytic material at random angles above the horizon."""
+    rng = np.random.default_rng(seed)
+    th, td, pd = rng.uniform(0, HALF_PI, 4 * n), rng.uniform(0, HALF_PI, 4 * n), rng.uniform(0, np.pi, 4 * n)
+    wi, wo = io_from_half_diff(th, td, pd)
+    keep = np.flatnonzero((wi[:, 2] > 0) & (wo[:, 2] > 0))[:n]
+    return SampleSet(th[keep], td[keep], pd[keep], synthetic.evaluate(material, wi[keep], wo[keep]))
+
+
+def test_nbrdf_fits_a_smooth_material(library):
+    from brdfkit.baselines.nbrdf import fit_nbrdf
+
+    table = library[0][2]  # alpha 0.4: broad lobe plus a diffuse part
+    samples = draw_samples(table, 400, seed=0)
+    untrained = fit_nbrdf(samples, steps=1, lr=1e-12, seed=0).to_table()
+    model = fit_nbrdf(samples, steps=1500, seed=0)
+    fitted = model.to_table()
+    assert np.isnan(fitted[~valid_mask()]).all()
+    err, err0 = brdf_log_rmse(fitted, table), brdf_log_rmse(untrained, table)
+    assert err < 0.3 * err0, (err, err0)
+    assert err < 0.1, err
+    # eval_hd agrees with the table at the sampled cells.
+    at = model.eval_hd(samples.hd())
+    from brdfkit.geometry import cell_index
+    np.testing.assert_allclose(at, fitted.reshape(-1, 3)[cell_index(samples.theta_h, samples.theta_d,
+                                                                    samples.phi_d)], rtol=1e-5, atol=1e-6)
+
+
+def test_nbrdf_is_deterministic_by_seed():
+    from brdfkit.baselines.nbrdf import fit_nbrdf
+
+    mat = synthetic.Material("d", "dielectric", 0.2, albedo=(0.4, 0.3, 0.2))
+    samples = _analytic_samples(mat, 200)
+    a = fit_nbrdf(samples, steps=200, seed=5)
+    b = fit_nbrdf(samples, steps=200, seed=5)
+    c = fit_nbrdf(samples, steps=200, seed=6)
+    sa, sb, sc = a.net.state_dict(), b.net.state_dict(), c.net.state_dict()
+    assert all(np.array_equal(sa[k].numpy(), sb[k].numpy()) for k in sa)
+    assert not all(np.array_equal(sa[k].numpy(), sc[k].numpy()) for k in sa)
+    assert a.loss == b.loss
+
+
+@pytest.mark.parametrize("case", ["one-sample", "stiff-mirror", "stiff-black"])
+def test_nbrdf_stays_finite_on_stiff_input(case):
+    from brdfkit.baselines.nbrdf import fit_nbrdf
+
+    stiff = {m.name: m for m in synthetic.STIFF}
+    if case == "one-sample":
+        samples = _analytic_samples(stiff["stiff-white"], 1)
+    else:
+        samples = _analytic_samples(stiff[case], 400)
+        if case == "stiff-mirror":  # make sure the peak (values above 1e3) is in the set
+            peak = SampleSet(np.array([0.0]), np.array([0.3]), np.array([1.0]),
+                             synthetic.evaluate(stiff[case], *io_from_half_diff(0.0, 0.3, 1.0))[None])
+            assert peak.rgb.max() > 1e3
+            samples = SampleSet(*(np.concatenate([getattr(samples, k), getattr(peak, k)])
+                                  for k in ("theta_h", "theta_d", "phi_d", "rgb")))
+    model = fit_nbrdf(samples, steps=300, seed=0)
+    table = model.to_table()
+    ok = valid_mask()
+    assert np.isfinite(table[ok]).all() and (table[ok] >= 0).all()
+    assert np.isfinite(model.loss)
+
+
+def test_nbrdf_refuses_bad_parameters():
+    from brdfkit.baselines.nbrdf import fit_nbrdf
+
+    samples = _analytic_samples(synthetic.STIFF[2], 10)
+    with pytest.raises(InputError, match="steps"):
+        fit_nbrdf(samples, steps=0)
+    with pytest.raises(InputError, match="learning rate"):
+        fit_nbrdf(samples, lr=float("nan"))
+
+
+# --- registry ---------------------------------------------------------------------------------
+
+def test_registry_names_and_uniform_interface(basis, library, tmp_path):
+    assert set(METHODS) == {"hypernet", "ipca", "nbrdf"}
+    with pytest.raises(InputError, match="unknown method 'pca'.*ipca"):
+        get_method("pca")
+    ipca = get_method("ipca")
+    path = tmp_path / "basis.safetensors"
+    basis.save(path)
+    samples = draw_samples(library[1], 500, seed=2)
+    np.testing.assert_array_equal(ipca.reconstruct(samples, str(path)), basis.reconstruct(samples))
+    np.testing.assert_array_equal(ipca.reconstruct(samples, ipca.load(path), lam=0.5),
+                                  basis.reconstruct(samples, lam=0.5))
+    with pytest.raises(InputError, match="needs a PCA basis"):
+        ipca.reconstruct(samples)
+    nbrdf = get_method("nbrdf")
+    with pytest.raises(InputError, match="takes no model"):
+        nbrdf.reconstruct(samples, str(path))
+    table = nbrdf.reconstruct(samples, steps=20)
+    assert table.shape == (90, 90, 180, 3) and np.isfinite(table[valid_mask()]).all()
+
+
+def test_baselines_import_no_torch():
+    code = ("import sys, brdfkit.baselines, brdfkit.baselines.ipca; "
+            "sys.exit(1 if 'torch' in sys.modules else 0)")
+    assert subprocess.run([sys.executable, "-c", code]).returncode == 0
