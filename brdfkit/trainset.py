@@ -1,0 +1,314 @@
+"""Training data for the hypernetwork: MERL tables held compactly, batches drawn on the fly.
+
+Gokbudak et al. 2024 train on MERL tables mapped by the log-relative mapping of eq. (1)
+with ``rho_ref`` the per-cell median of the training materials. A table is 1,458,000
+cells; expanding every cell into its 6 HD numbers (plus 3 values) would take 52 MB per
+material in float32. Instead :class:`TrainingSet` keeps, per material, only the mapped
+values of the *measured* cells (float32 ``(n_cells, 3)``, about 13 MB) and, once, the flat
+indices of those cells; :class:`BatchSampler` draws cell indices for each step and turns
+them into HD vectors and ``cos(theta_i)`` on the training device
+(:func:`brdfkit.geometry.cell_angles`, :func:`~brdfkit.geometry.hd_vectors`,
+:func:`~brdfkit.geometry.cos_theta_i`, which accept tensors).
+
+Sampling scheme (``docs/training.md``): each step takes ``B`` materials; for each, a
+*query* set (uniform over the measured cells, the cells :func:`brdfkit.metrics.brdf_log_rmse`
+averages over) carries the loss, and a separate *context* set, of one size per step drawn
+log-uniformly in ``[context_min, context_max]``, feeds the set encoder. Half of the
+context sets are uniform over the measured cells and half uniform over the Rusinkiewicz
+angles, the default of :func:`brdfkit.samples.draw_samples` and of real gonioreflectometer
+sweeps, so that one model serves any number of samples drawn either way.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import warnings
+from typing import Callable, Iterable, Sequence
+
+import numpy as np
+
+from .errors import BrdfkitError, InputError
+from .geometry import N_CELLS, N_PHI_D, N_THETA_D
+
+__all__ = ["collect_materials", "read_exclude_list", "median_reference_fast", "TrainingSet",
+           "BatchSampler"]
+
+MERL_SUFFIX = ".binary"
+
+
+def _stem(path: str) -> str:
+    base = os.path.basename(path)
+    return base[: -len(MERL_SUFFIX)] if base.endswith(MERL_SUFFIX) else os.path.splitext(base)[0]
+
+
+def collect_materials(data, exclude: Iterable[str] = ()) -> tuple[list[str], list[str], list[str], list[str]]:
+    """Expand the training inputs into a sorted, deterministic list of MERL files.
+
+    Parameters
+    ----------
+    data
+        A path or a sequence of paths: ``.binary`` files, or folders whose ``*.binary``
+        files (not recursive) are all taken.
+    exclude
+        Material names (file stems, ``.binary`` suffix optional) to hold out.
+
+    Returns
+    -------
+    tuple
+        ``(paths, names, excluded, unknown)``: the training files and their names, both
+        sorted by name; the excluded names that were found; the excluded names that
+        matched no input (worth a warning: a typo would let a test material in).
+
+    Raises
+    ------
+    InputError
+        A path that does not exist, a folder without ``.binary`` files, two different
+        files with the same name, or nothing left to train on.
+    """
+    if isinstance(data, (str, os.PathLike)):
+        data = [data]
+    found: dict[str, str] = {}
+    for item in data:
+        item = os.fspath(item)
+        if os.path.isdir(item):
+            files = sorted(os.path.join(item, f) for f in os.listdir(item)
+                           if f.endswith(MERL_SUFFIX) and not f.startswith("."))
+            if not files:
+                raise InputError(f"{item}: folder holds no {MERL_SUFFIX} files")
+        elif os.path.exists(item):
+            files = [item]
+        else:
+            raise InputError(f"{item}: no such file or folder")
+        for f in files:
+            name = _stem(f)
+            if name in found and os.path.realpath(found[name]) != os.path.realpath(f):
+                raise InputError(f"{f}: material name {name!r} also given as {found[name]}; "
+                                 f"names (file stems) must be unique")
+            found[name] = f
+    wanted_out = {_stem(e.strip()) for e in exclude if e and e.strip()}
+    excluded = sorted(wanted_out & set(found))
+    unknown = sorted(wanted_out - set(found))
+    names = sorted(n for n in found if n not in wanted_out)
+    if not names:
+        what = "all inputs are excluded" if found else "no materials given"
+        raise InputError(f"nothing to train on: {what}")
+    return [found[n] for n in names], names, excluded, unknown
+
+
+def read_exclude_list(path: str | os.PathLike) -> list[str]:
+    """Material names from a text file: one a line, ``#`` starts a comment, blank lines
+    ignored (the format of ``../shared/data/merl-test.txt``)."""
+    from .atomic import check_input_file
+
+    path = check_input_file(path)
+    try:
+        with open(path, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+    except UnicodeDecodeError:
+        raise InputError(f"{path}: exclude list is not UTF-8 text") from None
+    names = [ln.split("#", 1)[0].strip() for ln in lines]
+    return [n for n in names if n]
+
+
+def median_reference_fast(stack: np.ndarray) -> np.ndarray:
+    """Per-cell median of stacked tables; the same numbers as
+    :func:`brdfkit.mapping.median_reference`, about 5x faster.
+
+    ``np.nanmedian`` is slow; cells measured in every table (almost all of them) take a
+    sort along the material axis instead, and only the rest go through ``nanmedian``.
+
+    Parameters
+    ----------
+    stack
+        float32 ``(M, 90 * 90 * 180 * 3)``, NaN where not measured.
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 ``(90, 90, 180, 3)``, NaN where no table is measured.
+    """
+    m = stack.shape[0]
+    finite = np.isfinite(stack)
+    full = finite.all(axis=0)
+    out = np.full(stack.shape[1], np.nan, dtype=np.float32)
+    chunk = 1 << 19
+    for s in range(0, stack.shape[1], chunk):
+        sel = np.flatnonzero(full[s:s + chunk]) + s
+        if sel.size:
+            srt = np.sort(np.ascontiguousarray(stack[:, sel].T), axis=1)
+            # np.median's own rule: the mean of the two middle values for an even count.
+            out[sel] = srt[:, m // 2] if m % 2 else (srt[:, m // 2 - 1] + srt[:, m // 2]) / np.float32(2)
+    part = np.flatnonzero(~full & finite.any(axis=0))
+    if part.size:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            out[part] = np.nanmedian(stack[:, part], axis=0)
+    return out.reshape(90, 90, 180, 3)
+
+
+class TrainingSet:
+    """The training materials of one process, mapped and compact.
+
+    Attributes
+    ----------
+    names, paths
+        All training materials (every rank), sorted by name.
+    rho_ref
+        float32 ``(90, 90, 180, 3)``: per-cell median of *all* training materials, the
+        same on every rank; NaN where none is measured.
+    cells
+        int64 ``(n_cells,)``: flat MERL indices of the cells measured in every training
+        material (the cells losses and contexts are drawn from).
+    own
+        Indices into ``names`` of this rank's share, ``range(rank, M, world)``.
+    values
+        float32 ``(len(own), n_cells, 3)``: mapped values ``rho'`` of the share at ``cells``.
+    digest
+        sha256 hex of the names and the reference table: identifies the data for resuming.
+    """
+
+    def __init__(self, names, paths, rho_ref, cells, own, values):
+        self.names = list(names)
+        self.paths = list(paths)
+        self.rho_ref = rho_ref
+        self.cells = cells
+        self.own = list(own)
+        self.values = values
+        h = hashlib.sha256()
+        for n in self.names:
+            h.update(n.encode() + b"\0")
+        h.update(np.ascontiguousarray(rho_ref, dtype=np.float32).tobytes())
+        self.digest = h.hexdigest()
+
+    @classmethod
+    def load(cls, paths: Sequence[str], names: Sequence[str], rank: int = 0, world: int = 1,
+             on_read: Callable[[int, str], None] | None = None) -> "TrainingSet":
+        """Read every training file, compute the reference, keep this rank's share.
+
+        Every rank reads every file: the reference table (the mapping's denominator) must
+        be the median of *all* training materials and bit-identical across ranks.
+
+        Raises
+        ------
+        FormatError
+            A file that is not a MERL table (naming it).
+        InputError
+            No cell is measured in every training material.
+        """
+        from .mapping import to_mapped
+        from .merl import read_merl
+
+        own = list(range(rank, len(paths), world))
+        if not own:
+            raise InputError(f"{len(paths)} training material(s) cannot be shared among {world} "
+                             f"processes: each needs at least one")
+        stack = np.empty((len(paths), N_CELLS * 3), dtype=np.float32)
+        measured = np.ones(N_CELLS, dtype=bool)
+        for i, p in enumerate(paths):
+            if on_read:
+                on_read(i, p)
+            try:
+                table = read_merl(p)
+            except BrdfkitError:
+                raise
+            except (OSError, MemoryError) as e:
+                raise InputError(f"{p}: cannot read ({getattr(e, 'strerror', None) or e})") from None
+            flat = table.reshape(N_CELLS, 3)
+            measured &= np.isfinite(flat).all(axis=1)
+            stack[i] = flat.reshape(-1)
+            del table, flat
+        rho_ref = median_reference_fast(stack)
+        cells = np.flatnonzero(measured).astype(np.int64)
+        if cells.size == 0:
+            raise InputError("no MERL cell is measured in every training material")
+        ref_cells = rho_ref.reshape(N_CELLS, 3)[cells].astype(np.float64)
+        values = np.empty((len(own), cells.size, 3), dtype=np.float32)
+        for j, i in enumerate(own):
+            rho = stack[i].reshape(N_CELLS, 3)[cells].astype(np.float64)
+            values[j] = to_mapped(rho, ref_cells)
+        del stack
+        return cls(names, paths, rho_ref, cells, own, values)
+
+
+class BatchSampler:
+    """Draws one training step's batch on a device, reproducibly from ``(seed, rank, step)``.
+
+    The generator is re-seeded from ``(seed, rank, step)`` at every step, so a run resumed
+    from a checkpoint at step ``s`` draws exactly the batches the uninterrupted run would
+    have drawn (the sampler has no other state to save).
+
+    Parameters
+    ----------
+    tset
+        The :class:`TrainingSet`.
+    device
+        ``torch.device`` for the tensors of the batch.
+    batch, query, context_min, context_max
+        Materials per step; query samples per material; context size range.
+    angle_fraction
+        Probability that a material's context is uniform over angles rather than cells.
+    """
+
+    def __init__(self, tset: TrainingSet, device, batch: int, query: int, context_min: int,
+                 context_max: int, seed: int, rank: int = 0, angle_fraction: float = 0.5):
+        import torch
+
+        self.torch = torch
+        self.device = device
+        self.batch = min(batch, len(tset.own))
+        self.query, self.cmin, self.cmax = query, context_min, context_max
+        self.seed, self.rank, self.angle_fraction = seed, rank, angle_fraction
+        self.values = torch.from_numpy(tset.values).to(device)
+        self.cells = torch.from_numpy(tset.cells).to(device)
+        # Uniform over (theta_h, theta_d, phi_d) gives theta_h row i the weight of its
+        # angular width, proportional to (i+1)^2 - i^2 = 2i + 1 (square-root spacing);
+        # theta_d and phi_d rows are equally wide.
+        row = tset.cells // (N_THETA_D * N_PHI_D)
+        w = torch.from_numpy((2 * row + 1).astype(np.float64))
+        cdf = torch.cumsum(w, 0)
+        self.cdf = cdf / cdf[-1]
+        self.gen = torch.Generator()
+
+    def _seed(self, step: int) -> int:
+        return int(np.random.SeedSequence([self.seed, self.rank, step]).generate_state(1, np.uint64)[0])
+
+    def context_size(self, step: int) -> int:
+        """The context size of ``step`` (drawn first from the step's generator)."""
+        self.gen.manual_seed(self._seed(step))
+        u = float(self.torch.rand((), generator=self.gen, dtype=self.torch.float64))
+        return int(round(np.exp(np.log(self.cmin) + u * (np.log(self.cmax) - np.log(self.cmin)))))
+
+    def draw(self, step: int):
+        """The batch of ``step``.
+
+        Returns
+        -------
+        tuple
+            ``(ctx_hd (B, C, 6), ctx_mapped (B, C, 3), q_hd (B, Q, 6), q_mapped (B, Q, 3),
+            q_cos (B, Q))``, float32 on the device.
+        """
+        torch = self.torch
+        g = self.gen
+        n_ctx = self.context_size(step)  # re-seeds g
+        n_cells = self.cells.numel()
+        mats = torch.randperm(self.values.shape[0], generator=g)[: self.batch]
+        q_pos = torch.randint(0, n_cells, (self.batch, self.query), generator=g)
+        c_cell = torch.randint(0, n_cells, (self.batch, n_ctx), generator=g)
+        c_ang = torch.searchsorted(self.cdf, torch.rand((self.batch, n_ctx), generator=g, dtype=torch.float64))
+        c_ang = c_ang.clamp_(max=n_cells - 1)
+        use_ang = torch.rand(self.batch, generator=g) < self.angle_fraction
+        c_pos = torch.where(use_ang[:, None], c_ang, c_cell)
+        mats, q_pos, c_pos = (t.to(self.device, non_blocking=True) for t in (mats, q_pos, c_pos))
+        ctx_hd, _ = self._geometry(c_pos)
+        q_hd, q_cos = self._geometry(q_pos)
+        ctx_val = self.values[mats[:, None], c_pos]
+        q_val = self.values[mats[:, None], q_pos]
+        return ctx_hd, ctx_val, q_hd, q_val, q_cos
+
+    def _geometry(self, pos):
+        from .geometry import cell_angles, cos_theta_i, hd_vectors
+
+        th, td, pd = cell_angles(self.cells[pos])
+        th, td, pd = th.float(), td.float(), pd.float()
+        return hd_vectors(th, td, pd), cos_theta_i(th, td, pd).clamp_(min=0.0)

@@ -1,0 +1,99 @@
+"""Shared helpers of the training tests (fit, resume, DDP, demo).
+
+Not a conftest: plain functions imported by the test modules that need them.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from brdfkit.merl import is_merl_file
+
+# A model small enough to train in seconds on one core; every fit in the tests uses it.
+TINY = dict(query_size=512, context_min=50, context_max=400, hypo_hidden=32, decoder_hidden=64,
+            encoder_hidden=(64, 64), lr=2e-3, warmup_steps=20, lr_schedule="constant")
+TINY_LATENT = 8
+
+
+def tiny_cli_options() -> list[str]:
+    """``TINY`` as ``brdfkit fit -O KEY=VALUE`` arguments."""
+    out = []
+    for k, v in TINY.items():
+        v = list(v) if isinstance(v, tuple) else v
+        out += ["-O", f"{k}={v}".replace(" ", "")]
+    return out + ["--latent-dim", str(TINY_LATENT)]
+
+
+def tiny_library(tmp_path_factory, n: int = 3) -> Path:
+    """A folder of ``n`` synthetic MERL tables (random GGX materials, seed 1), written once
+    per test session and shared by the test modules."""
+    from brdfkit.synthetic import write_library
+
+    folder = tmp_path_factory.getbasetemp() / f"training-lib-{n}"
+    names = [f"synth-{i:03d}.binary" for i in range(n)]
+    if not all(is_merl_file(folder / f) for f in names):
+        write_library(folder, n, seed=1, stiff=False)
+    return folder
+
+
+def quiet_env() -> dict:
+    """Environment for subprocesses: one thread each (the test machine has 2 shared
+    cores; oversubscribed OpenMP threads slow tiny models down tenfold)."""
+    env = dict(os.environ)
+    env["OMP_NUM_THREADS"] = "1"
+    env["MKL_NUM_THREADS"] = "1"
+    return env
+
+
+def brdfkit_script() -> str:
+    script = Path(sys.executable).with_name("brdfkit")
+    if not script.exists():
+        raise RuntimeError("the brdfkit console script is not installed beside this Python")
+    return str(script)
+
+
+def popen_brdfkit(args, **kw) -> subprocess.Popen:
+    """Start ``brdfkit ARGS`` as a user would (own process, text output captured)."""
+    return subprocess.Popen([brdfkit_script()] + [str(a) for a in args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=quiet_env(), **kw)
+
+
+def temp_leftovers(folder) -> list[str]:
+    """Temporary files of ``brdfkit.atomic`` left in ``folder``."""
+    return sorted(f for f in os.listdir(folder) if f.startswith(".brdfkit-tmp-"))
+
+
+def mapped_mse_and_log_rmse(net, rho_ref, table, n_samples=200, n_cells=100_000, seed=5):
+    """Reconstruct ``table`` from ``n_samples`` of its samples with ``net`` (encode, then
+    the hyponet at ``n_cells`` random measured cells) and score it.
+
+    Returns ``(mapped-space MSE, brdf_log_rmse over those cells)``.
+    """
+    import torch
+
+    from brdfkit.geometry import N_CELLS, cell_angles, cell_index, hd_vectors
+    from brdfkit.hypernet import hyponet_forward
+    from brdfkit.mapping import from_mapped, to_mapped
+    from brdfkit.metrics import brdf_log_rmse
+    from brdfkit.samples import draw_samples
+
+    flat = table.reshape(N_CELLS, 3)
+    ref = np.asarray(rho_ref, np.float64).reshape(N_CELLS, 3)
+    s = draw_samples(table, n_samples, seed=seed)
+    ctx = to_mapped(s.rgb, ref[cell_index(s.theta_h, s.theta_d, s.phi_d)])
+    measured = np.flatnonzero(np.isfinite(flat).all(1))
+    cells = np.random.default_rng(seed).choice(measured, size=min(n_cells, measured.size), replace=False)
+    with torch.no_grad():
+        z = net.encode(torch.tensor(s.hd(), dtype=torch.float32)[None],
+                       torch.tensor(ctx, dtype=torch.float32)[None])
+        hd = torch.tensor(hd_vectors(*cell_angles(cells)), dtype=torch.float32)[None]
+        pred = hyponet_forward(net.hyponet_weights(z), hd)[0].double().numpy()
+    target = to_mapped(flat[cells], ref[cells])
+    out = np.full((N_CELLS, 3), np.nan)
+    out[cells] = from_mapped(pred, ref[cells])
+    return float(np.mean((pred - target) ** 2)), brdf_log_rmse(out.reshape(table.shape), table)

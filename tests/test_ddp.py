@@ -1,0 +1,52 @@
+"""Data-parallel training through a real ``torchrun --nproc_per_node 2`` (gloo, CPU)."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from brdfkit.merl import read_merl
+from brdfkit.modelfile import load_model
+from brdfkit.trainset import median_reference_fast
+
+from helpers_training import brdfkit_script, quiet_env, temp_leftovers, tiny_cli_options, tiny_library
+
+pytest.importorskip("torch.distributed")
+
+
+def torchrun() -> list[str]:
+    script = Path(sys.executable).with_name("torchrun")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "torch.distributed.run"]
+
+
+def test_two_process_fit_gives_one_model_with_identical_ranks(tmp_path_factory, tmp_path):
+    lib = tiny_library(tmp_path_factory)
+    out = tmp_path / "m.safetensors"
+    # A wall budget far below the step count: the stop must be agreed by both ranks
+    # (rank 0's clock, shared each step), or one rank would hang in the next all-reduce.
+    cmd = torchrun() + ["--nproc_per_node", "2", "--no-python", brdfkit_script(), "fit", str(lib),
+                        "-o", str(out), "--steps", "100000", "--minutes", "0.12", "--device", "cpu",
+                        *tiny_cli_options()]
+    env = quiet_env()
+    env.pop("WORLD_SIZE", None)
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=240, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    # One model (and its checkpoint) and nothing else: rank 1 writes no files.
+    assert sorted(os.listdir(tmp_path)) == ["m.safetensors", "m.safetensors.ckpt"]
+    assert temp_leftovers(tmp_path) == []
+    assert proc.stderr.count("wrote ") == 1
+    model = load_model(out, "cpu")
+    meta = model.meta
+    assert meta["world_size"] == 2
+    assert 0 < meta["steps"] < 100000 and meta["skipped_steps"] == 0
+    # Each rank reported the fingerprint of its own final weights: both equal the file's.
+    assert meta["rank_fingerprints"] == [model.fingerprint, model.fingerprint]
+    # The reference is the median of ALL training materials, not of rank 0's share.
+    stack = np.stack([read_merl(lib / f"synth-00{i}.binary").astype(np.float32).reshape(-1)
+                      for i in range(3)])
+    np.testing.assert_array_equal(model.rho_ref, median_reference_fast(stack))

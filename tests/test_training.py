@@ -1,0 +1,278 @@
+"""Training: the model learns, bad steps are skipped, checkpoints resume, inputs are checked.
+
+All fits use the tiny model of ``helpers_training.TINY`` on 3 synthetic materials, one
+thread; the subprocess tests run the real ``brdfkit fit`` command and real signals.
+"""
+
+from __future__ import annotations
+
+import os
+import signal
+import time
+import warnings
+
+import numpy as np
+import pytest
+import torch
+
+from brdfkit import hypernet
+from brdfkit.checkpoint import load_checkpoint
+from brdfkit.errors import FormatError, InputError
+from brdfkit.merl import read_merl
+from brdfkit.modelfile import load_model, weights_fingerprint
+from brdfkit.training import TrainingError, fit
+from brdfkit.trainset import collect_materials, median_reference_fast, read_exclude_list
+
+from helpers_training import (TINY, TINY_LATENT, mapped_mse_and_log_rmse, popen_brdfkit,
+                              temp_leftovers, tiny_cli_options, tiny_library)
+
+
+@pytest.fixture(autouse=True)
+def one_thread():
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
+@pytest.fixture(scope="module")
+def lib(tmp_path_factory):
+    return tiny_library(tmp_path_factory)
+
+
+def tiny_fit(lib, out, **kw):
+    kw = {**TINY, "latent_dim": TINY_LATENT, "progress": False, **kw}
+    return fit(lib, out, **kw)
+
+
+def untrained(cfg, seed=0):
+    torch.manual_seed(seed)
+    return hypernet.HyperBRDF(cfg).eval()
+
+
+# --- the model learns ---------------------------------------------------------------------
+
+def test_trained_model_reconstructs_far_better_than_untrained(lib, tmp_path):
+    out = tmp_path / "m.safetensors"
+    tiny_fit(lib, out, steps=200)
+    model = load_model(out, "cpu")
+    assert model.meta["steps"] == 200 and model.meta["skipped_steps"] == 0
+    assert model.meta["materials"] == ["synth-000", "synth-001", "synth-002"]
+    init = untrained(model.cfg)
+    for name in model.meta["materials"]:
+        table = read_merl(lib / f"{name}.binary")
+        mse_t, log_t = mapped_mse_and_log_rmse(model.net, model.rho_ref, table)
+        mse_u, log_u = mapped_mse_and_log_rmse(init, model.rho_ref, table)
+        # Measured: 45-90x (mapped MSE) and 4.2-7x (log RMSE) better after 200 steps.
+        assert mse_t * 10 < mse_u, (name, mse_t, mse_u)
+        assert log_t * 3 < log_u, (name, log_t, log_u)
+
+
+def test_reference_is_median_of_training_materials(lib, tmp_path):
+    out = tmp_path / "m.safetensors"
+    tiny_fit(lib, out, steps=2, exclude=["synth-002"])
+    model = load_model(out, "cpu")
+    assert model.meta["materials"] == ["synth-000", "synth-001"]
+    assert model.meta["excluded"] == ["synth-002"]
+    tables = [read_merl(lib / f"synth-00{i}.binary") for i in (0, 1)]
+    from brdfkit.mapping import median_reference
+    np.testing.assert_array_equal(model.rho_ref, median_reference(tables))
+
+
+def test_fast_median_equals_nanmedian(lib):
+    tables = [read_merl(lib / f"synth-00{i}.binary") for i in range(3)]
+    holey = tables[0].copy()
+    holey[40:45, 10:20, :, :] = np.nan  # unmeasured in one table only: the nanmedian path
+    rng = np.random.default_rng(0)
+    for group in (tables, tables + [holey]):  # odd and even counts
+        stack = np.stack([t.astype(np.float32).reshape(-1) for t in group])
+        fast = median_reference_fast(stack).reshape(-1)
+        cols = np.union1d(rng.choice(stack.shape[1], 50_000, replace=False),
+                          np.flatnonzero(np.isnan(holey.reshape(-1))))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN columns below the horizon
+            want = np.nanmedian(stack[:, cols], axis=0)
+        np.testing.assert_array_equal(fast[cols], want)
+
+
+# --- non-finite steps ----------------------------------------------------------------------
+
+def _nan_loss_on(monkeypatch, calls):
+    real = hypernet.hyper_loss
+    count = {"n": 0}
+
+    def loss(*a, **k):
+        count["n"] += 1
+        total, mse = real(*a, **k)
+        if count["n"] in calls:
+            return total * float("nan"), mse
+        return total, mse
+
+    monkeypatch.setattr(hypernet, "hyper_loss", loss)
+    return count
+
+
+def test_nan_step_is_skipped_without_update(lib, tmp_path, monkeypatch):
+    _nan_loss_on(monkeypatch, calls={1, 2, 3})
+    out = tmp_path / "m.safetensors"
+    tiny_fit(lib, out, steps=3)
+    model = load_model(out, "cpu")
+    assert model.meta["skipped_steps"] == 3
+    # Nothing was trained on: the weights are exactly the seed's initial weights.
+    assert model.fingerprint == weights_fingerprint(untrained(model.cfg))
+
+
+def test_training_goes_on_after_a_nan_step(lib, tmp_path, monkeypatch):
+    _nan_loss_on(monkeypatch, calls={2})
+    out = tmp_path / "m.safetensors"
+    tiny_fit(lib, out, steps=6)
+    model = load_model(out, "cpu")
+    assert model.meta["skipped_steps"] == 1 and model.meta["steps"] == 6
+    assert model.fingerprint != weights_fingerprint(untrained(model.cfg))
+    assert all(torch.isfinite(p).all() for p in model.net.parameters())
+
+
+def test_persistent_nan_stops_with_clear_error(lib, tmp_path, monkeypatch):
+    _nan_loss_on(monkeypatch, calls=set(range(1, 100)))
+    out = tmp_path / "m.safetensors"
+    with pytest.raises(TrainingError, match="NaN or infinite for 4 consecutive steps"):
+        tiny_fit(lib, out, steps=50, max_bad_steps=4)
+    assert not out.exists()
+
+
+# --- checkpoints and resume ----------------------------------------------------------------
+
+def test_resume_continues_exactly(lib, tmp_path):
+    """5 steps + resume to 10 gives bit-identical weights to 10 steps in one go: the
+    checkpoint holds the optimiser state and the sampler re-seeds from the step."""
+    whole, split = tmp_path / "whole.safetensors", tmp_path / "split.safetensors"
+    # TINY has a constant rate: a cosine schedule follows the total of each run (5, then 10).
+    tiny_fit(lib, whole, steps=10)
+    tiny_fit(lib, split, steps=5)
+    assert load_checkpoint(str(split) + ".ckpt")["step"] == 5
+    tiny_fit(lib, split, steps=10, resume=True)
+    a, b = load_model(whole, "cpu"), load_model(split, "cpu")
+    assert a.fingerprint == b.fingerprint
+    assert b.meta["resumed_from_steps"] == [5] and b.meta["steps"] == 10
+
+
+def test_resume_refuses_other_data_or_options(lib, tmp_path):
+    out = tmp_path / "m.safetensors"
+    tiny_fit(lib, out, steps=2)
+    with pytest.raises(InputError, match="other materials"):
+        tiny_fit(lib, out, steps=4, resume=True, exclude=["synth-001"])
+    with pytest.raises(InputError, match="other training options"):
+        tiny_fit(lib, out, steps=4, resume=True, query_size=256)
+    with pytest.raises(InputError, match="another model configuration"):
+        tiny_fit(lib, out, steps=4, resume=True, hypo_hidden=16)
+    with pytest.raises(InputError, match="seed"):
+        tiny_fit(lib, out, steps=4, resume=True, seed=3)
+    with pytest.raises(InputError, match="no checkpoint"):
+        tiny_fit(lib, tmp_path / "other.safetensors", steps=4, resume=True)
+    bogus = tmp_path / "bogus.safetensors"
+    (tmp_path / "bogus.safetensors.ckpt").write_bytes(b"not a checkpoint at all")
+    with pytest.raises(FormatError, match="checkpoint"):
+        tiny_fit(lib, bogus, steps=4, resume=True)
+
+
+def _wait_for(path, proc, timeout=60.0):
+    t0 = time.monotonic()
+    while not os.path.exists(path):
+        if proc.poll() is not None:
+            raise AssertionError(f"fit ended early ({proc.returncode}): {proc.stderr.read()}")
+        if time.monotonic() - t0 > timeout:
+            proc.kill()
+            raise AssertionError("no checkpoint appeared")
+        time.sleep(0.1)
+
+
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL], ids=["sigint", "sigkill"])
+def test_interrupted_fit_resumes_from_checkpoint(lib, tmp_path, sig):
+    out = tmp_path / "m.safetensors"
+    ckpt = str(out) + ".ckpt"
+    args = ["fit", lib, "-o", out, "--steps", "1000000", "--minutes", "2",
+            "--checkpoint-minutes", "0.005", *tiny_cli_options()]
+    proc = popen_brdfkit(args)
+    _wait_for(ckpt, proc)
+    time.sleep(0.5)
+    proc.send_signal(sig)
+    _, err = proc.communicate(timeout=60)
+    if sig == signal.SIGINT:
+        assert proc.returncode == 130, err
+        assert "checkpoint" in err and "saved" in err and "Traceback" not in err
+        assert temp_leftovers(tmp_path) == []
+    else:
+        assert proc.returncode == -signal.SIGKILL
+    assert not out.exists()  # the model is written only at the end
+    done = int(load_checkpoint(ckpt)["step"])
+    assert done > 0
+    proc = popen_brdfkit(args[:4] + ["--steps", str(done + 15)] + args[6:] + ["--resume"])
+    _, err = proc.communicate(timeout=120)
+    assert proc.returncode == 0, err
+    assert f"at step {done}" in err
+    meta = load_model(out, "cpu").meta
+    assert meta["steps"] == done + 15 and meta["resumed_from_steps"] == [done]
+
+
+def test_minutes_budget_stops_training(lib, tmp_path):
+    out = tmp_path / "m.safetensors"
+    t0 = time.monotonic()
+    tiny_fit(lib, out, steps=10_000_000, minutes=0.08)
+    assert time.monotonic() - t0 < 30
+    meta = load_model(out, "cpu").meta
+    assert 0 < meta["steps"] < 10_000_000
+
+
+# --- inputs --------------------------------------------------------------------------------
+
+def test_collect_materials_sorted_and_excluded(lib, tmp_path):
+    paths, names, excluded, unknown = collect_materials(
+        [lib / "synth-002.binary", lib], exclude=["synth-001.binary", "nosuch"])
+    assert names == ["synth-000", "synth-002"]
+    assert [os.path.basename(p) for p in paths] == ["synth-000.binary", "synth-002.binary"]
+    assert excluded == ["synth-001"] and unknown == ["nosuch"]
+    lst = tmp_path / "test.txt"
+    lst.write_text("# held out\nsynth-000  # a comment\n\n  synth-002\n")
+    assert read_exclude_list(lst) == ["synth-000", "synth-002"]
+
+
+def test_bad_inputs_are_clear_errors(lib, tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(InputError, match="no .binary files"):
+        collect_materials(empty)
+    with pytest.raises(InputError, match="no such file"):
+        collect_materials(tmp_path / "missing")
+    with pytest.raises(InputError, match="nothing to train on"):
+        collect_materials(lib, exclude=["synth-000", "synth-001", "synth-002"])
+    other = tmp_path / "other"
+    other.mkdir()
+    os.symlink(lib / "synth-000.binary", other / "synth-001.binary")
+    with pytest.raises(InputError, match="unique"):
+        collect_materials([lib, other])
+    bad = tmp_path / "bad"
+    bad.mkdir()
+    (bad / "broken.binary").write_bytes(b"\x5a\x00\x00\x00" * 10)
+    os.symlink(lib / "synth-000.binary", bad / "synth-000.binary")
+    with pytest.raises(FormatError, match="broken.binary"):
+        tiny_fit(bad, tmp_path / "m.safetensors", steps=2)
+    with pytest.raises(InputError, match="also an input"):
+        tiny_fit(lib / "synth-000.binary", lib / "synth-000.binary", steps=2)
+    with pytest.raises(InputError, match="unknown training option"):
+        tiny_fit(lib, tmp_path / "m.safetensors", steps=2, query_sise=3)
+    with pytest.raises(InputError, match="steps"):
+        tiny_fit(lib, tmp_path / "m.safetensors", steps=0)
+    with pytest.raises(InputError, match="does not exist"):
+        tiny_fit(lib, tmp_path / "nodir" / "m.safetensors", steps=2)
+    with pytest.raises(InputError, match="device"):
+        tiny_fit(lib, tmp_path / "m.safetensors", steps=2, device="tpu")
+
+
+def test_cli_reports_bad_input_in_one_line(lib, tmp_path):
+    proc = popen_brdfkit(["fit", tmp_path / "nothing", "-o", tmp_path / "m.safetensors"])
+    out, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2
+    assert err.strip().splitlines() == [f"brdfkit: error: {tmp_path / 'nothing'}: no such file or folder"]
+    proc = popen_brdfkit(["fit", lib, "-o", tmp_path / "m.safetensors", "-O", "lr"])
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 2 and "KEY=VALUE" in err
