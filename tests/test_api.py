@@ -24,6 +24,16 @@ from brdfkit.samples import SampleSet, draw_samples, write_samples
 from helpers_model import make_model, material_table
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _one_thread():
+    """One torch thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
+    threads make the small matrix products here several times slower."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
     folder = tmp_path_factory.mktemp("api-models")

@@ -11,6 +11,7 @@ import os
 
 import numpy as np
 import pytest
+import torch
 
 from brdfkit import api
 from brdfkit.cli import main
@@ -20,6 +21,16 @@ from brdfkit.samples import draw_samples, write_samples
 
 from helpers_foundation import run_brdfkit
 from helpers_model import make_model, material_table
+
+
+@pytest.fixture(autouse=True, scope="module")
+def _one_thread():
+    """One torch thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
+    threads make the small matrix products here several times slower."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
 
 
 def _env():

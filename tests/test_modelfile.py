@@ -17,6 +17,16 @@ from brdfkit.modelfile import MODEL_FORMAT, load_model, save_model, weights_fing
 from helpers_model import TINY_CONFIG, make_model, material_table
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _one_thread():
+    """One torch thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
+    threads make the small matrix products here several times slower."""
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
 @pytest.fixture(scope="module")
 def model_path(tmp_path_factory):
     path = tmp_path_factory.mktemp("modelfile") / "tiny.safetensors"
