@@ -27,10 +27,18 @@ from .atomic import atomic_path, check_input_file
 from .errors import FormatError
 from .geometry import N_CELLS, _xp
 
-__all__ = ["EPS", "to_mapped", "from_mapped", "median_reference", "save_reference",
+__all__ = ["EPS", "RHO_MAX", "to_mapped", "from_mapped", "median_reference", "save_reference",
            "load_reference", "REFERENCE_FORMAT"]
 
 EPS = 0.002
+# The largest BRDF value from_mapped returns (1/sr): 150 times the brightest cell of a GGX
+# mirror with alpha = 0.002 on the MERL grid (6.5e7), 3e6 times that of MERL's
+# chrome-steel. Without it an extrapolated embedding decodes to float32 infinity
+# (docs/stability.md), which no table, renderer or metric can use.
+RHO_MAX = 1e10
+# Mapped values above this give rho >= RHO_MAX for every reference (rho_ref >= 0);
+# clamping them first keeps expm1 from overflowing.
+_MAPPED_MAX = float(np.log1p((RHO_MAX + EPS) / EPS))
 REFERENCE_FORMAT = "brdfkit-reference"
 
 
@@ -58,15 +66,17 @@ def to_mapped(rho, rho_ref):
 
 
 def from_mapped(mapped, rho_ref):
-    """Inverse of :func:`to_mapped`, clamped to ``rho >= 0``.
+    """Inverse of :func:`to_mapped`, clamped to ``0 <= rho <= RHO_MAX``; NaN propagates.
 
-    ``expm1`` keeps full precision where ``mapped`` is small (dark materials).
+    ``expm1`` keeps full precision where ``mapped`` is small (dark materials). The upper
+    clamp leaves every value that :func:`to_mapped` can give for ``rho <= RHO_MAX``
+    unchanged, and keeps a network's out-of-range prediction finite in float32.
     """
     xp = _xp(mapped)
     if xp is np:
         mapped = np.asarray(mapped, dtype=np.float64)
-    rho = xp.expm1(mapped) * (rho_ref + EPS) - EPS
-    return xp.clip(rho, 0.0, None)
+    rho = xp.expm1(xp.clip(mapped, None, _MAPPED_MAX)) * (rho_ref + EPS) - EPS
+    return xp.clip(rho, 0.0, RHO_MAX)
 
 
 def median_reference(tables: Iterable, chunk: int = 1 << 18) -> np.ndarray:

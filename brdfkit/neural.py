@@ -205,10 +205,11 @@ class NeuralBRDF:
         (see :func:`brdfkit.hypernet.hyponet_forward`).
     """
 
-    def __init__(self, model, embedding: Embedding, weights):
+    def __init__(self, model, embedding: Embedding, weights, name: str = ""):
         self.model = model
         self.embedding = embedding
         self.weights = weights
+        self.name = name or embedding.source or "embedding"
 
     @classmethod
     def from_embedding(cls, model, emb: Embedding, name: str = "") -> "NeuralBRDF":
@@ -220,7 +221,18 @@ class NeuralBRDF:
         with torch.no_grad():
             z = torch.from_numpy(np.asarray(emb.latent, np.float32).copy()).to(model.device)[None]
             weights = [(w.contiguous(), b.contiguous()) for w, b in model.net.hyponet_weights(z)]
-        return cls(model, emb, weights)
+        return cls(model, emb, weights, name)
+
+    def _refuse_nan(self, vals) -> None:
+        """A latent far outside the trained range (``interpolate`` with ``t = 1e20``, a
+        hand-edited file) overflows the float32 activations into NaN, which a MERL file
+        would store as "not measured": refuse it (``docs/stability.md``)."""
+        import torch
+
+        if bool(torch.isnan(vals).any()):
+            z = float(np.abs(self.embedding.latent).max())
+            raise InputError(f"{self.name}: the model's hyponet overflows on this embedding (largest "
+                             f"latent value {z:.3g}, far outside the trained range); it cannot be decoded")
 
     def _mapped(self, hd):
         """Hyponet on ``hd (N, 6)`` float32 (model device) -> mapped RGB ``(N, 3)``; 2-D
@@ -247,6 +259,7 @@ class NeuralBRDF:
                 e = min(hd.shape[0], s + (1 << 16))
                 ref = _interp_ref(table, fallback, th[s:e], td[s:e], pd[s:e]).float()
                 out[s:e] = from_mapped(self._mapped(hd[s:e]), ref)
+        self._refuse_nan(out[torch.isfinite(hd).all(1)])
         return out
 
     def eval_hd(self, hd):
@@ -348,6 +361,7 @@ class NeuralBRDF:
                     if i < last:
                         h = h.relu_()
                 vals[:, s:e] = from_mapped(h, ref_t[:, s:e])
+        self._refuse_nan(vals)
         table = np.full((N_CELLS, 3), np.nan)
         table[idx] = vals.cpu().numpy().T
         return table.reshape(90, 90, 180, 3)

@@ -1,0 +1,199 @@
+"""Numerical stability on stiff materials and extreme inputs (issue 6, docs/stability.md).
+
+Stiff materials are built with :class:`brdfkit.synthetic.Material`: a silver GGX mirror
+with ``alpha = 0.002`` (values up to 6.5e7 1/sr) and a black Lambertian (albedo 1e-3,
+3.2e-4 1/sr everywhere). Every path a user runs on them (fit, encode, decode, sparse,
+interpolate, metrics; render in ``test_render``-style checks where the renderer is
+installed) must stay finite, and decoded values non-negative. Extreme inputs: grazing and
+normal directions, ``phi_d`` at 0 and pi, one sample, all samples in one direction,
+duplicated samples, a million samples.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+import tracemalloc
+
+import numpy as np
+import pytest
+import torch
+
+from brdfkit import api, synthetic
+from brdfkit.embedding import Embedding
+from brdfkit.errors import InputError
+from brdfkit.geometry import hd_vectors
+from brdfkit.mapping import RHO_MAX, from_mapped, to_mapped
+from brdfkit.metrics import brdf_log_rmse
+from brdfkit.neural import NeuralBRDF
+from brdfkit.samples import SampleSet, draw_samples
+
+from helpers_model import make_model
+
+MIRROR = synthetic.Material("mirror-0.002", "conductor", 0.002, ior=synthetic.METALS["silver"][0],
+                            k=synthetic.METALS["silver"][1])
+BLACK = synthetic.Material("black-0.001", "dielectric", 0.3, albedo=(1e-3, 1e-3, 1e-3), ks=0.0)
+HALF_PI = math.pi / 2
+
+
+@pytest.fixture(scope="module")
+def stiff():
+    """``{"mirror": table, "black": table, "white": table}`` (read-only)."""
+    out = {"mirror": synthetic.table(MIRROR), "black": synthetic.table(BLACK),
+           "white": synthetic.table(synthetic.STIFF[2])}
+    for t in out.values():
+        t.setflags(write=False)
+    return out
+
+
+@pytest.fixture(scope="module")
+def model(tmp_path_factory):
+    """An untrained tiny model; its reference table is the stiff white material, so the
+    mirror maps to ~19 and the black to ~1e-3 (the far ends of the mapping)."""
+    path = tmp_path_factory.mktemp("stab-model") / "model.safetensors"
+    make_model(path)
+    return api.load_model(path, "cpu")
+
+
+def _finite_where_measured(table, rho_ref):
+    measured = np.isfinite(rho_ref).all(-1)
+    v = table[measured]
+    return bool(np.isfinite(v).all() and (v >= 0).all() and np.isnan(table[~measured]).all())
+
+
+# --- the stiff tables and the mapping ---------------------------------------------------
+
+def test_stiff_tables_are_stiff(stiff):
+    m, b = stiff["mirror"], stiff["black"]
+    assert np.nanmax(m) > 1e7 and np.nanmin(m) < 1e-5  # peak and off-peak 12 decades apart
+    assert np.nanmax(b) < 1e-3 and np.nanmin(b) > 0
+
+
+@pytest.mark.parametrize("ref_kind", ["white", "mirror", "zero", "bright"])
+def test_mapping_round_trip_on_stiff_tables(stiff, ref_kind):
+    ref = {"white": stiff["white"], "mirror": stiff["mirror"], "zero": 0.0, "bright": 1e4}[ref_kind]
+    for name in ("mirror", "black"):
+        t = stiff[name]
+        mapped = to_mapped(t, ref)
+        assert np.isfinite(mapped[np.isfinite(t)]).all()
+        back = from_mapped(mapped, ref)
+        big = np.isfinite(t) & (t > 1e-6)
+        rel = np.abs(back[big] - t[big]) / t[big]
+        assert rel.max() <= 1e-6, (name, rel.max())
+
+
+def test_from_mapped_stays_finite_in_float32():
+    # Regression: an extrapolated embedding (interpolate t = -10) made the hyponet predict
+    # mapped values past 88.7, where expm1 overflows float32: decode gave infinity.
+    mapped = torch.tensor([1e3, 89.0, float("inf"), -float("inf"), float("nan"), 5.0])  # float32
+    out = from_mapped(mapped, torch.full((6,), 1e8))
+    assert torch.isfinite(out[[0, 1, 2, 3, 5]]).all() and torch.isnan(out[4])
+    assert out[0] == out[2] == RHO_MAX and out[3] == 0
+    # everything up to RHO_MAX still round-trips
+    rho = np.array([0.0, 1e-6, 1.0, 6.5e7, 1e9, RHO_MAX])
+    for ref in (0.0, 0.3, 1e4):
+        np.testing.assert_allclose(from_mapped(to_mapped(rho, ref), ref), rho, rtol=1e-6, atol=1e-12)
+
+
+# --- encode, decode, sparse, metrics on stiff materials --------------------------------
+
+@pytest.mark.parametrize("name", ["mirror", "black"])
+def test_encode_decode_sparse_metrics_on_stiff(model, stiff, name):
+    table = stiff[name]
+    emb = api.encode(model, table)  # dense: every measured cell
+    assert np.isfinite(emb.latent).all()
+    dec = api.decode(model, emb)
+    assert _finite_where_measured(dec, model.rho_ref)
+    assert math.isfinite(brdf_log_rmse(dec, table))
+    # sparse: one table per material is enough, so the mirror's comes from 1 sample
+    rec, emb2 = api.sparse(model, draw_samples(table, 200 if name == "black" else 1, seed=1))
+    assert np.isfinite(emb2.latent).all() and _finite_where_measured(rec, model.rho_ref)
+    assert math.isfinite(brdf_log_rmse(rec, stiff["mirror"]))
+
+
+# --- extreme directions ----------------------------------------------------------------
+
+def _unit(v):
+    v = torch.tensor(v, dtype=torch.float64)
+    return v / v.norm(dim=-1, keepdim=True)
+
+
+def test_eval_dirs_at_extreme_directions(model, stiff):
+    nb = NeuralBRDF.from_embedding(model, api.encode(model, draw_samples(stiff["mirror"], 500)))
+    g = 1e-9  # radians above the horizon
+    wi = _unit([[0, 0, 1], [math.cos(g), 0, math.sin(g)], [math.cos(g), 0, math.sin(g)], [0.6, 0, 0.8],
+                [0, 0, 1], [1, 0, 0], [1, 0, 0], [0, 0, 1], [0.6, 0.0, 0.8]])
+    wo = _unit([[0, 0, 1], [-math.cos(g), 0, math.sin(g)], [math.cos(g), 0, math.sin(g)], [-0.6, 0, 0.8],
+                [math.cos(g), 0, math.sin(g)], [-1, 0, 0], [1, 0, 0], [0, 0, -1], [0.6, 0.0, 0.8]])
+    # normal; grazing mirror pair; grazing same direction; phi_d = 0; normal + grazing;
+    # exactly at the horizon (twice); below; phi_d = pi (wi = wo off the normal)
+    rho = nb.eval_dirs(wi, wo)
+    assert torch.isfinite(rho).all() and (rho >= 0).all()
+    assert (rho[[5, 6, 7]] == 0).all()  # at or below the horizon
+    torch.testing.assert_close(nb.eval_dirs(wo, wi), rho)  # reciprocity
+    # HD vectors at the corners of the angle domain, phi_d at 0 and pi (the same pair)
+    corners = [(0, 0, 0), (0, 0, math.pi), (HALF_PI, HALF_PI, 0), (HALF_PI, HALF_PI, math.pi),
+               (0, HALF_PI, 0), (0, HALF_PI, math.pi), (HALF_PI, 0, 0)]
+    th, td, pd = (np.array(c, dtype=np.float64) for c in zip(*corners))
+    out = nb.eval_hd(torch.from_numpy(hd_vectors(th, td, pd)))
+    assert torch.isfinite(out).all() and (out >= 0).all()
+
+
+def test_phi_d_at_pi_encodes_like_zero(model):
+    # Regression: SampleSet.hd() did not fold phi_d, so phi_d = pi (the same direction
+    # pair as phi_d = 0 by reciprocity) reached the encoder as another input.
+    th, td = np.array([0.0, 0.3, HALF_PI]), np.array([HALF_PI, 0.5, 0.2])
+    rgb = np.array([[1e4, 1e4, 1e4], [0.5, 0.4, 0.3], [1e-3, 1e-3, 1e-3]])
+    base = api.encode(model, SampleSet(th, td, np.array([0.0, 1.0, 0.0]), rgb)).latent
+    for pd in ([math.pi, 1.0 + math.pi, -1e-17], [2 * math.pi, 1.0 - 2 * math.pi, math.pi]):
+        other = api.encode(model, SampleSet(th, td, np.array(pd), rgb)).latent
+        np.testing.assert_allclose(other, base, rtol=1e-5, atol=1e-6)
+    assert np.isfinite(base).all()
+
+
+# --- sample counts -----------------------------------------------------------------------
+
+def test_one_sample_one_direction_and_duplicates(model, stiff):
+    s = draw_samples(stiff["mirror"], 300, seed=2)
+    one = SampleSet(s.theta_h[:1], s.theta_d[:1], s.phi_d[:1], s.rgb[:1])
+    z1 = api.encode(model, one)
+    assert z1.sample_count == 1 and np.isfinite(z1.latent).all()
+    # all samples at one direction: the mean of identical features is that feature
+    same = SampleSet(*(np.repeat(a, 1000, axis=0) for a in (one.theta_h, one.theta_d, one.phi_d, one.rgb)))
+    np.testing.assert_allclose(api.encode(model, same).latent, z1.latent, rtol=1e-6, atol=1e-7)
+    # every sample duplicated 3 times: the same mean
+    dup = SampleSet(*(np.repeat(a, 3, axis=0) for a in (s.theta_h, s.theta_d, s.phi_d, s.rgb)))
+    np.testing.assert_allclose(api.encode(model, dup).latent, api.encode(model, s).latent, rtol=1e-6, atol=1e-7)
+
+
+def test_million_samples_bounded_time_and_memory(model, stiff):
+    s = draw_samples(stiff["mirror"], 1_000_000, seed=3)
+    input_bytes = sum(a.nbytes for a in (s.theta_h, s.theta_d, s.phi_d, s.rgb))  # 48 MB
+    tracemalloc.start()
+    try:
+        t0 = time.perf_counter()
+        emb = api.encode(model, s)
+        seconds = time.perf_counter() - t0
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    assert emb.sample_count == 1_000_000 and np.isfinite(emb.latent).all()
+    # NumPy temporaries (HD vectors, reference values, cell indices): a few times the
+    # input, never the per-sample activations (those are chunked; docs/stability.md).
+    assert peak < 4 * input_bytes, (peak, input_bytes)
+    assert seconds < 60, seconds
+
+
+# --- interpolation far outside [0, 1] ----------------------------------------------------
+
+def test_absurd_extrapolation_is_refused_not_nan(model, stiff):
+    # Regression: t = 1e20 overflowed the hyponet's float32 activations into NaN, which
+    # write_merl would have stored as "not measured" cells.
+    a = Embedding(np.full(model.cfg.latent_dim, 0.5), model.fingerprint, "a")
+    b = Embedding(np.full(model.cfg.latent_dim, -0.5), model.fingerprint, "b")
+    far = api.interpolate(a, b, 1e30, allow_extrapolation=True)
+    with pytest.raises(InputError, match=r"hyponet overflows on this embedding .* cannot be decoded"):
+        api.decode(model, far)
+    nb = NeuralBRDF.from_embedding(model, far, "far.emb")
+    with pytest.raises(InputError, match=r"^far\.emb: "):
+        nb.eval_hd(torch.tensor([[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]]))
