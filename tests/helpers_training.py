@@ -20,13 +20,13 @@ TINY = dict(query_size=512, context_min=50, context_max=400, hypo_hidden=32, dec
 TINY_LATENT = 8
 
 
-def tiny_cli_options() -> list[str]:
-    """``TINY`` as ``brdfkit fit -O KEY=VALUE`` arguments."""
+def tiny_cli_options(latent: bool = True) -> list[str]:
+    """``TINY`` as ``brdfkit fit -O KEY=VALUE`` arguments (and ``--latent-dim``)."""
     out = []
     for k, v in TINY.items():
         v = list(v) if isinstance(v, tuple) else v
         out += ["-O", f"{k}={v}".replace(" ", "")]
-    return out + ["--latent-dim", str(TINY_LATENT)]
+    return out + (["--latent-dim", str(TINY_LATENT)] if latent else [])
 
 
 def tiny_library(tmp_path_factory, n: int = 3) -> Path:
