@@ -147,7 +147,9 @@ def _check_header(path: str) -> None:
         head = f.read(8)
         if size < 8:
             raise FormatError(path, f"not a brdfkit model file: {size} bytes, too short for a safetensors header")
-        if head[:1] == b"\x80" or head[:2] == b"PK":
+        # A safetensors header is a JSON object right after its 8-byte length, whose low
+        # byte is 0x80 (the pickle opcode PROTO) in one file of 32: not a pickle then.
+        if (head[:1] == b"\x80" or head[:2] == b"PK") and f.read(1) != b"{":
             raise FormatError(path, "not a brdfkit model file: this is a pickle / torch.save file, "
                                     "which brdfkit never loads (model files are .safetensors)")
         n = int.from_bytes(head, "little")
@@ -159,6 +161,7 @@ def _check_header(path: str) -> None:
         if 8 + n > size:
             raise FormatError(path, f"truncated: {size} bytes, the safetensors header alone needs {8 + n}")
         try:
+            f.seek(8)
             header = json.loads(f.read(n))
             ends = [int(v["data_offsets"][1]) for k, v in header.items() if k != "__metadata__"]
         except (ValueError, TypeError, KeyError, IndexError, AttributeError, UnicodeDecodeError):

@@ -27,7 +27,10 @@ def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
     refuse_overwrite_of_inputs(output, [a, b, model_path])
     refuse_overwrite_of_inputs(binary, [a, b, model_path, output])
     ea, eb = read_embedding(a), read_embedding(b)
-    ea.source, eb.source = ea.source or a, eb.source or b
+    # Named by their files: a mismatch message must say which file to fix (two embeddings
+    # encoded from the same samples.csv share their source), and the blend's provenance
+    # reads "interpolate(a.emb, b.emb, t=0.3)".
+    ea.source, eb.source = a, b
     mix = interpolate(ea, eb, t, allow_extrapolation=allow_extrapolation)
     table = None
     if binary:
