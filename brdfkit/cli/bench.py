@@ -1,0 +1,87 @@
+"""``brdfkit bench``: error against run time of the reconstruction methods, and compression."""
+
+from __future__ import annotations
+
+import click
+
+from ..errors import InputError
+
+
+def _int_list(value: str, name: str) -> tuple:
+    try:
+        out = tuple(int(v) for v in value.split(",") if v.strip())
+    except ValueError:
+        raise InputError(f"{name}: {value!r} is not a comma-separated list of integers") from None
+    if not out or min(out) < 1:
+        raise InputError(f"{name}: {value!r}: give positive integers, e.g. 40,160,400")
+    return out
+
+
+def _str_list(value: str | None) -> tuple:
+    return tuple(v.strip() for v in (value or "").split(",") if v.strip())
+
+
+@click.command("bench")
+@click.option("--data", type=click.Path(file_okay=False), default=None,
+              help="Folder of MERL tables for the sparse benchmark.")
+@click.option("--test-list", type=click.Path(dir_okay=False), default=None,
+              help="Test material names, one a line (e.g. ../shared/data/merl-test.txt); default: all of --data.")
+@click.option("-m", "--model", type=click.Path(dir_okay=False), default=None,
+              help="Hypernetwork model (.safetensors) for the method 'hypernet'.")
+@click.option("--ipca", type=click.Path(dir_okay=False), default=None,
+              help="PCA basis (.safetensors, `brdfkit fit --method ipca`) for 'ipca' and the compression reference.")
+@click.option("--n", "n_list", default="40,160,400,2000,4000", show_default=True,
+              help="Sample counts N, comma-separated.")
+@click.option("--seeds", type=int, default=3, show_default=True,
+              help="Draws of samples per material and N (mean and spread over them).")
+@click.option("--methods", default="hypernet,ipca,nbrdf", show_default=True,
+              help="Reconstruction methods, comma-separated.")
+@click.option("--compression-models", default=None,
+              help="Hypernetwork models to test on encode -> decode, comma-separated (e.g. m7.safetensors,m40.safetensors).")
+@click.option("--compression-data", type=click.Path(file_okay=False), default=None,
+              help="Folder of MERL tables for the compression benchmark.")
+@click.option("--resolution", type=int, default=128, show_default=True,
+              help="Reference-scene render size (pixels square) for PSNR, Delta E and SSIM.")
+@click.option("--jobs", type=int, default=1, show_default=True,
+              help="Worker processes (one material at a time each).")
+@click.option("--threads", type=int, default=None,
+              help="Torch threads per process [default: torch's choice, or CPUs / jobs].")
+@click.option("--device", default=None, help="Torch device (default: CUDA when present, else CPU).")
+@click.option("--nbrdf-steps", type=int, default=None, help="Most optimiser steps of the NBRDF baseline.")
+@click.option("--ipca-lambda", type=float, default=None, help="Ridge weight of the PCA baseline.")
+@click.option("--group-by-prefix", is_flag=True,
+              help="Also summarise per family: the material name up to its first '-' (merl-*, rgl-*).")
+@click.option("--cache", type=click.Path(file_okay=False), default=None,
+              help="Folder of cached reference renders [default: OUTDIR/cache].")
+@click.option("-o", "--output", type=click.Path(file_okay=False), required=True,
+              help="Output folder: bench.json, bench.md, error_vs_n.png, error_vs_time.png, compression.png.")
+@click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
+def command(data, test_list, model, ipca, n_list, seeds, methods, compression_models, compression_data,
+            resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, group_by_prefix, cache, output, quiet):
+    """Measure reconstruction error against run time (and compression error).
+
+    For each test material of --data, each N and each seed, every method reconstructs the
+    material from the same N samples; each reconstruction is timed and scored in BRDF
+    space (log RMSE) and on reference-scene renders (PSNR, Delta E 2000, SSIM).
+    See docs/bench.md.
+    """
+    import shlex
+    import sys
+
+    from ..bench import BenchConfig, run_bench
+    from .common import console
+
+    cfg = BenchConfig(output=output, data=data, test_list=test_list, model=model, ipca=ipca,
+                      n=_int_list(n_list, "--n"), seeds=seeds, methods=_str_list(methods),
+                      compression_models=_str_list(compression_models), compression_data=compression_data,
+                      resolution=resolution, jobs=jobs, threads=threads, device=device,
+                      nbrdf_steps=nbrdf_steps, ipca_lambda=ipca_lambda, group_by_prefix=group_by_prefix,
+                      cache=cache, command="brdfkit bench " + shlex.join(sys.argv[2:] if len(sys.argv) > 1
+                                                                         and sys.argv[1] == "bench" else []))
+    result = run_bench(cfg, progress=not quiet)
+    failed = sum("error" in r for r in result["records"])
+    out = console()
+    out.print(f"wrote {', '.join(result['outputs'])}")
+    if failed:
+        out.print(f"[yellow]{failed} of {len(result['records'])} reconstruction(s) failed; "
+                  f"see the Failures section of bench.md[/yellow]")

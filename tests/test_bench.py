@@ -1,0 +1,173 @@
+"""``brdfkit bench`` on a tiny budget: 2 synthetic test materials, 2 N, a tiny hypernetwork
+trained here, a 2-component PCA basis, NBRDF with few steps, 16-pixel renders."""
+
+from __future__ import annotations
+
+import json
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+
+from brdfkit.bench import BenchConfig, run_bench, sample_seed, summarise
+from brdfkit.merl import read_merl
+
+from helpers_training import TINY, brdfkit_script, quiet_env
+
+RES = 16
+
+
+@pytest.fixture(scope="module", autouse=True)
+def one_thread():
+    import torch
+
+    before = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(before)
+
+
+@pytest.fixture(scope="module")
+def setup(tmp_path_factory):
+    from brdfkit.baselines.ipca import fit_ipca
+    from brdfkit.synthetic import write_library
+    from brdfkit.training import fit
+
+    root = tmp_path_factory.mktemp("bench")
+    lib = root / "lib"
+    write_library(lib, 3, seed=3, stiff=False)
+    names = sorted(p.stem for p in lib.glob("*.binary"))
+    model = root / "tiny.safetensors"
+    fit(lib, model, latent_dim=6, steps=30, seed=0, progress=False, **TINY)
+    basis = root / "basis.safetensors"
+    fit_ipca(sorted(lib.glob("*.binary")), n_components=2).save(basis)
+    test_list = root / "test.txt"
+    test_list.write_text(f"# two of the three\n{names[0]}\n{names[2]}\n")
+    return {"root": root, "lib": lib, "names": names, "model": model, "basis": basis, "test_list": test_list}
+
+
+def test_bench_cli_end_to_end(setup, tmp_path):
+    out = tmp_path / "out"
+    comp = tmp_path / "comp"
+    comp.mkdir()
+    shutil.copy(setup["lib"] / f"{setup['names'][1]}.binary", comp)
+    cmd = [brdfkit_script(), "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
+           "-m", setup["model"], "--ipca", setup["basis"], "--n", "40,160", "--seeds", "1",
+           "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", setup["model"],
+           "--compression-data", comp, "--threads", "1", "-o", out]
+    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=300, env=quiet_env())
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert proc.stdout == ""  # progress and messages go to stderr
+    result = json.loads((out / "bench.json").read_text())
+    assert result["complete"] and result["format"] == "brdfkit-bench"
+    test_names = [setup["names"][0], setup["names"][2]]
+    assert result["materials"]["sparse"] == test_names
+
+    sparse = [r for r in result["records"] if r["kind"] == "sparse"]
+    assert len(sparse) == 2 * 2 * 3
+    assert {(r["material"], r["method"], r["n"]) for r in sparse} == \
+        {(m, meth, n) for m in test_names for meth in ("hypernet", "ipca", "nbrdf") for n in (40, 160)}
+    for r in sparse:
+        assert "error" not in r, r
+        assert r["time_s"] > 0 and r["render_s"] > 0
+        assert 0 < r["psnr"] <= 100 and r["delta_e"] >= 0 and -1 <= r["ssim"] <= 1 and r["log_rmse"] > 0
+        assert r["sample_seed"] == sample_seed(0, r["n"], r["material"])
+
+    # A record is what the library computes from the same draw (IPCA is deterministic).
+    from brdfkit.baselines import get_method
+    from brdfkit.metrics import brdf_log_rmse
+    from brdfkit.samples import draw_samples
+
+    rec = next(r for r in sparse if r["method"] == "ipca" and r["n"] == 160)
+    table = read_merl(setup["lib"] / f"{rec['material']}.binary")
+    recon = get_method("ipca").reconstruct(draw_samples(table, 160, seed=rec["sample_seed"]), str(setup["basis"]))
+    assert rec["log_rmse"] == pytest.approx(brdf_log_rmse(recon, table), rel=1e-9)
+
+    # The summary row is the mean of its records.
+    row = next(r for r in result["summary"]["sparse"] if r["method"] == "nbrdf" and r["n"] == 40)
+    vals = [r["psnr"] for r in sparse if r["method"] == "nbrdf" and r["n"] == 40]
+    assert row["psnr"] == pytest.approx(np.mean(vals)) and row["count"] == 2 and row["failures"] == 0
+    assert row["psnr_sd_seeds"] is None  # one draw: no spread over draws
+    assert row["psnr_sd_materials"] == pytest.approx(np.std(vals, ddof=1))
+
+    comp_recs = [r for r in result["records"] if r["kind"] == "compression"]
+    assert [r["method"] for r in comp_recs] == ["hypernet 6-D (tiny)", "ipca 2 components"]
+    assert all("error" not in r and r["time_s"] > 0 for r in comp_recs)
+
+    # The cached reference render is the reference-scene render of the table itself.
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.image import read_exr
+    from brdfkit.render.quadrature import render
+    from brdfkit.render.scene import Scene
+
+    cached = sorted((out / "cache").glob(f"{test_names[0]}-{RES}px-*.exr"))
+    assert len(cached) == 1 and len(list((out / "cache").glob("*.exr"))) == 3
+    img, _ = render(TableBRDF(read_merl(setup["lib"] / f"{test_names[0]}.binary"), device="cpu"), Scene(resolution=RES))
+    np.testing.assert_allclose(read_exr(cached[0]), img, rtol=1e-6, atol=1e-7)
+
+    md = (out / "bench.md").read_text()
+    assert "## Sparse reconstruction" in md and "## Compression" in md and "Failures" not in md
+    assert "| hypernet | 40 |" in md and "| ipca 2 components | 2 |" in md
+    from PIL import Image
+
+    for png in ("error_vs_n.png", "error_vs_time.png", "compression.png"):
+        with Image.open(out / png) as im:
+            assert im.format == "PNG" and im.size[0] > 300
+    assert not list(out.glob(".brdfkit-tmp-*"))
+
+
+def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
+    data = tmp_path / "data"
+    data.mkdir()
+    good = setup["names"][0]
+    shutil.copy(setup["lib"] / f"{good}.binary", data)
+    (data / "broken.binary").write_bytes((setup["lib"] / f"{good}.binary").read_bytes()[:1000])
+    cfg = BenchConfig(output=str(tmp_path / "out"), data=str(data), ipca=str(setup["basis"]), n=(40,),
+                      seeds=2, methods=("ipca",), resolution=RES)
+    result = run_bench(cfg, progress=False)
+    bad = [r for r in result["records"] if r["material"] == "broken"]
+    ok = [r for r in result["records"] if r["material"] == good]
+    assert len(bad) == 2 and all("broken.binary" in r["error"] for r in bad)
+    assert len(ok) == 2 and all("error" not in r for r in ok)
+    assert ok[0]["sample_seed"] != ok[1]["sample_seed"]  # two draws
+    row = result["summary"]["sparse"][0]
+    assert (row["count"], row["failures"], row["materials"]) == (2, 2, 1)
+    md = (tmp_path / "out" / "bench.md").read_text()
+    assert "## Failures (2)" in md and "broken, ipca:" in md
+
+
+def test_usage_errors_are_one_line(setup, tmp_path, capsys):
+    from brdfkit.cli import main
+
+    base = ["bench", "--data", str(setup["lib"]), "-o", str(tmp_path / "o"), "-q"]
+    cases = [(base + ["--ipca", str(setup["basis"])], "method 'hypernet' needs --model"),
+             (base + ["--methods", "ipca,pca", "--ipca", str(setup["basis"])], "unknown method 'pca'"),
+             (base + ["--methods", "nbrdf", "--n", "40,x"], "--n: '40,x' is not a comma-separated"),
+             (base + ["--methods", "nbrdf", "--test-list", str(setup["test_list"]), "--data", str(tmp_path)],
+              "holds no .binary files"),
+             (["bench", "-o", str(tmp_path / "o")], "nothing to run")]
+    missing = tmp_path / "missing.txt"
+    missing.write_text("not-a-material\n")
+    cases.append((base + ["--methods", "nbrdf", "--test-list", str(missing)], "no table for test material(s) not-a-material"))
+    for argv, message in cases:
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        err = capsys.readouterr().err
+        assert e.value.code == 2, (argv, err)
+        assert message in err and err.count("\n") == 1, err
+    assert not (tmp_path / "o" / "bench.json").exists()
+
+
+def test_summary_spreads():
+    recs = []
+    for seed, shift in ((0, 0.0), (1, 2.0)):
+        for mat, base in (("a", 10.0), ("b", 20.0)):
+            recs.append({"kind": "sparse", "material": mat, "method": "x", "n": 40, "seed": seed,
+                         "psnr": base + shift, "delta_e": 1.0, "ssim": 0.9, "log_rmse": 0.1, "time_s": 1.0})
+    recs.append({"kind": "sparse", "material": "c", "method": "x", "n": 40, "seed": 0, "error": "boom"})
+    row = summarise(recs)["sparse"][0]
+    assert row["psnr"] == pytest.approx(16.0)
+    assert row["psnr_sd_seeds"] == pytest.approx(np.std([15.0, 17.0], ddof=1))
+    assert row["psnr_sd_materials"] == pytest.approx(np.std([11.0, 21.0], ddof=1))
+    assert (row["count"], row["failures"], row["materials"]) == (4, 1, 2)
