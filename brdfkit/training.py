@@ -361,26 +361,6 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
         dist.close()
 
 
-def _save_model(save_model, output, net, rho_ref, meta) -> str:
-    """``modelfile.save_model``, re-saved with padding in ``meta`` if the file's first byte
-    is 0x80.
-
-    The safetensors header starts with its length (u64 little-endian, a multiple of 8),
-    and ``modelfile.load_model`` at this commit refuses any file whose first byte is 0x80
-    as a pickle; about one length in 32 has that low byte. Workaround until the loader
-    looks at more than one byte (reported to the model-file owner).
-    """
-    meta = dict(meta)
-    for pad in range(0, 64):
-        if pad:
-            meta["header_pad"] = "_" * (8 * pad)
-        fp = save_model(output, net, rho_ref, meta)
-        with open(output, "rb") as f:
-            if f.read(1) != b"\x80":
-                return fp
-    return fp
-
-
 def _collect(data, exclude):
     from .trainset import collect_materials
     return collect_materials(data, exclude)
@@ -449,6 +429,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
     sampler = BatchSampler(tset, device, opts.batch_materials, opts.query_size, opts.context_min,
                            opts.context_max, seed, rank, opts.angle_fraction)
     rho_ref = tset.rho_ref
+    tset.values = None  # the sampler holds them now (on the device); no second host copy
 
     def checkpoint_state():
         return {"step": step, "elapsed": elapsed_before + (time.monotonic() - t_start),
@@ -460,7 +441,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
     recent = collections.deque(maxlen=50)  # (loss, mse) of the last good steps, summed over ranks
     consecutive_bad = 0
     last_ckpt = time.monotonic()
-    last_show, shown_step, shown_samples = time.monotonic(), step, 0.0
+    last_show, shown_samples = time.monotonic(), 0.0
     samples_total, t_loop = 0.0, time.monotonic()
     budget = minutes * 60.0 if minutes is not None else None
     start_step = step
@@ -556,7 +537,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
             "query_samples_per_s": round(samples_total / loop_time, 1) if loop_time > 0 else None}
     if rank == 0:
         save_checkpoint(ckpt, checkpoint_state())
-        fp = _save_model(save_model, output, net, rho_ref, meta)
+        fp = save_model(output, net, rho_ref, meta)
         show.print(f"trained {step} steps ({step - start_step} in this run, {loop_time:.1f} s, "
                    f"{meta['query_samples_per_s'] or 0:,.0f} query samples/s); final loss {final_loss:.4g} "
                    f"(mapped MSE {final_mse:.4g})" + (f"; {skipped} non-finite step(s) skipped" if skipped else ""))
