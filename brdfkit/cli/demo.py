@@ -173,7 +173,7 @@ def command(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rend
     model_path = os.path.join(out_dir, "model.safetensors")
     advanced = dict(_parse_option(o) for o in options)
     t = time.monotonic()
-    fit(paths, model_path, steps=steps or 10_000_000, minutes=minutes, seed=seed, device=device,
+    fit(paths, model_path, steps=steps, minutes=minutes, seed=seed, device=device,
         exclude=held, progress=True, **advanced)
     model = api.load_model(model_path, None if device == "auto" else device)
     times.append((f"training ({model.meta['steps']} steps)", time.monotonic() - t))
