@@ -294,11 +294,17 @@ class _Worker:
         from .render.image import read_exr, write_exr
 
         cache = self.cfg.cache or os.path.join(self.cfg.output, "cache")
-        key = hashlib.sha256((_file_digest(path) + repr(self.scene)).encode()).hexdigest()[:16]
-        file = os.path.join(cache, f"{name}-{self.cfg.resolution}px-{key}.exr")
-        if os.path.exists(file):
+        # The key is the table's content and everything the render depends on (scene,
+        # quadrature, environment), not the name: a table reached under another name
+        # (a symlink in a second folder) reuses its render.
+        key = hashlib.sha256("\n".join([_file_digest(path), repr(self.scene), self.env.fingerprint(),
+                                        repr(self.env.bright)]).encode()).hexdigest()[:16]
+        suffix = f"-{self.cfg.resolution}px-{key}.exr"
+        file = os.path.join(cache, name + suffix)
+        found = [f for f in (os.listdir(cache) if os.path.isdir(cache) else []) if f.endswith(suffix)]
+        for f in sorted(found, key=lambda f: f != name + suffix):
             try:
-                img = read_exr(file)
+                img = read_exr(os.path.join(cache, f))
                 if img.shape == (self.cfg.resolution, self.cfg.resolution, 3):
                     return img
             except InputError:

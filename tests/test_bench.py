@@ -52,6 +52,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     comp = tmp_path / "comp"
     comp.mkdir()
     shutil.copy(setup["lib"] / f"{setup['names'][1]}.binary", comp)
+    shutil.copy(setup["lib"] / f"{setup['names'][0]}.binary", comp / "alias.binary")
     cmd = [brdfkit_script(), "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
            "-m", setup["model"], "--ipca", setup["basis"], "--n", "40,160", "--seeds", "1",
            "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", setup["model"],
@@ -92,7 +93,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     assert row["psnr_sd_materials"] == pytest.approx(np.std(vals, ddof=1))
 
     comp_recs = [r for r in result["records"] if r["kind"] == "compression"]
-    assert [r["method"] for r in comp_recs] == ["hypernet 6-D (tiny)", "ipca 2 components"]
+    assert [r["method"] for r in comp_recs] == ["hypernet 6-D (tiny)", "ipca 2 components"] * 2
     assert all("error" not in r and r["time_s"] > 0 for r in comp_recs)
 
     # The cached reference render is the reference-scene render of the table itself.
@@ -102,6 +103,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     from brdfkit.render.scene import Scene
 
     cached = sorted((out / "cache").glob(f"{test_names[0]}-{RES}px-*.exr"))
+    # one render per table: alias.binary (a copy of a test material) reused its render
     assert len(cached) == 1 and len(list((out / "cache").glob("*.exr"))) == 3
     img, _ = render(TableBRDF(read_merl(setup["lib"] / f"{test_names[0]}.binary"), device="cpu"), Scene(resolution=RES))
     np.testing.assert_allclose(read_exr(cached[0]), img, rtol=1e-6, atol=1e-7)
