@@ -1,0 +1,116 @@
+"""BRDFs a renderer evaluates at the directions it queries.
+
+A renderable BRDF has ``eval_dirs(wi, wo) -> (N, 3)`` (torch ``(N, 3)`` unit vectors in
+the local frame, ``z`` the normal; BRDF in 1/sr, 0 where either direction is at or below
+the horizon) and a ``name``. Two kinds exist:
+
+* :class:`TableBRDF`: a dense MERL-grid table, interpolated with
+  :func:`brdfkit.geometry.lookup_trilinear` (NaN-aware; 0 where no corner is measured);
+* :class:`brdfkit.neural.NeuralBRDF`: one material's hyponet, evaluated directly at the
+  queried directions (never through a dense table).
+
+:func:`load_brdf` opens either from a file: a MERL ``.binary`` or an embedding ``.emb``
+with its model.
+"""
+
+from __future__ import annotations
+
+import os
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["TableBRDF", "load_brdf", "brdf_kind"]
+
+
+class TableBRDF:
+    """A dense ``(90, 90, 180, 3)`` BRDF table as a renderable BRDF.
+
+    Parameters
+    ----------
+    table
+        Array-like ``(90, 90, 180, 3)``, 1/sr, NaN where not measured.
+    name
+        Shown in progress messages and metric tables.
+    device
+        Torch device of the float32 copy used for lookups (default: CUDA if available).
+    """
+
+    def __init__(self, table, name: str = "table", device=None):
+        import torch
+
+        arr = np.asarray(table)
+        if arr.shape != (90, 90, 180, 3):
+            raise InputError(f"{name}: BRDF table of shape {arr.shape}, expected (90, 90, 180, 3)")
+        self.name = name
+        self.table = arr
+        self.device = torch.device(device) if device is not None else \
+            torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        self._t = torch.as_tensor(np.ascontiguousarray(arr, np.float32), device=self.device)
+
+    def eval_dirs(self, wi, wo):
+        """BRDF ``(N, 3)`` float32 at local direction pairs ``wi, wo`` (torch ``(N, 3)``)."""
+        import torch
+
+        from ..geometry import half_diff_from_io, lookup_trilinear
+
+        wi_ = wi.to(self.device, torch.float32).reshape(-1, 3)
+        wo_ = wo.to(self.device, torch.float32).reshape(-1, 3)
+        th, _, td, pd = half_diff_from_io(wi_, wo_)
+        rho = lookup_trilinear(self._t, th, td, pd, fill=0.0)
+        above = (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
+        return torch.where(above[:, None], rho, torch.zeros_like(rho)).to(wi.device)
+
+
+def brdf_kind(path) -> str:
+    """``"merl"`` or ``"embedding"`` from a file's suffix; InputError otherwise."""
+    ext = os.path.splitext(os.fspath(path))[1].lower()
+    if ext == ".binary":
+        return "merl"
+    if ext == ".emb":
+        return "embedding"
+    raise InputError(f"{os.fspath(path)}: not a BRDF file (expected a MERL .binary or an embedding .emb)")
+
+
+def load_brdf(path, model_path=None, device=None, model=None):
+    """Open a BRDF file for rendering.
+
+    Parameters
+    ----------
+    path
+        A MERL ``.binary`` table or an embedding ``.emb``.
+    model_path
+        The model (``.safetensors``) an ``.emb`` was made with; required for ``.emb``.
+    device
+        Torch device (default: CUDA if available, else CPU).
+    model
+        An already loaded :class:`~brdfkit.modelfile.NeuralModel` (instead of
+        ``model_path``).
+
+    Returns
+    -------
+    TableBRDF or brdfkit.neural.NeuralBRDF
+        With ``name`` set to the file stem.
+    """
+    from ..atomic import check_input_file
+
+    path = check_input_file(path)
+    name = os.path.splitext(os.path.basename(path))[0]
+    if brdf_kind(path) == "merl":
+        from ..merl import read_merl
+
+        return TableBRDF(read_merl(path), name=name, device=device)
+    from ..embedding import read_embedding
+    from ..neural import NeuralBRDF
+
+    if model is None:
+        from ..modelfile import load_model
+
+        if not model_path:
+            raise InputError(f"{path}: an embedding needs the model that made it "
+                             "(pass -m MODEL.safetensors or set BRDFKIT_MODEL)")
+        model = load_model(model_path, device=device)
+    brdf = NeuralBRDF.from_embedding(model, read_embedding(path), name=path)
+    brdf.name = name
+    return brdf
