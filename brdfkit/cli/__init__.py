@@ -72,6 +72,9 @@ def fail(message: str, code: int = 2):
 
 def main(argv=None):
     """Console-script entry point: runs the group and maps errors to exit codes."""
+    from ..threads import set_default_threads
+
+    set_default_threads()  # before any command imports torch
     try:
         rv = cli.main(args=argv, prog_name="brdfkit", standalone_mode=False)
     except BrdfkitError as e:

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .common import console, model_option, require_model
+from .common import model_option, require_model
 
 
 @click.command("decode")
@@ -33,4 +33,4 @@ def command(embedding, model_path, output):
     model = load_model(model_path)
     table = NeuralBRDF.from_embedding(model, emb, embedding).to_table()
     write_merl(output, table)
-    console().print(f"decoded {embedding} into {output}")
+    click.echo(f"decoded {embedding} into {output}", err=True)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .common import console, model_option, require_model
+from .common import model_option, require_model
 
 
 def _hypernet(samples, model_path):
@@ -51,4 +51,4 @@ def command(samples, model_path, output, emb_path, method):
     if emb_path:
         write_embedding(emb_path, emb)
     extra = f" and {emb_path}" if emb_path else ""
-    console().print(f"reconstructed {output}{extra} from {len(data)} samples ({method})")
+    click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({method})", err=True)
