@@ -59,7 +59,7 @@ import numpy as np
 from .atomic import atomic_open, atomic_path, check_input_file
 from .errors import InputError
 
-__all__ = ["BenchConfig", "run_bench", "summarise", "DEFAULT_N", "DEFAULT_METHODS",
+__all__ = ["BenchConfig", "run_bench", "merge_results", "summarise", "DEFAULT_N", "DEFAULT_METHODS",
            "DEFAULT_RESOLUTION", "METRICS", "list_materials", "sample_seed"]
 
 DEFAULT_N = (40, 160, 400, 2000, 4000)
@@ -88,8 +88,10 @@ class BenchConfig:
         skips the sparse benchmark.
     model, ipca
         Hypernetwork model and PCA basis files (needed by the methods that use them).
-    n, seeds, methods
-        Sample counts, number of draws per (material, N), methods.
+    n, seeds, first_seed, methods
+        Sample counts, number of draws per (material, N) (seeds ``first_seed ..
+        first_seed + seeds - 1``; a later run with other seeds can be merged, see
+        :func:`merge_results`), methods.
     compression_models, compression_data
         Hypernetwork models to test on encode -> decode of every table in
         ``compression_data`` (plus the PCA basis, when ``ipca`` is given).
@@ -116,6 +118,7 @@ class BenchConfig:
     ipca: str | None = None
     n: tuple = DEFAULT_N
     seeds: int = 3
+    first_seed: int = 0
     methods: tuple = DEFAULT_METHODS
     compression_models: tuple = ()
     compression_data: str | None = None
@@ -128,6 +131,9 @@ class BenchConfig:
     group_by_prefix: bool = False
     cache: str | None = None
     command: str = ""
+
+    def seed_list(self) -> list[int]:
+        return list(range(self.first_seed, self.first_seed + self.seeds))
 
     def validate(self) -> None:
         """:class:`InputError` for a configuration that cannot run."""
@@ -147,6 +153,8 @@ class BenchConfig:
                 raise InputError(f"--n: sample counts must be positive integers, got {self.n}")
             if self.seeds < 1:
                 raise InputError(f"--seeds must be at least 1, got {self.seeds}")
+            if self.first_seed < 0:
+                raise InputError(f"--first-seed must be at least 0, got {self.first_seed}")
             if "hypernet" in self.methods and not self.model:
                 raise InputError("method 'hypernet' needs --model MODEL.safetensors")
             if "ipca" in self.methods and not self.ipca:
@@ -221,7 +229,7 @@ def _failed_records(cfg: BenchConfig, kind: str, name: str, error: str, compress
     (``compressors``: the ``(label, latent)`` of the compression methods)."""
     if kind == "sparse":
         return [{"kind": kind, "material": name, "method": m, "n": int(k), "seed": s, "error": error}
-                for m in cfg.methods for k in cfg.n for s in range(cfg.seeds)]
+                for m in cfg.methods for k in cfg.n for s in cfg.seed_list()]
     return [{"kind": kind, "material": name, "method": label, "latent": dim, "error": error}
             for label, dim in compressors]
 
@@ -358,7 +366,7 @@ class _Worker:
             return _failed_records(cfg, "sparse", name, _error_text(e))
         records = []
         for k in cfg.n:
-            for s in range(cfg.seeds):
+            for s in cfg.seed_list():
                 draw = sample_seed(s, k, name)
                 try:
                     samples = draw_samples(table, int(k), seed=draw, source=name)
@@ -514,7 +522,7 @@ def write_markdown(path: str, result: dict) -> None:
     if summ["sparse"]:
         lines += ["## Sparse reconstruction", "",
                   f"{result['materials']['sparse_count']} test material(s) from `{cfg['data']}`, "
-                  f"{cfg['seeds']} draw(s) each; mean over materials and draws ± standard deviation "
+                  f"{_seed_text(cfg)} each; mean over materials and draws ± standard deviation "
                   f"over draws of the per-draw mean; time = wall time of one reconstruction "
                   f"(mean; median in brackets).", "",
                   "| method | N | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | time (s) | ok / failed |",
@@ -562,6 +570,11 @@ def write_markdown(path: str, result: dict) -> None:
     lines.append("")
     with atomic_open(path, "w", encoding="utf-8") as f:
         f.write("\n".join(lines))
+
+
+def _seed_text(cfg) -> str:
+    seeds = cfg.get("seed_values") or list(range(cfg.get("first_seed", 0), cfg.get("first_seed", 0) + cfg["seeds"]))
+    return f"{len(seeds)} draw(s) (seeds {', '.join(map(str, seeds))})"
 
 
 def _pmm(row, m, digits):
@@ -630,7 +643,7 @@ def write_plots(folder: str, result: dict) -> list[str]:
         axes.flat[0].legend()
         title = "error against N" if xkey == "n" else "error against run time (points labelled with N)"
         fig.suptitle(f"brdfkit bench: {title}; {result['materials']['sparse_count']} materials, "
-                     f"{result['config']['seeds']} draw(s)", fontsize=10)
+                     f"{_seed_text(result['config'])}", fontsize=10)
         out = os.path.join(folder, fname)
         with atomic_path(out) as tmp:
             fig.savefig(tmp, dpi=80, format="png")
@@ -785,9 +798,76 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
                 except KeyboardInterrupt:
                     pool.shutdown(wait=False, cancel_futures=True)
                     raise
-    outputs = [json_path, os.path.join(cfg.output, "bench.md")]
-    outputs += write_plots(cfg.output, result)
+    result["complete"] = True
+    result["elapsed_s"] = time.perf_counter() - t_start
+    return _finish(result, cfg.output, json_path, cfg.group_by_prefix)
+
+
+def _finish(result: dict, folder: str, json_path: str, group_by_prefix: bool) -> dict:
+    """Write the summaries, tables and plots of a finished (or merged) result."""
+    outputs = [json_path, os.path.join(folder, "bench.md")]
+    result["summary"] = summarise(result["records"], group_by_prefix)
+    outputs += write_plots(folder, result)
     result["outputs"] = outputs
-    save(complete=True)
+    with atomic_open(json_path, "w", encoding="utf-8") as f:
+        json.dump(_json_safe(result), f, indent=1)
     write_markdown(outputs[1], result)
     return result
+
+
+def merge_results(paths, output: str) -> dict:
+    """Merge the ``bench.json`` of runs with other seeds (or methods) into one result.
+
+    The runs must share the render resolution; a record that two runs both hold (same
+    kind, material, method, N / model and seed) is refused. The merged ``bench.json``,
+    ``bench.md`` and plots are written into ``output``.
+
+    Raises
+    ------
+    InputError
+        Fewer than two runs, an unreadable or incomplete ``bench.json``, differing
+        resolutions, or a duplicated record.
+    """
+    runs = []
+    for p in paths:
+        file = os.path.join(p, "bench.json") if os.path.isdir(p) else os.fspath(p)
+        file = check_input_file(file)
+        try:
+            with open(file, encoding="utf-8") as f:
+                run = json.load(f)
+        except (json.JSONDecodeError, UnicodeDecodeError) as e:
+            raise InputError(f"{file}: not a bench.json ({e})") from None
+        if not isinstance(run, dict) or run.get("format") != "brdfkit-bench":
+            raise InputError(f"{file}: not a brdfkit bench result")
+        if not run.get("complete"):
+            raise InputError(f"{file}: the run did not finish; merge complete runs only")
+        runs.append(run)
+    if len(runs) < 2:
+        raise InputError("merging needs at least two bench results")
+    res = {r["config"]["resolution"] for r in runs}
+    if len(res) > 1:
+        raise InputError(f"the runs rendered at different resolutions ({sorted(res)}); their image "
+                         f"metrics are not comparable")
+    seen, records = set(), []
+    for run in runs:
+        for r in run["records"]:
+            key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), r.get("latent"))
+            if key in seen:
+                raise InputError(f"two runs both hold {r['kind']} {r['material']} {r['method']} "
+                                 f"N={r.get('n')} seed={r.get('seed')}; merge runs with other seeds or methods")
+            seen.add(key)
+            records.append(r)
+    first = runs[0]
+    cfg = dict(first["config"])
+    cfg["seed_values"] = sorted({r["seed"] for r in records if r["kind"] == "sparse" and "seed" in r})
+    cfg["seeds"] = len(cfg["seed_values"]) or cfg["seeds"]
+    cfg["methods"] = list(dict.fromkeys(m for run in runs for m in run["config"]["methods"]))
+    cfg["command"] = " + ".join(run["config"].get("command", "") for run in runs)
+    mats = {k: list(dict.fromkeys(m for run in runs for m in run["materials"][k])) for k in ("sparse", "compression")}
+    result = dict(first, config=cfg, records=records, complete=True,
+                  elapsed_s=sum(run["elapsed_s"] for run in runs),
+                  materials={**mats, "sparse_count": len(mats["sparse"]),
+                             "compression_count": len(mats["compression"])},
+                  merged_from=[run["started"] for run in runs])
+    os.makedirs(output, exist_ok=True)
+    return _finish(result, output, os.path.join(output, "bench.json"), cfg.get("group_by_prefix", False))

@@ -138,6 +138,29 @@ def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
     md = (tmp_path / "out" / "bench.md").read_text()
     assert "## Failures (2)" in md and "broken, ipca:" in md
 
+    # One more draw later, merged with the first run.
+    from brdfkit.cli import main
+    from brdfkit.errors import InputError
+
+    before = sorted((tmp_path / "out" / "cache").iterdir())
+    assert len(before) == 1
+    run_bench(BenchConfig(output=str(tmp_path / "more"), data=str(data), ipca=str(setup["basis"]), n=(40,),
+                          seeds=1, first_seed=2, methods=("ipca",), resolution=RES,
+                          cache=str(tmp_path / "out" / "cache")), progress=False)
+    assert sorted((tmp_path / "out" / "cache").iterdir()) == before  # the reference came from the cache
+    with pytest.raises(SystemExit) as e:
+        main(["bench", "--merge", str(tmp_path / "out"), "--merge", str(tmp_path / "more"), "-o",
+              str(tmp_path / "merged"), "-q"])
+    assert e.value.code == 0
+    merged = json.loads((tmp_path / "merged" / "bench.json").read_text())
+    assert sorted(r["seed"] for r in merged["records"] if r["material"] == good) == [0, 1, 2]
+    assert merged["summary"]["sparse"][0]["count"] == 3
+    assert "3 draw(s) (seeds 0, 1, 2)" in (tmp_path / "merged" / "bench.md").read_text()
+    from brdfkit.bench import merge_results
+
+    with pytest.raises(InputError, match="both hold sparse"):
+        merge_results([tmp_path / "out", tmp_path / "merged"], str(tmp_path / "again"))
+
 
 def test_usage_errors_are_one_line(setup, tmp_path, capsys):
     from brdfkit.cli import main

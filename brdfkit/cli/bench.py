@@ -34,6 +34,8 @@ def _str_list(value: str | None) -> tuple:
               help="Sample counts N, comma-separated.")
 @click.option("--seeds", type=int, default=3, show_default=True,
               help="Draws of samples per material and N (mean and spread over them).")
+@click.option("--first-seed", type=int, default=0, show_default=True,
+              help="First seed (seeds FIRST .. FIRST+K-1): more draws later, then --merge.")
 @click.option("--methods", default="hypernet,ipca,nbrdf", show_default=True,
               help="Reconstruction methods, comma-separated.")
 @click.option("--compression-models", default=None,
@@ -55,9 +57,13 @@ def _str_list(value: str | None) -> tuple:
               help="Folder of cached reference renders [default: OUTDIR/cache].")
 @click.option("-o", "--output", type=click.Path(file_okay=False), required=True,
               help="Output folder: bench.json, bench.md, error_vs_n.png, error_vs_time.png, compression.png.")
+@click.option("--merge", "merge", multiple=True, type=click.Path(), metavar="RUN",
+              help="Instead of running: merge the bench.json of finished runs (folders or files, "
+                   "repeat the option) into -o.")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def command(data, test_list, model, ipca, n_list, seeds, methods, compression_models, compression_data,
-            resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, group_by_prefix, cache, output, quiet):
+def command(data, test_list, model, ipca, n_list, seeds, first_seed, methods, compression_models, compression_data,
+            resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, group_by_prefix, cache, merge, output,
+            quiet):
     """Measure reconstruction error against run time (and compression error).
 
     For each test material of --data, each N and each seed, every method reconstructs the
@@ -68,11 +74,18 @@ def command(data, test_list, model, ipca, n_list, seeds, methods, compression_mo
     import shlex
     import sys
 
-    from ..bench import BenchConfig, run_bench
+    from ..bench import BenchConfig, merge_results, run_bench
     from .common import console
 
+    if merge:
+        if data or compression_models:
+            raise InputError("--merge combines finished runs; give no --data or --compression-models with it")
+        result = merge_results(merge, output)
+        console().print(f"merged {len(merge)} runs: wrote {', '.join(result['outputs'])}")
+        return
+
     cfg = BenchConfig(output=output, data=data, test_list=test_list, model=model, ipca=ipca,
-                      n=_int_list(n_list, "--n"), seeds=seeds, methods=_str_list(methods),
+                      n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed, methods=_str_list(methods),
                       compression_models=_str_list(compression_models), compression_data=compression_data,
                       resolution=resolution, jobs=jobs, threads=threads, device=device,
                       nbrdf_steps=nbrdf_steps, ipca_lambda=ipca_lambda, group_by_prefix=group_by_prefix,
