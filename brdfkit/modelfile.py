@@ -172,6 +172,27 @@ def _check_header(path: str) -> None:
         raise FormatError(path, f"truncated: {size} bytes, its safetensors header describes {need}")
 
 
+def _check_config_sizes(cfg, n_tensors: int, n_values: int) -> None:
+    """Raise ``ValueError`` unless every size in ``cfg`` could fit a file of ``n_tensors``
+    tensors holding ``n_values`` numbers: each layer adds a tensor, each width a weight."""
+    def count(name, v, low, high):
+        if isinstance(v, bool) or not isinstance(v, int):
+            raise ValueError(f"{name} = {v!r} is not a whole number")
+        if not low <= v <= high:
+            raise ValueError(f"{name} = {v!r} does not fit the {n_tensors} tensors of "
+                             f"{n_values} values in the file")
+
+    hidden = cfg.encoder_hidden
+    if not isinstance(hidden, tuple):
+        raise ValueError(f"encoder_hidden = {hidden!r} is not a list of widths")
+    count("len(encoder_hidden)", len(hidden), 0, n_tensors)
+    count("hypo_layers", cfg.hypo_layers, 0, n_tensors)
+    count("decoder_layers", cfg.decoder_layers, 0, n_tensors)
+    for name, v in (("latent_dim", cfg.latent_dim), ("hypo_hidden", cfg.hypo_hidden),
+                    ("decoder_hidden", cfg.decoder_hidden), *(("encoder_hidden", w) for w in hidden)):
+        count(name, v, 1, n_values)
+
+
 def _resolve_device(device):
     import torch
 
@@ -233,11 +254,16 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
         raise FormatError(path, f"not a valid safetensors file ({str(e).splitlines()[0]})") from None
     if tuple(ref.shape) != _REF_SHAPE:
         raise FormatError(path, f"reference table has shape {tuple(ref.shape)}, expected {_REF_SHAPE}")
+    # The config is checked against the file's own tensors before any network is built:
+    # sizes bounded by them, then the shapes from a build on torch's "meta" device (no
+    # memory). A crafted config (latent_dim = 10^7) took 37 s and 4.7 GB before being
+    # refused, and decoder_hidden = 20000 x 30 layers exhausted memory (docs/stability.md).
     try:
-        net = HyperBRDF(cfg)
+        _check_config_sizes(cfg, len(state), sum(t.numel() for t in state.values()))
+        with torch.device("meta"):
+            expected = HyperBRDF(cfg).state_dict()
     except (TypeError, ValueError, RuntimeError) as e:
         raise FormatError(path, f"model config cannot be built ({e})") from None
-    expected = net.state_dict()
     missing = sorted(set(expected) - set(state))
     extra = sorted(set(state) - set(expected))
     if missing or extra:
@@ -249,6 +275,10 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
         if tuple(state[name].shape) != tuple(t.shape):
             raise FormatError(path, f"tensor {_PREFIX}{name} has shape {tuple(state[name].shape)}, "
                                     f"the config needs {tuple(t.shape)}")
+    try:
+        net = HyperBRDF(cfg)
+    except (TypeError, ValueError, RuntimeError) as e:
+        raise FormatError(path, f"model config cannot be built ({e})") from None
     net.load_state_dict({k: v.float() for k, v in state.items()})
     fingerprint = weights_fingerprint(net)
     recorded = md.get("fingerprint")

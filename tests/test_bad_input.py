@@ -532,3 +532,58 @@ def test_fit_output_equal_to_an_input_is_refused(good, tmp_path, capsys):
     assert _one_error(err) == f"brdfkit: error: {tmp_path / 'mat.binary'}: output path is also an input; " \
                               f"refusing to overwrite it"
     assert os.listdir(tmp_path) == ["mat.binary"] and (tmp_path / "mat.binary").read_bytes() == before
+
+
+# --- crafted headers (found by benchmarks/fuzz_parsers.py and by hand) ---------------------
+
+def _rewrite_header(raw: bytes, edit) -> bytes:
+    import json
+
+    n = int.from_bytes(raw[:8], "little")
+    header = json.loads(raw[8:8 + n])
+    edit(header)
+    new = json.dumps(header).encode()
+    new += b" " * (-len(new) % 8)
+    return len(new).to_bytes(8, "little") + new + raw[8 + n:]
+
+
+@pytest.mark.parametrize("change, message", [
+    ({"latent_dim": 10**7}, "latent_dim = 10000000 does not fit the 30 tensors"),
+    ({"decoder_hidden": 20000, "decoder_layers": 30}, "decoder_layers = 30 does not fit|decoder_hidden = 20000"),
+    ({"hypo_layers": 10**6}, "hypo_layers = 1000000 does not fit"),
+    ({"latent_dim": 1.5}, "latent_dim = 1.5 is not a whole number"),
+])
+def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_path, change, message):
+    # Regression: the network was built from the config before its shapes were compared
+    # with the file's tensors: latent_dim = 10^7 took 37 s and 4.7 GB, decoder_hidden =
+    # 20000 x 30 layers was killed for memory.
+    import json
+    import re
+
+    from brdfkit.modelfile import load_model
+
+    def edit(header):
+        cfg = json.loads(header["__metadata__"]["config"])
+        cfg.update(change)
+        header["__metadata__"]["config"] = json.dumps(cfg)
+
+    path = tmp_path / "crafted.safetensors"
+    path.write_bytes(_rewrite_header((good / "model.safetensors").read_bytes(), edit))
+    t0 = time.perf_counter()
+    with pytest.raises(FormatError, match="model config cannot be built") as e:
+        load_model(path, "cpu")
+    assert time.perf_counter() - t0 < 2.0
+    assert re.search(message, str(e.value)), str(e.value)
+
+
+def test_ipca_basis_with_materials_not_a_list(tmp_path):
+    # Found by benchmarks/fuzz_parsers.py: metadata materials = "5" raised a TypeError.
+    from brdfkit.baselines.ipca import load_ipca
+
+    from helpers_fuzz import ipca_seed
+
+    for bad in ("5", "null", '{"a": 1}', "[1, 2]"):
+        path = tmp_path / "basis.safetensors"
+        path.write_bytes(_rewrite_header(ipca_seed(), lambda h: h["__metadata__"].update(materials=bad)))
+        with pytest.raises(FormatError, match="'materials' is not a list of names"):
+            load_ipca(path)

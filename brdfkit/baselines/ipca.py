@@ -351,6 +351,9 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
         materials = json.loads(meta.get("materials", "[]"))
     except json.JSONDecodeError:
         raise FormatError(path, "PCA basis metadata 'materials' is not JSON") from None
+    # found by benchmarks/fuzz_parsers.py: 'materials' = "5" raised a TypeError below
+    if not isinstance(materials, list) or not all(isinstance(m, str) for m in materials):
+        raise FormatError(path, "PCA basis metadata 'materials' is not a list of names")
     return IpcaModel(cells.astype(np.int64), t["reference"].astype(np.float32),
                      t["mean"].astype(np.float32), comp.astype(np.float32),
                      t["sigma"].astype(np.float32), list(materials))

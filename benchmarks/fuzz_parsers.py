@@ -1,0 +1,98 @@
+"""A long fuzz run of every brdfkit file parser (issue 6; the suite runs a short one).
+
+    python benchmarks/fuzz_parsers.py --minutes 3            # every parser, 3 minutes each
+    python benchmarks/fuzz_parsers.py --minutes 1 load_model read_embedding
+
+Same inputs as ``tests/test_fuzz.py`` (``tests/helpers_fuzz.py``): random bytes and
+mutated valid files. Only brdfkit's own one-line errors may escape; the first other
+outcome (exception, multi-line message, a parse over 30 s) is printed with the input
+saved beside it, and the exit code is 1. Prints per parser: examples run, how many were
+accepted as valid and how many refused, and the slowest parse.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import tempfile
+import time
+import traceback
+
+sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+
+from hypothesis import HealthCheck, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from brdfkit.errors import BrdfkitError  # noqa: E402
+
+from helpers_fuzz import PARSERS, check_parser, draw_input  # noqa: E402
+
+
+def fuzz(name: str, seconds: float, folder: str, chunk: int = 100) -> tuple[dict, str | None]:
+    """Runs of ``chunk`` examples (each run a fresh random seed) until ``seconds`` pass."""
+    parser = PARSERS[name]
+    parser.seed()
+    stats = {"examples": 0, "accepted": 0, "refused": 0, "slowest_s": 0.0}
+    deadline = time.monotonic() + seconds
+
+    @settings(max_examples=chunk, deadline=None, database=None, print_blob=True,
+              suppress_health_check=list(HealthCheck))
+    @given(data=st.data())
+    def run(data):
+        raw = draw_input(data, parser)
+        t0 = time.perf_counter()
+        try:
+            parser.read(_write(folder, parser, raw))
+            stats["accepted"] += 1
+        except BrdfkitError:
+            stats["refused"] += 1
+        except Exception:
+            pass  # check_parser below raises it again, for hypothesis to shrink
+        stats["slowest_s"] = max(stats["slowest_s"], time.perf_counter() - t0)
+        stats["examples"] += 1
+        check_parser(parser, raw, folder)  # the assertions (exception kind, message, time)
+
+    while time.monotonic() < deadline:
+        try:
+            run()
+        except Exception:  # hypothesis re-raises the shrunk failing example
+            return stats, traceback.format_exc()
+    return stats, None
+
+
+def _write(folder, parser, raw) -> str:
+    path = os.path.join(folder, "fuzz" + parser.suffix)
+    with open(path, "wb") as f:
+        f.write(raw)
+    return path
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("parsers", nargs="*", help=f"which (default all): {', '.join(sorted(PARSERS))}")
+    ap.add_argument("--minutes", type=float, default=3.0, help="per parser (default 3)")
+    args = ap.parse_args(argv)
+    import torch
+
+    torch.set_num_threads(1)
+    names = args.parsers or sorted(PARSERS)
+    unknown = [n for n in names if n not in PARSERS]
+    if unknown:
+        ap.error(f"unknown parser(s) {unknown}; known: {sorted(PARSERS)}")
+    status = 0
+    print(f"{'parser':16s} {'minutes':>7s} {'examples':>9s} {'accepted':>9s} {'refused':>8s} {'slowest s':>10s}  result")
+    for name in names:
+        with tempfile.TemporaryDirectory(prefix=f"fuzz-{name}-") as folder:
+            stats, failure = fuzz(name, args.minutes * 60.0, folder)
+        result = "nothing found" if failure is None else "FAILED"
+        print(f"{name:16s} {args.minutes:7.1f} {stats['examples']:9d} {stats['accepted']:9d} "
+              f"{stats['refused']:8d} {stats['slowest_s']:10.2f}  {result}", flush=True)
+        if failure:
+            print(failure, file=sys.stderr)
+            status = 1
+    return status
+
+
+if __name__ == "__main__":
+    sys.exit(main())
