@@ -13,3 +13,38 @@ Modules, one concept each:
 
 Nothing here is imported by ``import brdfkit``; torch and Mitsuba load only when used.
 """
+
+from __future__ import annotations
+
+__all__ = ["render", "TableBRDF", "load_brdf"]
+
+
+def render(brdf, scene=None, env=None, progress=None):
+    """The reference-scene image of ``brdf`` by the quadrature renderer.
+
+    Parameters
+    ----------
+    brdf
+        Object with ``eval_dirs`` (:class:`~brdfkit.render.brdf.TableBRDF`,
+        :class:`~brdfkit.neural.NeuralBRDF`).
+    scene, env, progress
+        As for :func:`brdfkit.render.quadrature.render` (default: the reference scene).
+
+    Returns
+    -------
+    numpy.ndarray
+        float32 ``(R, R, 3)`` linear-sRGB radiance, background black
+        (:func:`brdfkit.render.quadrature.render` also returns the object mask).
+    """
+    from .quadrature import render as _render
+    from .scene import REFERENCE
+
+    return _render(brdf, scene or REFERENCE, env=env, progress=progress)[0]
+
+
+def __getattr__(name):
+    if name in ("TableBRDF", "load_brdf"):
+        from . import brdf
+
+        return getattr(brdf, name)
+    raise AttributeError(f"module 'brdfkit.render' has no attribute {name!r}")

@@ -170,23 +170,23 @@ def estimate_alpha(brdf) -> float:
 
 
 def _open_source(props) -> object:
-    if props.has_property("source"):
+    if "source" in props:
         key = props["source"]
         if key not in _sources:
             raise InputError(f"brdfkit BSDF: unknown source {key!r} (use register_source)")
         return _sources[key]
-    if not props.has_property("filename"):
+    if "filename" not in props:
         raise InputError("brdfkit BSDF: give a 'filename' (.binary or .emb) or a registered 'source'")
     from .brdf import load_brdf
 
-    model = props["model"] if props.has_property("model") else os.environ.get("BRDFKIT_MODEL")
+    model = props["model"] if "model" in props else os.environ.get("BRDFKIT_MODEL")
     filename = str(props["filename"])
     try:  # resolve relative to the scene file, as Mitsuba does for its own files
         import mitsuba as mi
 
-        filename = str(mi.Thread.thread().file_resolver().resolve(filename))
+        filename = str(mi.file_resolver().resolve(filename))
         if model:
-            model = str(mi.Thread.thread().file_resolver().resolve(str(model)))
+            model = str(mi.file_resolver().resolve(str(model)))
     except Exception:
         pass
     return load_brdf(filename, model_path=model, device="cpu")
@@ -205,7 +205,7 @@ def _bsdf_class(mi, dr):
         def __init__(self, props):
             mi.BSDF.__init__(self, props)
             self.brdf = _open_source(props)
-            alpha = float(props["alpha"]) if props.has_property("alpha") else estimate_alpha(self.brdf)
+            alpha = float(props["alpha"]) if "alpha" in props else estimate_alpha(self.brdf)
             self.alpha = alpha
             self.ggx = (mi.MicrofacetDistribution(mi.MicrofacetType.GGX, alpha, True),
                         mi.MicrofacetDistribution(mi.MicrofacetType.GGX, min(0.8, 4 * alpha), True))
@@ -408,7 +408,7 @@ def load_user_scene(path, bsdf_id: str, brdf, resolution: int | None = None, spp
                 if child.get("name") in ("width", "height"):
                     child.set("value", str(int(resolution)))
     text = ET.tostring(tree.getroot(), encoding="unicode")
-    resolver = mi.Thread.thread().file_resolver()
+    resolver = mi.file_resolver()
     resolver.prepend(os.path.dirname(os.path.abspath(path)))
     try:
         scene = mi.load_string(text)

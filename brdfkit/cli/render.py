@@ -1,0 +1,119 @@
+"""``brdfkit render``: render a BRDF in the reference scene or a Mitsuba scene."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import time
+
+import click
+
+from .common import console, model_option
+
+
+@contextlib.contextmanager
+def progress_bar(description: str, enabled: bool = True):
+    """A Rich progress bar on stderr; yields a callback ``update(done, total)``."""
+    if not enabled:
+        yield None
+        return
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
+
+    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
+                  TimeElapsedColumn(), TimeRemainingColumn(), console=console(), transient=True) as bar:
+        task = bar.add_task(description, total=None)
+
+        def update(done, total):
+            bar.update(task, completed=done, total=total)
+
+        yield update
+
+
+def render_brdf_file(path, model_path=None, *, resolution=None, mitsuba=False, spp=None,
+                     supersample=1, scene_file=None, bsdf_id=None, progress=True, model=None):
+    """Render a ``.binary`` / ``.emb`` file; returns ``(image, how)`` with ``how`` a short
+    description for messages (renderer, size, BRDF evaluations)."""
+    import dataclasses
+
+    from ..render.brdf import load_brdf
+    from ..render.scene import REFERENCE
+
+    brdf = load_brdf(path, model_path, model=model)
+    scene = dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
+                                supersample=int(supersample))
+    if scene_file is not None:
+        from ..render.mitsuba_plugin import load_user_scene, render_scene
+
+        sc, n = load_user_scene(scene_file, bsdf_id, brdf, resolution=resolution, spp=spp)
+        with progress_bar(f"Mitsuba {os.path.basename(scene_file)}", progress) as cb:
+            img = render_scene(sc, n, progress=cb)
+        return img, f"Mitsuba, {os.path.basename(scene_file)}, {n} spp"
+    if mitsuba:
+        from ..render.mitsuba_plugin import render_reference
+
+        n = int(spp or scene.spp)
+        with progress_bar(f"Mitsuba {brdf.name}", progress) as cb:
+            img = render_reference(brdf, scene, spp=n, progress=cb)
+        return img, f"Mitsuba reference scene, {n} spp"
+    from ..render.quadrature import render, render_pixels
+
+    with progress_bar(f"quadrature {brdf.name}", progress) as cb:
+        img, _ = render(brdf, scene, progress=cb)
+    return img, f"quadrature, {render_pixels.last_evaluations:,} BRDF evaluations"
+
+
+@click.command("render")
+@click.argument("brdf", type=click.Path(dir_okay=False))
+@model_option
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False),
+              help="Output image (.exr, linear float32 RGB).")
+@click.option("--png", type=click.Path(dir_okay=False), default=None,
+              help="Also write a tone-mapped sRGB PNG (exposure 1, clipped; docs/render.md).")
+@click.option("--mitsuba", is_flag=True,
+              help="Path-trace the reference scene with Mitsuba 3 instead of the quadrature.")
+@click.option("--scene", "scene_file", type=click.Path(dir_okay=False), default=None,
+              help="Render this Mitsuba XML scene instead (with --bsdf-id).")
+@click.option("--bsdf-id", default=None, help="Id of the <bsdf> in --scene that gets the BRDF.")
+@click.option("--spp", type=click.IntRange(min=1), default=None,
+              help="Samples per pixel for Mitsuba (default 256, or the scene's own).")
+@click.option("--resolution", type=click.IntRange(min=8, max=8192), default=None,
+              help="Image size in pixels (square; default 256; for --scene, overrides the film).")
+@click.option("--supersample", type=click.IntRange(min=1, max=16), default=1, show_default=True,
+              help="Quadrature: average an S x S grid of points per pixel (anti-aliasing).")
+@click.option("--quiet", is_flag=True, help="No progress bar.")
+def command(brdf, model_path, output, png, mitsuba, scene_file, bsdf_id, spp, resolution, supersample, quiet):
+    """Render BRDF (a MERL .binary or an embedding .emb with -m MODEL) to an EXR image.
+
+    By default the reference scene (a sphere under a fixed HDR environment,
+    docs/render.md) is computed by deterministic quadrature: noise-free, same bytes
+    every run. --mitsuba path-traces the same scene with Mitsuba 3 and the `brdfkit`
+    BSDF plugin; --scene FILE.xml --bsdf-id NAME renders your own Mitsuba scene with
+    the BRDF bound to the BSDF of that id.
+    """
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..errors import InputError
+    from ..render.brdf import brdf_kind
+    from ..render.image import write_exr, write_png
+
+    brdf_kind(brdf)
+    if scene_file is not None and not bsdf_id:
+        raise InputError(f"{scene_file}: --scene needs --bsdf-id NAME (the <bsdf id=...> to replace)")
+    if bsdf_id and scene_file is None:
+        raise InputError("--bsdf-id is only used with --scene FILE.xml")
+    if png is not None and os.path.abspath(png) == os.path.abspath(output):
+        raise InputError(f"{png}: --png and -o name the same file")
+    inputs = [brdf, model_path, scene_file]
+    refuse_overwrite_of_inputs(output, inputs)
+    refuse_overwrite_of_inputs(png, inputs)
+    if not output.lower().endswith(".exr"):
+        raise InputError(f"{output}: the output image must be an .exr file (use --png for a PNG)")
+    t0 = time.perf_counter()
+    img, how = render_brdf_file(brdf, model_path, resolution=resolution, mitsuba=mitsuba, spp=spp,
+                                supersample=supersample, scene_file=scene_file, bsdf_id=bsdf_id,
+                                progress=not quiet)
+    write_exr(output, img)
+    if png is not None:
+        write_png(png, img)
+    out = console()
+    out.print(f"{output}: {img.shape[1]}x{img.shape[0]}, {how}, {time.perf_counter() - t0:.1f} s"
+              + (f"; {png}" if png else ""), soft_wrap=True)

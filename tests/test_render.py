@@ -1,0 +1,332 @@
+"""Reference-scene rendering: environment map, quadrature renderer, images, render and
+metrics commands."""
+
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from brdfkit.errors import FormatError, InputError
+from brdfkit.geometry import GRID_SHAPE, valid_mask
+from helpers_foundation import run_brdfkit
+
+torch = pytest.importorskip("torch")
+
+
+def _lambert_table(albedo):
+    t = np.empty(GRID_SHAPE + (3,))
+    t[:] = np.asarray(albedo, np.float64) / math.pi
+    t[~valid_mask()] = np.nan
+    return t
+
+
+class _Analytic:
+    """A synthetic material evaluated in closed form (no table): ground truth for the
+    quadrature."""
+
+    device = torch.device("cpu")
+    name = "analytic"
+
+    def __init__(self, material):
+        self.m = material
+
+    def eval_dirs(self, wi, wo):
+        from brdfkit.synthetic import evaluate
+
+        return torch.from_numpy(evaluate(self.m, wi.double().numpy(), wo.double().numpy())).float()
+
+
+@pytest.fixture(scope="module", autouse=True)
+def _threads():
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
+# -- environment map
+
+
+def test_envmap_deterministic_and_featured():
+    from brdfkit.render.envmap import SUN_RADIANCE, reference_envmap
+
+    a = reference_envmap.__wrapped__()
+    b = reference_envmap.__wrapped__()
+    assert a.image.dtype == np.float32 and a.image.shape == (128, 256, 3)
+    assert np.array_equal(a.image, b.image) and a.fingerprint() == b.fingerprint()
+    img = a.image
+    assert img.max() == pytest.approx(SUN_RADIANCE, rel=1e-6)  # the sun's centre texel
+    assert (img[0] == img[0, 0]).all() and (img[-1] == img[-1, 0]).all()  # constant poles
+    sky, ground = img[20].mean(0), img[110].mean(0)
+    assert sky[2] > sky[0] and ground[0] > ground[2]  # blue sky, brown ground
+    assert (img > 2.0).sum() > 100  # the window
+    assert len(a.bright) == 2
+
+
+def test_envmap_lookup_hits_texels():
+    from brdfkit.render.envmap import reference_envmap, uv_to_direction
+
+    env = reference_envmap()
+    h, w = env.shape
+    rng = np.random.default_rng(0)
+    i, j = rng.integers(1, h - 1, 200), rng.integers(0, w, 200)
+    d = uv_to_direction((j + 0.5) / w, i / (h - 1))
+    got = env.radiance(torch.as_tensor(d)).numpy()
+    np.testing.assert_allclose(got, env.image[i, j], rtol=1e-5, atol=1e-6)
+
+
+def test_envmap_exr_cached(tmp_path):
+    from brdfkit.render.envmap import reference_envmap
+    from brdfkit.render.image import read_exr
+
+    env = reference_envmap()
+    p = env.exr_path(tmp_path)
+    assert p == env.exr_path(tmp_path)
+    assert np.array_equal(read_exr(p), env.image)
+
+
+# -- quadrature
+
+
+def test_lambert_uniform_environment_closed_form():
+    from brdfkit.render import quadrature
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.envmap import uniform_envmap
+    from brdfkit.render.scene import Scene
+
+    albedo = np.array([0.2, 0.5, 0.8])
+    radiance = np.array([1.5, 1.0, 0.5])
+    img, mask = quadrature.render(TableBRDF(_lambert_table(albedo), device="cpu"), Scene(resolution=16),
+                                  env=uniform_envmap(radiance))
+    assert mask.sum() > 100 and (img[~mask] == 0).all()
+    np.testing.assert_allclose(img[mask], np.broadcast_to(albedo * radiance, img[mask].shape), rtol=1e-3)
+    lo, hi = quadrature.render_pixels.last_scale_range
+    assert 0.97 < lo <= hi < 1.06  # the normalisation is a small correction, not a fix-up
+
+
+def _albedo_reference(material, theta_o, n=500):
+    """Directional albedo by a fine midpoint rule in half-vector space (independent of
+    the renderer's nodes and weights)."""
+    from brdfkit.synthetic import evaluate
+
+    wo = np.array([math.sin(theta_o), 0.0, math.cos(theta_o)])
+    t = (np.arange(n) + 0.5) / n
+    th = (math.pi / 2) * t ** 3
+    dth = (math.pi / 2) * 3 * t ** 2 / n
+    ph = (np.arange(2 * n) + 0.5) / (2 * n) * 2 * math.pi
+    st = np.sin(th)[:, None]
+    h = np.stack([st * np.cos(ph), st * np.sin(ph), np.broadcast_to(np.cos(th)[:, None], (n, 2 * n))], -1)
+    woh = h @ wo
+    wi = 2 * woh[..., None] * h - wo
+    ok = (woh > 0) & (wi[..., 2] > 0)
+    f = evaluate(material, wi, np.broadcast_to(wo, wi.shape))
+    g = np.where(ok[..., None], f * wi[..., 2:3] * 4 * woh[..., None], 0.0)
+    return (g * (st * dth[:, None])[..., None]).sum((0, 1)) * (2 * math.pi / (2 * n))
+
+
+@pytest.mark.parametrize("which", ["glossy", "mirror"])
+def test_quadrature_matches_independent_integral(which):
+    """Glossy and near-mirror GGX under a uniform environment: the rendered radiance is the
+    directional albedo, computed here by a separate fine integration."""
+    from brdfkit import synthetic
+    from brdfkit.render import quadrature
+    from brdfkit.render.envmap import uniform_envmap
+
+    mat = synthetic.STIFF[0] if which == "mirror" else \
+        synthetic.Material("glossy", "dielectric", 0.1, albedo=(0.3, 0.2, 0.1))
+    angles = np.array([0.0, 0.5, 1.0])
+    normals = np.stack([np.sin(angles), np.zeros(3), np.cos(angles)], -1)
+    got = quadrature.render_pixels(_Analytic(mat), normals, uniform_envmap())
+    ref = np.stack([_albedo_reference(mat, a) for a in angles])
+    np.testing.assert_allclose(got, ref, rtol=0.01)
+
+
+def test_quadrature_deterministic_and_mirror_finite():
+    from brdfkit import synthetic
+    from brdfkit.render import quadrature
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.scene import Scene
+
+    brdf = TableBRDF(synthetic.table(synthetic.STIFF[0]), "stiff-mirror", device="cpu")
+    a, mask = quadrature.render(brdf, Scene(resolution=12))
+    b, _ = quadrature.render(brdf, Scene(resolution=12))
+    assert np.array_equal(a, b)
+    assert np.isfinite(a).all() and (a >= 0).all()
+    assert a[mask].max() > 1.0  # the sun's reflection
+    assert quadrature.render_pixels.last_evaluations > 0
+
+
+def test_supersampling_averages_points():
+    from brdfkit.render.scene import Scene
+
+    n1, m1 = Scene(resolution=8).pixel_normals()
+    n3, m3 = Scene(resolution=8, supersample=3).pixel_normals()
+    assert n1.shape == (8, 8, 1, 3) and n3.shape == (8, 8, 9, 3)
+    np.testing.assert_allclose(n3[:, :, 4], n1[:, :, 0])  # the middle point is the centre
+    np.testing.assert_allclose(np.linalg.norm(n3[m3], axis=-1), 1.0)
+    assert m3.any(2).sum() >= m1[..., 0].sum()
+
+
+# -- images
+
+
+def test_exr_round_trip_and_png(tmp_path):
+    from PIL import Image
+
+    from brdfkit.render.image import read_exr, write_exr, write_png
+
+    rng = np.random.default_rng(1)
+    img = rng.uniform(0, 5, (7, 9, 3)).astype(np.float32)
+    write_exr(tmp_path / "a.exr", img)
+    assert np.array_equal(read_exr(tmp_path / "a.exr"), img)
+    write_png(tmp_path / "a.png", img)
+    png = np.asarray(Image.open(tmp_path / "a.png"))
+    assert png.shape == (7, 9, 3) and png.dtype == np.uint8
+    from brdfkit.metrics import display_encode
+
+    np.testing.assert_array_equal(png, np.round(display_encode(img) * 255).astype(np.uint8))
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".brdfkit-tmp")]
+
+
+def test_bad_images(tmp_path):
+    from brdfkit.render.image import read_exr, write_exr
+
+    (tmp_path / "fake.exr").write_text("not an image")
+    with pytest.raises(FormatError, match="not an OpenEXR"):
+        read_exr(tmp_path / "fake.exr")
+    write_exr(tmp_path / "ok.exr", np.ones((4, 4, 3)))
+    data = (tmp_path / "ok.exr").read_bytes()
+    (tmp_path / "cut.exr").write_bytes(data[: len(data) // 2])
+    with pytest.raises(FormatError):
+        read_exr(tmp_path / "cut.exr")
+    with pytest.raises(InputError, match="no such file"):
+        read_exr(tmp_path / "missing.exr")
+    with pytest.raises(InputError, match="NaN"):
+        write_exr(tmp_path / "nan.exr", np.full((2, 2, 3), np.nan))
+
+
+def test_render_package_is_lazy():
+    code = ("import sys, brdfkit.render, brdfkit.metrics; "
+            "print(any(m in sys.modules for m in ('torch', 'mitsuba', 'colour')))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
+    assert out.stdout.strip() == "False"
+
+
+# -- commands
+
+
+@pytest.fixture(scope="module")
+def lambert_file(tmp_path_factory):
+    from brdfkit.merl import write_merl
+
+    folder = tmp_path_factory.mktemp("brdfs")
+    write_merl(folder / "lambert.binary", _lambert_table([0.6, 0.5, 0.4]))
+    return folder / "lambert.binary"
+
+
+def test_cli_render_and_metrics(lambert_file, tmp_path):
+    from brdfkit.render.image import read_exr
+
+    exr, png = tmp_path / "a.exr", tmp_path / "a.png"
+    r = run_brdfkit(["render", lambert_file, "-o", exr, "--png", png, "--resolution", 16, "--quiet"])
+    assert r.returncode == 0, r.stderr
+    img = read_exr(exr)
+    assert img.shape == (16, 16, 3) and png.stat().st_size > 0
+    centre = img[7:9, 7:9].mean((0, 1))
+    assert (centre > 0.05).all() and centre[0] > centre[2]  # albedo 0.6, 0.5, 0.4
+
+    r = run_brdfkit(["metrics", exr, exr, "--json"])
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout) == {"psnr": 100.0, "delta_e": 0.0, "ssim": 1.0, "brdf_log_rmse": None}
+
+    # a BRDF file against its own render: rendered at the image's size, identical
+    r = run_brdfkit(["metrics", lambert_file, exr, "--json"])
+    assert r.returncode == 0, r.stderr
+    assert json.loads(r.stdout)["psnr"] == 100.0
+
+
+def test_cli_metrics_folders(lambert_file, tmp_path):
+    from brdfkit.render.image import write_exr
+
+    a, b = tmp_path / "pred", tmp_path / "ref"
+    a.mkdir()
+    b.mkdir()
+    rng = np.random.default_rng(2)
+    ref1, ref2 = rng.uniform(0, 1, (16, 16, 3)), rng.uniform(0, 1, (16, 16, 3))
+    write_exr(b / "m1.exr", ref1)
+    write_exr(b / "m2.exr", ref2)
+    write_exr(a / "m1.exr", ref1)
+    write_exr(a / "m2.exr", ref2 * 0.8)
+    write_exr(a / "only-here.exr", ref2)
+    (b / "lambert.binary").symlink_to(lambert_file)
+    (a / "lambert.binary").symlink_to(lambert_file)
+    r = run_brdfkit(["metrics", a, b, "--json", "--resolution", 16])
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert set(out["materials"]) == {"m1", "m2", "lambert"}
+    assert out["materials"]["m1"]["psnr"] == 100.0
+    assert out["materials"]["lambert"]["brdf_log_rmse"] == 0.0
+    assert out["materials"]["m2"]["brdf_log_rmse"] is None
+    assert out["materials"]["m2"]["psnr"] < 40 and out["materials"]["m2"]["delta_e"] > 0.5
+    psnrs = [v["psnr"] for v in out["materials"].values()]
+    assert out["mean"]["psnr"] == pytest.approx(sum(psnrs) / 3)
+    assert out["mean"]["brdf_log_rmse"] == 0.0
+    assert "only-here" in r.stderr
+    r = run_brdfkit(["metrics", a, b, "--resolution", 16])  # the table
+    assert r.returncode == 0 and "mean" in r.stdout and "m2" in r.stdout
+
+
+def test_cli_bad_inputs(lambert_file, tmp_path):
+    (tmp_path / "fake.exr").write_text("hello")
+    (tmp_path / "x.txt").write_text("hello")
+    cases = [
+        (["render", tmp_path / "missing.binary", "-o", tmp_path / "o.exr"], "no such file"),
+        (["render", tmp_path / "x.txt", "-o", tmp_path / "o.exr"], "not a BRDF file"),
+        (["render", lambert_file, "-o", tmp_path / "o.png"], ".exr"),
+        (["render", lambert_file, "-o", lambert_file], "refusing to overwrite"),
+        (["render", lambert_file, "-o", tmp_path / "o.exr", "--scene", tmp_path / "x.txt"], "--bsdf-id"),
+        (["metrics", tmp_path / "fake.exr", tmp_path / "fake.exr"], "not an OpenEXR"),
+        (["metrics", tmp_path / "missing.exr", tmp_path / "fake.exr"], "no such file"),
+        (["metrics", tmp_path / "x.txt", tmp_path / "x.txt"], "not a BRDF"),
+        (["metrics", tmp_path, tmp_path / "fake.exr"], "folder"),
+    ]
+    for args, needle in cases:
+        r = run_brdfkit(args)
+        assert r.returncode == 2, (args, r.stderr)
+        lines = r.stderr.strip().splitlines()
+        assert len(lines) == 1 and needle in lines[0], (args, r.stderr)
+        assert "Traceback" not in r.stderr
+    r = run_brdfkit(["metrics"])
+    assert r.returncode == 2 and "PRED REF" in r.stderr and "--json" in r.stderr
+
+
+def test_cli_render_embedding(tmp_path):
+    """An .emb with its model renders through NeuralBRDF.eval_dirs (no dense table)."""
+    from helpers_model import make_model, material_table
+
+    from brdfkit.api import encode, load_model
+    from brdfkit.embedding import write_embedding
+    from brdfkit.neural import NeuralBRDF
+    from brdfkit.render import quadrature
+    from brdfkit.render.image import read_exr
+    from brdfkit.render.scene import Scene
+
+    make_model(tmp_path / "m.safetensors")
+    model = load_model(tmp_path / "m.safetensors", device="cpu")
+    emb = encode(model, material_table(0))
+    write_embedding(tmp_path / "w.emb", emb)
+    r = run_brdfkit(["render", tmp_path / "w.emb", "-m", tmp_path / "m.safetensors", "-o", tmp_path / "w.exr",
+                     "--resolution", 12, "--quiet"])
+    assert r.returncode == 0, r.stderr
+    img = read_exr(tmp_path / "w.exr")
+    expected, _ = quadrature.render(NeuralBRDF.from_embedding(model, emb), Scene(resolution=12))
+    np.testing.assert_allclose(img, expected, rtol=1e-4, atol=1e-6)
+    assert np.isfinite(img).all() and img.max() > 0
+    r = run_brdfkit(["render", tmp_path / "w.emb", "-o", tmp_path / "x.exr"],
+                    env={k: v for k, v in __import__("os").environ.items() if k != "BRDFKIT_MODEL"})
+    assert r.returncode == 2 and "model" in r.stderr
