@@ -21,6 +21,18 @@ from brdfkit.samples import SampleSet, draw_samples
 ALPHAS = (0.05, 0.15, 0.4)
 
 
+@pytest.fixture(autouse=True, scope="module")
+def _one_thread():
+    """One torch thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
+    threads make NBRDF's tiny matrix products several times slower."""
+    import torch
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
 @pytest.fixture(scope="module")
 def lobes():
     """GGX dielectric lobes (no diffuse part) on the MERL grid, one per roughness.
@@ -253,3 +265,84 @@ def test_baselines_import_no_torch():
     code = ("import sys, brdfkit.baselines, brdfkit.baselines.ipca; "
             "sys.exit(1 if 'torch' in sys.modules else 0)")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
+
+
+# --- command line -----------------------------------------------------------------------------
+
+def _cli(capsys, args):
+    """Run ``brdfkit ARGS`` in-process (the console script's entry point); returns
+    ``(exit code, stderr)``."""
+    from brdfkit.cli import main
+
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    return e.value.code, capsys.readouterr().err
+
+
+def _one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: ") and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def cli_files(tmp_path_factory, library):
+    from brdfkit.merl import write_merl
+    from brdfkit.samples import write_samples
+
+    train, held = library
+    d = tmp_path_factory.mktemp("baselines-cli")
+    data = d / "data"
+    data.mkdir()
+    for i in range(4):
+        write_merl(data / f"mat-{i}.binary", train[i])
+    (d / "exclude.txt").write_text("# held out\nmat-3\n")
+    write_samples(d / "samples.csv", draw_samples(held, 300, seed=0, source="held"))
+    return d
+
+
+def test_cli_fit_ipca_then_sparse(cli_files, capsys, monkeypatch):
+    from brdfkit.merl import read_merl
+    from brdfkit.samples import read_samples
+
+    monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
+    d = cli_files
+    code, err = _cli(capsys, ["fit", "--method", "ipca", d / "data", "--exclude-list", d / "exclude.txt",
+                              "--components", 5, "-o", d / "basis.safetensors"])
+    assert code == 0, err
+    basis = load_ipca(d / "basis.safetensors")
+    assert basis.materials == ["mat-0", "mat-1", "mat-2"] and basis.n_components == 5
+
+    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-m", d / "basis.safetensors",
+                              "-o", d / "ipca.binary"])
+    assert code == 0, err
+    want = basis.reconstruct(read_samples(d / "samples.csv"))
+    got = read_merl(d / "ipca.binary")
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got[~np.isnan(want)], want[~np.isnan(want)], rtol=1e-12)
+
+    # Without a basis, or with --components for the hypernetwork: one line, exit 2.
+    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-o", d / "x.binary"])
+    assert code == 2 and "needs a PCA basis" in _one_error_line(err)
+    code, err = _cli(capsys, ["fit", d / "data", "--components", 3, "-o", d / "y.safetensors"])
+    assert code == 2 and "--components" in _one_error_line(err)
+    code, err = _cli(capsys, ["fit", "--method", "ipca", d / "data", "--components", 99, "-o", d / "y.safetensors"])
+    assert code == 2 and "components" in _one_error_line(err)
+    assert not (d / "x.binary").exists() and not (d / "y.safetensors").exists()
+
+
+def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library):
+    from brdfkit.merl import read_merl
+
+    d = cli_files
+    # $BRDFKIT_MODEL (a hypernetwork) is not meant for nbrdf and must not get in the way.
+    monkeypatch.setenv("BRDFKIT_MODEL", str(d / "exclude.txt"))
+    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "nbrdf", "-o", d / "nbrdf.binary"])
+    assert code == 0, err
+    table = read_merl(d / "nbrdf.binary")
+    ok = valid_mask()
+    assert np.isfinite(table[ok]).all() and np.isnan(table[~ok]).all()
+    assert brdf_log_rmse(table, library[1]) < 0.3
+    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "nbrdf", "-m", d / "exclude.txt",
+                              "-o", d / "z.binary"])
+    assert code == 2 and "takes no model" in _one_error_line(err)

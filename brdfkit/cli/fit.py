@@ -19,11 +19,31 @@ def _fit_hypernet(data, output, common: dict) -> str:
                **common["advanced"])
 
 
+def _fit_ipca(data, output, common: dict) -> str:
+    """The PCA baseline of Nielsen et al. 2015 (:func:`brdfkit.baselines.ipca.fit_ipca`)."""
+    from ..baselines.ipca import DEFAULT_COMPONENTS, fit_ipca
+    from ..trainset import collect_materials
+
+    advanced = dict(common["advanced"])
+    components = advanced.pop("components", DEFAULT_COMPONENTS)
+    if advanced or common["resume"]:
+        extra = sorted(advanced) + (["resume"] if common["resume"] else [])
+        raise InputError(f"--method ipca takes only --components and --exclude/--exclude-list, "
+                         f"not {', '.join(extra)}")
+    paths, names, _, unknown = collect_materials(data, common["exclude"])
+    if unknown:
+        click.echo(f"brdfkit: warning: excluded name(s) matched no input: {', '.join(unknown)}", err=True)
+    fit_ipca(paths, components, names=names).save(output)
+    click.echo(f"wrote PCA basis ({components} components, {len(names)} materials) to {output}", err=True)
+    return output
+
+
 # method name -> function(data, output, common) -> output path. ``common`` holds the
 # options below: latent_dim, steps, minutes, seed, device, exclude (names), resume,
 # progress, advanced (dict of -O KEY=VALUE and the per-method options).
 METHODS = {
     "hypernet": _fit_hypernet,
+    "ipca": _fit_ipca,
 }
 
 
@@ -69,9 +89,11 @@ def _parse_option(text: str) -> tuple[str, object]:
 @click.option("-O", "--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Advanced option (query_size, context_min, context_max, lr, lr_schedule, "
                    "warmup_steps, architecture ...); see docs/training.md.")
+@click.option("--components", type=click.IntRange(min=1), default=None,
+              help="Principal components of --method ipca [default: 8, as Nielsen et al. 2015].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress display.")
 def command(data, output, method, latent_dim, exclude_list, exclude_names, steps, minutes, seed,
-            device, resume, batch_materials, checkpoint_minutes, options, quiet):
+            device, resume, batch_materials, checkpoint_minutes, components, options, quiet):
     """Train a model on the MERL tables DATA (files or folders of .binary files).
 
     Under `torchrun --nproc_per_node K --no-python brdfkit fit ...` each process trains on
@@ -90,6 +112,10 @@ def command(data, output, method, latent_dim, exclude_list, exclude_names, steps
         advanced["batch_materials"] = batch_materials
     if checkpoint_minutes is not None:
         advanced["checkpoint_minutes"] = checkpoint_minutes
+    if components is not None:
+        if method != "ipca":
+            raise InputError("--components applies to --method ipca only")
+        advanced["components"] = components
     common = {"latent_dim": latent_dim, "steps": steps, "minutes": minutes, "seed": seed,
               "device": device, "exclude": exclude, "resume": resume, "progress": not quiet,
               "advanced": advanced}

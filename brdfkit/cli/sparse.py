@@ -15,8 +15,26 @@ def _hypernet(samples, model_path):
     return sparse(model, samples)
 
 
+def _baseline(name):
+    """A baseline of :mod:`brdfkit.baselines` (docs/baselines.md); it makes no embedding."""
+    def run(samples, model_path):
+        from ..baselines import get_method
+
+        method = get_method(name)
+        if not method.needs_model and _model_from_env():
+            model_path = None  # $BRDFKIT_MODEL names a hypernetwork, not meant for this method
+        return method.reconstruct(samples, model_path), None
+    return run
+
+
+def _model_from_env() -> bool:
+    from click.core import ParameterSource
+
+    return click.get_current_context().get_parameter_source("model_path") is ParameterSource.ENVIRONMENT
+
+
 # method name -> function(samples: SampleSet, model_path: str | None) -> (table, Embedding | None)
-METHODS = {"hypernet": _hypernet}
+METHODS = {"hypernet": _hypernet, "ipca": _baseline("ipca"), "nbrdf": _baseline("nbrdf")}
 
 
 @click.command("sparse")
