@@ -7,9 +7,10 @@ import re
 import subprocess
 
 import numpy as np
+import pytest
 from rich.console import Console
 
-from brdfkit.cli.demo import choose_holdout, choose_threads, write_demo_library
+from brdfkit.cli.demo import choose_holdout, choose_threads, render_psnr, write_demo_library
 from brdfkit.embedding import read_embedding
 from brdfkit.merl import read_merl
 from brdfkit.modelfile import load_model
@@ -27,6 +28,17 @@ def test_threads_follow_free_cores():
     assert choose_threads(cores=2, load=7.0, default=2) == 1
     assert choose_threads(cores=2, load=0.1, default=2) == 2
     assert choose_threads(cores=16, load=3.2, default=16) == 13
+
+
+def test_render_psnr_through_the_reference_renderer():
+    from brdfkit.synthetic import STIFF, table
+
+    score = render_psnr(resolution=12)
+    if score is None:
+        pytest.skip("brdfkit.render.quadrature.render is not available")
+    white = table(STIFF[2])
+    assert score(white, white) == float("inf")
+    assert 0 < score(white * 0.5, white) < 30
 
 
 def test_demo_runs_end_to_end(tmp_path):
