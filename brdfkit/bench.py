@@ -220,6 +220,17 @@ def _file_digest(path: str) -> str:
     return h.hexdigest()
 
 
+def _renderer_digest() -> str:
+    """SHA-256 of the source of the modules a reference render depends on, so a changed
+    renderer never reuses a cached render."""
+    import importlib
+
+    h = hashlib.sha256()
+    for mod in ("render.quadrature", "render.scene", "render.envmap", "render.brdf", "geometry"):
+        h.update(open(importlib.import_module(f"brdfkit.{mod}").__file__, "rb").read())
+    return h.hexdigest()
+
+
 def _family(name: str) -> str:
     return name.split("-", 1)[0] if "-" in name else name
 
@@ -273,6 +284,7 @@ class _Worker:
                     opts["lam"] = float(cfg.ipca_lambda)
                 self.options[name] = opts
         self.compressors = []
+        self.trained = {}  # compression label -> names of the materials it was trained on
         if cfg.compression_models:
             from .api import load_model
 
@@ -281,11 +293,13 @@ class _Worker:
                 stem = os.path.splitext(os.path.basename(path))[0]
                 self.compressors.append((f"hypernet {model.cfg.latent_dim}-D ({stem})",
                                          model.cfg.latent_dim, model))
+                self.trained[self.compressors[-1][0]] = set(model.meta.get("materials") or ())
             if cfg.ipca:
                 from .baselines.ipca import load_ipca
 
                 basis = load_ipca(cfg.ipca)
                 self.compressors.append((f"ipca {basis.n_components} components", basis.n_components, basis))
+                self.trained[self.compressors[-1][0]] = set(basis.materials)
         self.warm = set()
 
     # -- scoring
@@ -303,10 +317,10 @@ class _Worker:
 
         cache = self.cfg.cache or os.path.join(self.cfg.output, "cache")
         # The key is the table's content and everything the render depends on (scene,
-        # quadrature, environment), not the name: a table reached under another name
+        # quadrature, environment, the renderer's code), not the name: a table reached under another name
         # (a symlink in a second folder) reuses its render.
         key = hashlib.sha256("\n".join([_file_digest(path), repr(self.scene), self.env.fingerprint(),
-                                        repr(self.env.bright)]).encode()).hexdigest()[:16]
+                                        repr(self.env.bright), _renderer_digest()]).encode()).hexdigest()[:16]
         suffix = f"-{self.cfg.resolution}px-{key}.exr"
         file = os.path.join(cache, name + suffix)
         found = [f for f in (os.listdir(cache) if os.path.isdir(cache) else []) if f.endswith(suffix)]
@@ -400,7 +414,7 @@ class _Worker:
                                    [(label, dim) for label, dim, _ in self.compressors])
         records = []
         for label, dim, model in self.compressors:
-            rec = dict(base, method=label, latent=dim)
+            rec = dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ()))
             try:
                 if label.startswith("ipca"):
                     t0 = time.perf_counter()
@@ -479,7 +493,8 @@ def summarise(records: list[dict], group_by_prefix: bool = False) -> dict:
     sparse = [r for r in records if r["kind"] == "sparse"]
     comp = [r for r in records if r["kind"] == "compression"]
     out = {"sparse": _summary_rows(sparse, ("method", "n")),
-           "compression": _summary_rows(comp, ("method", "latent"))}
+           "compression": _summary_rows(comp, ("method", "latent")),
+           "compression_by_training": _summary_rows(comp, ("method", "latent", "trained_on"))}
     if group_by_prefix:
         for r in records:
             r["family"] = _family(r["material"])
@@ -488,7 +503,7 @@ def summarise(records: list[dict], group_by_prefix: bool = False) -> dict:
     for key in out:
         out[key].sort(key=lambda row: tuple(str(row.get(k)) if not isinstance(row.get(k), (int, float))
                                             else f"{row.get(k):012.3f}" for k in
-                                            ("family", "method", "n", "latent") if k in row))
+                                            ("family", "method", "n", "latent", "trained_on") if k in row))
     return out
 
 
@@ -552,6 +567,14 @@ def write_markdown(path: str, result: dict) -> None:
             lines.append(f"| {row['method']} | {row['latent']} | {_pmm(row, 'psnr', 2)} | {_pmm(row, 'delta_e', 2)} | "
                          f"{_pmm(row, 'ssim', 4)} | {_pmm(row, 'log_rmse', 4)} | {_fmt(row['time_s'], 3)} | "
                          f"{row['count']} / {row['failures']} |")
+    if summ.get("compression_by_training") and any(r.get("trained_on") for r in summ["compression_by_training"]):
+        lines += ["", "### Compression: training materials against held-out ones", "",
+                  "| model | material in its training set | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | "
+                  "materials |", "| --- | --- | ---: | ---: | ---: | ---: | ---: |"]
+        for row in summ["compression_by_training"]:
+            lines.append(f"| {row['method']} | {'yes' if row['trained_on'] else 'no'} | {_pmm(row, 'psnr', 2)} | "
+                         f"{_pmm(row, 'delta_e', 2)} | {_pmm(row, 'ssim', 4)} | {_pmm(row, 'log_rmse', 4)} | "
+                         f"{row['materials']} |")
     if summ.get("compression_by_family"):
         lines += ["", "### Compression, per family", "", "| family | model | PSNR (dB) | Delta E 2000 | SSIM | "
                   "BRDF log RMSE | materials |", "| --- | --- | ---: | ---: | ---: | ---: | ---: |"]

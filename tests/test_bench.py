@@ -95,6 +95,8 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     comp_recs = [r for r in result["records"] if r["kind"] == "compression"]
     assert [r["method"] for r in comp_recs] == ["hypernet 6-D (tiny)", "ipca 2 components"] * 2
     assert all("error" not in r and r["time_s"] > 0 for r in comp_recs)
+    # the model and the basis were trained on all three library tables, not on alias.binary
+    assert {(r["material"], r["trained_on"]) for r in comp_recs} == {(setup["names"][1], True), ("alias", False)}
 
     # The cached reference render is the reference-scene render of the table itself.
     from brdfkit.render.brdf import TableBRDF
@@ -111,6 +113,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     md = (out / "bench.md").read_text()
     assert "## Sparse reconstruction" in md and "## Compression" in md and "Failures" not in md
     assert "| hypernet | 40 |" in md and "| ipca 2 components | 2 |" in md
+    assert "| hypernet 6-D (tiny) | no |" in md and "| ipca 2 components | yes |" in md
     from PIL import Image
 
     for png in ("error_vs_n.png", "error_vs_time.png", "compression.png"):
