@@ -139,25 +139,130 @@ def reference_at(model, theta_h, theta_d, phi_d) -> np.ndarray:
     return ref
 
 
+def _linear_stack(seq):
+    """The ``nn.Linear`` layers of an MLP built by ``hypernet._mlp`` (Linear, ReLU, ...,
+    Linear), or ``None`` if ``seq`` has another structure."""
+    from torch import nn
+
+    mods = list(seq)
+    lin = mods[0::2]
+    if not all(isinstance(m, nn.Linear) for m in lin) or \
+            not all(isinstance(m, nn.ReLU) for m in mods[1::2]) or len(mods) != 2 * len(lin) - 1:
+        return None
+    return lin
+
+
+def _encoder_inference(model):
+    """The set encoder's layers for inference, cached per model: every layer but the last
+    as ``[W | b]`` (``(out, in + 1)``, the bias a column against a row of ones in the
+    feature-major input), the last as float64 ``W``, ``b``. ``None`` if the encoder is
+    not a plain MLP."""
+    import torch
+
+    cache = _model_cache(model)
+    key = ("encoder", str(model.device))
+    if key not in cache:
+        lin = _linear_stack(model.net.encoder.net)
+        if lin is None or len(lin) < 2:
+            cache[key] = None
+        else:
+            with torch.no_grad():
+                hidden = [torch.cat([m.weight, m.bias[:, None]], dim=1).contiguous() for m in lin[:-1]]
+                cache[key] = (hidden, lin[-1].weight.double(), lin[-1].bias.double())
+    return cache[key]
+
+
 def _encode_arrays(model, hd: np.ndarray, rgb: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """Set-encoder mean over ``N`` samples, chunked: the encoder is a per-sample MLP
-    followed by a mean, so per-chunk sums (float64) divided by ``N`` equal the one-shot
-    mean without holding all activations. Returns float32 ``(L,)``."""
+    """Set-encoder mean over ``N`` samples, chunked. Returns float32 ``(L,)``.
+
+    The encoder is a per-sample MLP followed by a mean, and its last layer is affine, so
+    ``mean(W h + b) = W mean(h) + b``: the last hidden activations are summed per chunk
+    (float64) and the last layer is applied once, to their mean, in float64. This is
+    the paper's encoder exactly (not an approximation), without holding all activations
+    and without the last layer's per-sample products (a fifth of the encoder's work).
+    The hidden layers run feature-major with each bias folded into its matrix, like the
+    dense decode (``docs/performance.md``).
+    """
     import torch
 
     from .mapping import to_mapped
 
     n = hd.shape[0]
-    mlp = model.net.encoder.net
-    total = torch.zeros(model.cfg.latent_dim, dtype=torch.float64, device=model.device)
+    layers = _encoder_inference(model)
+    if layers is None:  # not a plain MLP: the module itself
+        mlp = model.net.encoder.net
+        total = torch.zeros(model.cfg.latent_dim, dtype=torch.float64, device=model.device)
+        with torch.inference_mode():
+            for s in range(0, n, ENCODE_CHUNK):
+                e = min(n, s + ENCODE_CHUNK)
+                mapped = to_mapped(rgb[s:e], ref[s:e]).astype(np.float32)
+                x = np.concatenate([hd[s:e].astype(np.float32, copy=False), mapped], axis=1)
+                total += mlp(torch.from_numpy(x).to(model.device)).sum(dim=0, dtype=torch.float64)
+        return (total / n).float().cpu().numpy()
+    hidden, w_last, b_last = layers
+    n_in = hidden[0].shape[1] - 1
+    total = torch.zeros(w_last.shape[1], dtype=torch.float64, device=model.device)
     with torch.inference_mode():
         for s in range(0, n, ENCODE_CHUNK):
             e = min(n, s + ENCODE_CHUNK)
-            mapped = to_mapped(rgb[s:e], ref[s:e]).astype(np.float32)
-            x = np.concatenate([hd[s:e].astype(np.float32, copy=False), mapped], axis=1)
-            feats = mlp(torch.from_numpy(x).to(model.device))
-            total += feats.sum(dim=0, dtype=torch.float64)
-    return (total / n).float().cpu().numpy()
+            x = np.empty((n_in + 1, e - s), dtype=np.float32)
+            x[:6] = hd[s:e].T
+            x[6:n_in] = to_mapped(rgb[s:e], ref[s:e]).T
+            x[n_in] = 1.0
+            h = torch.from_numpy(x).to(model.device)
+            for i, wb in enumerate(hidden):
+                out = torch.empty(wb.shape[0] + (i < len(hidden) - 1), e - s, device=model.device)
+                torch.mm(wb, h, out=out[:wb.shape[0]])
+                out[:wb.shape[0]].relu_()
+                if i < len(hidden) - 1:
+                    out[-1] = 1.0
+                h = out
+            total += h.sum(dim=1, dtype=torch.float64)
+        z = torch.addmv(b_last, w_last, total / n)
+    return z.float().cpu().numpy()
+
+
+def _decoder_inference(model):
+    """The ten per-tensor decoder MLPs stacked for one latent, cached per model: the first
+    layers side by side (one ``mm``), the middle layers as one batched product, the last
+    layers (different widths) one ``addmv`` each: 14 operators instead of 50, which at
+    one latent cost more than the arithmetic. ``None`` for another structure."""
+    import torch
+
+    cache = _model_cache(model)
+    key = ("decoder", str(model.device))
+    if key not in cache:
+        dec = model.net.decoder
+        nets = [n for pair in zip(dec.weight_nets, dec.bias_nets) for n in pair]
+        lins = [_linear_stack(n) for n in nets]
+        if any(lin is None for lin in lins) or len({len(lin) for lin in lins}) != 1 or len(lins[0]) < 2:
+            cache[key] = None
+        else:
+            with torch.no_grad():
+                first = (torch.cat([lin[0].weight for lin in lins]).t().contiguous(),
+                         torch.cat([lin[0].bias for lin in lins]))
+                mids = [(torch.stack([lin[k].weight.t() for lin in lins]).contiguous(),
+                         torch.stack([lin[k].bias[None] for lin in lins]).contiguous())
+                        for k in range(1, len(lins[0]) - 1)]
+                lasts = [(lin[-1].weight.contiguous(), lin[-1].bias) for lin in lins]
+            cache[key] = (first, mids, lasts, list(dec.shapes))
+    return cache[key]
+
+
+def _hyponet_weights(model, z):
+    """Hyponet weights for one latent ``z (1, L)``: the same as
+    ``model.net.hyponet_weights(z)`` (:class:`brdfkit.hypernet.HyperDecoder`)."""
+    import torch
+
+    parts = _decoder_inference(model)
+    if parts is None:
+        return model.net.hyponet_weights(z)
+    (w1, b1), mids, lasts, shapes = parts
+    h = torch.addmm(b1[None], z, w1).relu_().view(len(lasts), 1, -1)
+    for w, b in mids:
+        h = torch.baddbmm(b, h, w).relu_()
+    outs = [torch.addmv(b, w, h[i, 0]) for i, (w, b) in enumerate(lasts)]
+    return [(outs[2 * j].view(1, fi, fo), outs[2 * j + 1].view(1, 1, fo)) for j, (fi, fo) in enumerate(shapes)]
 
 
 def encode_samples(model, samples, source: str = "") -> Embedding:
@@ -229,7 +334,7 @@ class NeuralBRDF:
         check_compatible(emb, model, name)
         with torch.no_grad():
             z = torch.from_numpy(np.asarray(emb.latent, np.float32).copy()).to(model.device)[None]
-            weights = [(w.contiguous(), b.contiguous()) for w, b in model.net.hyponet_weights(z)]
+            weights = [(w.contiguous(), b.contiguous()) for w, b in _hyponet_weights(model, z)]
         return cls(model, emb, weights, name)
 
     def _refuse_nan(self, vals) -> None:
