@@ -120,6 +120,8 @@ class NodeSet:
 
         lights, weights, rads, rects = [], [], [], []
         for (u0, u1, v0, v1, nu, nv, ru, rv) in env.bright:
+            nu = max(1, round(nu * q.light_density))
+            nv = max(1, round(nv * q.light_density))
             du, dv = (u1 - u0) / nu, (v1 - v0) / nv
             uc, vc = np.meshgrid(u0 + (np.arange(nu) + 0.5) * du, v0 + (np.arange(nv) + 0.5) * dv,
                                  indexing="ij")
@@ -204,12 +206,22 @@ def _rect_ramp(rects, d):
     out = torch.zeros(d.shape[0], dtype=d.dtype, device=d.device)
     if not rects:
         return out
-    u, v = direction_to_uv(d)
+    # Texture coordinates only for directions in the rectangles' band of elevations.
+    y = d[:, 1]
+    band = torch.zeros_like(y, dtype=torch.bool)
+    for _, _, v0, v1, _, _ in rects:
+        band |= (y <= math.cos(math.pi * max(v0, 0.0))) & (y >= math.cos(math.pi * min(v1, 1.0)))
+    idx = band.nonzero(as_tuple=True)[0]
+    if idx.numel() == 0:
+        return out
+    u, v = direction_to_uv(d[idx])
+    ramp_all = torch.zeros_like(u)
     for u0, u1, v0, v1, ru, rv in rects:
         uu = torch.where(u < u0, u + 1.0, u) if u0 < 0 else u  # a rectangle may cross u = 0
         ramp = (_smoothstep((uu - u0) / ru) * _smoothstep((u1 - uu) / ru)
                 * _smoothstep((v - v0) / rv) * _smoothstep((v1 - v) / rv))
-        out = torch.maximum(out, ramp)
+        ramp_all = torch.maximum(ramp_all, ramp)
+    out[idx] = ramp_all
     return out
 
 
@@ -327,8 +339,10 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
             pix, kind, ai, wi_l, wo_l, wi_w, weight = (
                 a[keep] for a in (pix, kind, ai, wi_l, wo_l, wi_w, weight))
             f = brdf.eval_dirs(wi_l.float(), wo_l.float()).double()
-            radiance = torch.where((kind == 2)[:, None], nd.light_rad[ai] if nd.n_a else 0.0,
-                                   env.radiance(wi_w.float()).double())
+            radiance = torch.empty(pix.numel(), 3, dtype=torch.float64, device=dev)
+            is_a = kind == 2
+            radiance[is_a] = nd.light_rad[ai[is_a]]
+            radiance[~is_a] = env.radiance(wi_w[~is_a].float()).double()
             evaluations += int(pix.numel())
             out[s:s + p].index_add_(0, pix, radiance * f * weight[:, None])
             if progress is not None:

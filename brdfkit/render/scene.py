@@ -52,19 +52,22 @@ class Quadrature:
     half_extent
         ``theta_h`` (radians) at which the half-vector nodes' share has fallen smoothly
         from 1 (at the specular direction) to 0.
+    light_density
+        Scale of the light nodes per axis in each of the environment's bright rectangles
+        (``EnvMap.bright`` gives the counts at 1).
     light_handover
         ``(theta_a, theta_b)`` radians: inside a light rectangle the half-vector nodes
         keep their share for ``theta_h < theta_a`` and hand it to the light nodes by
         ``theta_b``.
     """
 
-    cosine_grid: int = 12
-    cosine_map: str = "polar"
-    half_rings: int = 24
+    cosine_grid: int = 10
+    half_rings: int = 20
     half_power: float = 3.0
-    half_phi: int = 16
-    half_phi_min: int = 6
+    half_phi: int = 12
+    half_phi_min: int = 5
     half_extent: float = math.pi / 2
+    light_density: float = 0.75
     light_handover: tuple = (0.004, 0.04)
 
 
