@@ -70,7 +70,7 @@ second of CPU time per reconstruction (the scene's own 256 takes four times as l
 
 METRICS = ("psnr", "delta_e", "ssim", "log_rmse")
 _LABELS = {"psnr": "PSNR (dB)", "delta_e": "Delta E 2000", "ssim": "SSIM",
-           "log_rmse": "BRDF log RMSE", "time_s": "time (s)"}
+           "log_rmse": "BRDF log RMSE", "time_s": "time (s)", "cpu_s": "CPU time (s)"}
 _FORMAT_VERSION = 1
 
 
@@ -392,10 +392,11 @@ class _Worker:
                     rec = dict(base, method=m, n=int(k), seed=s, sample_seed=draw)
                     try:
                         self._warm_up(m, table)
-                        t0 = time.perf_counter()
+                        t0, c0 = time.perf_counter(), time.process_time()
                         recon = self.methods[m].reconstruct(samples, self.models[m], seed=s,
                                                             device=self.device, **self.options[m])
                         rec["time_s"] = time.perf_counter() - t0
+                        rec["cpu_s"] = time.process_time() - c0
                         rec.update(self.score(recon, table, ref_img))
                     except Exception as e:
                         rec["error"] = _error_text(e)
@@ -417,14 +418,15 @@ class _Worker:
             rec = dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ()))
             try:
                 if label.startswith("ipca"):
-                    t0 = time.perf_counter()
+                    t0, c0 = time.perf_counter(), time.process_time()
                     recon = model.decode(model.project(table))
                 else:
                     from .api import decode, encode
 
-                    t0 = time.perf_counter()
+                    t0, c0 = time.perf_counter(), time.process_time()
                     recon = decode(model, encode(model, table, source=name))
                 rec["time_s"] = time.perf_counter() - t0
+                rec["cpu_s"] = time.process_time() - c0
                 rec.update(self.score(recon, table, ref_img))
             except Exception as e:
                 rec["error"] = _error_text(e)
@@ -473,7 +475,7 @@ def _summary_rows(records, keys) -> list[dict]:
         row = dict(zip(keys, gk))
         row.update(count=len(ok), failures=len(recs) - len(ok),
                    materials=len({r["material"] for r in ok}))
-        for m in METRICS + ("time_s",):
+        for m in METRICS + ("time_s", "cpu_s"):
             row[m] = _mean([r.get(m) for r in ok])
             by_seed, by_mat = {}, {}
             for r in ok:
@@ -538,14 +540,16 @@ def write_markdown(path: str, result: dict) -> None:
         lines += ["## Sparse reconstruction", "",
                   f"{result['materials']['sparse_count']} test material(s) from `{cfg['data']}`, "
                   f"{_seed_text(cfg)} each; mean over materials and draws ± standard deviation "
-                  f"over draws of the per-draw mean; time = wall time of one reconstruction "
-                  f"(mean; median in brackets).", "",
-                  "| method | N | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | time (s) | ok / failed |",
-                  "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+                  f"over draws of the per-draw mean; wall time of one reconstruction: mean (median); "
+                  f"CPU time: mean, all threads of the process.", "",
+                  "| method | N | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | wall time (s) | CPU time (s) | "
+                  "ok / failed |",
+                  "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
         for row in summ["sparse"]:
             lines.append(f"| {row['method']} | {row['n']} | {_pm(row, 'psnr', 2)} | {_pm(row, 'delta_e', 2)} | "
                          f"{_pm(row, 'ssim', 4)} | {_pm(row, 'log_rmse', 4)} | {_fmt(row['time_s'], 3)} "
-                         f"({_fmt(row['time_s_median'], 3)}) | {row['count']} / {row['failures']} |")
+                         f"({_fmt(row['time_s_median'], 3)}) | {_fmt(row['cpu_s'], 3)} | "
+                         f"{row['count']} / {row['failures']} |")
         lines += ["", "### Per material: PSNR (dB), mean over draws", ""]
         lines += _per_material_table(result["records"], "psnr", 2)
         lines += ["", "### Per material: BRDF log RMSE, mean over draws", ""]
@@ -561,12 +565,12 @@ def write_markdown(path: str, result: dict) -> None:
         lines += ["", "## Compression (encode the full table, decode)", "",
                   f"{result['materials']['compression_count']} material(s) from `{cfg['compression_data']}`; "
                   f"mean ± standard deviation over materials; time = encode + decode.", "",
-                  "| model | latent / components | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | time (s) | "
-                  "ok / failed |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+                  "| model | latent / components | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | wall time (s) | "
+                  "CPU time (s) | ok / failed |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
         for row in summ["compression"]:
             lines.append(f"| {row['method']} | {row['latent']} | {_pmm(row, 'psnr', 2)} | {_pmm(row, 'delta_e', 2)} | "
                          f"{_pmm(row, 'ssim', 4)} | {_pmm(row, 'log_rmse', 4)} | {_fmt(row['time_s'], 3)} | "
-                         f"{row['count']} / {row['failures']} |")
+                         f"{_fmt(row['cpu_s'], 3)} | {row['count']} / {row['failures']} |")
     if summ.get("compression_by_training") and any(r.get("trained_on") for r in summ["compression_by_training"]):
         lines += ["", "### Compression: training materials against held-out ones", "",
                   "| model | material in its training set | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | "
@@ -641,7 +645,8 @@ def write_plots(folder: str, result: dict) -> list[str]:
     rows = result["summary"]["sparse"]
     methods = list(dict.fromkeys(r["method"] for r in rows))
     for xkey, fname, xlabel in (("n", "error_vs_n.png", "number of samples N"),
-                                ("time_s", "error_vs_time.png", "wall time per reconstruction (s)")):
+                                ("time_s", "error_vs_time.png", "wall time per reconstruction (s)"),
+                                ("cpu_s", "error_vs_cpu_time.png", "CPU time per reconstruction (s, all threads)")):
         if not rows:
             break
         fig, axes = plt.subplots(2, 2, figsize=(9, 7), constrained_layout=True)
@@ -655,7 +660,7 @@ def write_plots(folder: str, result: dict) -> list[str]:
                 y = [r[metric] for r in pts]
                 err = [r[metric + "_sd_seeds"] or 0.0 for r in pts]
                 ax.errorbar(x, y, yerr=err, marker="o", capsize=3, label=m)
-                if xkey == "time_s":
+                if xkey != "n":
                     for r in pts:
                         ax.annotate(str(r["n"]), (r[xkey], r[metric]), textcoords="offset points",
                                     xytext=(4, 4), fontsize=7)
@@ -664,7 +669,8 @@ def write_plots(folder: str, result: dict) -> list[str]:
             ax.set_ylabel(_LABELS[metric])
             ax.grid(True, which="both", alpha=0.3)
         axes.flat[0].legend()
-        title = "error against N" if xkey == "n" else "error against run time (points labelled with N)"
+        title = {"n": "error against N", "time_s": "error against wall time (points labelled with N)",
+                 "cpu_s": "error against CPU time (points labelled with N)"}[xkey]
         fig.suptitle(f"brdfkit bench: {title}; {result['materials']['sparse_count']} materials, "
                      f"{_seed_text(result['config'])}", fontsize=10)
         out = os.path.join(folder, fname)

@@ -71,7 +71,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
         {(m, meth, n) for m in test_names for meth in ("hypernet", "ipca", "nbrdf") for n in (40, 160)}
     for r in sparse:
         assert "error" not in r, r
-        assert r["time_s"] > 0 and r["render_s"] > 0
+        assert r["time_s"] > 0 and r["cpu_s"] > 0 and r["render_s"] > 0
         assert 0 < r["psnr"] <= 100 and r["delta_e"] >= 0 and -1 <= r["ssim"] <= 1 and r["log_rmse"] > 0
         assert r["sample_seed"] == sample_seed(0, r["n"], r["material"])
 
@@ -116,7 +116,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     assert "| hypernet 6-D (tiny) | no |" in md and "| ipca 2 components | yes |" in md
     from PIL import Image
 
-    for png in ("error_vs_n.png", "error_vs_time.png", "compression.png"):
+    for png in ("error_vs_n.png", "error_vs_time.png", "error_vs_cpu_time.png", "compression.png"):
         with Image.open(out / png) as im:
             assert im.format == "PNG" and im.size[0] > 300
     assert not list(out.glob(".brdfkit-tmp-*"))
