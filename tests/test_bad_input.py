@@ -363,6 +363,8 @@ def bad_models(good, tmp_path_factory):
 
 
 MODEL_COMMANDS = {  # command -> arguments before -m, given the good folder and the output folder
+    "render": lambda g, o: ["render", g / "a.emb", "-o", o / "x.exr", "--resolution", "8", "--quiet"],
+    "metrics": lambda g, o: ["metrics", g / "a.emb", g / "mat.binary", "--json", "--resolution", "16"],
     "encode": lambda g, o: ["encode", g / "mat.binary", "-o", o],
     "decode": lambda g, o: ["decode", g / "a.emb", "-o", o / "x.binary"],
     "sparse": lambda g, o: ["sparse", g / "samples.csv", "-o", o / "x.binary", "--emb", o / "x.emb"],
@@ -587,3 +589,97 @@ def test_ipca_basis_with_materials_not_a_list(tmp_path):
         path.write_bytes(_rewrite_header(ipca_seed(), lambda h: h["__metadata__"].update(materials=bad)))
         with pytest.raises(FormatError, match="'materials' is not a list of names"):
             load_ipca(path)
+
+
+# --- rendering and metrics -----------------------------------------------------------------
+
+def test_bad_merl_tables_through_render(bad_merl, tmp_path, capsys):
+    for name in sorted(MERL_MESSAGES):
+        code, err = _cli(capsys, ["render", bad_merl[name], "-o", tmp_path / "x.exr", "--resolution", "8",
+                                  "--quiet"])
+        assert code == 2, name
+        _check_line(_one_error(err), bad_merl[name], MERL_MESSAGES[name])
+        assert os.listdir(tmp_path) == [], name
+
+
+@pytest.mark.parametrize("name", ["missing", "directory", "empty", "not_json", "wrong_version",
+                                  "latent_length", "latent_dim", "other_model"])
+def test_bad_embedding_through_render(good, bad_embs, tmp_path, capsys, name):
+    path, message = bad_embs[name]
+    code, err = _cli(capsys, ["render", path, "-m", good / "model.safetensors", "-o", tmp_path / "x.exr",
+                              "--resolution", "8", "--quiet"])
+    assert code == 2
+    _check_emb_line(_one_error(err), path, message)
+    assert os.listdir(tmp_path) == []
+
+
+def test_render_png_equal_to_the_input_is_refused(good, tmp_path, capsys):
+    import shutil
+
+    shutil.copy(good / "mat.binary", tmp_path / "mat.binary")
+    before = (tmp_path / "mat.binary").read_bytes()
+    code, err = _cli(capsys, ["render", tmp_path / "mat.binary", "-o", tmp_path / "x.exr", "--png",
+                              tmp_path / "mat.binary", "--resolution", "8", "--quiet"])
+    assert code == 2
+    assert _one_error(err) == f"brdfkit: error: {tmp_path / 'mat.binary'}: output path is also an input; " \
+                              f"refusing to overwrite it"
+    assert os.listdir(tmp_path) == ["mat.binary"] and (tmp_path / "mat.binary").read_bytes() == before
+
+
+@pytest.fixture(scope="module")
+def bad_exr(tmp_path_factory):
+    import numpy as np
+
+    from brdfkit.render.image import write_exr
+
+    d = tmp_path_factory.mktemp("bad-exr")
+    img = np.linspace(0, 1, 16 * 16 * 3, dtype=np.float32).reshape(16, 16, 3)
+    write_exr(d / "good.exr", img)
+    good_bytes = (d / "good.exr").read_bytes()
+    (d / "empty.exr").write_bytes(b"")
+    (d / "text.exr").write_text("not an image\n")
+    (d / "truncated.exr").write_bytes(good_bytes[:len(good_bytes) // 2])
+    (d / "header-only.exr").write_bytes(good_bytes[:40])
+    nan = img.copy()
+    nan[3, 4, 1] = np.nan
+    import OpenEXR  # write_exr refuses NaN; a file made elsewhere may hold it
+
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                 {"RGB": nan}).write(str(d / "nan.exr"))
+    return d
+
+
+@pytest.mark.parametrize("name, message", [
+    ("missing", "no such file"),
+    ("empty", "not an OpenEXR image (bad magic number)"),
+    ("text", "not an OpenEXR image (bad magic number)"),
+    ("truncated", "cannot read OpenEXR image ("),
+    ("header-only", "cannot read OpenEXR image ("),
+    ("nan", "OpenEXR image holds NaN or infinite pixels"),
+])
+@pytest.mark.parametrize("position", ["pred", "ref"])
+def test_bad_exr_through_metrics(bad_exr, capsys, name, message, position):
+    bad, good_img = bad_exr / f"{name}.exr", bad_exr / "good.exr"
+    args = [bad, good_img] if position == "pred" else [good_img, bad]
+    code, err = _cli(capsys, ["metrics", *args, "--json"])
+    assert code == 2
+    line = _one_error(err)
+    assert line.startswith(f"brdfkit: error: {bad}: {message}"), line
+
+
+def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, monkeypatch):
+    # Regression: `brdfkit metrics GOOD.binary BAD.binary` rendered GOOD (256 px: 2.5 min
+    # on the busy 2-core machine) before it read BAD and refused it.
+    import brdfkit.cli.render as cli_render
+
+    def no_render(*a, **k):
+        raise AssertionError("rendered before checking the inputs")
+
+    monkeypatch.setattr(cli_render, "render_brdf_file", no_render)
+    for args, bad in (([good / "mat.binary", bad_merl["nan"]], bad_merl["nan"]),
+                      ([good / "a.emb", bad_merl["red_half"], "-m", good / "model.safetensors"], bad_merl["red_half"]),
+                      ([good / "mat.binary", good / "other.emb", "-m", good / "model.safetensors"], None)):
+        code, err = _cli(capsys, ["metrics", *args, "--json"])
+        assert code == 2
+        line = _one_error(err)
+        assert (str(bad) in line) if bad else ("other.emb was made by model" in line), line

@@ -55,6 +55,23 @@ class _Loader:
                                   progress=self.progress, model=model)
         return img
 
+    def check(self, path):
+        """Read ``path`` (and the model an ``.emb`` needs) without rendering: a bad
+        reference must not cost a render of the prediction first (a 256 px render is
+        minutes on a busy 2-core machine; docs/stability.md)."""
+        if _kind(path) == "image":
+            from ..render.image import read_exr
+
+            read_exr(path)
+        elif self._needs_model(path):
+            from ..embedding import check_compatible, read_embedding
+
+            check_compatible(read_embedding(path), self.model(), path)
+        else:
+            from ..merl import read_merl
+
+            read_merl(path)
+
     def table(self, path):
         if path.lower().endswith(".binary"):
             from ..merl import read_merl
@@ -75,6 +92,8 @@ def _pair(loader: _Loader, pred: str, ref: str) -> dict:
     check_input_file(pred)
     check_input_file(ref)
     kp, kr = _kind(pred), _kind(ref)
+    loader.check(pred)
+    loader.check(ref)
     # A BRDF compared with an image is rendered at the image's size.
     size = None
     img_r = loader.image(ref) if kr == "image" else None
