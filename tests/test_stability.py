@@ -273,3 +273,45 @@ def test_absurd_extrapolation_is_refused_not_nan(model, stiff):
     nb = NeuralBRDF.from_embedding(model, far, "far.emb")
     with pytest.raises(InputError, match=r"^far\.emb: "):
         nb.eval_hd(torch.tensor([[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]]))
+
+
+# --- rendering and image metrics ---------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def small_scene():
+    import dataclasses
+
+    from brdfkit.render.scene import REFERENCE
+
+    return dataclasses.replace(REFERENCE, resolution=12)
+
+
+def _image_ok(img):
+    return bool(np.isfinite(img).all() and (img >= 0).all() and img.max() > 0)
+
+
+def test_render_and_image_metrics_on_stiff(trained, stiff, small_scene):
+    from brdfkit.metrics import image_metrics
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.quadrature import render
+
+    model, _ = trained
+    images = {}
+    for name in ("mirror", "black"):
+        images[name], _ = render(TableBRDF(stiff[name], name=name), small_scene)
+        nb = NeuralBRDF.from_embedding(model, api.encode(model, draw_samples(stiff[name], 400, seed=5)))
+        images[name + "-neural"], _ = render(nb, small_scene)
+    for key, img in images.items():
+        assert _image_ok(img), key
+    assert images["mirror"].max() > 1.0 > 1e-2 > images["black"].max()  # the sun in the mirror
+    for a, b in (("mirror-neural", "mirror"), ("black-neural", "black"), ("mirror", "black")):
+        m = image_metrics(images[a], images[b])
+        assert all(math.isfinite(m[k]) for k in ("psnr", "delta_e", "ssim")), (a, b, m)
+
+
+def test_mitsuba_render_of_the_mirror(stiff, small_scene):
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.mitsuba_plugin import render_reference
+
+    img = render_reference(TableBRDF(stiff["mirror"], name="mirror"), small_scene, spp=4)
+    assert _image_ok(img)
