@@ -531,7 +531,10 @@ def write_markdown(path: str, result: dict) -> None:
     lines = ["# brdfkit bench", "",
              f"- command: `{cfg.get('command') or 'brdfkit bench'}`",
              f"- started {result['started']}, {result['elapsed_s']:.0f} s wall; "
-             f"{'complete' if result['complete'] else 'INCOMPLETE (interrupted)'}",
+             f"{'complete' if result['complete'] else 'INCOMPLETE (interrupted)'}"
+             + (f"; merged from {len(result['merged_from'])} runs" if result.get("merged_from") else ""),
+             *([f"- sparse materials dropped because not every merged run covered them: "
+                f"{', '.join(result['dropped_materials'])}"] if result.get("dropped_materials") else []),
              f"- machine: {env['machine']}, {env['cpus']} CPUs, torch {env['torch']} "
              f"({env['threads']} thread(s) per process, {cfg['jobs']} process(es)), device {env['device']}",
              f"- renders: reference scene, quadrature renderer, {cfg['resolution']} x {cfg['resolution']} "
@@ -844,12 +847,19 @@ def _finish(result: dict, folder: str, json_path: str, group_by_prefix: bool) ->
     return result
 
 
-def merge_results(paths, output: str) -> dict:
+def merge_results(paths, output: str, allow_incomplete: bool = False) -> dict:
     """Merge the ``bench.json`` of runs with other seeds (or methods) into one result.
 
     The runs must share the render resolution; a record that two runs both hold (same
-    kind, material, method, N / model and seed) is refused. The merged ``bench.json``,
-    ``bench.md`` and plots are written into ``output``.
+    kind, material, method, N / model and seed) is refused. Sparse records are kept only
+    for the materials that every run with sparse records covered, so that every summary
+    row averages over the same materials (the others are listed as dropped). The merged
+    ``bench.json``, ``bench.md`` and plots are written into ``output``.
+
+    Parameters
+    ----------
+    allow_incomplete
+        Also merge runs that were interrupted (their finished materials).
 
     Raises
     ------
@@ -868,8 +878,9 @@ def merge_results(paths, output: str) -> dict:
             raise InputError(f"{file}: not a bench.json ({e})") from None
         if not isinstance(run, dict) or run.get("format") != "brdfkit-bench":
             raise InputError(f"{file}: not a brdfkit bench result")
-        if not run.get("complete"):
-            raise InputError(f"{file}: the run did not finish; merge complete runs only")
+        if not run.get("complete") and not allow_incomplete:
+            raise InputError(f"{file}: the run did not finish; merge complete runs only "
+                             f"(or pass --allow-incomplete)")
         runs.append(run)
     if len(runs) < 2:
         raise InputError("merging needs at least two bench results")
@@ -877,9 +888,15 @@ def merge_results(paths, output: str) -> dict:
     if len(res) > 1:
         raise InputError(f"the runs rendered at different resolutions ({sorted(res)}); their image "
                          f"metrics are not comparable")
+    covered = [{r["material"] for r in run["records"] if r["kind"] == "sparse"} for run in runs]
+    covered = [c for c in covered if c]
+    common = set.intersection(*covered) if covered else set()
+    dropped = sorted(set().union(*covered) - common) if covered else []
     seen, records = set(), []
     for run in runs:
         for r in run["records"]:
+            if r["kind"] == "sparse" and r["material"] not in common:
+                continue
             key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), r.get("latent"))
             if key in seen:
                 raise InputError(f"two runs both hold {r['kind']} {r['material']} {r['method']} "
@@ -892,8 +909,11 @@ def merge_results(paths, output: str) -> dict:
     cfg["seeds"] = len(cfg["seed_values"]) or cfg["seeds"]
     cfg["methods"] = list(dict.fromkeys(m for run in runs for m in run["config"]["methods"]))
     cfg["command"] = " + ".join(run["config"].get("command", "") for run in runs)
-    mats = {k: list(dict.fromkeys(m for run in runs for m in run["materials"][k])) for k in ("sparse", "compression")}
-    result = dict(first, config=cfg, records=records, complete=True,
+    mats = {"sparse": [m for m in dict.fromkeys(m for run in runs for m in run["materials"]["sparse"])
+                       if m in common],
+            "compression": list(dict.fromkeys(r["material"] for r in records if r["kind"] == "compression"))}
+    result = dict(first, config=cfg, records=records, complete=all(run.get("complete") for run in runs),
+                  dropped_materials=dropped,
                   elapsed_s=sum(run["elapsed_s"] for run in runs),
                   materials={**mats, "sparse_count": len(mats["sparse"]),
                              "compression_count": len(mats["compression"])},

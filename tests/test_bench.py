@@ -164,6 +164,17 @@ def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
     with pytest.raises(InputError, match="both hold sparse"):
         merge_results([tmp_path / "out", tmp_path / "merged"], str(tmp_path / "again"))
 
+    # An interrupted run (only `good` finished) merges on request, over the common materials.
+    part = json.loads((tmp_path / "more" / "bench.json").read_text())
+    part.update(complete=False, records=[r for r in part["records"] if r["material"] == good])
+    (tmp_path / "part.json").write_text(json.dumps(part))
+    with pytest.raises(InputError, match="did not finish"):
+        merge_results([tmp_path / "out", tmp_path / "part.json"], str(tmp_path / "p"))
+    got = merge_results([tmp_path / "out", tmp_path / "part.json"], str(tmp_path / "p"), allow_incomplete=True)
+    assert not got["complete"] and got["dropped_materials"] == ["broken"]
+    assert {r["material"] for r in got["records"]} == {good} and len(got["records"]) == 3
+    assert "dropped because not every merged run covered them: broken" in (tmp_path / "p" / "bench.md").read_text()
+
 
 def test_usage_errors_are_one_line(setup, tmp_path, capsys):
     from brdfkit.cli import main

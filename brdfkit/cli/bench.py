@@ -60,10 +60,12 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--merge", "merge", multiple=True, type=click.Path(), metavar="RUN",
               help="Instead of running: merge the bench.json of finished runs (folders or files, "
                    "repeat the option) into -o.")
+@click.option("--allow-incomplete", is_flag=True,
+              help="With --merge: also merge interrupted runs (the materials every run finished).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(data, test_list, model, ipca, n_list, seeds, first_seed, methods, compression_models, compression_data,
             resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, group_by_prefix, cache, merge, output,
-            quiet):
+            allow_incomplete, quiet):
     """Measure reconstruction error against run time (and compression error).
 
     For each test material of --data, each N and each seed, every method reconstructs the
@@ -80,7 +82,7 @@ def command(data, test_list, model, ipca, n_list, seeds, first_seed, methods, co
     if merge:
         if data or compression_models:
             raise InputError("--merge combines finished runs; give no --data or --compression-models with it")
-        result = merge_results(merge, output)
+        result = merge_results(merge, output, allow_incomplete=allow_incomplete)
         console().print(f"merged {len(merge)} runs: wrote {', '.join(result['outputs'])}")
         return
 
