@@ -707,7 +707,7 @@ def _environment(cfg: BenchConfig) -> dict:
     return {"machine": platform.machine() + " " + platform.system(), "cpus": os.cpu_count(),
             "torch": torch.__version__, "threads": threads, "device": dev,
             "gpu": torch.cuda.get_device_name(0) if dev.startswith("cuda") and torch.cuda.is_available() else None,
-            "python": sys.version.split()[0]}
+            "python": sys.version.split()[0], "renderer": _renderer_digest()[:16]}
 
 
 def _json_safe(obj):
