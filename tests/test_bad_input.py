@@ -683,3 +683,27 @@ def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, mon
         assert code == 2
         line = _one_error(err)
         assert (str(bad) in line) if bad else ("other.emb was made by model" in line), line
+
+
+def test_damaged_exr_gives_one_line_and_a_clean_stdout(tmp_path):
+    # Regression, found by benchmarks/fuzz_parsers.py: the OpenEXR library printed
+    # "x.exr: (EXR_ERR_BAD_CHUNK_LEADER) ..." on stderr and "Warning: Exception raised
+    # reading pixel data ..." on stdout (breaking --json) besides brdfkit's own line.
+    # A real process: C-level output bypasses pytest's capture.
+    import numpy as np
+
+    from brdfkit.render.image import write_exr
+
+    from helpers_foundation import run_brdfkit
+
+    write_exr(tmp_path / "good.exr", np.ones((16, 16, 3), np.float32))
+    raw = bytearray((tmp_path / "good.exr").read_bytes())
+    # one chunk: the offset table is 8 bytes holding the offset just after it
+    table = next(i for i in range(len(raw) - 8) if int.from_bytes(raw[i:i + 8], "little") == i + 8)
+    raw[table + 8:table + 16] = b"\xff" * 8  # the chunk's scanline number
+    (tmp_path / "bad.exr").write_bytes(bytes(raw))
+    r = run_brdfkit(["metrics", tmp_path / "bad.exr", tmp_path / "good.exr", "--json"])
+    assert r.returncode == 2 and r.stdout == ""
+    assert r.stderr.splitlines() == [
+        f"brdfkit: error: {tmp_path / 'bad.exr'}: cannot read OpenEXR image (EXR_ERR_BAD_CHUNK_LEADER: "
+        f"Preparing to read scanline 0 (chunk 0), found corrupt leader: scanline says -1, expected 0)"]

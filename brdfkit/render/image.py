@@ -9,7 +9,10 @@ and SSIM compare. Both writers are atomic (:func:`brdfkit.atomic.atomic_path`).
 
 from __future__ import annotations
 
+import contextlib
 import os
+import sys
+import tempfile
 
 import numpy as np
 
@@ -56,6 +59,38 @@ def write_exr(path, image) -> None:
         OpenEXR.File(header, channels).write(tmp)
 
 
+@contextlib.contextmanager
+def _library_output():
+    """Capture what C code prints to file descriptors 1 and 2 while the block runs;
+    yields a list that holds its lines afterwards.
+
+    The OpenEXR library reports a damaged file by printing lines such as
+    ``x.exr: (EXR_ERR_BAD_CHUNK_LEADER) ...`` to stderr and ``Warning: Exception raised
+    reading pixel data ...`` to stdout, around or instead of a Python exception: a user
+    got three lines instead of one, and ``--json`` output on stdout was broken (found by
+    ``benchmarks/fuzz_parsers.py``; docs/stability.md).
+    """
+    lines: list[str] = []
+    try:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        saved = (os.dup(1), os.dup(2))
+    except (OSError, ValueError):  # no usable descriptors: nothing to capture
+        yield lines
+        return
+    with tempfile.TemporaryFile() as tmp:
+        os.dup2(tmp.fileno(), 1)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines
+        finally:
+            for fd, old in zip((1, 2), saved):
+                os.dup2(old, fd)
+                os.close(old)
+            tmp.seek(0)
+            lines.extend(ln.strip() for ln in tmp.read().decode("utf-8", "replace").splitlines() if ln.strip())
+
+
 def read_exr(path) -> np.ndarray:
     """Read an OpenEXR image as linear float32 ``(H, W, 3)``.
 
@@ -73,10 +108,12 @@ def read_exr(path) -> np.ndarray:
     if not is_exr_file(path):
         raise FormatError(path, "not an OpenEXR image (bad magic number)")
     try:
-        with OpenEXR.File(path, separate_channels=True) as f:
+        with _library_output() as said, OpenEXR.File(path, separate_channels=True) as f:
             chans = {name: np.asarray(c.pixels) for name, c in f.channels().items()}
     except Exception as e:  # OpenEXR raises RuntimeError with a vague message
-        raise FormatError(path, f"cannot read OpenEXR image ({e})") from None
+        raise FormatError(path, f"cannot read OpenEXR image ({_library_reason(said) or e})") from None
+    if said:  # pixel data it could not read, reported as a warning only
+        raise FormatError(path, f"cannot read OpenEXR image ({_library_reason(said)})")
     short = {name.rsplit(".", 1)[-1]: a for name, a in chans.items()}
     if all(c in short for c in "RGB"):
         img = np.stack([short[c] for c in "RGB"], -1)
@@ -88,6 +125,15 @@ def read_exr(path) -> np.ndarray:
     if not np.isfinite(img).all():
         raise FormatError(path, "OpenEXR image holds NaN or infinite pixels")
     return img
+
+
+def _library_reason(lines: list[str]) -> str:
+    """The first error the OpenEXR library printed, as ``EXR_ERR_CODE: text``."""
+    for line in lines:
+        if "(EXR_ERR_" in line:
+            code, _, text = line[line.index("(EXR_ERR_") + 1:].partition(") ")
+            return f"{code}: {text}"
+    return lines[0] if lines else ""
 
 
 def write_png(path, image) -> None:
