@@ -11,11 +11,15 @@ Not a conftest: plain functions.
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import functools
 import json
 import os
+import sys
+import tempfile
 import time
+import warnings
 from typing import Callable
 
 import numpy as np
@@ -271,19 +275,52 @@ def draw_input(data, parser: Parser) -> bytes:
     return _edit_safetensors_header(data, seed)
 
 
-def check_parser(parser: Parser, raw: bytes, folder: str, slow_s: float = 30.0) -> None:
+@contextlib.contextmanager
+def _captured_output():
+    """What is written to file descriptors 1 and 2 (C libraries included) and the
+    warnings Python would show, while the block runs: ``(lines, warnings)``."""
+    lines: list[str] = []
+    caught: list = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = (os.dup(1), os.dup(2))
+    with tempfile.TemporaryFile() as tmp, warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        os.dup2(tmp.fileno(), 1)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines, caught
+        finally:
+            for fd, old in zip((1, 2), saved):
+                os.dup2(old, fd)
+                os.close(old)
+            tmp.seek(0)
+            lines.extend(ln for ln in tmp.read().decode("utf-8", "replace").splitlines() if ln.strip())
+            # the categories a user would see (DeprecationWarning and kin are hidden)
+            caught.extend(x for x in w if not issubclass(x.category, (DeprecationWarning, PendingDeprecationWarning,
+                                                                      ImportWarning)))
+
+
+def check_parser(parser: Parser, raw: bytes, folder: str, slow_s: float = 30.0) -> tuple[bool, float]:
     """Write ``raw`` and parse it: a result or a one-line :class:`BrdfkitError` naming
-    the file; anything else (another exception, a multi-line message, a parse slower
-    than ``slow_s``) fails."""
+    the file, and nothing else printed; anything else (another exception, a multi-line
+    message, output from a C library or a warning, a parse slower than ``slow_s``)
+    fails. Returns ``(accepted, seconds)``."""
     path = os.path.join(folder, "fuzz" + parser.suffix)
     with open(path, "wb") as f:
         f.write(raw)
+    accepted = True
     t0 = time.perf_counter()
-    try:
-        parser.read(path)
-    except BrdfkitError as e:
-        msg = str(e)
-        assert "\n" not in msg, msg
-        assert path in msg, msg
+    with _captured_output() as (printed, caught):
+        try:
+            parser.read(path)
+        except BrdfkitError as e:
+            accepted = False
+            msg = str(e)
+            assert "\n" not in msg, msg
+            assert path in msg, msg
     elapsed = time.perf_counter() - t0
+    assert not printed, f"{parser.name} printed {printed[:3]}"
+    assert not caught, f"{parser.name} warned {[str(x.message) for x in caught[:3]]}"
     assert elapsed < slow_s, f"{parser.name} took {elapsed:.1f} s on a {len(raw)}-byte input"
+    return accepted, elapsed
