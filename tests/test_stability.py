@@ -315,3 +315,35 @@ def test_mitsuba_render_of_the_mirror(stiff, small_scene):
 
     img = render_reference(TableBRDF(stiff["mirror"], name="mirror"), small_scene, spp=4)
     assert _image_ok(img)
+
+
+# --- real data (proxy MERL tables from ../shared) -----------------------------------------
+
+@pytest.mark.proxy
+@pytest.mark.parametrize("name", ["chrome", "black-fabric"])
+def test_proxy_mirror_and_black(trained, tmp_path_factory, small_scene, name):
+    """The most mirror-like and a near-black MERL material (NBRDF proxies) through the
+    mapping, encode, decode, sparse, metrics and rendering."""
+    from brdfkit.merl import read_merl
+    from brdfkit.metrics import image_metrics
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.quadrature import render
+
+    from helpers_foundation import proxy_material
+
+    model, _ = trained
+    path = proxy_material(tmp_path_factory, name)
+    table = read_merl(path)
+    for ref in (model.rho_ref.astype(np.float64), 0.0, 1e4):
+        back = from_mapped(to_mapped(table, ref), ref)
+        big = np.isfinite(table) & np.isfinite(back) & (table > 1e-6)
+        assert (np.abs(back[big] - table[big]) <= 1e-6 * table[big]).all()
+    emb = api.encode(model, path)
+    dec = api.decode(model, emb)
+    rec, _ = api.sparse(model, draw_samples(table, 40, seed=2))
+    for t in (dec, rec):
+        assert _finite_where_measured(t, model.rho_ref) and math.isfinite(brdf_log_rmse(t, table))
+    ref_img, _ = render(TableBRDF(table, name=name), small_scene)
+    img, _ = render(NeuralBRDF.from_embedding(model, emb), small_scene)
+    assert _image_ok(ref_img) and _image_ok(img)
+    assert all(math.isfinite(v) for v in image_metrics(img, ref_img).values())
