@@ -348,18 +348,63 @@ class NeuralBRDF:
             raise InputError(f"{self.name}: the model's hyponet overflows on this embedding (largest "
                              f"latent value {z:.3g}, far outside the trained range); it cannot be decoded")
 
-    def _mapped(self, hd):
-        """Hyponet on ``hd (N, 6)`` float32 (model device) -> mapped RGB ``(N, 3)``; 2-D
-        ``addmm`` on the batch-of-one weights (cheaper than ``baddbmm``)."""
+    def _folded(self):
+        """Per layer ``[W^T | b]`` (``(out, in + 1)``), made once per NeuralBRDF."""
         import torch
 
-        h = hd
-        last = len(self.weights) - 1
-        for i, (w, b) in enumerate(self.weights):
-            h = torch.addmm(b[0, 0], h, w[0])
+        if getattr(self, "_folded_layers", None) is None:
+            self._folded_layers = [torch.cat([w[0].t(), b[0, 0][:, None]], dim=1).contiguous()
+                                   for w, b in self.weights]
+        return self._folded_layers
+
+    def _hyponet_block(self, x1, bufs):
+        """One block through the hyponet, feature-major: ``x1 (7, n)`` (HD vectors and a
+        row of ones) -> ``bufs[-1] (3, n)`` mapped RGB. ``bufs`` from :meth:`_buffers`:
+        every hidden buffer carries a row of ones, so each layer is one plain ``mm`` with
+        the bias folded into its matrix (``addmm`` with a broadcast bias cost a third
+        more than the products themselves, ``docs/performance.md``)."""
+        import torch
+
+        layers = self._folded()
+        last = len(layers) - 1
+        h = x1
+        for i, (wt, buf) in enumerate(zip(layers, bufs)):
             if i < last:
-                h = h.relu_()
+                torch.mm(wt, h, out=buf[:-1])
+                buf[:-1].relu_()
+            else:
+                torch.mm(wt, h, out=buf)
+            h = buf
         return h
+
+    def _buffers(self, n):
+        import torch
+
+        layers = self._folded()
+        bufs = []
+        for i, wt in enumerate(layers):
+            hidden = i < len(layers) - 1
+            buf = torch.empty(wt.shape[0] + hidden, n, dtype=torch.float32, device=self.model.device)
+            if hidden:
+                buf[-1] = 1.0
+            bufs.append(buf)
+        return bufs
+
+    def _mapped(self, hd):
+        """Hyponet on ``hd (N, 6)`` float32 (model device) -> mapped RGB ``(N, 3)`` (a
+        transposed view), in blocks of :data:`DECODE_BLOCK` like the dense decode."""
+        import torch
+
+        n = hd.shape[0]
+        x1 = torch.ones(7, n, dtype=torch.float32, device=self.model.device)
+        x1[:6] = hd.t()
+        out = torch.empty(3, n, dtype=torch.float32, device=self.model.device)
+        full = self._buffers(min(DECODE_BLOCK, max(n, 1)))
+        for s in range(0, n, DECODE_BLOCK):
+            e = min(n, s + DECODE_BLOCK)
+            bufs = full if e - s == full[0].shape[1] else self._buffers(e - s)
+            out[:, s:e] = self._hyponet_block(x1[:, s:e], bufs)
+        return out.t()
 
     def _eval_angles(self, hd, th, td, pd):
         import torch
@@ -469,37 +514,14 @@ class NeuralBRDF:
                 torch.from_numpy(np.ascontiguousarray(model.rho_ref.reshape(N_CELLS, 3)[idx].T)).to(dev),
             )
         idx, hd1_t, ref_t = cache[key]
-        # (out, in + 1): W^T with the bias as its last column.
-        layers = [torch.cat([w[0].t(), b[0, 0][:, None]], dim=1).contiguous() for w, b in self.weights]
-        last = len(layers) - 1
         m = idx.size
-
-        def buffers(n):
-            bufs = []
-            for i, wt in enumerate(layers):
-                rows = wt.shape[0] + (i < last)
-                buf = torch.empty(rows, n, dtype=torch.float32, device=dev)
-                if i < last:
-                    buf[-1] = 1.0
-                bufs.append(buf)
-            return bufs
-
-        full = buffers(min(DECODE_BLOCK, m))
+        full = self._buffers(min(DECODE_BLOCK, m))
         vals = torch.empty(3, m, dtype=torch.float32, device=dev)
         with torch.inference_mode():
             for s in range(0, m, DECODE_BLOCK):
                 e = min(m, s + DECODE_BLOCK)
-                bufs = full if e - s == full[0].shape[1] else buffers(e - s)
-                h = hd1_t[:, s:e]
-                for i, (wt, buf) in enumerate(zip(layers, bufs)):
-                    if i < last:
-                        torch.mm(wt, h, out=buf[:-1])
-                        buf[:-1].relu_()
-                        h = buf
-                    else:
-                        torch.mm(wt, h, out=buf)
-                        h = buf
-                vals[:, s:e] = from_mapped(h, ref_t[:, s:e])
+                bufs = full if e - s == full[0].shape[1] else self._buffers(e - s)
+                vals[:, s:e] = from_mapped(self._hyponet_block(hd1_t[:, s:e], bufs), ref_t[:, s:e])
         # from_mapped bounds every value to [0, RHO_MAX], so the sum (one pass, no mask)
         # is NaN exactly when a value is.
         if bool(torch.isnan(vals.sum())):
