@@ -17,6 +17,13 @@ class BrdfkitError(Exception):
 
     exit_code = 2
 
+    def __str__(self) -> str:
+        # One line whatever a file smuggles into the message: metadata values, parser
+        # errors quoting the file, names with line breaks or terminal escapes (found by
+        # benchmarks/fuzz_parsers.py; docs/stability.md).
+        text = super().__str__()
+        return text if text.isprintable() else "".join(c if c.isprintable() else " " for c in text)
+
 
 class InputError(BrdfkitError, ValueError):
     """An input (file, value or option) that cannot be used as given."""

@@ -317,7 +317,7 @@ def check_parser(parser: Parser, raw: bytes, folder: str, slow_s: float = 30.0) 
         except BrdfkitError as e:
             accepted = False
             msg = str(e)
-            assert "\n" not in msg, msg
+            assert msg.isprintable(), repr(msg)  # one line, no terminal escapes
             assert path in msg, msg
     elapsed = time.perf_counter() - t0
     assert not printed, f"{parser.name} printed {printed[:3]}"

@@ -707,3 +707,30 @@ def test_damaged_exr_gives_one_line_and_a_clean_stdout(tmp_path):
     assert r.stderr.splitlines() == [
         f"brdfkit: error: {tmp_path / 'bad.exr'}: cannot read OpenEXR image (EXR_ERR_BAD_CHUNK_LEADER: "
         f"Preparing to read scanline 0 (chunk 0), found corrupt leader: scanline says -1, expected 0)"]
+
+
+def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
+    # Found by benchmarks/fuzz_parsers.py: a fingerprint "\n" in a model file's metadata,
+    # and a safetensors header key with a line break (quoted by the parser's error), gave
+    # two-line messages. BrdfkitError now prints every non-printable character as a space.
+    from brdfkit.errors import FormatError
+    from brdfkit.mapping import load_reference, save_reference
+    from brdfkit.modelfile import load_model
+
+    from helpers_foundation import run_brdfkit
+
+    bad_fp = tmp_path / "fp.safetensors"
+    bad_fp.write_bytes(_rewrite_header((good / "model.safetensors").read_bytes(),
+                                       lambda h: h["__metadata__"].update(fingerprint="\n\x1b[31mred")))
+    with pytest.raises(FormatError) as e:
+        load_model(bad_fp, "cpu")
+    assert str(e.value).isprintable() and "weights do not match the recorded fingerprint" in str(e.value)
+    save_reference(tmp_path / "ref.safetensors", material_table(0))
+    bad_ref = tmp_path / "bad-ref.safetensors"
+    bad_ref.write_bytes(_rewrite_header((tmp_path / "ref.safetensors").read_bytes(),
+                                        lambda h: h.update({"": [{"\n": None}]})))
+    with pytest.raises(FormatError) as e:
+        load_reference(bad_ref)
+    assert str(e.value).isprintable() and "not a valid safetensors file" in str(e.value)
+    r = run_brdfkit(["decode", good / "a.emb", "-m", bad_fp, "-o", tmp_path / "x.binary"])
+    assert r.returncode == 2 and len(r.stderr.splitlines()) == 1 and "\x1b" not in r.stderr
