@@ -70,7 +70,7 @@ IPCA_FORMAT = "brdfkit-ipca"
 IPCA_VERSION = "1"
 EPS = 0.001
 DEFAULT_COMPONENTS = 8
-DEFAULT_LAMBDA = 1.0
+DEFAULT_LAMBDA = 0.1
 _TENSORS = ("cells", "reference", "mean", "components", "sigma")
 
 
