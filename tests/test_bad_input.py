@@ -734,3 +734,22 @@ def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
     assert str(e.value).isprintable() and "not a valid safetensors file" in str(e.value)
     r = run_brdfkit(["decode", good / "a.emb", "-m", bad_fp, "-o", tmp_path / "x.binary"])
     assert r.returncode == 2 and len(r.stderr.splitlines()) == 1 and "\x1b" not in r.stderr
+
+
+@pytest.mark.parametrize("name, message", [
+    ("model", "not a brdfkit PCA basis (format 'brdfkit-model', expected 'brdfkit-ipca')"),
+    ("empty", "not a valid safetensors file (Error while deserializing header: header too small)"),
+    ("pickle", "not a valid safetensors file (Error while deserializing header: "),
+    ("truncated_header", "not a valid safetensors file (Error while deserializing header: "),
+    ("merl_table", "not a valid safetensors file (Error while deserializing header: "),
+])
+def test_bad_basis_through_sparse_ipca(good, bad_models, tmp_path, capsys, name, message):
+    # The PCA baseline takes its basis with -m. Regression: load_ipca wrapped its own
+    # "not a brdfkit PCA basis" error again ("not a valid safetensors file (x: not a ...)").
+    path = good / "model.safetensors" if name == "model" else bad_models[name][0]
+    code, err = _cli(capsys, ["sparse", good / "samples.csv", "--method", "ipca", "-m", path,
+                              "-o", tmp_path / "x.binary"])
+    assert code == 2
+    line = _one_error(err)
+    assert line.startswith(f"brdfkit: error: {path}: {message}") and line.count(str(path)) == 1, line
+    assert os.listdir(tmp_path) == []

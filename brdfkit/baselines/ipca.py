@@ -333,6 +333,8 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
             if missing:
                 raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
             t = {k: f.get_tensor(k) for k in _TENSORS}
+    except FormatError:  # our own, raised above (a ValueError too): not to be wrapped again
+        raise
     except SafetensorError as e:
         raise FormatError(path, f"not a valid safetensors file ({e})") from None
     except (OSError, ValueError) as e:
