@@ -346,3 +346,19 @@ def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library
     code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "nbrdf", "-m", d / "exclude.txt",
                               "-o", d / "z.binary"])
     assert code == 2 and "takes no model" in _one_error_line(err)
+
+
+def test_registry_hypernet_is_api_sparse(library, tmp_path):
+    """The registry's ``hypernet`` entry is exactly ``brdfkit.api.sparse`` (an untrained
+    tiny model is enough to check the plumbing)."""
+    from brdfkit import api
+
+    from helpers_model import make_model
+
+    make_model(tmp_path / "model.safetensors", seed=0)
+    method = get_method("hypernet")
+    model = method.load(tmp_path / "model.safetensors", device="cpu")
+    samples = draw_samples(library[1], 100, seed=0)
+    np.testing.assert_array_equal(method.reconstruct(samples, model), api.sparse(model, samples)[0])
+    with pytest.raises(InputError, match="needs a hypernetwork model"):
+        method.reconstruct(samples)
