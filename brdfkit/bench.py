@@ -533,7 +533,7 @@ def write_markdown(path: str, result: dict) -> None:
              f"- started {result['started']}, {result['elapsed_s']:.0f} s wall; "
              f"{'complete' if result['complete'] else 'INCOMPLETE (interrupted)'}"
              + (f"; merged from {len(result['merged_from'])} runs" if result.get("merged_from") else ""),
-             *([f"- sparse materials dropped because not every merged run covered them: "
+             *([f"- materials dropped because not every merged run covered them: "
                 f"{', '.join(result['dropped_materials'])}"] if result.get("dropped_materials") else []),
              f"- machine: {env['machine']}, {env['cpus']} CPUs, torch {env['torch']} "
              f"({env['threads']} thread(s) per process, {cfg['jobs']} process(es)), device {env['device']}",
@@ -851,9 +851,10 @@ def merge_results(paths, output: str, allow_incomplete: bool = False) -> dict:
     """Merge the ``bench.json`` of runs with other seeds (or methods) into one result.
 
     The runs must share the render resolution; a record that two runs both hold (same
-    kind, material, method, N / model and seed) is refused. Sparse records are kept only
-    for the materials that every run with sparse records covered, so that every summary
-    row averages over the same materials (the others are listed as dropped). The merged
+    kind, material, method, N / model and seed) is refused. Sparse (compression) records
+    are kept only for the materials that every run with sparse (compression) records
+    covered, so that every summary row averages over the same materials (the others are
+    listed as dropped). The merged
     ``bench.json``, ``bench.md`` and plots are written into ``output``.
 
     Parameters
@@ -888,14 +889,16 @@ def merge_results(paths, output: str, allow_incomplete: bool = False) -> dict:
     if len(res) > 1:
         raise InputError(f"the runs rendered at different resolutions ({sorted(res)}); their image "
                          f"metrics are not comparable")
-    covered = [{r["material"] for r in run["records"] if r["kind"] == "sparse"} for run in runs]
-    covered = [c for c in covered if c]
-    common = set.intersection(*covered) if covered else set()
-    dropped = sorted(set().union(*covered) - common) if covered else []
+    common, dropped = {}, []
+    for kind in ("sparse", "compression"):
+        covered = [{r["material"] for r in run["records"] if r["kind"] == kind} for run in runs]
+        covered = [c for c in covered if c]
+        common[kind] = set.intersection(*covered) if covered else set()
+        dropped += sorted(set().union(*covered) - common[kind]) if covered else []
     seen, records = set(), []
     for run in runs:
         for r in run["records"]:
-            if r["kind"] == "sparse" and r["material"] not in common:
+            if r["material"] not in common[r["kind"]]:
                 continue
             key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), r.get("latent"))
             if key in seen:
@@ -910,7 +913,7 @@ def merge_results(paths, output: str, allow_incomplete: bool = False) -> dict:
     cfg["methods"] = list(dict.fromkeys(m for run in runs for m in run["config"]["methods"]))
     cfg["command"] = " + ".join(run["config"].get("command", "") for run in runs)
     mats = {"sparse": [m for m in dict.fromkeys(m for run in runs for m in run["materials"]["sparse"])
-                       if m in common],
+                       if m in common["sparse"]],
             "compression": list(dict.fromkeys(r["material"] for r in records if r["kind"] == "compression"))}
     result = dict(first, config=cfg, records=records, complete=all(run.get("complete") for run in runs),
                   dropped_materials=dropped,

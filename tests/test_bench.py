@@ -173,7 +173,7 @@ def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
     got = merge_results([tmp_path / "out", tmp_path / "part.json"], str(tmp_path / "p"), allow_incomplete=True)
     assert not got["complete"] and got["dropped_materials"] == ["broken"]
     assert {r["material"] for r in got["records"]} == {good} and len(got["records"]) == 3
-    assert "dropped because not every merged run covered them: broken" in (tmp_path / "p" / "bench.md").read_text()
+    assert "materials dropped because not every merged run covered them: broken" in (tmp_path / "p" / "bench.md").read_text()
 
 
 def test_usage_errors_are_one_line(setup, tmp_path, capsys):
