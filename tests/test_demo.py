@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from brdfkit.cli.demo import choose_holdout, choose_threads, render_psnr, write_demo_library
+from brdfkit.cli.demo import choose_holdout, render_psnr, write_demo_library
 from brdfkit.embedding import read_embedding
 from brdfkit.merl import read_merl
 from brdfkit.modelfile import load_model
@@ -22,12 +22,6 @@ def test_holdout_spreads_over_random_materials():
     names = ["stiff-black", "stiff-grazing", "stiff-mirror", "stiff-white"] + [f"synth-{i:03d}" for i in range(16)]
     assert choose_holdout(names, 4) == ["synth-002", "synth-006", "synth-010", "synth-014"]
     assert choose_holdout(names[:5], 2) == ["stiff-grazing", "stiff-white"]
-
-
-def test_threads_follow_free_cores():
-    assert choose_threads(cores=2, load=7.0, default=2) == 1
-    assert choose_threads(cores=2, load=0.1, default=2) == 2
-    assert choose_threads(cores=16, load=3.2, default=16) == 13
 
 
 def test_render_psnr_through_the_reference_renderer():

@@ -102,14 +102,6 @@ def render_psnr(resolution: int = RENDER_RESOLUTION):
     return score
 
 
-def choose_threads(cores: int, load: float, default: int) -> int:
-    """Torch threads for the demo: the cores not already busy (at least 1, at most the
-    default). On a busy machine OpenMP threads that wait for a core slow training down
-    several-fold (measured in docs/training.md: 2 threads 5x slower than 1 at load 7 on
-    2 cores)."""
-    return max(1, min(default, int(cores - load + 0.5)))
-
-
 def _fmt_bytes(n: int) -> str:
     return f"{n / 1e6:.1f} MB" if n >= 1e5 else f"{n / 1e3:.1f} kB"
 
@@ -166,13 +158,10 @@ def command(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rend
     for d in (out_dir, emb_dir, dec_dir):
         os.makedirs(d, exist_ok=True)
     err.print(f"[bold]brdfkit demo[/]: writing everything into {out_dir}")
-    if "OMP_NUM_THREADS" not in os.environ and hasattr(os, "getloadavg"):
-        import torch
+    import torch
 
-        cores, load = os.cpu_count() or 1, os.getloadavg()[0]
-        torch.set_num_threads(choose_threads(cores, load, torch.get_num_threads()))
-        err.print(f"using {torch.get_num_threads()} torch thread(s): {cores} cores, load average "
-                  f"{load:.1f} (set OMP_NUM_THREADS to choose)")
+    # brdfkit.cli.main already sized the pool to the idle cores (brdfkit.threads).
+    err.print(f"using {torch.get_num_threads()} torch thread(s) (set OMP_NUM_THREADS to choose)")
     times, written = [], []
 
     t = time.monotonic()
