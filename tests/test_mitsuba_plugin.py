@@ -7,6 +7,7 @@ it is missing (CI installs ``libllvm19``)."""
 from __future__ import annotations
 
 import math
+import os
 
 import numpy as np
 import pytest
@@ -36,7 +37,7 @@ def test_missing_libllvm_is_a_clear_error(monkeypatch):
     monkeypatch.setattr(mp.glob, "glob", lambda pattern: [])
     with pytest.raises(BrdfkitError, match="apt-get install -y libllvm19"):
         mp.ensure_libllvm()
-    assert "DRJIT_LIBLLVM_PATH" not in __import__("os").environ
+    assert "DRJIT_LIBLLVM_PATH" not in os.environ
 
 
 @pytest.fixture(scope="module")

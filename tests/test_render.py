@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 import math
+import os
 import subprocess
 import sys
 
@@ -328,5 +329,5 @@ def test_cli_render_embedding(tmp_path):
     np.testing.assert_allclose(img, expected, rtol=1e-4, atol=1e-6)
     assert np.isfinite(img).all() and img.max() > 0
     r = run_brdfkit(["render", tmp_path / "w.emb", "-o", tmp_path / "x.exr"],
-                    env={k: v for k, v in __import__("os").environ.items() if k != "BRDFKIT_MODEL"})
+                    env={k: v for k, v in os.environ.items() if k != "BRDFKIT_MODEL"})
     assert r.returncode == 2 and "model" in r.stderr

@@ -18,8 +18,9 @@ Guibas 1995). Each node adds ``w s_X L_env f cos``, ``w`` its solid-angle weight
 * **Half-vector nodes** (B): rings ``k = 0 .. K-1`` at ``theta_h = pi/2 (u / K)^p``,
   ``u = k + 1/2``, ``M_k = max(M_min, round(M sqrt(sin theta_h)))`` azimuths each, ``wi``
   the mirror of ``wo`` about each ``h``; ``w = 4 (wo.h) sin(theta_h) dtheta_h/du 2 pi / M_k``.
-  With ``p = 3`` the first ring is 1.4e-5 rad from the specular direction, so
-  near-mirror lobes (and MERL's own square-root ``theta_h`` spacing) are resolved.
+  With ``p = 3`` the first ring is ``pi/2 (1 / 2K)^3`` (2.5e-5 rad for ``K = 20``) from
+  the specular direction, so near-mirror lobes (and MERL's own square-root ``theta_h``
+  spacing) are resolved.
 * **Light nodes** (A): a fixed grid of world directions in each rectangle of
   ``EnvMap.bright`` (the sun and the window of the reference map), uniform in texture
   coordinates; each node carries the environment radiance *averaged over its patch*
