@@ -707,7 +707,17 @@ def _environment(cfg: BenchConfig) -> dict:
     return {"machine": platform.machine() + " " + platform.system(), "cpus": os.cpu_count(),
             "torch": torch.__version__, "threads": threads, "device": dev,
             "gpu": torch.cuda.get_device_name(0) if dev.startswith("cuda") and torch.cuda.is_available() else None,
-            "python": sys.version.split()[0], "renderer": _renderer_digest()[:16]}
+            "python": sys.version.split()[0], "renderer": _renderer_digest()[:16],
+            "method_defaults": _method_defaults()}
+
+
+def _method_defaults() -> dict:
+    """The baselines' default options in this code, recorded with every run (an option
+    not given on the command line is one of these)."""
+    from .baselines import ipca, nbrdf
+
+    return {"ipca": {"lam": ipca.DEFAULT_LAMBDA},
+            "nbrdf": {"steps": nbrdf.DEFAULT_STEPS, "lr": nbrdf.DEFAULT_LR, "patience": nbrdf.DEFAULT_PATIENCE}}
 
 
 def _json_safe(obj):
