@@ -643,6 +643,7 @@ def write_plots(folder: str, result: dict) -> list[str]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import matplotlib.ticker
 
     written = []
     rows = result["summary"]["sparse"]
@@ -668,6 +669,11 @@ def write_plots(folder: str, result: dict) -> list[str]:
                         ax.annotate(str(r["n"]), (r[xkey], r[metric]), textcoords="offset points",
                                     xytext=(4, 4), fontsize=7)
             ax.set_xscale("log")
+            # labels at 1, 2, 5 x 10^k in plain numbers; matplotlib's default labels the
+            # minor ticks of a short log axis so that they overlap
+            ax.xaxis.set_major_locator(matplotlib.ticker.LogLocator(base=10, subs=(1.0, 2.0, 5.0)))
+            ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}"))
+            ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
             ax.set_xlabel(xlabel)
             ax.set_ylabel(_LABELS[metric])
             ax.grid(True, which="both", alpha=0.3)
