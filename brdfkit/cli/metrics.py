@@ -9,6 +9,7 @@ import sys
 import click
 
 from .common import console, model_option
+from .render import threads_option
 
 _SUFFIXES = (".binary", ".emb", ".exr")
 
@@ -162,9 +163,10 @@ def _print_table(rows: dict, mean: dict | None):
 @click.option("--json", "as_json", is_flag=True, help="Print JSON on stdout (see below).")
 @click.option("--resolution", type=click.IntRange(min=16, max=4096), default=None,
               help="Size of the reference-scene renders of BRDF inputs (default 256).")
+@threads_option
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def command(ctx, paths, model_path, as_json, resolution, quiet):
+def command(ctx, paths, model_path, as_json, resolution, threads, quiet):
     """Compare PRED with REF: PSNR, Delta E 2000, SSIM and the BRDF log RMSE.
 
     PRED and REF are BRDF files (MERL .binary, or .emb with -m MODEL), which are first
@@ -187,6 +189,9 @@ def command(ctx, paths, model_path, as_json, resolution, quiet):
     if len(paths) != 2:
         raise InputError(f"metrics: expected PRED REF, got {len(paths)} path(s)")
     pred, ref = paths
+    from .render import set_threads
+
+    set_threads(threads)
     loader = _Loader(model_path, resolution, progress=not quiet and not as_json)
     dirs = [os.path.isdir(p) for p in paths]
     if any(dirs) and not all(dirs):

@@ -27,14 +27,17 @@ Guibas 1995). Each node adds ``w s_X L_env f cos``, ``w`` its solid-angle weight
   (integrated once on a fine sub-grid), so the sun's power is exact however few nodes
   cover it.
 
-Shares: ``s_B = (1 - smoothstep(0, half_extent, theta_h)) (1 - rho + rho beta)``,
-``s_A = rho (1 - s_B0 beta)``, ``s_C = (1 - s_B0)(1 - rho)`` with ``s_B0`` the first factor
-of ``s_B``, ``rho`` a ramp that is 1 inside a light rectangle and falls to 0 over its
-margin, and ``beta`` = 1 for ``theta_h < light_handover[0]`` falling (smoothly in
-``log theta_h``) to 0 at ``light_handover[1]``: near the specular direction the dense
-half-vector rings see a bright source better than the light grid does, elsewhere the
-light grid does. Cosine nodes never take a share inside a light rectangle, so no coarse
-node ever lands on the sun.
+Shares: ``s_B = s_B0 (1 - rho + rho beta)``, ``s_A = rho (1 - s_B0 beta)``,
+``s_C = (1 - s_B0)(1 - rho)``. ``s_B0`` (:func:`half_share`) is the balance heuristic
+between the half-vector and cosine nodes' densities (``d_B / (d_B + d_C)``, the ring count
+taken as continuous in ``theta_h`` and ``d_C`` floored at a quarter of its value at the
+normal, so that coarse outer rings never own the horizon), times a smooth cut to 0 at
+``theta_h = half_extent``. ``rho`` is a ramp that is 1 inside a light rectangle and falls
+to 0 over its margin, and ``beta`` = 1 for ``theta_h < light_handover[0]`` falling
+(smoothly in ``log theta_h``) to 0 at ``light_handover[1]``: near the specular direction
+the dense half-vector rings see a bright source better than the light grid does,
+elsewhere the light grid does. Cosine nodes never take a share inside a light rectangle,
+so no coarse node ever lands on the sun.
 
 Finally each technique is normalised so that, for every pixel, its weights integrate its
 share of the cosine-weighted hemisphere exactly: ``sum w s_B cos / pi`` to the tabulated
@@ -60,7 +63,7 @@ from .scene import REFERENCE, Quadrature, Scene
 __all__ = ["NodeSet", "render", "render_pixels"]
 
 # Pairs (pixel x node) per block: large enough to amortise Python, small enough for cache.
-BLOCK_PAIRS = 1 << 15
+BLOCK_PAIRS = 1 << 17
 # Sub-grid per light patch for its averaged radiance.
 _PATCH_SUBGRID = 8
 
@@ -157,29 +160,53 @@ def _env_radiance_np(env, d):
     return env.radiance(torch.as_tensor(d, dtype=torch.float64)).double().numpy()
 
 
+def half_share(q: Quadrature, theta_h, wo_dot_h, cos_i):
+    """``s_B0``: the half-vector nodes' share before the light rectangles, a function of
+    the pair's geometry only (NumPy or torch arrays).
+
+    A balance between the half-vector nodes' density ``d_B`` (per steradian of ``wi``,
+    with the ring count taken as a continuous function of ``theta_h``) and the cosine
+    nodes' ``N_C max(cos theta_i, 0.25) / pi``, raised to ``q.share_power``, times a
+    smooth cut to 0 at ``theta_h = half_extent``:
+    ``s_B0 = cut / (1 + (d_C / d_B)^k)``.
+    """
+    xp = np if isinstance(theta_h, np.ndarray) else __import__("torch")
+    k, p = q.half_rings, q.half_power
+    th = xp.clip(theta_h, 1e-12, None) if xp is np else theta_h.clamp_min(1e-12)
+    u = k * (th / (math.pi / 2)) ** (1.0 / p)
+    dth_du = (math.pi / 2) * p * u ** (p - 1) / k ** p
+    m = xp.maximum(q.half_phi * xp.sqrt(xp.sin(th)), q.half_phi_min + 0 * th)
+    d_b = m / (2 * math.pi * xp.sin(th) * dth_du * 4 * (xp.clip(wo_dot_h, 1e-12, None) if xp is np
+                                                        else wo_dot_h.clamp_min(1e-12)))
+    d_c = q.cosine_grid ** 2 * (xp.clip(cos_i, 0.25, None) if xp is np else cos_i.clamp_min(0.25)) / math.pi
+    x = xp.clip(th / q.half_extent, 0.0, 1.0) if xp is np else (th / q.half_extent).clamp(0.0, 1.0)
+    cut = 1.0 - x * x * (3.0 - 2.0 * x)
+    return cut / (1.0 + (d_c / d_b) ** q.share_power)
+
+
 _SHARE_TABLES: dict = {}
 
 
 def _half_share_table(q: Quadrature, n_o: int = 129, n_t: int = 300, n_p: int = 180):
-    """``I_B(cos theta_o) = integral of s_B0(wi, wo) cos(theta_i) / pi dwi`` over the upper
+    """``I_B(cos theta_o) = integral of s_B0(wi, wo) cos(theta_i) / pi dwi`` (:func:`half_share`) over the upper
     hemisphere at ``n_o`` values of ``cos theta_o`` (error about 1e-5), by a fine midpoint
     rule in half-vector space (``dwi = 4 wo.h dh``; ``wo`` in the ``xz`` plane, so
     ``phi_h`` in ``[0, pi]`` counts twice); computed once per setting and process."""
-    key = (q.half_extent, n_o, n_t, n_p)
+    key = (q, n_o, n_t, n_p)
     if key not in _SHARE_TABLES:
         cos_o = np.linspace(0.0, 1.0, n_o)
         th = (np.arange(n_t) + 0.5) / n_t * q.half_extent
         ph = (np.arange(n_p) + 0.5) / n_p * np.pi
-        x = th / q.half_extent
-        share = 1.0 - x * x * (3.0 - 2.0 * x)
         st, ct = np.sin(th)[:, None], np.cos(th)[:, None]
         hx, hz = st * np.cos(ph), np.broadcast_to(ct, (n_t, n_p))
+        thb = np.broadcast_to(th[:, None], (n_t, n_p))
         out = np.empty(n_o)
         for i, c in enumerate(cos_o):
             so = math.sqrt(max(0.0, 1 - c * c))
             woh = hx * so + hz * c
             wi_z = 2 * woh * hz - c
-            f = np.where((woh > 0) & (wi_z > 0), wi_z * 4 * woh, 0.0) * st * share[:, None] / np.pi
+            share = half_share(q, thb, woh, wi_z)
+            f = np.where((woh > 0) & (wi_z > 0), wi_z * 4 * woh * share, 0.0) * st / np.pi
             out[i] = 2 * f.sum() * (q.half_extent / n_t) * (np.pi / n_p)
         _SHARE_TABLES[key] = (cos_o, out)
     return _SHARE_TABLES[key]
@@ -307,7 +334,7 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
             wi_w = (wi_l[:, :, None] * frame[pix]).sum(1)  # local -> world
             hv = wi_l + wo_l
             th = torch.atan2(torch.sqrt(hv[:, 0] ** 2 + hv[:, 1] ** 2), hv[:, 2])
-            s_b0 = 1.0 - _smoothstep(th / q.half_extent)
+            s_b0 = half_share(q, th, (wo_l * hv).sum(-1) / hv.norm(dim=-1), cos)
             beta = 1.0 - _smoothstep((torch.log(th.clamp_min(1e-30)) - lo) / (hi - lo))
             rho = _rect_ramp(nd.rects, wi_w)
             share = torch.where(kind == 0, (1 - s_b0) * (1 - rho),

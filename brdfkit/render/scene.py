@@ -50,8 +50,10 @@ class Quadrature:
     half_phi, half_phi_min
         Azimuths per ring: ``max(half_phi_min, round(half_phi sqrt(sin(theta_h))))``.
     half_extent
-        ``theta_h`` (radians) at which the half-vector nodes' share has fallen smoothly
-        from 1 (at the specular direction) to 0.
+        ``theta_h`` (radians) at which the half-vector nodes' share is cut smoothly to 0.
+    share_power
+        Exponent ``k`` of the density ratio in the half-vector share
+        ``1 / (1 + (d_C / d_B)^k)`` (1: the balance heuristic).
     light_density
         Scale of the light nodes per axis in each of the environment's bright rectangles
         (``EnvMap.bright`` gives the counts at 1).
@@ -68,6 +70,7 @@ class Quadrature:
     half_phi_min: int = 5
     half_extent: float = math.pi / 2
     light_density: float = 0.75
+    share_power: float = 1.0
     light_handover: tuple = (0.004, 0.04)
 
 
