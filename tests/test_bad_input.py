@@ -69,15 +69,7 @@ def test_row_count_guard_counts_only_value_lines(tmp_path, monkeypatch):
 
 # --- fixtures: good files, and bad ones of every kind ------------------------------------
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """One torch thread: the test machine's 2 cores are shared."""
-    import torch
-
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 @pytest.fixture(autouse=True)

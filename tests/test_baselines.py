@@ -21,16 +21,7 @@ from brdfkit.samples import SampleSet, draw_samples
 ALPHAS = (0.05, 0.15, 0.4)
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """One torch thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
-    threads make NBRDF's tiny matrix products several times slower."""
-    import torch
-
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 @pytest.fixture(scope="module")

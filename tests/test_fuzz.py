@@ -20,14 +20,7 @@ from helpers_fuzz import PARSERS, check_parser, draw_input
 EXAMPLES = int(os.environ.get("BRDFKIT_FUZZ_EXAMPLES", "60"))
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    import torch
-
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 @pytest.mark.parametrize("name", sorted(PARSERS))

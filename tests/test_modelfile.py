@@ -17,14 +17,7 @@ from brdfkit.modelfile import MODEL_FORMAT, load_model, save_model, weights_fing
 from helpers_model import TINY_CONFIG, make_model, material_table
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """One torch thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
-    threads make the small matrix products here several times slower."""
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 @pytest.fixture(scope="module")

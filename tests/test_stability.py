@@ -36,13 +36,7 @@ BLACK = synthetic.Material("black-0.001", "dielectric", 0.3, albedo=(1e-3, 1e-3,
 HALF_PI = math.pi / 2
 
 
-@pytest.fixture(autouse=True, scope="module")
-def _one_thread():
-    """One torch thread: the test machine's 2 cores are shared."""
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 @pytest.fixture(scope="module")
