@@ -40,6 +40,7 @@ RHO_MAX = 1e10
 # clamping them first keeps expm1 from overflowing.
 _MAPPED_MAX = float(np.log1p((RHO_MAX + EPS) / EPS))
 REFERENCE_FORMAT = "brdfkit-reference"
+_SNAP = EPS * 2.0 ** -40
 
 
 def to_mapped(rho, rho_ref):
@@ -76,6 +77,10 @@ def from_mapped(mapped, rho_ref):
     if xp is np:
         mapped = np.asarray(mapped, dtype=np.float64)
     rho = xp.expm1(xp.clip(mapped, None, _MAPPED_MAX)) * (rho_ref + EPS) - EPS
+    # The mapped value of rho = 0 comes back as a few ulps of EPS either side of 0,
+    # depending on the platform's SIMD exp/log; snap that round-off to exactly 0 (a real
+    # BRDF value is many orders of magnitude above EPS * 2^-40).
+    rho = xp.where(xp.abs(rho) < _SNAP, xp.zeros_like(rho), rho)
     return xp.clip(rho, 0.0, RHO_MAX)
 
 
