@@ -795,22 +795,15 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
         with atomic_open(json_path, "w", encoding="utf-8") as f:
             json.dump(_json_safe(result), f, indent=1)
 
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn, \
-        TimeRemainingColumn
+    from .console import ProgressBar
 
-    from .cli.common import console
-
-    bar = Progress(TextColumn("{task.description}"), BarColumn(), MofNCompleteColumn(),
-                   TimeElapsedColumn(), TimeRemainingColumn(), console=console(), disable=not progress,
-                   transient=False)
     total = sum(per_task[t[0]] for t in tasks)
-    with bar:
-        job = bar.add_task("loading models", total=total)
+    with ProgressBar("loading models", total=total, enabled=progress, count=True, transient=False) as bar:
 
         def done(task, recs):
             result["records"].extend(recs)
             bad = sum("error" in r for r in recs)
-            bar.update(job, advance=per_task[task[0]],
+            bar.update(advance=per_task[task[0]],
                        description=f"{task[0]} {task[1]}" + (f" ({bad} failed)" if bad else ""))
             save()
 
@@ -822,7 +815,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
         if cfg.jobs == 1:
             try:
                 for task in tasks:
-                    bar.update(job, description=f"{task[0]} {task[1]}")
+                    bar.update(description=f"{task[0]} {task[1]}")
                     done(task, _run_task(*task))
             finally:
                 _WORKER = None

@@ -241,8 +241,8 @@ class _Display:
         self.console = None
         self.bar = None
         if enabled:
-            from rich.console import Console
-            self.console = Console(stderr=True)
+            from .console import console
+            self.console = console()
 
     def print(self, *args, **kw):
         if self.console:
@@ -251,19 +251,15 @@ class _Display:
     def start(self, description: str):
         if not self.enabled:
             return self
-        from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+        from .console import ProgressBar
 
-        self.bar = Progress(TextColumn("[bold]{task.description}"), BarColumn(),
-                            TextColumn("{task.percentage:>3.0f}%"), TimeElapsedColumn(),
-                            TextColumn("{task.fields[status]}"), console=self.console,
-                            transient=False)
-        self.task = self.bar.add_task(description, total=1.0, status="")
-        self.bar.start()
+        self.bar = ProgressBar(f"[bold]{description}", total=1.0, status=True, transient=False,
+                               out=self.console).start()
         return self
 
     def update(self, fraction: float, status: str):
         if self.bar is not None:
-            self.bar.update(self.task, completed=min(max(fraction, 0.0), 1.0), status=status)
+            self.bar.update(min(max(fraction, 0.0), 1.0), status=status)
 
     def stop(self):
         if self.bar is not None:

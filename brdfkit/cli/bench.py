@@ -77,7 +77,7 @@ def command(data, test_list, model, ipca, n_list, seeds, first_seed, methods, co
     import sys
 
     from ..bench import BenchConfig, merge_results, run_bench
-    from .common import console
+    from ..console import console
 
     if merge:
         if data or compression_models:

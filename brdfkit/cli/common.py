@@ -11,12 +11,6 @@ from ..errors import InputError
 MODEL_ENV = "BRDFKIT_MODEL"
 
 
-def console():
-    """A Rich console on stderr (stdout stays clean for ``--json`` and CSV)."""
-    from rich.console import Console
-    return Console(stderr=True)
-
-
 def model_option(f):
     """``-m/--model``, falling back to ``$BRDFKIT_MODEL``."""
     return click.option("-m", "--model", "model_path", type=click.Path(dir_okay=False),

@@ -17,7 +17,7 @@ import time
 
 import click
 
-from .common import console
+from ..console import console
 
 SAMPLE_COUNTS = (40, 400)
 LIBRARY_MANIFEST = "library.json"
@@ -54,13 +54,12 @@ def write_demo_library(folder: str, n: int, seed: int, out) -> list[str]:
     if todo:
         if os.path.exists(manifest):
             os.unlink(manifest)  # stale until every table of this library is written
-        from rich.progress import Progress
+        from ..console import ProgressBar
 
-        with Progress(console=out, transient=True) as bar:
-            task = bar.add_task("synthetic materials", total=len(todo))
+        with ProgressBar("synthetic materials", total=len(todo), count=True, out=out) as bar:
             for m, p in todo:
                 write_merl(p, table(m))
-                bar.advance(task)
+                bar.update(advance=1)
         with atomic_open(manifest, "w") as f:
             json.dump(want, f)
     return paths

@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from .common import console, model_option, require_model
+from ..console import ProgressBar, console
+from .common import model_option, require_model
 
 
 @click.command("encode")
@@ -48,19 +49,15 @@ def command(inputs, model_path, output_dir):
         planned[key] = path
 
     if len(inputs) > 1:
-        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeRemainingColumn
-
-        with Progress(TextColumn("encoding"), BarColumn(), MofNCompleteColumn(), TimeRemainingColumn(),
-                      TextColumn("{task.description}"), console=out, transient=True) as bar:
-            task = bar.add_task("", total=len(inputs))
+        with ProgressBar("encoding", total=len(inputs), count=True, out=out) as bar:
             for path in inputs:
-                bar.update(task, description=os.path.basename(path))
+                bar.update(description=f"encoding {os.path.basename(path)}")
                 try:
                     one(path)
                     done += 1
                 except (BrdfkitError, OSError) as e:
                     failures.append(str(e) if isinstance(e, BrdfkitError) else f"{path}: {e.strerror or e}")
-                bar.advance(task)
+                bar.update(advance=1)
     else:
         one(inputs[0])
         done = 1

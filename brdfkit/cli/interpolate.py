@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import click
 
-from .common import console, model_option, parse_float, require_model
+from ..console import console
+from .common import model_option, parse_float, require_model
 
 
 @click.command("interpolate")

@@ -8,7 +8,8 @@ import sys
 
 import click
 
-from .common import console, model_option
+from ..console import console
+from .common import model_option
 from .render import threads_option
 
 _SUFFIXES = (".binary", ".emb", ".exr")

@@ -8,7 +8,8 @@ import time
 
 import click
 
-from .common import console, model_option
+from ..console import ProgressBar, console
+from .common import model_option
 
 
 def threads_option(f):
@@ -37,20 +38,13 @@ def set_threads(threads: int | None) -> int:
 
 @contextlib.contextmanager
 def progress_bar(description: str, enabled: bool = True):
-    """A Rich progress bar on stderr; yields a callback ``update(done, total)``."""
+    """A progress bar on stderr; yields a callback ``update(done, total)`` (``None`` when
+    disabled)."""
     if not enabled:
         yield None
         return
-    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn, TimeRemainingColumn
-
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.percentage:>3.0f}%"),
-                  TimeElapsedColumn(), TimeRemainingColumn(), console=console(), transient=True) as bar:
-        task = bar.add_task(description, total=None)
-
-        def update(done, total):
-            bar.update(task, completed=done, total=total)
-
-        yield update
+    with ProgressBar(description) as bar:
+        yield bar
 
 
 def render_brdf_file(path, model_path=None, *, resolution=None, mitsuba=False, spp=None,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from ..atomic import refuse_overwrite_of_inputs
-from .common import console
+from ..console import console
 
 
 @click.command("sample")

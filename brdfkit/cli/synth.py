@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .common import console
+from ..console import console
 
 
 @click.command("synth")
