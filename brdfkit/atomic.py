@@ -44,9 +44,14 @@ def atomic_path(path: str | os.PathLike) -> Iterator[str]:
                 os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _O_CLOEXEC, 0o666))
             except FileExistsError:  # someone else's file: pick another name
                 tmp = None
+        mode = os.stat(tmp).st_mode & 0o777
         yield tmp
         with open(tmp, "rb+") as f:
             os.fsync(f.fileno())
+        # Some writers replace the file instead of filling it (safetensors' save_file
+        # makes a new 0600 file): give it back the umask's mode every output has.
+        if os.stat(tmp).st_mode & 0o777 != mode:
+            os.chmod(tmp, mode)
         os.replace(tmp, path)
     except BaseException:
         if tmp is not None:
@@ -66,13 +71,29 @@ def atomic_open(path: str | os.PathLike, mode: str = "w", **kwargs) -> Iterator[
 
 def refuse_overwrite_of_inputs(output: str | os.PathLike | None,
                                inputs: Iterable[str | os.PathLike]) -> None:
-    """Raise :class:`InputError` if ``output`` names the same file as any input."""
+    """Raise :class:`InputError` if ``output`` names the same file as any input, or
+    cannot be written: its folder missing or not writable, or a folder by that name.
+
+    Commands call this first, so that a bad output path fails in milliseconds, before
+    minutes of rendering or training (a wrong ``-o`` used to fail after the work).
+    """
     if output is None:
         return
+    _check_writable(os.fspath(output))
     out = os.path.realpath(os.fspath(output))
     for item in inputs:
         if item is not None and os.path.realpath(os.fspath(item)) == out:
             raise InputError(f"{os.fspath(output)}: output path is also an input; refusing to overwrite it")
+
+
+def _check_writable(path: str) -> None:
+    folder = os.path.dirname(os.path.abspath(path))
+    if not os.path.isdir(folder):
+        raise InputError(f"{path}: output folder {folder} does not exist")
+    if os.path.isdir(path):
+        raise InputError(f"{path}: is a directory, expected an output file path")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise InputError(f"{path}: output folder {folder} is not writable (permission denied)")
 
 
 def check_input_file(path: str | os.PathLike) -> str:

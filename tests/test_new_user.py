@@ -1,0 +1,106 @@
+"""What a new user meets (issue 13, "Found"): each test failed before its fix.
+
+A green test run without libLLVM 19, LLVM advice that names what works, the library's
+thread pool, cheap output checks before heavy work, output modes that follow the umask,
+messages in the CLI's own words, no progress noise in pipes, and a demo that writes its
+image.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+BRDFKIT = [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+
+
+def run_brdfkit(args, env=None, timeout=300) -> subprocess.CompletedProcess:
+    """``brdfkit ARGS`` in a subprocess on one thread, output captured as text."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1", **(env or {})}
+    return subprocess.run(BRDFKIT + [str(a) for a in args], env=env, capture_output=True,
+                          text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def library(tmp_path_factory):
+    """Two small synthetic MERL tables (``brdfkit synth``)."""
+    folder = tmp_path_factory.mktemp("lib")
+    r = run_brdfkit(["synth", folder, "-n", "2", "--no-stiff"])
+    assert r.returncode == 0, r.stderr
+    return folder
+
+
+# --- 5. cheap checks before work ----------------------------------------------------------
+
+@pytest.mark.parametrize("argv", [
+    ["render", "{missing}.binary", "-o", "/nonexistent/x.exr"],
+    ["render", "{missing}.binary", "-o", "{tmp}/x.exr", "--png", "/nonexistent/x.png"],
+    ["sparse", "{missing}.csv", "-m", "{missing}.safetensors", "-o", "/nonexistent/x.binary"],
+    ["sparse", "{missing}.csv", "-m", "{missing}.safetensors", "-o", "{tmp}/x.binary",
+     "--emb", "/nonexistent/x.emb"],
+    ["decode", "{missing}.emb", "-m", "{missing}.safetensors", "-o", "/nonexistent/x.binary"],
+    ["interpolate", "{missing}.emb", "{missing}2.emb", "--t", "0.5", "-o", "/nonexistent/x.emb"],
+    ["sample", "{missing}.binary", "-n", "40", "-o", "/nonexistent/x.csv"],
+    ["fit", "{missing}", "-o", "/nonexistent/model.safetensors"],
+])
+def test_a_bad_output_path_fails_before_any_input_is_read(tmp_path, argv):
+    """The output is checked first: with a missing input too, the error names the
+    output folder, so nothing (table, model, render) was read or computed before."""
+    args = [a.format(missing=tmp_path / "missing", tmp=tmp_path) for a in argv]
+    r = run_brdfkit(args)
+    assert r.returncode == 2, r.stderr
+    assert "/nonexistent" in r.stderr and "does not exist" in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
+
+
+def test_an_output_that_is_a_folder_fails_first(tmp_path):
+    r = run_brdfkit(["sparse", tmp_path / "missing.csv", "-m", tmp_path / "m.safetensors",
+                     "-o", tmp_path])
+    assert r.returncode == 2 and "is a directory" in r.stderr, r.stderr
+
+
+# --- 6. model files follow the umask ------------------------------------------------------
+
+@pytest.fixture
+def umask_022():
+    old = os.umask(0o022)
+    yield
+    os.umask(old)
+
+
+def _mode(path) -> int:
+    return stat.S_IMODE(os.stat(path).st_mode)
+
+
+def test_atomic_output_replaced_by_its_writer_keeps_the_umask_mode(tmp_path, umask_022):
+    """A writer that replaces the temporary file with a private one (as safetensors does)."""
+    from brdfkit.atomic import atomic_path
+
+    with atomic_path(tmp_path / "out.bin") as tmp:
+        os.unlink(tmp)
+        os.close(os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600))
+    assert _mode(tmp_path / "out.bin") == 0o644
+
+
+def test_reference_tables_are_0644_under_umask_022(tmp_path, umask_022):
+    from brdfkit.mapping import save_reference
+
+    save_reference(tmp_path / "ref.safetensors", np.ones((90, 90, 180, 3)))
+    assert _mode(tmp_path / "ref.safetensors") == 0o644
+
+
+def test_fit_writes_its_model_file_0644_under_umask_022(tmp_path, library, umask_022):
+    """``brdfkit fit --method ipca`` (seconds; the hypernet's model file goes through the
+    same writer, ``safetensors`` into :func:`brdfkit.atomic.atomic_path`)."""
+    r = run_brdfkit(["fit", library, "--method", "ipca", "--components", "2",
+                     "-o", tmp_path / "basis.safetensors",
+                     "--quiet"])
+    assert r.returncode == 0, r.stderr
+    assert _mode(tmp_path / "basis.safetensors") == 0o644
