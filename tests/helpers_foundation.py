@@ -5,7 +5,6 @@ Not a conftest: plain functions imported by the test modules that need them.
 
 from __future__ import annotations
 
-import os
 import subprocess
 import sys
 from functools import lru_cache
@@ -20,20 +19,6 @@ from brdfkit.geometry import GRID_SHAPE, N_CELLS, valid_mask
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 NBRDF_TO_MERL = SHARED / "tools" / "nbrdf_to_merl.py"
 MERL_SIZE = 34_992_012
-
-
-def brdfkit_command() -> list[str]:
-    """The installed console script, or the same entry point through ``python -c``."""
-    script = Path(sys.executable).with_name("brdfkit")
-    if script.exists():
-        return [str(script)]
-    return [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
-
-
-def run_brdfkit(args, cwd=None, timeout=120, env=None) -> subprocess.CompletedProcess:
-    """Run ``brdfkit ARGS`` in a subprocess, as a user would; text output captured."""
-    return subprocess.run(brdfkit_command() + [str(a) for a in args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=timeout)
 
 
 @lru_cache(maxsize=1)
@@ -83,7 +68,3 @@ def proxy_material(tmp_path_factory, name: str = "teflon") -> Path:
     assert path.stat().st_size == MERL_SIZE
     return path
 
-
-def tmp_leftovers(folder) -> list[str]:
-    """Temporary files of :mod:`brdfkit.atomic` left in ``folder``."""
-    return sorted(n for n in os.listdir(folder) if n.startswith(".brdfkit-tmp-"))

@@ -10,11 +10,8 @@ from __future__ import annotations
 import functools
 
 import numpy as np
-import pytest
 
-# A hypernetwork small enough that a dense encode or decode takes a fraction of a second.
-TINY_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
-                   decoder_hidden=16, decoder_layers=1)
+from conftest import TINY_CONFIG
 
 
 @functools.lru_cache(maxsize=None)
@@ -45,15 +42,3 @@ def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) ->
     ref = material_table(0) if rho_ref is None else rho_ref
     return save_model(path, HyperBRDF(cfg), ref, {"materials": ["stiff-white"], "steps": 0})
 
-
-@pytest.fixture(autouse=True, scope="module")
-def one_torch_thread():
-    """One torch thread per test module (import it to use it): the test machine's 2 cores
-    are shared, and oversubscribed OpenMP threads make small matrix products several
-    times slower."""
-    import torch
-
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)

@@ -5,28 +5,11 @@ Not a conftest: plain functions imported by the test modules that need them.
 
 from __future__ import annotations
 
-import os
-import subprocess
-import sys
 from pathlib import Path
 
 import numpy as np
 
 from brdfkit.merl import is_merl_file
-
-# A model small enough to train in seconds on one core; every fit in the tests uses it.
-TINY = dict(query_size=512, context_min=50, context_max=400, hypo_hidden=32, decoder_hidden=64,
-            encoder_hidden=(64, 64), lr=2e-3, warmup_steps=20, lr_schedule="constant")
-TINY_LATENT = 8
-
-
-def tiny_cli_options(latent: bool = True) -> list[str]:
-    """``TINY`` as ``brdfkit fit -O KEY=VALUE`` arguments (and ``--latent-dim``)."""
-    out = []
-    for k, v in TINY.items():
-        v = list(v) if isinstance(v, tuple) else v
-        out += ["-O", f"{k}={v}".replace(" ", "")]
-    return out + (["--latent-dim", str(TINY_LATENT)] if latent else [])
 
 
 def tiny_library(tmp_path_factory, n: int = 3) -> Path:
@@ -39,33 +22,6 @@ def tiny_library(tmp_path_factory, n: int = 3) -> Path:
     if not all(is_merl_file(folder / f) for f in names):
         write_library(folder, n, seed=1, stiff=False)
     return folder
-
-
-def quiet_env() -> dict:
-    """Environment for subprocesses: one thread each (the test machine has 2 shared
-    cores; oversubscribed OpenMP threads slow tiny models down tenfold)."""
-    env = dict(os.environ)
-    env["OMP_NUM_THREADS"] = "1"
-    env["MKL_NUM_THREADS"] = "1"
-    return env
-
-
-def brdfkit_script() -> str:
-    script = Path(sys.executable).with_name("brdfkit")
-    if not script.exists():
-        raise RuntimeError("the brdfkit console script is not installed beside this Python")
-    return str(script)
-
-
-def popen_brdfkit(args, **kw) -> subprocess.Popen:
-    """Start ``brdfkit ARGS`` as a user would (own process, text output captured)."""
-    return subprocess.Popen([brdfkit_script()] + [str(a) for a in args], stdout=subprocess.PIPE,
-                            stderr=subprocess.PIPE, text=True, env=quiet_env(), **kw)
-
-
-def temp_leftovers(folder) -> list[str]:
-    """Temporary files of ``brdfkit.atomic`` left in ``folder``."""
-    return sorted(f for f in os.listdir(folder) if f.startswith(".brdfkit-tmp-"))
 
 
 def mapped_mse_and_log_rmse(net, rho_ref, table, n_samples=200, n_cells=100_000, seed=5):

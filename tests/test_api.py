@@ -24,9 +24,6 @@ from brdfkit.samples import SampleSet, draw_samples, write_samples
 from helpers_model import make_model, material_table
 
 
-from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
-
-
 @pytest.fixture(scope="module")
 def models(tmp_path_factory):
     folder = tmp_path_factory.mktemp("api-models")

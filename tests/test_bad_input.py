@@ -20,7 +20,7 @@ from brdfkit.errors import FormatError
 from brdfkit.cli import main
 from brdfkit.samples import read_samples
 
-from helpers_foundation import tmp_leftovers
+from conftest import tmp_leftovers
 from helpers_model import make_model, material_table
 
 
@@ -68,8 +68,6 @@ def test_row_count_guard_counts_only_value_lines(tmp_path, monkeypatch):
 
 
 # --- fixtures: good files, and bad ones of every kind ------------------------------------
-
-from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 @pytest.fixture(autouse=True)
@@ -572,7 +570,7 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
 
 def test_ipca_basis_with_materials_not_a_list(tmp_path):
     # Found by benchmarks/fuzz_parsers.py: metadata materials = "5" raised a TypeError.
-    from brdfkit.baselines.ipca import load_ipca
+    from brdfkit.methods.ipca import load_ipca
 
     from helpers_fuzz import ipca_seed
 
@@ -686,7 +684,7 @@ def test_damaged_exr_gives_one_line_and_a_clean_stdout(tmp_path):
 
     from brdfkit.render.image import write_exr
 
-    from helpers_foundation import run_brdfkit
+    from conftest import run_brdfkit
 
     write_exr(tmp_path / "good.exr", np.ones((16, 16, 3), np.float32))
     raw = bytearray((tmp_path / "good.exr").read_bytes())
@@ -709,7 +707,7 @@ def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
     from brdfkit.mapping import load_reference, save_reference
     from brdfkit.modelfile import load_model
 
-    from helpers_foundation import run_brdfkit
+    from conftest import run_brdfkit
 
     bad_fp = tmp_path / "fp.safetensors"
     bad_fp.write_bytes(_rewrite_header((good / "model.safetensors").read_bytes(),

@@ -11,17 +11,14 @@ import numpy as np
 import pytest
 
 from brdfkit import synthetic
-from brdfkit.baselines import METHODS, get_method
-from brdfkit.baselines.ipca import fit_ipca, load_ipca
+from brdfkit.methods import METHODS, get_method
+from brdfkit.methods.ipca import fit_ipca, load_ipca
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import HALF_PI, io_from_half_diff, valid_mask
 from brdfkit.metrics import brdf_log_rmse
 from brdfkit.samples import SampleSet, draw_samples
 
 ALPHAS = (0.05, 0.15, 0.4)
-
-
-from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 @pytest.fixture(scope="module")
@@ -166,7 +163,7 @@ def _analytic_samples(material, n, seed=0):
 
 
 def test_nbrdf_fits_a_smooth_material(library):
-    from brdfkit.baselines.nbrdf import fit_nbrdf
+    from brdfkit.methods.nbrdf import fit_nbrdf
 
     table = library[0][2]  # alpha 0.4: broad lobe plus a diffuse part
     samples = draw_samples(table, 400, seed=0)
@@ -185,7 +182,7 @@ def test_nbrdf_fits_a_smooth_material(library):
 
 
 def test_nbrdf_is_deterministic_by_seed():
-    from brdfkit.baselines.nbrdf import fit_nbrdf
+    from brdfkit.methods.nbrdf import fit_nbrdf
 
     mat = synthetic.Material("d", "dielectric", 0.2, albedo=(0.4, 0.3, 0.2))
     samples = _analytic_samples(mat, 200)
@@ -200,7 +197,7 @@ def test_nbrdf_is_deterministic_by_seed():
 
 @pytest.mark.parametrize("case", ["one-sample", "stiff-mirror", "stiff-black"])
 def test_nbrdf_stays_finite_on_stiff_input(case):
-    from brdfkit.baselines.nbrdf import fit_nbrdf
+    from brdfkit.methods.nbrdf import fit_nbrdf
 
     stiff = {m.name: m for m in synthetic.STIFF}
     if case == "one-sample":
@@ -221,7 +218,7 @@ def test_nbrdf_stays_finite_on_stiff_input(case):
 
 
 def test_nbrdf_refuses_bad_parameters():
-    from brdfkit.baselines.nbrdf import fit_nbrdf
+    from brdfkit.methods.nbrdf import fit_nbrdf
 
     samples = _analytic_samples(synthetic.STIFF[2], 10)
     with pytest.raises(InputError, match="steps"):
@@ -253,7 +250,7 @@ def test_registry_names_and_uniform_interface(basis, library, tmp_path):
 
 
 def test_baselines_import_no_torch():
-    code = ("import sys, brdfkit.baselines, brdfkit.baselines.ipca; "
+    code = ("import sys, brdfkit.methods, brdfkit.methods.ipca; "
             "sys.exit(1 if 'torch' in sys.modules else 0)")
     assert subprocess.run([sys.executable, "-c", code]).returncode == 0
 

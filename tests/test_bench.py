@@ -13,24 +13,14 @@ import pytest
 from brdfkit.bench import BenchConfig, run_bench, sample_seed, summarise
 from brdfkit.merl import read_merl
 
-from helpers_training import TINY, brdfkit_script, quiet_env
+from conftest import TINY, brdfkit_command, quiet_env
 
 RES = 16
 
 
-@pytest.fixture(scope="module", autouse=True)
-def one_thread():
-    import torch
-
-    before = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(before)
-
-
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
-    from brdfkit.baselines.ipca import fit_ipca
+    from brdfkit.methods.ipca import fit_ipca
     from brdfkit.synthetic import write_library
     from brdfkit.training import fit
 
@@ -53,7 +43,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     comp.mkdir()
     shutil.copy(setup["lib"] / f"{setup['names'][1]}.binary", comp)
     shutil.copy(setup["lib"] / f"{setup['names'][0]}.binary", comp / "alias.binary")
-    cmd = [brdfkit_script(), "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
+    cmd = [*brdfkit_command(), "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
            "-m", setup["model"], "--ipca", setup["basis"], "--n", "40,160", "--seeds", "1",
            "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", setup["model"],
            "--compression-data", comp, "--threads", "1", "-o", out]
@@ -77,7 +67,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
         assert r["sample_seed"] == sample_seed(0, r["n"], r["material"])
 
     # A record is what the library computes from the same draw (IPCA is deterministic).
-    from brdfkit.baselines import get_method
+    from brdfkit.methods import get_method
     from brdfkit.metrics import brdf_log_rmse
     from brdfkit.samples import draw_samples
 

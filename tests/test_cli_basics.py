@@ -19,7 +19,8 @@ from brdfkit.merl import is_merl_file, read_merl, write_merl
 from brdfkit.samples import draw_samples, read_samples
 from brdfkit.synthetic import STIFF, library, table
 
-from helpers_foundation import brdfkit_command, measured_mask, random_table, run_brdfkit, tmp_leftovers
+from conftest import brdfkit_command, run_brdfkit, tmp_leftovers
+from helpers_foundation import measured_mask, random_table
 
 HEAVY = ("torch", "mitsuba", "drjit", "colour")
 

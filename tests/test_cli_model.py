@@ -19,11 +19,8 @@ from brdfkit.embedding import read_embedding, write_embedding
 from brdfkit.merl import MERL_FILE_SIZE, read_merl, write_merl
 from brdfkit.samples import draw_samples, write_samples
 
-from helpers_foundation import run_brdfkit
+from conftest import run_brdfkit
 from helpers_model import make_model, material_table
-
-
-from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
 
 
 def _env():

@@ -12,9 +12,10 @@ import pytest
 
 from brdfkit.merl import read_merl
 from brdfkit.modelfile import load_model
-from brdfkit.trainset import median_reference_fast
+from brdfkit.mapping import median_reference
 
-from helpers_training import brdfkit_script, quiet_env, temp_leftovers, tiny_cli_options, tiny_library
+from conftest import brdfkit_command, quiet_env, tiny_cli_options, tmp_leftovers
+from helpers_training import tiny_library
 
 pytest.importorskip("torch.distributed")
 
@@ -29,7 +30,7 @@ def test_two_process_fit_gives_one_model_with_identical_ranks(tmp_path_factory, 
     out = tmp_path / "m.safetensors"
     # A wall budget far below the step count: the stop must be agreed by both ranks
     # (rank 0's clock, shared each step), or one rank would hang in the next all-reduce.
-    cmd = torchrun() + ["--nproc_per_node", "2", "--no-python", brdfkit_script(), "fit", str(lib),
+    cmd = torchrun() + ["--nproc_per_node", "2", "--no-python", *brdfkit_command(), "fit", str(lib),
                         "-o", str(out), "--steps", "100000", "--minutes", "0.12", "--device", "cpu",
                         *tiny_cli_options()]
     env = quiet_env()
@@ -38,7 +39,7 @@ def test_two_process_fit_gives_one_model_with_identical_ranks(tmp_path_factory, 
     assert proc.returncode == 0, proc.stderr[-3000:]
     # One model (and its checkpoint) and nothing else: rank 1 writes no files.
     assert sorted(os.listdir(tmp_path)) == ["m.safetensors", "m.safetensors.ckpt"]
-    assert temp_leftovers(tmp_path) == []
+    assert tmp_leftovers(tmp_path) == []
     assert proc.stderr.count("wrote ") == 1
     model = load_model(out, "cpu")
     meta = model.meta
@@ -49,4 +50,4 @@ def test_two_process_fit_gives_one_model_with_identical_ranks(tmp_path_factory, 
     # The reference is the median of ALL training materials, not of rank 0's share.
     stack = np.stack([read_merl(lib / f"synth-00{i}.binary").astype(np.float32).reshape(-1)
                       for i in range(3)])
-    np.testing.assert_array_equal(model.rho_ref, median_reference_fast(stack))
+    np.testing.assert_array_equal(model.rho_ref, median_reference(stack))

@@ -15,7 +15,7 @@ from brdfkit.embedding import read_embedding
 from brdfkit.merl import read_merl
 from brdfkit.modelfile import load_model
 
-from helpers_training import brdfkit_script, quiet_env, tiny_cli_options
+from conftest import brdfkit_command, quiet_env, tiny_cli_options
 
 
 def test_holdout_spreads_over_random_materials():
@@ -38,7 +38,7 @@ def test_render_psnr_through_the_reference_renderer():
 def test_demo_runs_end_to_end(tmp_path):
     out = tmp_path / "demo"
     tiny = tiny_cli_options(latent=False)
-    cmd = [brdfkit_script(), "demo", "--out", str(out), "--materials", "4", "--holdout", "1",
+    cmd = [*brdfkit_command(), "demo", "--out", str(out), "--materials", "4", "--holdout", "1",
            "--steps", "20", "--no-render", *tiny]
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=quiet_env())
     assert proc.returncode == 0, proc.stderr[-3000:]

@@ -20,9 +20,6 @@ from helpers_fuzz import PARSERS, check_parser, draw_input
 EXAMPLES = int(os.environ.get("BRDFKIT_FUZZ_EXAMPLES", "60"))
 
 
-from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
-
-
 @pytest.mark.parametrize("name", sorted(PARSERS))
 def test_fuzz_parser(name, tmp_path):
     parser = PARSERS[name]

@@ -17,7 +17,8 @@ from brdfkit.geometry import GRID_SHAPE
 from brdfkit.mapping import EPS, from_mapped, load_reference, median_reference, save_reference, to_mapped
 from brdfkit.merl import write_merl
 
-from helpers_foundation import measured_mask, tmp_leftovers
+from conftest import tmp_leftovers
+from helpers_foundation import measured_mask
 
 # BRDF values from 0 through 1e-8 (black) to 1e5 (beyond the brightest mirror peak).
 brdf = st.one_of(st.just(0.0), st.floats(1e-8, 1e5), st.floats(0, 1e-6))

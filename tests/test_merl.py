@@ -14,8 +14,8 @@ from brdfkit.geometry import GRID_SHAPE, N_CELLS
 from brdfkit.merl import MERL_FILE_SIZE, MERL_SCALE, is_merl_file, read_merl, write_merl
 from brdfkit.samples import read_samples
 
-from helpers_foundation import (measured_mask, merl_bytes, proxy_material, random_stored,
-                                random_table, run_brdfkit, tmp_leftovers)
+from conftest import run_brdfkit, tmp_leftovers
+from helpers_foundation import measured_mask, merl_bytes, proxy_material, random_stored, random_table
 
 
 @pytest.fixture(scope="module")

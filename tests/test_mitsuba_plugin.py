@@ -14,7 +14,7 @@ import pytest
 
 from brdfkit.errors import BrdfkitError
 from brdfkit.geometry import GRID_SHAPE, valid_mask
-from helpers_foundation import run_brdfkit
+from conftest import run_brdfkit
 
 torch = pytest.importorskip("torch")
 

@@ -14,10 +14,8 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.hypernet import HyperBRDF, HyperConfig
 from brdfkit.modelfile import MODEL_FORMAT, load_model, save_model, weights_fingerprint
 
-from helpers_model import TINY_CONFIG, make_model, material_table
-
-
-from helpers_model import one_torch_thread  # noqa: E402,F401  (autouse fixture)
+from conftest import TINY_CONFIG
+from helpers_model import make_model, material_table
 
 
 @pytest.fixture(scope="module")

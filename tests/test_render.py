@@ -14,7 +14,7 @@ import pytest
 
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, valid_mask
-from helpers_foundation import run_brdfkit
+from conftest import run_brdfkit
 
 torch = pytest.importorskip("torch")
 
@@ -40,14 +40,6 @@ class _Analytic:
         from brdfkit.synthetic import evaluate
 
         return torch.from_numpy(evaluate(self.m, wi.double().numpy(), wo.double().numpy())).float()
-
-
-@pytest.fixture(scope="module", autouse=True)
-def _threads():
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
 
 
 # -- environment map

@@ -16,7 +16,8 @@ from brdfkit.geometry import GRID_SHAPE, N_CELLS, cell_index
 from brdfkit.merl import read_merl
 from brdfkit.samples import ANGLE_COLUMNS, VECTOR_COLUMNS, SampleSet, draw_samples, read_samples, write_samples
 
-from helpers_foundation import measured_mask, merl_bytes, random_stored, random_table, tmp_leftovers
+from conftest import tmp_leftovers
+from helpers_foundation import measured_mask, merl_bytes, random_stored, random_table
 
 ANGLE_HEADER = ",".join(ANGLE_COLUMNS)
 VECTOR_HEADER = ",".join(VECTOR_COLUMNS)
@@ -273,7 +274,7 @@ def test_fuzz_read_merl_full_size(tmp_path, seed):
 @pytest.mark.parametrize("name", ["text_in_number", "negative_brdf", "vector_not_unit"])
 def test_bad_csv_through_cli(tmp_path, name):
     from brdfkit.cli import cli
-    from helpers_foundation import run_brdfkit
+    from conftest import run_brdfkit
 
     if "sparse" not in cli.list_commands(None):
         pytest.skip("no CLI command reading CSV yet")

@@ -1,6 +1,6 @@
 """Training: the model learns, bad steps are skipped, checkpoints resume, inputs are checked.
 
-All fits use the tiny model of ``helpers_training.TINY`` on 3 synthetic materials, one
+All fits use the tiny model of ``conftest.TINY`` on 3 synthetic materials, one
 thread; the subprocess tests run the real ``brdfkit fit`` command and real signals.
 """
 
@@ -21,18 +21,11 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.merl import read_merl
 from brdfkit.modelfile import load_model, weights_fingerprint
 from brdfkit.training import TrainingError, fit
-from brdfkit.trainset import collect_materials, median_reference_fast, read_exclude_list
+from brdfkit.mapping import median_reference
+from brdfkit.materials import collect_materials, read_exclude_list
 
-from helpers_training import (TINY, TINY_LATENT, mapped_mse_and_log_rmse, popen_brdfkit,
-                              temp_leftovers, tiny_cli_options, tiny_library)
-
-
-@pytest.fixture(autouse=True)
-def one_thread():
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+from conftest import TINY, TINY_LATENT, popen_brdfkit, tiny_cli_options, tmp_leftovers
+from helpers_training import mapped_mse_and_log_rmse, tiny_library
 
 
 @pytest.fixture(scope="module")
@@ -86,7 +79,7 @@ def test_fast_median_equals_nanmedian(lib):
     rng = np.random.default_rng(0)
     for group in (tables, tables + [holey]):  # odd and even counts
         stack = np.stack([t.astype(np.float32).reshape(-1) for t in group])
-        fast = median_reference_fast(stack).reshape(-1)
+        fast = median_reference(stack).reshape(-1)
         cols = np.union1d(rng.choice(stack.shape[1], 50_000, replace=False),
                           np.flatnonzero(np.isnan(holey.reshape(-1))))
         with warnings.catch_warnings():
@@ -200,7 +193,7 @@ def test_interrupted_fit_resumes_from_checkpoint(lib, tmp_path, sig):
     if sig == signal.SIGINT:
         assert proc.returncode == 130, err
         assert "checkpoint" in err and "saved" in err and "Traceback" not in err
-        assert temp_leftovers(tmp_path) == []
+        assert tmp_leftovers(tmp_path) == []
     else:
         assert proc.returncode == -signal.SIGKILL
     assert not out.exists()  # the model is written only at the end

@@ -1,0 +1,85 @@
+"""What every test module shares: the one-torch-thread fixture, the tiny model
+configurations, the ``brdfkit`` subprocess runners and the leftover-file check.
+
+The fixture applies to every module by itself; the constants and functions are imported
+by name (``from conftest import run_brdfkit, TINY``; pytest puts ``tests/`` on
+``sys.path``). Helpers of one group of tests stay in ``helpers_<group>.py``.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+# A hypernetwork small enough that a dense encode or decode takes a fraction of a second
+# (a ``HyperConfig``; the model tests save it untrained).
+TINY_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
+                   decoder_hidden=16, decoder_layers=1)
+
+# A model small enough to train in seconds on one core (``fit`` options, architecture and
+# schedule); every fit in the tests uses it, with latent dimension ``TINY_LATENT``.
+TINY = dict(query_size=512, context_min=50, context_max=400, hypo_hidden=32, decoder_hidden=64,
+            encoder_hidden=(64, 64), lr=2e-3, warmup_steps=20, lr_schedule="constant")
+TINY_LATENT = 8
+
+
+def tiny_cli_options(latent: bool = True) -> list[str]:
+    """``TINY`` as ``brdfkit fit -O KEY=VALUE`` arguments (and ``--latent-dim``)."""
+    out = []
+    for k, v in TINY.items():
+        v = list(v) if isinstance(v, tuple) else v
+        out += ["-O", f"{k}={v}".replace(" ", "")]
+    return out + (["--latent-dim", str(TINY_LATENT)] if latent else [])
+
+
+@pytest.fixture(autouse=True, scope="module")
+def one_torch_thread():
+    """One torch thread per test module: the test machine's 2 cores are shared, and
+    oversubscribed OpenMP threads make small matrix products several times slower."""
+    import torch
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)
+
+
+# --- brdfkit as a user runs it -------------------------------------------------------------
+
+def brdfkit_command() -> list[str]:
+    """The installed console script, or the same entry point through ``python -c``."""
+    script = Path(sys.executable).with_name("brdfkit")
+    if script.exists():
+        return [str(script)]
+    return [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+
+
+def quiet_env() -> dict:
+    """Environment for subprocesses: one thread each (the test machine has 2 shared
+    cores; oversubscribed OpenMP threads slow tiny models down tenfold)."""
+    env = dict(os.environ)
+    env["OMP_NUM_THREADS"] = "1"
+    env["MKL_NUM_THREADS"] = "1"
+    return env
+
+
+def run_brdfkit(args, cwd=None, timeout=120, env=None) -> subprocess.CompletedProcess:
+    """Run ``brdfkit ARGS`` in a subprocess, as a user would; text output captured."""
+    return subprocess.run(brdfkit_command() + [str(a) for a in args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def popen_brdfkit(args, **kw) -> subprocess.Popen:
+    """Start ``brdfkit ARGS`` as a user would (own process, one thread, text output
+    captured)."""
+    return subprocess.Popen(brdfkit_command() + [str(a) for a in args], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True, env=quiet_env(), **kw)
+
+
+def tmp_leftovers(folder) -> list[str]:
+    """Temporary files of :mod:`brdfkit.atomic` left in ``folder``."""
+    return sorted(n for n in os.listdir(folder) if n.startswith(".brdfkit-tmp-"))
