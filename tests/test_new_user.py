@@ -104,3 +104,51 @@ def test_fit_writes_its_model_file_0644_under_umask_022(tmp_path, library, umask
                      "--quiet"])
     assert r.returncode == 0, r.stderr
     assert _mode(tmp_path / "basis.safetensors") == 0o644
+
+
+# --- 1, 2. no libLLVM 19: Mitsuba tests skip; the advice names what works ----------------
+
+@pytest.mark.parametrize("env", [{"DRJIT_LIBLLVM_PATH": "/nonexistent/libLLVM.so.19.1"},
+                                 {"BRDFKIT_LIBLLVM_SEARCH": ""}], ids=["bad-path", "none-found"])
+def test_mitsuba_tests_skip_with_the_reason_without_libllvm(env):
+    """The README's test command on a machine without libLLVM 19: every Mitsuba test
+    skips (saying why), none fails. ``BRDFKIT_LIBLLVM_SEARCH=""`` searches nowhere."""
+    environ = {k: v for k, v in os.environ.items() if k != "DRJIT_LIBLLVM_PATH"}
+    environ.update(env, OMP_NUM_THREADS="1")
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider",
+                        "tests/test_stability.py::test_mitsuba_render_of_the_mirror",
+                        "tests/test_mitsuba_plugin.py"],
+                       cwd=REPO, env=environ, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stdout[-3000:]
+    assert "failed" not in r.stdout and " skipped" in r.stdout, r.stdout[-3000:]
+    assert "apt-get install -y libllvm19" in r.stdout, r.stdout[-3000:]
+
+
+def test_llvm_advice_names_19_and_refuses_14_and_15(tmp_path, monkeypatch):
+    from brdfkit.errors import BrdfkitError
+    from brdfkit.render import mitsuba_plugin as mp
+
+    for name in ("libLLVM-15.so.1", "libLLVM-14.so"):
+        lib = tmp_path / name
+        lib.write_bytes(b"")
+        monkeypatch.setenv("DRJIT_LIBLLVM_PATH", str(lib))
+        with pytest.raises(BrdfkitError) as e:
+            mp.ensure_libllvm()
+        assert "libllvm19" in str(e.value) and "15 or later" not in str(e.value)
+    assert mp.libllvm_version("/usr/lib/llvm-14/lib/libLLVM.so") == 14
+    assert mp.libllvm_version("/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1") == 19
+    assert mp.libllvm_version("/usr/lib/x86_64-linux-gnu/libLLVM-15.so.1") == 15
+
+
+def test_llvm_auto_detection_picks_only_19(monkeypatch):
+    from brdfkit.errors import BrdfkitError
+    from brdfkit.render import mitsuba_plugin as mp
+
+    assert all("19" in p for p in mp.LIBLLVM_CANDIDATES + mp.LIBLLVM_PATTERNS)
+    monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
+    monkeypatch.delenv("BRDFKIT_LIBLLVM_SEARCH", raising=False)
+    try:
+        path = mp.ensure_libllvm()
+    except BrdfkitError as e:
+        pytest.skip(f"no libLLVM 19 here: {e}")
+    assert mp.libllvm_version(path) == 19

@@ -30,10 +30,15 @@ converge:
 ``pdf`` is the exact density of that mixture, ``sample`` returns ``f cos / pdf``.
 The ``llvm_ad_rgb`` variant is used.
 
-Mitsuba's LLVM backend needs a ``libLLVM`` that Dr.Jit accepts (LLVM 14, the Debian 12
-default, crashes): :func:`ensure_libllvm` points ``DRJIT_LIBLLVM_PATH`` at LLVM 19 when it
-is installed and the variable is unset, and otherwise raises a clear error asking for
-``apt-get install -y libllvm19``. Mitsuba is imported only in this module.
+Mitsuba's LLVM backend needs a ``libLLVM`` that Dr.Jit accepts. LLVM 19 is the version
+seen to work; on Debian 12, LLVM 14 (the default) is refused by Dr.Jit and LLVM 15 aborts
+the whole process while compiling the first kernel (exit 134, ``LLVM ERROR: Cannot
+select: ... fmaximum``). :func:`ensure_libllvm` therefore looks for LLVM 19 only, points
+``DRJIT_LIBLLVM_PATH`` at it when the variable is unset, refuses a variable naming LLVM 15
+or older, and otherwise raises a clear error asking for ``apt-get install -y libllvm19``.
+``BRDFKIT_LIBLLVM_SEARCH`` (``os.pathsep``-separated glob patterns) replaces the search
+list, e.g. to check the no-LLVM path on a machine that has it. Mitsuba is imported only
+in this module.
 """
 
 from __future__ import annotations
@@ -48,7 +53,7 @@ import numpy as np
 
 from ..errors import BrdfkitError, InputError
 
-__all__ = ["LIBLLVM_CANDIDATES", "ensure_libllvm", "load_mitsuba", "register_source",
+__all__ = ["LIBLLVM_CANDIDATES", "ensure_libllvm", "libllvm_version", "load_mitsuba", "register_source",
            "estimate_alpha", "reference_scene_dict", "render_scene", "render_reference",
            "load_user_scene"]
 
@@ -61,9 +66,13 @@ LIBLLVM_CANDIDATES = (
     "/usr/lib/aarch64-linux-gnu/libLLVM.so.19.1",
     "/usr/lib/aarch64-linux-gnu/libLLVM-19.so",
 )
-_INSTALL_HINT = ("Mitsuba's LLVM backend needs LLVM 19 (the default LLVM 14 crashes): "
-                 "install it with `apt-get install -y libllvm19`, or set DRJIT_LIBLLVM_PATH "
-                 "to a libLLVM.so of version 15 or later")
+LIBLLVM_PATTERNS = ("/usr/lib/*/libLLVM.so.19*", "/usr/lib/*/libLLVM-19.so*",
+                    "/usr/lib/llvm-19/lib/libLLVM*.so*")
+# Seen on Debian 12: 14 is refused by Dr.Jit, 15 aborts the process (exit 134).
+BROKEN_LLVM_BELOW = 16
+_INSTALL_HINT = ("Mitsuba's LLVM backend needs libLLVM 19 (the version seen to work; "
+                 "Debian 12's LLVM 14 and 15 crash): install it with "
+                 "`apt-get install -y libllvm19`, or set DRJIT_LIBLLVM_PATH to a libLLVM 19 .so")
 # Mixture weights: cosine, GGX(alpha), GGX(4 alpha).
 LOBE_WEIGHTS = (0.25, 0.5, 0.25)
 # Lanes per Mitsuba pass (pixels x samples): bounds memory in wavefront mode.
@@ -72,6 +81,9 @@ PASS_LANES = 1 << 20
 _lock = threading.Lock()
 _state: dict = {}
 _sources: dict = {}
+# The model of ``.emb`` BSDFs that name none, while :func:`load_user_scene` loads a scene
+# (the command line's ``-m``); the plugin reads no environment variable of its own.
+_fallback_model: str | None = None
 _counter = itertools.count()
 
 
@@ -93,13 +105,34 @@ def ensure_libllvm() -> str:
     if path:
         if not os.path.isfile(path):
             raise BrdfkitError(f"DRJIT_LIBLLVM_PATH={path}: no such file. {_INSTALL_HINT}")
+        version = libllvm_version(path)
+        if version is not None and version < BROKEN_LLVM_BELOW:
+            raise BrdfkitError(f"DRJIT_LIBLLVM_PATH={path}: LLVM {version} crashes Mitsuba's "
+                               f"LLVM backend. {_INSTALL_HINT}")
         return path
-    found = [c for c in LIBLLVM_CANDIDATES if os.path.isfile(c)]
-    found += sorted(glob.glob("/usr/lib/*/libLLVM.so.19*") + glob.glob("/usr/lib/llvm-19/lib/libLLVM*.so*"))
+    search = os.environ.get("BRDFKIT_LIBLLVM_SEARCH")
+    if search is not None:
+        candidates, patterns = (), tuple(p for p in search.split(os.pathsep) if p)
+    else:
+        candidates, patterns = LIBLLVM_CANDIDATES, LIBLLVM_PATTERNS
+    found = [c for c in candidates if os.path.isfile(c)]
+    found += sorted(f for p in patterns for f in glob.glob(p) if os.path.isfile(f))
     if not found:
         raise BrdfkitError(f"no usable libLLVM found. {_INSTALL_HINT}")
     os.environ["DRJIT_LIBLLVM_PATH"] = found[0]
     return found[0]
+
+
+def libllvm_version(path: str) -> int | None:
+    """The LLVM major version in a library's file name (``libLLVM-15.so.1``,
+    ``libLLVM.so.19.1``, ``/usr/lib/llvm-14/lib/libLLVM.so``), or ``None``."""
+    import re
+
+    name = os.path.basename(path)
+    m = re.match(r"libLLVM-(\d+)", name) or re.match(r"libLLVM\.so\.(\d+)", name)
+    if m is None:
+        m = re.search(r"llvm-(\d+)", path)
+    return int(m.group(1)) if m else None
 
 
 def load_mitsuba():
@@ -120,6 +153,9 @@ def load_mitsuba():
 
             mi.set_variant(VARIANT)
         except ImportError as e:
+            if "LLVM" in str(e):  # Dr.Jit refused the library (LLVM 14), Mitsuba is there
+                raise BrdfkitError(f"Mitsuba's LLVM backend refused {os.environ.get('DRJIT_LIBLLVM_PATH')}. "
+                                   f"{_INSTALL_HINT}") from None
             raise BrdfkitError(f"cannot import Mitsuba 3 ({e}); install it with `pip install mitsuba`") from None
         except Exception as e:  # variant not compiled, LLVM refused
             raise BrdfkitError(f"Mitsuba variant {VARIANT} unavailable ({e}). {_INSTALL_HINT}") from None
@@ -179,7 +215,7 @@ def _open_source(props) -> object:
         raise InputError("brdfkit BSDF: give a 'filename' (.binary or .emb) or a registered 'source'")
     from .brdf import load_brdf
 
-    model = props["model"] if "model" in props else os.environ.get("BRDFKIT_MODEL")
+    model = props["model"] if "model" in props else _fallback_model
     filename = str(props["filename"])
     try:  # resolve relative to the scene file, as Mitsuba does for its own files
         import mitsuba as mi
@@ -370,12 +406,14 @@ def render_reference(brdf, scene=None, spp: int | None = None, seed: int = 0, pr
     return render_scene(sc, spp, seed, progress)
 
 
-def load_user_scene(path, bsdf_id: str, brdf, resolution: int | None = None, spp: int | None = None):
+def load_user_scene(path, bsdf_id: str, brdf, resolution: int | None = None, spp: int | None = None,
+                    model_path: str | None = None):
     """Load a Mitsuba XML scene with the BSDF of id ``bsdf_id`` replaced by ``brdf``.
 
     The ``<bsdf ... id="bsdf_id">`` element is rewritten to
     ``<bsdf type="brdfkit" id="bsdf_id">`` with the BRDF as its source (its children
-    dropped); relative paths in the file resolve against its folder.
+    dropped); relative paths in the file resolve against its folder. Other ``brdfkit``
+    BSDFs of the file that load an ``.emb`` without a ``model`` use ``model_path``.
 
     Raises
     ------
@@ -410,10 +448,14 @@ def load_user_scene(path, bsdf_id: str, brdf, resolution: int | None = None, spp
     text = ET.tostring(tree.getroot(), encoding="unicode")
     resolver = mi.file_resolver()
     resolver.prepend(os.path.dirname(os.path.abspath(path)))
+    global _fallback_model
+    _fallback_model = os.fspath(model_path) if model_path else None
     try:
         scene = mi.load_string(text)
     except Exception as e:
         raise InputError(f"{path}: Mitsuba cannot load this scene ({str(e).splitlines()[0] if str(e) else e})") from None
+    finally:
+        _fallback_model = None
     if spp is None:
         spp = int(scene.sensors()[0].sampler().sample_count())
     return scene, spp
