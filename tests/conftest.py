@@ -1,7 +1,8 @@
-"""What every test module shares: the one-torch-thread fixture, the tiny model
-configurations, the ``brdfkit`` subprocess runners and the leftover-file check.
+"""What the test modules share: the one-torch-thread and no-``$BRDFKIT_MODEL`` fixtures,
+the tiny model configurations, the good and bad files of the bad-input tests, the
+``brdfkit`` subprocess runners and the leftover-file check.
 
-The fixture applies to every module by itself; the constants and functions are imported
+Fixtures apply by name (the two autouse ones to every test); the constants and functions are imported
 by name (``from conftest import run_brdfkit, TINY``; pytest puts ``tests/`` on
 ``sys.path``). Helpers of one group of tests stay in ``helpers_<group>.py``.
 """
@@ -46,6 +47,66 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(old)
+
+
+@pytest.fixture(autouse=True)
+def no_model_env(monkeypatch):
+    """No test sees the developer's ``$BRDFKIT_MODEL`` (commands take ``-m`` from it); a
+    test that wants it sets it."""
+    monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
+
+
+# --- the files of the bad-input tests (test_bad_input_*.py, helpers_bad_input.py) -----------
+
+@pytest.fixture(scope="session")
+def good(tmp_path_factory):
+    """The good files of the bad-input tests: a folder with a tiny model, another model,
+    a MERL table, a sample CSV, two embeddings of the model and one of the other."""
+    from brdfkit import api
+    from brdfkit.embedding import write_embedding
+    from brdfkit.merl import write_merl
+    from brdfkit.samples import draw_samples, write_samples
+
+    from helpers_model import make_model, material_table
+
+    d = tmp_path_factory.mktemp("good")
+    make_model(d / "model.safetensors", seed=0)
+    make_model(d / "other.safetensors", seed=1)
+    write_merl(d / "mat.binary", material_table(1))
+    write_samples(d / "samples.csv", draw_samples(material_table(1), 200, seed=0))
+    m = api.load_model(d / "model.safetensors", "cpu")
+    write_embedding(d / "a.emb", api.encode(m, d / "samples.csv"))
+    write_embedding(d / "b.emb", api.encode(m, draw_samples(material_table(0), 200, seed=0), source="w"))
+    o = api.load_model(d / "other.safetensors", "cpu")
+    write_embedding(d / "other.emb", api.encode(o, d / "samples.csv"))
+    return d
+
+
+@pytest.fixture(scope="session")
+def bad_merl(good, tmp_path_factory):
+    """name -> path of a malformed MERL table (``helpers_bad_input.MERL_MESSAGES``)."""
+    from helpers_bad_input import merl_variants
+
+    return merl_variants(tmp_path_factory.mktemp("bad-merl"), (good / "mat.binary").read_bytes())
+
+
+@pytest.fixture(scope="session")
+def bad_models(good, tmp_path_factory):
+    """name -> (path of a bad model file, the message after "PATH: ")."""
+    from helpers_bad_input import bad_model_files
+
+    return bad_model_files(tmp_path_factory.mktemp("bad-models"), (good / "model.safetensors").read_bytes())
+
+
+@pytest.fixture(scope="session")
+def bad_embs(good, tmp_path_factory):
+    """name -> (path of a bad embedding file, its message)."""
+    import json
+
+    from helpers_bad_input import bad_embedding_files
+
+    return bad_embedding_files(tmp_path_factory.mktemp("bad-embs"), json.loads((good / "a.emb").read_text()),
+                               json.loads((good / "other.emb").read_text()))
 
 
 # --- brdfkit as a user runs it -------------------------------------------------------------

@@ -1,0 +1,207 @@
+"""Shared helpers of the bad-input tests (``test_bad_input_*.py``): the in-process CLI
+runner, the one-line error checks, and the builders of bad files of each format (the
+fixtures that call them, ``good``, ``bad_merl``, ``bad_models``, ``bad_embs``, are in
+``conftest.py``).
+
+Each case of those tests: exit code 2, exactly one line on stderr that names the input
+and the problem, no traceback, no output file and no temporary file left behind.
+"""
+
+from __future__ import annotations
+
+import os
+
+import pytest
+
+from brdfkit.cli import main
+
+from conftest import tmp_leftovers
+from helpers_model import material_table
+
+
+def run_cli(capsys, args):
+    """Run the CLI in-process; returns ``(exit code, stderr)``."""
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    return e.value.code, capsys.readouterr().err
+
+
+def error_lines(err: str) -> list[str]:
+    assert "Traceback" not in err, err
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    errors = [ln for ln in lines if ln.startswith("brdfkit: error: ")]
+    return errors
+
+
+def one_error(err: str) -> str:
+    errors = error_lines(err)
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and len(errors) == 1, err
+    return errors[0]
+
+
+def check_line(line: str, path, message: str) -> None:
+    """``line`` is ``brdfkit: error: PATH: MESSAGE``; a folder may instead be refused by
+    Click's own check of the option (``Invalid value for '-m' ...: File 'PATH' is a
+    directory. (see 'brdfkit decode --help')``), also one line naming it."""
+    if message.startswith("is a directory") and line.startswith("brdfkit: error: Invalid value for"):
+        assert f"'{path}' is a directory" in line, line
+    else:
+        assert line == f"brdfkit: error: {path}: {message}"
+
+
+def check_emb_line(line, path, message):
+    if "{path}" in message:
+        assert line == f"brdfkit: error: {message.format(path=path)}"
+    else:
+        check_line(line, path, message)
+
+
+def nothing_written(folder, *outputs):
+    for out in outputs:
+        assert not os.path.exists(out), out
+    assert not tmp_leftovers(folder), tmp_leftovers(folder)
+
+
+def rewrite_header(raw: bytes, edit) -> bytes:
+    import json
+
+    n = int.from_bytes(raw[:8], "little")
+    header = json.loads(raw[8:8 + n])
+    edit(header)
+    new = json.dumps(header).encode()
+    new += b" " * (-len(new) % 8)
+    return len(new).to_bytes(8, "little") + new + raw[8 + n:]
+
+
+# MERL tables truncated in every region of the file: in the 12-byte header, at its end,
+# in each of the three channel blocks, and one byte short.
+def merl_variants(folder, good_bytes: bytes) -> dict:
+    import numpy as np
+
+    from brdfkit.geometry import N_CELLS
+
+    ch = 8 * N_CELLS
+    cuts = {"empty": 0, "header_4": 4, "header_11": 11, "header_only": 12, "red_1": 13,
+            "red_half": 12 + ch // 2, "red_end": 12 + ch, "green_half": 12 + ch + ch // 2,
+            "blue_start": 12 + 2 * ch + 8, "one_short": len(good_bytes) - 1}
+    out = {}
+    for name, n in cuts.items():
+        out[name] = folder / f"trunc-{name}.binary"
+        out[name].write_bytes(good_bytes[:n])
+    out["too_long"] = folder / "too-long.binary"
+    out["too_long"].write_bytes(good_bytes + b"\0")
+    out["wrong_dims"] = folder / "wrong-dims.binary"
+    out["wrong_dims"].write_bytes(np.array([90, 90, 360], "<i4").tobytes() + good_bytes[12:])
+    nan = bytearray(good_bytes)
+    nan[12 + 8 * 5:12 + 8 * 6] = np.array([np.nan]).tobytes()
+    out["nan"] = folder / "nan.binary"
+    out["nan"].write_bytes(bytes(nan))
+    inf = bytearray(good_bytes)
+    inf[12 + 2 * ch + 8 * 9:12 + 2 * ch + 8 * 10] = np.array([-np.inf]).tobytes()
+    out["inf"] = folder / "inf.binary"
+    out["inf"].write_bytes(bytes(inf))
+    out["text"] = folder / "notes.binary"
+    out["text"].write_text("theta_h,theta_d,phi_d,r,g,b\n")
+    out["missing"] = folder / "missing.binary"
+    out["directory"] = folder / "folder.binary"
+    out["directory"].mkdir()
+    return out
+
+
+MERL_MESSAGES = {
+    "empty": "not a MERL table: 0 bytes, too short for the 12-byte header",
+    "header_4": "not a MERL table: 4 bytes, too short for the 12-byte header",
+    "header_11": "not a MERL table: 11 bytes, too short for the 12-byte header",
+    "header_only": "truncated: 12 bytes, a MERL table has exactly 34992012",
+    "red_1": "truncated: 13 bytes, a MERL table has exactly 34992012",
+    "red_half": "truncated: 5832012 bytes, a MERL table has exactly 34992012",
+    "red_end": "truncated: 11664012 bytes, a MERL table has exactly 34992012",
+    "green_half": "truncated: 17496012 bytes, a MERL table has exactly 34992012",
+    "blue_start": "truncated: 23328020 bytes, a MERL table has exactly 34992012",
+    "one_short": "truncated: 34992011 bytes, a MERL table has exactly 34992012",
+    "too_long": "too long: 34992013 bytes, a MERL table has exactly 34992012",
+    "wrong_dims": "not a MERL table: header dimensions are (90, 90, 360), expected (90, 90, 180)",
+    "nan": "NaN value in the payload (channel R, cell 5); 1 non-finite values in all",
+    "inf": "infinite value in the payload (channel B, cell 9); 1 non-finite values in all",
+    "text": "not a MERL table: header dimensions are not plausible, expected (90, 90, 180)",
+    "missing": "no such file",
+    "directory": "is a directory, expected a file",
+}
+
+
+def bad_model_files(folder, good_model: bytes) -> dict:
+    """name -> (path, the message after "PATH: ")."""
+    import pickle
+
+    import torch
+
+    from brdfkit.mapping import save_reference
+    from brdfkit.merl import write_merl
+
+    def put(name, data):
+        (folder / name).write_bytes(data)
+        return folder / name
+
+    n = int.from_bytes(good_model[:8], "little")
+    torch.save({"w": torch.zeros(2)}, folder / "torch-save.safetensors")
+    save_reference(folder / "reference.safetensors", material_table(0))
+    write_merl(folder / "table.safetensors", material_table(0))
+    (folder / "folder.safetensors").mkdir()
+    return {
+        "missing": (folder / "missing.safetensors", "no such file"),
+        "directory": (folder / "folder.safetensors", "is a directory, expected a file"),
+        "empty": (put("empty.safetensors", b""),
+                  "not a brdfkit model file: 0 bytes, too short for a safetensors header"),
+        "text": (put("text.safetensors", b"a text file, not a model\n"),
+                 "not a brdfkit model file: not a safetensors file (bad header length)"),
+        "pickle": (put("pickle.safetensors", pickle.dumps({"weights": [1.0, 2.0]})),
+                   "not a brdfkit model file: this is a pickle / torch.save file, which brdfkit never "
+                   "loads (model files are .safetensors)"),
+        "torch_save": (folder / "torch-save.safetensors",
+                       "not a brdfkit model file: this is a pickle / torch.save file, which brdfkit never "
+                       "loads (model files are .safetensors)"),
+        "truncated_header": (put("cut-header.safetensors", good_model[:100]),
+                             f"truncated: 100 bytes, the safetensors header alone needs {8 + n}"),
+        "truncated_payload": (put("cut-payload.safetensors", good_model[:len(good_model) // 2]),
+                              f"truncated: {len(good_model) // 2} bytes, its safetensors header "
+                              f"describes {len(good_model)}"),
+        "reference_table": (folder / "reference.safetensors",
+                            "not a brdfkit model file (format 'brdfkit-reference', expected 'brdfkit-model')"),
+        "merl_table": (folder / "table.safetensors",
+                       "is a MERL BRDF table, not a brdfkit model file (-m takes the .safetensors file "
+                       "written by `brdfkit fit`)"),
+    }
+
+
+def bad_embedding_files(folder, good_doc: dict, other_doc: dict) -> dict:
+    """name -> (path, the message after "PATH: ", or a full message without the path)."""
+    import json
+
+    def put(name, doc=None, raw=None):
+        (folder / name).write_text(raw if raw is not None else json.dumps(doc))
+        return folder / name
+
+    fp = good_doc["model_fingerprint"]
+    (folder / "folder.emb").mkdir()
+    return {
+        "missing": (folder / "missing.emb", "no such file"),
+        "directory": (folder / "folder.emb", "is a directory, expected a file"),
+        "empty": (put("empty.emb", raw=""),
+                  "not an embedding file: not JSON text (Expecting value: line 1 column 1 (char 0))"),
+        "not_json": (put("not-json.emb", raw="latent = [1, 2, 3]\n"),
+                     "not an embedding file: not JSON text (Expecting value: line 1 column 1 (char 0))"),
+        "wrong_version": (put("v2.emb", {**good_doc, "version": 2}),
+                          "embedding version 2 is not supported (this brdfkit reads version 1)"),
+        "latent_length": (put("length.emb", {**good_doc, "latent": good_doc["latent"][:-1]}),
+                          f"latent has {len(good_doc['latent']) - 1} values but latent_dim is "
+                          f"{good_doc['latent_dim']}"),
+        "latent_dim": (put("dim.emb", {**good_doc, "latent_dim": 5, "latent": good_doc["latent"][:5]}),
+                       f"embedding {{path}} was made by model {fp[:12]} (latent 5), not by the given model "
+                       f"{fp[:12]} (model.safetensors, latent 7); encode the material again with this model"),
+        "other_model": (put("other-model.emb", other_doc),
+                        f"embedding {{path}} was made by model {other_doc['model_fingerprint'][:12]} (latent 7), "
+                        f"not by the given model {fp[:12]} (model.safetensors, latent 7); encode the material "
+                        f"again with this model"),
+    }
