@@ -28,8 +28,7 @@ import os
 import sys
 import tempfile
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import perfcommon as pc  # noqa: E402
+import common
 
 
 def main(argv=None):
@@ -51,7 +50,7 @@ def main(argv=None):
 
     rows, results = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        model, _, _ = pc.untrained_model(tmp)
+        model, _, _ = common.untrained_model(tmp)
         rng = np.random.default_rng(0)
         emb = Embedding((0.1 * rng.normal(size=model.cfg.latent_dim)).astype(np.float32), model.fingerprint)
         nb = neural.NeuralBRDF.from_embedding(model, emb)
@@ -61,20 +60,20 @@ def main(argv=None):
         table = nb.to_table()
 
         for threads in [int(t) for t in args.threads.split(",") if t]:
-            pc.set_threads(threads)
-            blocked, flops = pc.mm_chain(shapes, cells, neural.DECODE_BLOCK)
-            naive, _ = pc.mm_chain(shapes, cells, cells)
-            load_before = pc.load_average()
+            common.set_threads(threads)
+            blocked, flops = common.mm_chain(shapes, cells, neural.DECODE_BLOCK)
+            naive, _ = common.mm_chain(shapes, cells, cells)
+            load_before = common.load_average()
             fns = {"decode": nb.to_table, "bound": blocked,
                    "decode_write": lambda: write_merl(out_path, api.decode(model, emb)),
                    "write": lambda: write_merl(out_path, table), "naive": naive}
             if threads > 1 and args.multi_repeat:
                 # Extra threads on a busy machine take seconds per call: decode and bound only.
                 fns = {k: fns[k] for k in ("decode", "bound", "naive")}
-            t = pc.best_of(fns, args.multi_repeat if threads > 1 and args.multi_repeat else args.repeat)
+            t = common.best_of(fns, args.multi_repeat if threads > 1 and args.multi_repeat else args.repeat)
             t.setdefault("decode_write", float("nan"))
             t.setdefault("write", float("nan"))
-            peak = pc.peak_gemm()
+            peak = common.peak_gemm()
             r = {"threads": threads, "cells": cells, "flops": flops, "block": neural.DECODE_BLOCK,
                  "decode_s": t["decode"], "decode_median_s": t["decode_median"],
                  "decode_write_s": t["decode_write"], "write_s": t["write"],
@@ -84,15 +83,15 @@ def main(argv=None):
                  "bound_gflops": flops / t["bound"] / 1e9,
                  "decode_gflops": flops / t["decode"] / 1e9,
                  "naive_gflops": flops / t["naive"] / 1e9,
-                 "load_average_before": load_before, "load_average_after": pc.load_average()}
+                 "load_average_before": load_before, "load_average_after": common.load_average()}
             results.append(r)
             rows.append([threads, t["decode"], t["bound"], f"{r['ratio_to_bound']:.2f}x",
                          t["decode_write"], t["write"], t["naive"],
                          f"{r['bound_gflops']:.1f} / {r['naive_gflops']:.1f} / {peak / 1e9:.1f}",
                          " ".join(f"{x:.1f}" for x in r["load_average_after"])])
-    data = {"machine": pc.machine(), "goal": {"decode_s": 0.3, "ratio_to_bound": 1.5},
+    data = {"machine": common.machine(), "goal": {"decode_s": 0.3, "ratio_to_bound": 1.5},
             "hyponet": [list(s) for s in shapes], "results": results}
-    pc.report("decode", f"Dense decode, {cells:,} cells (best of {args.repeat})",
+    common.report("decode", f"Dense decode, {cells:,} cells (best of {args.repeat})",
               ["threads", "decode s", "bound (blocked mm) s", "ratio", "decode+write s", "write_merl s",
                "naive mm s", "GFLOP/s blocked / naive / 256^3 peak", "load 1/5/15"],
               rows, data, args.json)

@@ -37,8 +37,7 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import perfcommon as pc  # noqa: E402
+import common
 
 NS = (40, 100, 400, 1000, 4000)
 
@@ -89,14 +88,14 @@ def main(argv=None):
     import numpy as np
     import torch
 
-    pc.set_threads(args.threads)
+    common.set_threads(args.threads)
     from brdfkit import api, neural
     from brdfkit.neural import NeuralBRDF
     from brdfkit.samples import draw_samples, write_samples
 
     rows, results = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        model, model_path, table = pc.untrained_model(tmp)
+        model, model_path, table = common.untrained_model(tmp)
         net = model.net
         dec_shapes = _decoder_shapes(model.cfg)
         enc_shapes = [(9, 128), (128, 128), (128, model.cfg.latent_dim)]
@@ -119,8 +118,8 @@ def main(argv=None):
                 with torch.inference_mode():
                     return neural._hyponet_weights(model, torch.from_numpy(z)[None])
 
-            enc_chain, enc_flops = pc.mm_chain(enc_shapes, n, n, feature_major=False)
-            dec = [pc.mm_chain(sh, 1, 1, feature_major=False) for sh in dec_shapes]
+            enc_chain, enc_flops = common.mm_chain(enc_shapes, n, n, feature_major=False)
+            dec = [common.mm_chain(sh, 1, 1, feature_major=False) for sh in dec_shapes]
 
             def bound():
                 enc_chain()
@@ -128,14 +127,14 @@ def main(argv=None):
                     fn()
 
             flops = enc_flops + sum(f for _, f in dec)
-            t = pc.best_of({"network": network, "bound": bound, "module": module,
+            t = common.best_of({"network": network, "bound": bound, "module": module,
                             "library": lambda: NeuralBRDF.from_embedding(model, api.encode(model, s))},
                            args.repeat, warmup=2)
             r = {"n": n, "network_s": t["network"], "bound_mm_s": t["bound"], "library_s": t["library"],
                  "model_definition_s": t["module"],
                  "network_median_s": t["network_median"], "bound_median_s": t["bound_median"],
                  "ratio_to_bound": t["network"] / t["bound"], "flops": flops,
-                 "load_average": pc.load_average()}
+                 "load_average": common.load_average()}
             results.append(r)
             rows.append([n, t["network"] * 1e3, t["bound"] * 1e3, f"{r['ratio_to_bound']:.2f}x",
                          t["module"] * 1e3, t["library"] * 1e3, f"{flops / 1e6:.1f}",
@@ -160,9 +159,9 @@ def main(argv=None):
         cli["import_total_s"] = total / 1e6
         cli["import_top_s"] = {k: v / 1e6 for k, v in sorted(imports.items(), key=lambda kv: -kv[1])[:8]}
         cli["imports_rich"] = any(k == "rich" for k in imports)
-        cli["load_average"] = pc.load_average()
-    data = {"machine": pc.machine(), "goal": {"network_s_max": 0.002}, "results": results, "cli_sparse": cli}
-    pc.report("encode", f"Encode: N samples -> hyponet weights, {args.threads} thread(s), best of {args.repeat}",
+        cli["load_average"] = common.load_average()
+    data = {"machine": common.machine(), "goal": {"network_s_max": 0.002}, "results": results, "cli_sparse": cli}
+    common.report("encode", f"Encode: N samples -> hyponet weights, {args.threads} thread(s), best of {args.repeat}",
               ["N", "network ms", "bound (plain mm) ms", "ratio", "HyperBRDF modules ms",
                "library (encode + weights) ms",
                "MFLOP", "load 1/5/15"], rows, data, args.json)

@@ -27,8 +27,7 @@ import subprocess
 import sys
 import tempfile
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import perfcommon as pc  # noqa: E402
+import common
 
 CELLS = 1_458_000
 MEASURED = 1_111_432
@@ -94,7 +93,7 @@ def main(argv=None):
 
     fits = fit_processes()
     with tempfile.TemporaryDirectory() as tmp:
-        model, model_path, _ = pc.untrained_model(tmp)
+        model, model_path, _ = common.untrained_model(tmp)
         emb_path = os.path.join(tmp, "m.emb")
         rng = np.random.default_rng(0)
         write_embedding(emb_path, Embedding((0.1 * rng.normal(size=40)).astype(np.float32), model.fingerprint))
@@ -137,10 +136,10 @@ def main(argv=None):
                  f"{floor / MB:,.0f} imports + {dec_arrays / MB:,.0f} arrays", "-"])
     rows.append(["decode without the file write", f"{decode_only / MB:,.0f}", "-", "-", "-"])
     rows.append(["import torch + brdfkit only", f"{floor / MB:,.0f}", "-", "-", "-"])
-    data = {"machine": pc.machine(), "fit_processes": fits, "decode_peak_rss_bytes": decode,
+    data = {"machine": common.machine(), "fit_processes": fits, "decode_peak_rss_bytes": decode,
             "decode_no_write_peak_rss_bytes": decode_only, "import_floor_peak_rss_bytes": floor,
             "arithmetic": arithmetic}
-    pc.report("memory", "Peak memory (MB = 10^6 bytes)",
+    common.report("memory", "Peak memory (MB = 10^6 bytes)",
               ["process", "peak RSS MB", "current RSS MB", "data arithmetic MB",
                "9 float32 per cell per material would be MB"], rows, data, args.json)
     return 0

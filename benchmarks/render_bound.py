@@ -24,12 +24,10 @@ here). Usage::
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import tempfile
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import perfcommon as pc  # noqa: E402
+import common
 
 
 def main(argv=None):
@@ -45,7 +43,7 @@ def main(argv=None):
     import numpy as np
     import torch
 
-    pc.set_threads(args.threads)
+    common.set_threads(args.threads)
     from brdfkit.embedding import Embedding
     from brdfkit.neural import NeuralBRDF
     from brdfkit.render import quadrature
@@ -55,7 +53,7 @@ def main(argv=None):
     scene = Scene(resolution=args.resolution)
     rows, results = [], []
     with tempfile.TemporaryDirectory() as tmp:
-        model, _, table = pc.untrained_model(tmp)
+        model, _, table = common.untrained_model(tmp)
         rng = np.random.default_rng(0)
         emb = Embedding((0.1 * rng.normal(size=40)).astype(np.float32), model.fingerprint)
         brdfs = {"table (stiff-white)": TableBRDF(table, "stiff-white", device="cpu"),
@@ -92,7 +90,7 @@ def main(argv=None):
             r = {"brdf": name, "resolution": args.resolution, "evaluations": n, "render_s": t["render"],
                  "bound_eval_dirs_s": t["bound"], "ratio_to_bound": t["render"] / t["bound"],
                  "us_per_evaluation_render": 1e6 * t["render"] / n,
-                 "us_per_evaluation_bound": 1e6 * t["bound"] / n, "load_average": pc.load_average()}
+                 "us_per_evaluation_bound": 1e6 * t["bound"] / n, "load_average": common.load_average()}
             del wi, wo
             if not args.skip_mitsuba:
                 from brdfkit.render.mitsuba_plugin import render_reference
@@ -100,7 +98,7 @@ def main(argv=None):
                 render_reference(brdf, Scene(resolution=16), spp=1)  # warm-up: JIT, plugin
                 m = args.resolution ** 2 * args.spp
                 mwi, mwo = pairs(m)
-                tm = pc.best_of({"mitsuba": lambda: render_reference(brdf, scene, spp=args.spp),
+                tm = common.best_of({"mitsuba": lambda: render_reference(brdf, scene, spp=args.spp),
                                  "bound": lambda: evals(brdf, mwi, mwo)}, args.repeat, warmup=0)
                 r.update(mitsuba_s=tm["mitsuba"], spp=args.spp,
                          mitsuba_s_per_spp=tm["mitsuba"] / args.spp,
@@ -112,8 +110,8 @@ def main(argv=None):
                          r.get("mitsuba_ns_per_sample_per_pixel", float("nan")),
                          r.get("mitsuba_bound_eval_dirs_s", float("nan")),
                          " ".join(f"{v:.1f}" for v in r["load_average"])])
-    data = {"machine": pc.machine(), "results": results}
-    pc.report("render", f"Reference-scene render ({args.resolution} x {args.resolution}), {args.threads} thread(s)",
+    data = {"machine": common.machine(), "results": results}
+    common.report("render", f"Reference-scene render ({args.resolution} x {args.resolution}), {args.threads} thread(s)",
               ["BRDF", "px", "BRDF evaluations", "render s", "bound: eval_dirs only s", "ratio",
                f"Mitsuba s per spp ({args.spp} spp)", "Mitsuba ns / sample / pixel",
                "bound: eval_dirs, res^2 x spp pairs, s", "load 1/5/15"], rows, data, args.json)

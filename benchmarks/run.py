@@ -23,9 +23,9 @@ import sys
 import tempfile
 import time
 
+import common
+
 HERE = os.path.dirname(os.path.abspath(__file__))
-sys.path.insert(0, HERE)
-import perfcommon as pc  # noqa: E402
 
 
 def plan(ttq_minutes):
@@ -48,14 +48,14 @@ def main(argv=None):
     p.add_argument("--timeout", type=float, default=300, help="seconds per benchmark")
     args = p.parse_args(argv)
     only = {x for x in args.only.split(",") if x}
-    results = {"machine": pc.machine(), "benchmarks": {}}
+    results = {"machine": common.machine(), "benchmarks": {}}
     t_all = time.monotonic()
     with tempfile.TemporaryDirectory() as tmp:
         for name, cmd in plan(args.ttq_minutes):
             if only and name not in only:
                 continue
             js = os.path.join(tmp, name + ".json")
-            load_before = pc.load_average()
+            load_before = common.load_average()
             t0 = time.monotonic()
             try:
                 r = subprocess.run([sys.executable, os.path.join(HERE, cmd[0]), *cmd[1:], "--json", js],
@@ -64,7 +64,7 @@ def main(argv=None):
             except subprocess.TimeoutExpired:
                 rc = "timeout"
             entry = {"returncode": rc, "wall_s": round(time.monotonic() - t0, 1),
-                     "load_average_before": load_before, "load_average_after": pc.load_average()}
+                     "load_average_before": load_before, "load_average_after": common.load_average()}
             if os.path.exists(js):
                 with open(js) as f:
                     entry["result"] = json.load(f)

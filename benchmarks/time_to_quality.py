@@ -36,8 +36,7 @@ import sys
 import tempfile
 import time
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import perfcommon as pc  # noqa: E402
+import common
 
 
 def stops_improving(curve, tol):
@@ -124,7 +123,7 @@ def main(argv=None):
                     point = (float(state["elapsed"]), int(state["step"]), float(np.mean(errs)))
                     curve.append(point)
                     print(f"  train {point[0]:6.1f} s  step {point[1]:5d}  held-out log-RMSE at N={args.n} "
-                          f"{point[2]:.4f}  (load {pc.load_average()[0]:.1f})", flush=True)
+                          f"{point[2]:.4f}  (load {common.load_average()[0]:.1f})", flush=True)
                 if done:
                     break
                 time.sleep(1.0)
@@ -138,7 +137,7 @@ def main(argv=None):
             raise SystemExit(f"brdfkit fit failed ({proc.returncode}): {err.strip()[-500:]}")
 
     i = stops_improving(curve, args.tol) if curve else None
-    data = {"machine": pc.machine(), "materials": args.materials, "train": train, "held_out": held,
+    data = {"machine": common.machine(), "materials": args.materials, "train": train, "held_out": held,
             "n_samples": args.n, "minutes": args.minutes, "tol": args.tol, "process_wall_s": wall,
             "curve": [{"train_s": t, "step": s, "log_rmse": e} for t, s, e in curve],
             "stops_improving": None if i is None else {"train_s": curve[i][0], "step": curve[i][1],
@@ -146,7 +145,7 @@ def main(argv=None):
             "best_log_rmse": min(c[2] for c in curve) if curve else None,
             "first_log_rmse": curve[0][2] if curve else None}
     rows = [[f"{t:.0f}", s, e, "<- stops improving" if k == i else ""] for k, (t, s, e) in enumerate(curve)]
-    pc.report("time_to_quality", f"Time to quality: {len(train)} synthetic materials, held-out "
+    common.report("time_to_quality", f"Time to quality: {len(train)} synthetic materials, held-out "
               f"log-RMSE at N = {args.n} ({', '.join(held)})",
               ["training s", "step", "held-out brdf_log_rmse", ""], rows, data, args.json)
     return 0

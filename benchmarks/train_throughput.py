@@ -22,11 +22,9 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-import perfcommon as pc  # noqa: E402
+import common
 
 CONTEXT = 860
 
@@ -105,7 +103,7 @@ def main(argv=None):
 
     rows, results = [], []
     for threads in [int(t) for t in args.threads.split(",") if t]:
-        pc.set_threads(threads)
+        common.set_threads(threads)
         torch.manual_seed(0)
         net = hypernet.HyperBRDF(cfg).to(device)
         net.train()
@@ -133,7 +131,7 @@ def main(argv=None):
             total.backward()
 
         bound, flops = gemm_bound(cfg, sampler.batch, CONTEXT, opts.query_size)
-        t = pc.best_of({"step": step, "bound": bound, "draw": lambda: sampler.draw(state["step"]),
+        t = common.best_of({"step": step, "bound": bound, "draw": lambda: sampler.draw(state["step"]),
                         "fwd_bwd": model_only}, args.repeat, warmup=2)
         q = sampler.batch * opts.query_size
         r = {"threads": threads, "batch_materials": sampler.batch, "query": opts.query_size,
@@ -141,14 +139,14 @@ def main(argv=None):
              "draw_s": t["draw"], "forward_backward_s": t["fwd_bwd"], "bound_gemm_s": t["bound"],
              "flops": flops, "samples_per_s": q / t["step"], "bound_samples_per_s": q / t["bound"],
              "fraction_of_bound": t["bound"] / t["step"], "bound_gflops": flops / t["bound"] / 1e9,
-             "load_average": pc.load_average()}
+             "load_average": common.load_average()}
         results.append(r)
         rows.append([threads, f"{r['samples_per_s']:,.0f}", f"{r['bound_samples_per_s']:,.0f}",
                      f"{100 * r['fraction_of_bound']:.0f}%", t["step"] * 1e3, t["draw"] * 1e3,
                      t["fwd_bwd"] * 1e3, t["bound"] * 1e3, f"{r['bound_gflops']:.1f}",
                      " ".join(f"{v:.1f}" for v in r["load_average"])])
-    data = {"machine": pc.machine(), "goal": {"fraction_of_bound_min": 0.6}, "results": results}
-    pc.report("train", f"Training step throughput (8 x 4096 query cells, context {CONTEXT}, best of {args.repeat})",
+    data = {"machine": common.machine(), "goal": {"fraction_of_bound_min": 0.6}, "results": results}
+    common.report("train", f"Training step throughput (8 x 4096 query cells, context {CONTEXT}, best of {args.repeat})",
               ["threads", "query samples/s", "bound samples/s", "of bound", "step ms", "draw ms",
                "fwd+bwd ms", "bound ms", "bound GFLOP/s", "load 1/5/15"], rows, data, args.json)
     return 0

@@ -168,8 +168,7 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
     if not math.isfinite(t):
         raise InputError(f"t: {t!r} is not a finite number")
     if not allow_extrapolation and not 0.0 <= t <= 1.0:
-        raise InputError(f"t = {t:g} is outside [0, 1]; pass allow_extrapolation=True "
-                         f"(--allow-extrapolation) to extrapolate")
+        raise InputError(f"t = {t:g} is outside [0, 1]; pass allow_extrapolation=True to extrapolate")
     if a.model_fingerprint != b.model_fingerprint or a.latent_dim != b.latent_dim:
         raise ModelMismatchError(
             f"cannot interpolate embeddings of different models: {a.source or 'a'} is from model "

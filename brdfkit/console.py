@@ -30,7 +30,7 @@ class ProgressBar:
     total
         Units of work (``None``: unknown until the first :meth:`update` gives it).
     enabled
-        ``False`` makes every method a no-op.
+        ``False`` makes every method a no-op; so does a console that is not a terminal.
     count
         Show ``done/total`` instead of a percentage.
     status
@@ -46,9 +46,13 @@ class ProgressBar:
 
     def __init__(self, description: str = "", total: float | None = None, *, enabled: bool = True,
                  count: bool = False, status: bool = False, transient: bool = True, out=None):
-        self.enabled = enabled
         self._bar = None
-        if not enabled:
+        if enabled and out is None:
+            out = console()
+        # Only on a terminal: in a pipe or a log file a live bar leaves blank lines (or
+        # its last frame) before the output a script reads.
+        self.enabled = enabled and out.is_terminal
+        if not self.enabled:
             return
         from rich.progress import (BarColumn, MofNCompleteColumn, Progress, TextColumn,
                                    TimeElapsedColumn, TimeRemainingColumn)
@@ -57,7 +61,7 @@ class ProgressBar:
                    MofNCompleteColumn() if count else TextColumn("{task.percentage:>3.0f}%"),
                    TimeElapsedColumn()]
         columns.append(TextColumn("{task.fields[status]}") if status else TimeRemainingColumn())
-        self._bar = Progress(*columns, console=out if out is not None else console(), transient=transient)
+        self._bar = Progress(*columns, console=out, transient=transient)
         self._task = self._bar.add_task(description, total=total, status="")
 
     def start(self) -> "ProgressBar":

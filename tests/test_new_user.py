@@ -152,3 +152,38 @@ def test_llvm_auto_detection_picks_only_19(monkeypatch):
     except BrdfkitError as e:
         pytest.skip(f"no libLLVM 19 here: {e}")
     assert mp.libllvm_version(path) == 19
+
+
+# --- 7. the CLI's own words, clean temporary folders, quiet pipes, the demo's image -------
+
+def test_interpolate_outside_0_1_names_the_cli_flag(tmp_path):
+    r = run_brdfkit(["interpolate", tmp_path / "a.emb", tmp_path / "b.emb", "--t", "1.5",
+                     "-o", tmp_path / "c.emb"])
+    assert r.returncode == 2
+    assert "--allow-extrapolation" in r.stderr and "allow_extrapolation=" not in r.stderr, r.stderr
+
+
+def test_fuzz_seeds_leave_nothing_in_the_temporary_folder(tmp_path):
+    """The fuzz tests' valid seed files (a model, a reference table, ...) are built in the
+    temporary folder and removed once read."""
+    code = ("import helpers_fuzz as h\n"
+            "for p in h.PARSERS.values(): p.seed()\n")
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = {**os.environ, "TMPDIR": str(tmp), "OMP_NUM_THREADS": "1",
+           "PYTHONPATH": os.pathsep.join([str(REPO / "tests"), os.environ.get("PYTHONPATH", "")])}
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                       timeout=300)
+    assert r.returncode == 0, r.stderr[-2000:]
+    assert os.listdir(tmp) == []
+
+
+def test_piped_metrics_output_starts_with_the_table(library):
+    """stdout and stderr into one pipe: no blank lines where progress bars were."""
+    a, b = sorted(library.glob("*.binary"))
+    r = subprocess.run(BRDFKIT + ["metrics", str(a), str(b), "--resolution", "16"],
+                       env={**os.environ, "OMP_NUM_THREADS": "1"}, stdout=subprocess.PIPE,
+                       stderr=subprocess.STDOUT, text=True, timeout=300)
+    assert r.returncode == 0, r.stdout
+    assert r.stdout.splitlines()[0].strip(), repr(r.stdout[:200])
+    assert "\x1b[" not in r.stdout

@@ -25,6 +25,10 @@ def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
     from ..embedding import read_embedding, write_embedding
 
     t = parse_float(t_text, "--t")
+    if not allow_extrapolation and not 0.0 <= t <= 1.0:
+        from ..errors import InputError
+
+        raise InputError(f"--t {t:g} is outside [0, 1]; add --allow-extrapolation to extrapolate")
     refuse_overwrite_of_inputs(output, [a, b, model_path])
     refuse_overwrite_of_inputs(binary, [a, b, model_path, output])
     ea, eb = read_embedding(a), read_embedding(b)

@@ -16,6 +16,7 @@ import dataclasses
 import functools
 import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -48,11 +49,19 @@ class Parser:
 
 # --- valid seeds ---------------------------------------------------------------------------
 
-@functools.lru_cache(maxsize=None)
 def _seed_folder() -> str:
-    import tempfile
-
+    """A new temporary folder for one seed file; :func:`_take` removes it."""
     return tempfile.mkdtemp(prefix="brdfkit-fuzz-seeds-")
+
+
+def _take(path) -> bytes:
+    """The bytes of a seed file, removing the file and its folder: a test run used to leave
+    34 MB of seeds in the temporary folder."""
+    try:
+        with open(path, "rb") as f:
+            return f.read()
+    finally:
+        shutil.rmtree(os.path.dirname(path), ignore_errors=True)
 
 
 @functools.lru_cache(maxsize=None)
@@ -61,8 +70,7 @@ def model_seed() -> bytes:
 
     path = os.path.join(_seed_folder(), "model.safetensors")
     make_model(path)
-    with open(path, "rb") as f:
-        return f.read()
+    return _take(path)
 
 
 @functools.lru_cache(maxsize=None)
@@ -71,8 +79,7 @@ def embedding_seed() -> bytes:
 
     path = os.path.join(_seed_folder(), "a.emb")
     write_embedding(path, Embedding(np.linspace(-1, 1, 7), "ab" * 32, "mat.binary", 40))
-    with open(path, "rb") as f:
-        return f.read()
+    return _take(path)
 
 
 @functools.lru_cache(maxsize=None)
@@ -82,8 +89,7 @@ def reference_seed() -> bytes:
     path = os.path.join(_seed_folder(), "ref.safetensors")
     table = np.full((90, 90, 180, 3), 0.5, dtype=np.float32)
     save_reference(path, table, ["a", "b"])
-    with open(path, "rb") as f:
-        return f.read()
+    return _take(path)
 
 
 @functools.lru_cache(maxsize=None)
@@ -96,8 +102,7 @@ def ipca_seed() -> bytes:
     IpcaModel(np.arange(1000, 1000 + 3 * p, 3, dtype=np.int64), rng.random(p, dtype=np.float32),
               rng.random(p, dtype=np.float32), rng.random((2, p), dtype=np.float32),
               np.array([1.0, 0.5], np.float32), ["a", "b"]).save(path)
-    with open(path, "rb") as f:
-        return f.read()
+    return _take(path)
 
 
 @functools.lru_cache(maxsize=None)
@@ -176,8 +181,7 @@ else:
 
         path = os.path.join(_seed_folder(), "img.exr")
         write_exr(path, np.linspace(0, 2, 4 * 5 * 3, dtype=np.float32).reshape(4, 5, 3))
-        with open(path, "rb") as f:
-            return f.read()
+        return _take(path)
 
     def _read_exr(path):
         from brdfkit.render.image import read_exr
