@@ -1,6 +1,11 @@
-"""Helpers shared by the performance benchmarks (issue 7): machine description, best-of-k
-timing interleaved with a bound, plain-``mm`` reference chains, and the JSON + table
-report every benchmark prints.
+"""Helpers shared by the benchmarks: machine description, best-of-k timing interleaved with
+a bound, plain-``mm`` reference chains, the JSON + table report every performance
+benchmark prints (issue 7), and untrained models (the paper's architecture or the tiny one
+of the test suite).
+
+Benchmarks run as ``python benchmarks/NAME.py`` from the repository root with brdfkit
+installed; Python puts the script's folder on ``sys.path``, so ``import common`` finds
+this module. Benchmarks import nothing from ``tests/``.
 
 Every figure a benchmark reports sits beside a *bound* measured in the same process, in
 the same rounds (measurement and bound alternate, ``best-of-k`` of each), so that the
@@ -179,11 +184,26 @@ def set_threads(n: int | None):
     return torch.get_num_threads()
 
 
-def untrained_model(tmpdir: str, latent_dim: int = 40, device="cpu"):
-    """A default-architecture model with random weights (speed does not depend on the
-    weights) and the reference table of a synthetic material, whose measured cells are
+# The test suite's tiny models (``tests/conftest.py``; copied, not imported): a hypernetwork
+# whose dense encode or decode takes a fraction of a second, and ``fit`` options that train
+# one in seconds on one core, with latent dimension ``TINY_LATENT``.
+TINY_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
+                   decoder_hidden=16, decoder_layers=1)
+TINY = dict(query_size=512, context_min=50, context_max=400, hypo_hidden=32, decoder_hidden=64,
+            encoder_hidden=(64, 64), lr=2e-3, warmup_steps=20, lr_schedule="constant")
+TINY_LATENT = 8
+
+
+def untrained_model(tmpdir: str, latent_dim: int = 40, device="cpu", config: dict | None = None,
+                    name: str = "untrained.safetensors"):
+    """A model with random weights (speed does not depend on the weights) and the
+    reference table of a synthetic material (``stiff-white``), whose measured cells are
     the 1,111,432 cells above the horizon of a MERL table; saved and loaded through the
-    model file like a trained one."""
+    model file like a trained one.
+
+    The paper's default architecture with ``latent_dim``, or the ``HyperConfig`` fields
+    ``config`` (e.g. :data:`TINY_CONFIG`). Returns ``(model, path, reference table)``.
+    """
     import torch
 
     from brdfkit import api, synthetic
@@ -192,6 +212,7 @@ def untrained_model(tmpdir: str, latent_dim: int = 40, device="cpu"):
 
     table = synthetic.table(synthetic.STIFF[2])
     torch.manual_seed(0)
-    path = os.path.join(tmpdir, "untrained.safetensors")
-    save_model(path, HyperBRDF(HyperConfig(latent_dim=latent_dim)), table)
+    path = os.path.join(tmpdir, name)
+    cfg = HyperConfig(**config) if config is not None else HyperConfig(latent_dim=latent_dim)
+    save_model(path, HyperBRDF(cfg), table, {"materials": ["stiff-white"], "steps": 0})
     return api.load_model(path, device=device), path, table

@@ -3,7 +3,7 @@
     python benchmarks/fuzz_parsers.py --minutes 3            # every parser, 3 minutes each
     python benchmarks/fuzz_parsers.py --minutes 1 load_model read_embedding
 
-Same inputs as ``tests/test_fuzz.py`` (``tests/helpers_fuzz.py``): random bytes and
+Same inputs as ``tests/test_fuzz.py`` (:mod:`brdfkit.fuzzing`): random bytes and
 mutated valid files. Only brdfkit's own one-line errors may escape; the first other
 outcome (another exception, a multi-line message, anything printed by a C library or a
 warning, a parse over 30 s) is printed with hypothesis' shrunk example, and the exit code
@@ -14,18 +14,15 @@ refused, and the slowest parse.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import tempfile
 import time
 import traceback
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
-from hypothesis import HealthCheck, given, settings  # noqa: E402
-from hypothesis import strategies as st  # noqa: E402
-
-from helpers_fuzz import PARSERS, check_parser, draw_input  # noqa: E402
+from brdfkit.fuzzing import PARSERS, check_parser, draw_input
 
 
 def fuzz(name: str, seconds: float, folder: str, chunk: int = 100) -> tuple[dict, str | None]:

@@ -22,7 +22,7 @@ import tracemalloc
 
 import numpy as np
 
-sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), "..", "tests"))
+import common
 
 MIRROR = dict(name="mirror-0.002", kind="conductor", alpha=0.002)
 SECTIONS = ["tables", "mapping", "encode", "csv", "config", "train", "extrapolate"]
@@ -73,12 +73,9 @@ def section_encode(folder):
     from brdfkit import api
     from brdfkit.samples import draw_samples
 
-    from helpers_model import make_model
-
-    for label, config in (("tiny", None), ("paper (latent 40)", {})):
-        path = os.path.join(folder, f"m-{'tiny' if config is None else 'paper'}.safetensors")
-        make_model(path, config=config)
-        model = api.load_model(path, "cpu")
+    for label, config in (("tiny", common.TINY_CONFIG), ("paper (latent 40)", {})):
+        model, _, _ = common.untrained_model(folder, config=config,
+                                             name=f"m-{'tiny' if config else 'paper'}.safetensors")
         s = draw_samples(tables()["mirror"], 1_000_000, seed=3)
         api.encode(model, draw_samples(tables()["mirror"], 10, seed=0))  # warm up
         tracemalloc.start()
@@ -134,10 +131,7 @@ def section_config(folder):
     from brdfkit.errors import FormatError
     from brdfkit.modelfile import load_model
 
-    from helpers_model import make_model
-
-    path = os.path.join(folder, "m.safetensors")
-    make_model(path)
+    _, path, _ = common.untrained_model(folder, config=common.TINY_CONFIG, name="m.safetensors")
     raw = open(path, "rb").read()
     n = int.from_bytes(raw[:8], "little")
     for change in ({"latent_dim": 10**7}, {"decoder_hidden": 20000, "decoder_layers": 30}):
@@ -164,15 +158,14 @@ def _fit(folder, out, steps, **opts):
     from brdfkit.merl import write_merl
     from brdfkit.training import fit
 
-    from helpers_training import TINY, TINY_LATENT
-
     data = os.path.join(folder, "stiff-lib")
     if not os.path.isdir(data):
         os.makedirs(data)
         for name, t in tables().items():
             write_merl(os.path.join(data, f"{name}.binary"), t)
     t0 = time.perf_counter()
-    fit(data, out, latent_dim=TINY_LATENT, steps=steps, progress=False, **{**TINY, "batch_materials": 3, **opts})
+    fit(data, out, latent_dim=common.TINY_LATENT, steps=steps, progress=False,
+        **{**common.TINY, "batch_materials": 3, **opts})
     return api.load_model(out, "cpu"), time.perf_counter() - t0
 
 

@@ -1,12 +1,12 @@
-"""Fuzzing of brdfkit's file parsers: only brdfkit's own errors may escape.
+"""Fuzzing of brdfkit's file parsers: only brdfkit's own one-line errors may escape.
 
-Shared by ``tests/test_fuzz.py`` (a short run in the suite) and
-``benchmarks/fuzz_parsers.py`` (minutes per parser). Each parser gets random bytes and
+Used by ``tests/test_fuzz.py`` (a short run in the suite) and
+``benchmarks/fuzz_parsers.py`` (minutes per parser); needs hypothesis (the ``test``
+extra), so ``import brdfkit`` never imports it. Each parser gets random bytes and
 mutations of a valid file of its format: truncation, byte changes (half of them in the
 first kilobytes, where the headers are), and for safetensors files a rewritten JSON
 header (dtypes, shapes, offsets, metadata and the model config replaced by random JSON),
 re-framed with a correct length so that the parser gets past the framing.
-Not a conftest: plain functions.
 """
 
 from __future__ import annotations
@@ -64,12 +64,24 @@ def _take(path) -> bytes:
         shutil.rmtree(os.path.dirname(path), ignore_errors=True)
 
 
+# The seed model: a hypernetwork small enough that a model file is a few kilobytes (the
+# tiny configuration of the test suite), untrained.
+SEED_MODEL_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
+                         decoder_hidden=16, decoder_layers=1)
+
+
 @functools.lru_cache(maxsize=None)
 def model_seed() -> bytes:
-    from helpers_model import make_model
+    import torch
+
+    from brdfkit import synthetic
+    from brdfkit.hypernet import HyperBRDF, HyperConfig
+    from brdfkit.modelfile import save_model
 
     path = os.path.join(_seed_folder(), "model.safetensors")
-    make_model(path)
+    torch.manual_seed(0)
+    save_model(path, HyperBRDF(HyperConfig(**SEED_MODEL_CONFIG)), synthetic.table(synthetic.STIFF[2]),
+               {"materials": ["stiff-white"], "steps": 0})
     return _take(path)
 
 
@@ -94,7 +106,7 @@ def reference_seed() -> bytes:
 
 @functools.lru_cache(maxsize=None)
 def ipca_seed() -> bytes:
-    from brdfkit.baselines.ipca import IpcaModel
+    from brdfkit.methods.ipca import IpcaModel
 
     path = os.path.join(_seed_folder(), "basis.safetensors")
     p = 64
@@ -138,7 +150,7 @@ def _read_reference(path):
 
 
 def _read_ipca(path):
-    from brdfkit.baselines.ipca import load_ipca
+    from brdfkit.methods.ipca import load_ipca
 
     return load_ipca(path)
 
