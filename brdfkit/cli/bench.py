@@ -25,7 +25,7 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--data", type=click.Path(file_okay=False), default=None,
               help="Folder of MERL tables for the sparse benchmark.")
 @click.option("--test-list", type=click.Path(dir_okay=False), default=None,
-              help="Test material names, one a line (e.g. ../shared/data/merl-test.txt); default: all of --data.")
+              help="Test material names, one a line (e.g. merl-test.txt, the paper's 20 test materials: docs/data.md); default: all of --data.")
 @click.option("-m", "--model", type=click.Path(dir_okay=False), default=None,
               help="Hypernetwork model (.safetensors) for the method 'hypernet'.")
 @click.option("--ipca", type=click.Path(dir_okay=False), default=None,

@@ -71,7 +71,7 @@ def _parse_option(text: str) -> tuple[str, object]:
               help="Embedding size (40 as in the paper; 7 for compression).")
 @click.option("--exclude-list", type=click.Path(dir_okay=False), default=None,
               help="Text file of material names to hold out, one a line, # comments "
-                   "(e.g. ../shared/data/merl-test.txt).")
+                   "(e.g. merl-test.txt, the paper's 20 test materials: docs/data.md).")
 @click.option("--exclude", "exclude_names", multiple=True, metavar="NAME",
               help="A material name to hold out (repeatable).")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
