@@ -116,9 +116,8 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
 
 def test_ipca_basis_with_materials_not_a_list(tmp_path):
     # Found by benchmarks/fuzz_parsers.py: metadata materials = "5" raised a TypeError.
+    from brdfkit.fuzzing import ipca_seed
     from brdfkit.methods.ipca import load_ipca
-
-    from helpers_fuzz import ipca_seed
 
     for bad in ("5", "null", '{"a": 1}', "[1, 2]"):
         path = tmp_path / "basis.safetensors"
