@@ -46,8 +46,8 @@ def main(argv=None) -> int:
 
     import torch
 
-    from brdfkit.baselines.ipca import fit_ipca, load_ipca
-    from brdfkit.baselines.nbrdf import DEFAULT_STEPS, fit_nbrdf
+    from brdfkit.methods.ipca import fit_ipca, load_ipca
+    from brdfkit.methods.nbrdf import DEFAULT_STEPS, fit_nbrdf
     from brdfkit.merl import read_merl
     from brdfkit.metrics import brdf_log_rmse
     from brdfkit.samples import draw_samples

@@ -34,7 +34,7 @@ def _training(args):
 
 
 def tune_lambda(args) -> None:
-    from brdfkit.baselines.ipca import fit_ipca
+    from brdfkit.methods.ipca import fit_ipca
     from brdfkit.merl import read_merl
     from brdfkit.metrics import brdf_log_rmse
     from brdfkit.samples import draw_samples
@@ -62,7 +62,7 @@ def tune_lambda(args) -> None:
 def tune_nbrdf(args) -> None:
     import torch
 
-    from brdfkit.baselines.nbrdf import fit_nbrdf
+    from brdfkit.methods.nbrdf import fit_nbrdf
     from brdfkit.merl import read_merl
     from brdfkit.metrics import brdf_log_rmse
     from brdfkit.samples import draw_samples

@@ -32,7 +32,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["EXPOSURE", "PSNR_CAP", "brdf_log_rmse", "display_encode", "srgb_oetf",
-           "psnr", "delta_e_2000", "ssim", "image_metrics"]
+           "psnr", "delta_e_2000", "ssim", "image_metrics", "score"]
 
 EXPOSURE = 1.0
 """Fixed exposure (multiplier of linear radiance) applied before clipping to ``[0, 1]``."""
@@ -194,3 +194,28 @@ def image_metrics(pred, ref, mask=None) -> dict:
     """``{"psnr", "delta_e", "ssim"}`` of a pair of linear-sRGB images (see the functions)."""
     return {"psnr": psnr(pred, ref, mask), "delta_e": delta_e_2000(pred, ref, mask),
             "ssim": ssim(pred, ref, mask)}
+
+
+def score(pred_img, ref_img, pred_table=None, ref_table=None) -> dict:
+    """Every error of a prediction against a reference, as ``brdfkit metrics`` and
+    ``brdfkit bench`` report them.
+
+    Parameters
+    ----------
+    pred_img, ref_img
+        Linear-sRGB images ``(H, W, 3)`` (renders of the BRDFs, or given images).
+    pred_table, ref_table
+        The BRDF tables ``(90, 90, 180, 3)`` (1/sr) when both are BRDFs, else ``None``.
+
+    Returns
+    -------
+    dict
+        ``{"psnr", "delta_e", "ssim", "brdf_log_rmse"}``: :func:`image_metrics` with PSNR
+        capped at :data:`PSNR_CAP` (so JSON stays standard), and :func:`brdf_log_rmse`
+        (``None`` without both tables).
+    """
+    out = image_metrics(pred_img, ref_img)
+    out["psnr"] = min(out["psnr"], PSNR_CAP)
+    both = pred_table is not None and ref_table is not None
+    out["brdf_log_rmse"] = brdf_log_rmse(pred_table, ref_table) if both else None
+    return out

@@ -6,14 +6,21 @@ project machine at load average 11, ``brdfkit sparse`` took 57 s wall with torch
 threads and 9.7 s with one (a dense decode: 11.3 s against 0.64 s;
 ``docs/performance.md``). :func:`set_default_threads` therefore sizes the OpenMP pool to
 the cores that are idle by the 1-minute load average, before torch is imported, unless
-the user chose (``OMP_NUM_THREADS``). The library itself never changes thread settings.
+the user chose (``OMP_NUM_THREADS``).
+
+The library itself never changes the thread settings it was given: a library function
+that needs another thread count for its own work (NBRDF's tiny network runs fastest on
+one thread) sets it with :func:`torch_threads` for the duration of the call and restores
+it. :func:`set_torch_threads` (``--threads`` of ``brdfkit render`` and ``metrics``, the
+benchmark's worker processes) is for the command line and for processes brdfkit starts.
 """
 
 from __future__ import annotations
 
+import contextlib
 import os
 
-__all__ = ["threads_for_load", "set_default_threads"]
+__all__ = ["threads_for_load", "idle_cores", "set_default_threads", "set_torch_threads", "torch_threads"]
 
 # Any of these set by the user means the thread count is theirs to choose.
 USER_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -23,6 +30,19 @@ def threads_for_load(cpus: int, load: float) -> int:
     """Threads worth running when ``load`` runnable tasks (the load average) already
     compete for ``cpus`` cores: the idle cores, at least one, at most ``cpus``."""
     return max(1, min(cpus, int(cpus - load + 0.5)))
+
+
+def _cpus() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def idle_cores() -> int | None:
+    """:func:`threads_for_load` of this machine now; ``None`` without a load average."""
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return None
+    return threads_for_load(_cpus(), load)
 
 
 def set_default_threads(environ=None) -> int | None:
@@ -38,12 +58,42 @@ def set_default_threads(environ=None) -> int | None:
     environ = os.environ if environ is None else environ
     if any(k in environ for k in USER_VARIABLES):
         return None
-    try:
-        load = os.getloadavg()[0]
-    except (AttributeError, OSError):
+    n = idle_cores()
+    if n is None:
         return None
-    cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-    n = threads_for_load(cpus, load)
-    if n < cpus:
+    if n < _cpus():
         environ["OMP_NUM_THREADS"] = str(n)
     return n
+
+
+def set_torch_threads(threads: int | None = None) -> int:
+    """Set torch's thread count to ``threads``, by default to the idle cores (at least 1,
+    at most torch's current count); returns the count set. For the command line
+    (``--threads``) and processes brdfkit starts, not for library calls.
+
+    Measured: on the shared 2-core machine, 2 threads rendered 256 px in 42 s at load 1.8
+    and 621 s at load 6.7, 1 thread in 17.5 s and 27.6 s (OpenMP threads wait for busy
+    cores at every operation; docs/render.md)."""
+    import torch
+
+    if threads is None:
+        threads = max(1, min(torch.get_num_threads(), idle_cores() or 1))
+    torch.set_num_threads(int(threads))
+    return int(threads)
+
+
+@contextlib.contextmanager
+def torch_threads(threads: int | None):
+    """Run the block with torch on ``threads`` CPU threads, restoring the count after
+    (``None``: leave it as it is)."""
+    if threads is None:
+        yield
+        return
+    import torch
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(int(threads))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)

@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from brdfkit.cli.demo import choose_holdout, render_psnr, write_demo_library
+from brdfkit.demo import choose_holdout, render_psnr, write_demo_library
 from brdfkit.embedding import read_embedding
 from brdfkit.merl import read_merl
 from brdfkit.modelfile import load_model

@@ -90,7 +90,9 @@ def command(data, test_list, model, ipca, n_list, seeds, first_seed, methods, co
                       n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed, methods=_str_list(methods),
                       compression_models=_str_list(compression_models), compression_data=compression_data,
                       resolution=resolution, jobs=jobs, threads=threads, device=device,
-                      nbrdf_steps=nbrdf_steps, ipca_lambda=ipca_lambda, group_by_prefix=group_by_prefix,
+                      options={m: o for m, o in (("nbrdf", {"steps": nbrdf_steps}), ("ipca", {"lam": ipca_lambda}))
+                               if None not in o.values()},
+                      group_by_prefix=group_by_prefix,
                       cache=cache, command="brdfkit bench " + shlex.join(sys.argv[2:] if len(sys.argv) > 1
                                                                          and sys.argv[1] == "bench" else []))
     result = run_bench(cfg, progress=not quiet)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import os
 
 import click
@@ -36,3 +37,19 @@ def parse_float(value: str, name: str) -> float:
     if x != x or x in (float("inf"), float("-inf")):
         raise InputError(f"{name}: {value!r} is not a finite number")
     return x
+
+
+def parse_option(text: str) -> tuple[str, object]:
+    """``-O KEY=VALUE``: the key (``-`` read as ``_``) and the value parsed as JSON (a
+    list becomes a tuple), or the bare word."""
+    if "=" not in text:
+        raise InputError(f"-O {text!r}: expected KEY=VALUE (see docs/training.md for the keys)")
+    key, value = text.split("=", 1)
+    key = key.strip().replace("-", "_")
+    try:
+        parsed = json.loads(value)
+    except ValueError:
+        parsed = value  # a bare word, e.g. lr_schedule=cosine
+    if isinstance(parsed, list):
+        parsed = tuple(parsed)
+    return key, parsed

@@ -19,11 +19,10 @@ def command(embedding, model_path, output):
     """
     import os
 
-    from ..api import load_model
+    from ..api import decode, load_model
     from ..atomic import refuse_overwrite_of_inputs
     from ..embedding import read_embedding
     from ..merl import write_merl
-    from ..neural import NeuralBRDF
 
     if output is None:
         output = os.path.splitext(embedding)[0] + ".binary"
@@ -31,6 +30,6 @@ def command(embedding, model_path, output):
     refuse_overwrite_of_inputs(output, [embedding, model_path])
     emb = read_embedding(embedding)
     model = load_model(model_path)
-    table = NeuralBRDF.from_embedding(model, emb, embedding).to_table()
+    table = decode(model, emb, source=embedding)
     write_merl(output, table)
     click.echo(f"decoded {embedding} into {output}", err=True)

@@ -20,7 +20,7 @@ from .common import model_option, parse_float, require_model
 @model_option
 def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
     """Write the embedding (1 - T) A + T B; both must come from the same model."""
-    from ..api import interpolate, load_model
+    from ..api import decode, interpolate, load_model
     from ..atomic import refuse_overwrite_of_inputs
     from ..embedding import read_embedding, write_embedding
 
@@ -39,10 +39,8 @@ def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
     mix = interpolate(ea, eb, t, allow_extrapolation=allow_extrapolation)
     table = None
     if binary:
-        from ..neural import NeuralBRDF
-
         model = load_model(require_model(model_path))
-        table = NeuralBRDF.from_embedding(model, mix, output).to_table()
+        table = decode(model, mix, source=output)
     write_embedding(output, mix)
     if table is not None:
         from ..merl import write_merl

@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import contextlib
 import os
 import time
 
 import click
 
-from ..console import ProgressBar, console
+from ..console import console
 from .common import model_option
 
 
@@ -17,67 +16,6 @@ def threads_option(f):
     return click.option("--threads", type=click.IntRange(min=1, max=1024), default=None,
                         help="Torch threads (default: cores not already busy by the load "
                              "average, at least 1; docs/render.md).")(f)
-
-
-def set_threads(threads: int | None) -> int:
-    """Apply ``--threads``; by default the cores the 1-minute load average leaves idle
-    (at least 1, at most torch's default). Measured: on the shared 2-core machine, 2
-    threads rendered 256 px in 42 s at load 1.8 and 621 s at load 6.7, 1 thread in
-    17.5 s and 27.6 s (OpenMP threads wait for busy cores at every operation)."""
-    import torch
-
-    if threads is None:
-        try:
-            idle = int((os.cpu_count() or 1) - os.getloadavg()[0] + 0.5)
-        except OSError:
-            idle = 1
-        threads = max(1, min(torch.get_num_threads(), idle))
-    torch.set_num_threads(threads)
-    return threads
-
-
-@contextlib.contextmanager
-def progress_bar(description: str, enabled: bool = True):
-    """A progress bar on stderr; yields a callback ``update(done, total)`` (``None`` when
-    disabled)."""
-    if not enabled:
-        yield None
-        return
-    with ProgressBar(description) as bar:
-        yield bar
-
-
-def render_brdf_file(path, model_path=None, *, resolution=None, mitsuba=False, spp=None,
-                     supersample=1, scene_file=None, bsdf_id=None, progress=True, model=None):
-    """Render a ``.binary`` / ``.emb`` file; returns ``(image, how)`` with ``how`` a short
-    description for messages (renderer, size, BRDF evaluations)."""
-    import dataclasses
-
-    from ..render.brdf import load_brdf
-    from ..render.scene import REFERENCE
-
-    brdf = load_brdf(path, model_path, model=model)
-    scene = dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
-                                supersample=int(supersample))
-    if scene_file is not None:
-        from ..render.mitsuba_plugin import load_user_scene, render_scene
-
-        sc, n = load_user_scene(scene_file, bsdf_id, brdf, resolution=resolution, spp=spp)
-        with progress_bar(f"Mitsuba {os.path.basename(scene_file)}", progress) as cb:
-            img = render_scene(sc, n, progress=cb)
-        return img, f"Mitsuba, {os.path.basename(scene_file)}, {n} spp"
-    if mitsuba:
-        from ..render.mitsuba_plugin import render_reference
-
-        n = int(spp or scene.spp)
-        with progress_bar(f"Mitsuba {brdf.name}", progress) as cb:
-            img = render_reference(brdf, scene, spp=n, progress=cb)
-        return img, f"Mitsuba reference scene, {n} spp"
-    from ..render.quadrature import render, render_pixels
-
-    with progress_bar(f"quadrature {brdf.name}", progress) as cb:
-        img, _ = render(brdf, scene, progress=cb)
-    return img, f"quadrature, {render_pixels.last_evaluations:,} BRDF evaluations"
 
 
 @click.command("render")
@@ -113,6 +51,8 @@ def command(brdf, model_path, output, png, mitsuba, scene_file, bsdf_id, spp, re
     from ..atomic import refuse_overwrite_of_inputs
     from ..errors import InputError
     from ..render.brdf import brdf_kind
+    from ..render.files import render_brdf_file
+    from ..threads import set_torch_threads
     from ..render.image import write_exr, write_png
 
     brdf_kind(brdf)
@@ -127,7 +67,7 @@ def command(brdf, model_path, output, png, mitsuba, scene_file, bsdf_id, spp, re
     refuse_overwrite_of_inputs(png, inputs)
     if not output.lower().endswith(".exr"):
         raise InputError(f"{output}: the output image must be an .exr file (use --png for a PNG)")
-    set_threads(threads)
+    set_torch_threads(threads)
     t0 = time.perf_counter()
     img, how = render_brdf_file(brdf, model_path, resolution=resolution, mitsuba=mitsuba, spp=spp,
                                 supersample=supersample, scene_file=scene_file, bsdf_id=bsdf_id,

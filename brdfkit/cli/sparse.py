@@ -4,37 +4,14 @@ from __future__ import annotations
 
 import click
 
-from .common import model_option, require_model
-
-
-def _hypernet(samples, model_path):
-    """The paper's method: encode the samples, decode the hyponet on the whole grid."""
-    from ..api import load_model, sparse
-
-    model = load_model(require_model(model_path))
-    return sparse(model, samples)
-
-
-def _baseline(name):
-    """A baseline of :mod:`brdfkit.baselines` (docs/baselines.md); it makes no embedding."""
-    def run(samples, model_path):
-        from ..baselines import get_method
-
-        method = get_method(name)
-        if not method.needs_model and _model_from_env():
-            model_path = None  # $BRDFKIT_MODEL names a hypernetwork, not meant for this method
-        return method.reconstruct(samples, model_path), None
-    return run
+from ..methods import METHODS
+from .common import model_option
 
 
 def _model_from_env() -> bool:
     from click.core import ParameterSource
 
     return click.get_current_context().get_parameter_source("model_path") is ParameterSource.ENVIRONMENT
-
-
-# method name -> function(samples: SampleSet, model_path: str | None) -> (table, Embedding | None)
-METHODS = {"hypernet": _hypernet, "ipca": _baseline("ipca"), "nbrdf": _baseline("nbrdf")}
 
 
 @click.command("sparse")
@@ -62,7 +39,10 @@ def command(samples, model_path, output, emb_path, method):
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
     data = read_samples(samples)
-    table, emb = METHODS[method](data, model_path)
+    chosen = METHODS[method]
+    if not chosen.needs_model and _model_from_env():
+        model_path = None  # $BRDFKIT_MODEL names a hypernetwork, not meant for this method
+    table, emb = chosen.sparse(data, model_path)
     if emb_path and emb is None:
         raise InputError(f"--emb: method {method!r} makes no embedding")
     write_merl(output, table)

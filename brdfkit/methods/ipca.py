@@ -62,9 +62,10 @@ import numpy as np
 from ..atomic import atomic_path, check_input_file
 from ..errors import FormatError, InputError
 from ..geometry import GRID_SHAPE, N_CELLS, grid_angles, io_from_half_diff, lookup_trilinear
+from .method import Method, MethodOptions
 
-__all__ = ["IpcaModel", "fit_ipca", "load_ipca", "IPCA_FORMAT", "IPCA_VERSION", "EPS",
-           "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
+__all__ = ["IpcaModel", "IpcaOptions", "fit_ipca", "fit_ipca_files", "load_ipca", "METHOD", "IPCA_FORMAT",
+           "IPCA_VERSION", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
 
 IPCA_FORMAT = "brdfkit-ipca"
 IPCA_VERSION = "1"
@@ -359,3 +360,55 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
     return IpcaModel(cells.astype(np.int64), t["reference"].astype(np.float32),
                      t["mean"].astype(np.float32), comp.astype(np.float32),
                      t["sigma"].astype(np.float32), list(materials))
+
+
+def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
+                   components: int = DEFAULT_COMPONENTS) -> str:
+    """Fit a basis to the MERL tables ``data`` (files or folders, as
+    :func:`brdfkit.materials.collect_materials` reads them) less the materials named in
+    ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``). Returns
+    ``output``."""
+    import sys
+
+    from ..materials import collect_materials
+
+    paths, names, _, unknown = collect_materials(data, exclude)
+    if unknown:
+        print(f"brdfkit: warning: excluded name(s) matched no input: {', '.join(unknown)}", file=sys.stderr)
+    fit_ipca(paths, components, names=names).save(output)
+    print(f"wrote PCA basis ({components} components, {len(names)} materials) to {output}", file=sys.stderr)
+    return output
+
+
+@dataclasses.dataclass(frozen=True)
+class IpcaOptions(MethodOptions):
+    """``lam``: the ridge weight of :meth:`IpcaModel.coefficients`."""
+
+    lam: float = DEFAULT_LAMBDA
+
+    def __post_init__(self):
+        if not (isinstance(self.lam, (int, float)) and self.lam >= 0 and np.isfinite(self.lam)):
+            raise InputError(f"ipca option lam (ridge lambda) must be a finite number >= 0, got {self.lam!r}")
+
+
+def _load(path, device):
+    return load_ipca(path)
+
+
+def _reconstruct(samples, model, options, *, seed, device):
+    return model.reconstruct(samples, lam=options.lam), None
+
+
+def _compress(model, table, name):
+    return model.decode(model.project(table))
+
+
+def _describe(model, path):
+    return f"ipca {model.n_components} components", model.n_components, set(model.materials)
+
+
+METHOD = Method("ipca", "PCA basis of log-mapped tables fitted by ridge regression (Nielsen et al. 2015)",
+                "PCA basis (.safetensors from `brdfkit fit --method ipca`)", options=IpcaOptions,
+                load_model=_load, reconstruct_fn=_reconstruct, fit_fn=fit_ipca_files,
+                fit_options=("components",), compress_fn=_compress, describe_fn=_describe,
+                bench_option="ipca")

@@ -24,8 +24,8 @@ alone, so the same samples, seed and device give the same network.
 
 from __future__ import annotations
 
-import contextlib
 import copy
+import dataclasses
 import functools
 import time
 
@@ -33,9 +33,11 @@ import numpy as np
 
 from ..errors import InputError
 from ..geometry import GRID_SHAPE, N_CELLS, cell_angles, hd_vectors, valid_mask
+from ..threads import torch_threads
+from .method import Method, MethodOptions
 
-__all__ = ["NbrdfModel", "fit_nbrdf", "DEFAULT_STEPS", "DEFAULT_LR", "DEFAULT_PATIENCE", "BATCH",
-           "HIDDEN"]
+__all__ = ["NbrdfModel", "NbrdfOptions", "fit_nbrdf", "METHOD", "DEFAULT_STEPS", "DEFAULT_LR",
+           "DEFAULT_PATIENCE", "BATCH", "HIDDEN"]
 
 HIDDEN = 21
 DEFAULT_STEPS = 5000
@@ -75,27 +77,6 @@ def _grid_inputs():
     cells.flags.writeable = False
     hd.flags.writeable = False
     return cells, hd
-
-
-@contextlib.contextmanager
-def _one_thread(device):
-    """Run torch on one CPU thread inside the block (restored after).
-
-    The network's matrices (N x 21) are far too small for intra-op parallelism: more
-    OpenMP threads only add synchronisation, and on a busy machine their spin-waits
-    dominate (measured: 500 steps at N = 4000 took 2.5 s with 1 thread and 22.6 s with 2
-    at load average 12 on 2 cores, /tmp scripts of the development session)."""
-    import torch
-
-    if device.type != "cpu":
-        yield
-        return
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    try:
-        yield
-    finally:
-        torch.set_num_threads(old)
 
 
 def _rho(net, hd):
@@ -167,7 +148,7 @@ class NbrdfModel:
 
     def reconstruct(self, samples=None) -> np.ndarray:
         """The dense table (the samples were used at fitting time); for the common
-        interface of :mod:`brdfkit.baselines`."""
+        interface of :mod:`brdfkit.methods`."""
         return self.to_table()
 
 
@@ -201,7 +182,11 @@ def fit_nbrdf(samples, steps: int = DEFAULT_STEPS, seed: int = 0, lr: float = DE
     if not (lr > 0 and np.isfinite(lr)):
         raise InputError(f"NBRDF learning rate must be a positive number, got {lr}")
     dev = _device(device)
-    with _one_thread(dev):
+    # The network's matrices (N x 21) are far too small for intra-op parallelism: more
+    # OpenMP threads only add synchronisation, and on a busy machine their spin-waits
+    # dominate (measured: 500 steps at N = 4000 took 2.5 s with 1 thread and 22.6 s with 2
+    # at load average 12 on 2 cores, /tmp scripts of the development session).
+    with torch_threads(1 if dev.type == "cpu" else None):
         return _fit(samples, steps, int(seed), float(lr), int(patience), dev)
 
 
@@ -248,3 +233,31 @@ def _fit(samples, steps, seed, lr, patience, dev) -> NbrdfModel:
     if not np.isfinite(best):
         raise InputError(f"{samples.source or 'samples'}: NBRDF fit diverged (non-finite loss)")
     return NbrdfModel(net, dev, step, best, time.perf_counter() - t0)
+
+
+@dataclasses.dataclass(frozen=True)
+class NbrdfOptions(MethodOptions):
+    """The options of :func:`fit_nbrdf`: most steps, Adam learning rate, patience."""
+
+    steps: int = DEFAULT_STEPS
+    lr: float = DEFAULT_LR
+    patience: int = DEFAULT_PATIENCE
+
+    def __post_init__(self):
+        if not (isinstance(self.steps, int) and self.steps >= 1):
+            raise InputError(f"nbrdf option steps must be an integer >= 1, got {self.steps!r}")
+        if not (isinstance(self.lr, (int, float)) and self.lr > 0 and np.isfinite(self.lr)):
+            raise InputError(f"nbrdf option lr must be a positive number, got {self.lr!r}")
+
+    def quick(self) -> "NbrdfOptions":
+        return dataclasses.replace(self, steps=min(20, self.steps))
+
+
+def _reconstruct(samples, model, options, *, seed, device):
+    fitted = fit_nbrdf(samples, steps=options.steps, seed=seed, lr=options.lr, patience=options.patience,
+                       device=device)
+    return fitted.to_table(), None
+
+
+METHOD = Method("nbrdf", "one small MLP fitted to the samples alone (Sztrajman et al. 2021)", "",
+                options=NbrdfOptions, reconstruct_fn=_reconstruct)

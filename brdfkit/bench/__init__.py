@@ -1,0 +1,52 @@
+"""Error against run time: the sparse-reconstruction and compression benchmark.
+
+What is measured (Gokbudak et al. 2024, Sec. 4, on whatever tables are given)
+--------------------------------------------------------------------------------
+**Sparse reconstruction.** For every test material, every ``N`` in :data:`DEFAULT_N`
+and every seed ``s = 0 .. K-1``, ``N`` samples are drawn from the material's table
+(:func:`brdfkit.samples.draw_samples`, uniform over the Rusinkiewicz angles, the seed
+derived from ``(s, N, material name)`` so all methods see the *same* draw), and every
+method of :mod:`brdfkit.methods` reconstructs a dense table from them. Each
+reconstruction is scored:
+
+* ``time_s``: wall time of ``Method.reconstruct`` alone (samples in, dense
+  ``(90, 90, 180, 3)`` table out: encode + dense decode for the hypernetwork, ridge fit +
+  decode for IPCA, the whole per-material fit + decode for NBRDF); model files are loaded
+  once beforehand and each method makes one untimed warm-up reconstruction per process;
+* ``log_rmse``: :func:`brdfkit.metrics.brdf_log_rmse` against the material's table;
+* ``psnr``, ``delta_e``, ``ssim``: :func:`brdfkit.metrics.image_metrics` between the
+  reference-scene renders (:func:`brdfkit.render.quadrature.render`, the deterministic
+  quadrature renderer, at ``resolution`` pixels square, whole image) of the reconstruction
+  and of the material's own table. The reference render of a material is made once and
+  cached on disk (EXR, keyed by the file's SHA-256 and the scene settings).
+
+**Compression.** For every material of the compression data and every compression model,
+the full table is encoded and decoded (:func:`brdfkit.api.encode`, :func:`brdfkit.api.decode`)
+and scored the same way (``time_s`` = encode + decode); with a PCA basis, its best
+reconstruction (:meth:`brdfkit.methods.ipca.IpcaModel.project` then ``decode``) too.
+
+Every reconstruction is scored by :func:`brdfkit.metrics.score`, the function
+``brdfkit metrics`` uses. A failure of one reconstruction (or of reading one material)
+is recorded with its message and left out of the means; the run goes on.
+
+Outputs (in ``OUTDIR``)
+-----------------------
+``bench.json`` (configuration, environment, every record, summaries; rewritten after
+every material, so an interrupted run keeps what it finished), ``bench.md`` (tables),
+``error_vs_n.png``, ``error_vs_time.png`` (each method one curve through its ``N``
+points, log time axis) and ``compression.png``; reference renders in ``cache/``.
+
+Summaries: :mod:`.summary`.
+
+Modules: :mod:`.config` (:class:`BenchConfig`), :mod:`.worker` (one process's models and
+scoring), :mod:`.runner` (:func:`run_bench`, :func:`merge_results`), :mod:`.summary`,
+:mod:`.report` (``bench.md`` and the plots).
+"""
+
+from .config import DEFAULT_METHODS, DEFAULT_N, DEFAULT_RESOLUTION, METRICS, BenchConfig, sample_seed
+from .report import write_markdown, write_plots
+from .runner import merge_results, run_bench
+from .summary import summarise
+
+__all__ = ["BenchConfig", "run_bench", "merge_results", "summarise", "write_markdown", "write_plots",
+           "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed"]

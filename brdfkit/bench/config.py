@@ -1,0 +1,163 @@
+"""What ``brdfkit bench`` runs: :class:`BenchConfig` and the seed of each draw."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import zlib
+
+import numpy as np
+
+from ..atomic import check_input_file
+from ..errors import InputError
+
+__all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed"]
+
+DEFAULT_N = (40, 160, 400, 2000, 4000)
+DEFAULT_METHODS = ("hypernet", "ipca", "nbrdf")
+DEFAULT_RESOLUTION = 128
+"""Render size for the image metrics: 128 x 128 keeps a reference-scene render near a
+second of CPU time per reconstruction (the scene's own 256 takes four times as long)."""
+
+
+METRICS = ("psnr", "delta_e", "ssim", "log_rmse")
+
+
+@dataclasses.dataclass
+class BenchConfig:
+    """What to run (the options of ``brdfkit bench``).
+
+    Attributes
+    ----------
+    output
+        Output folder.
+    data, test_list
+        Folder of MERL tables for the sparse benchmark and an optional file of material
+        names (one a line, ``#`` comments) selecting the test materials; ``data=None``
+        skips the sparse benchmark.
+    model, ipca
+        Hypernetwork model and PCA basis files (needed by the methods that use them).
+    n, seeds, first_seed, methods
+        Sample counts, number of draws per (material, N) (seeds ``first_seed ..
+        first_seed + seeds - 1``; a later run with other seeds can be merged, see
+        :func:`merge_results`), methods.
+    compression_models, compression_data
+        Hypernetwork models to test on encode -> decode of every table in
+        ``compression_data`` (plus the PCA basis, when ``ipca`` is given).
+    resolution
+        Reference-scene render size (pixels square) for the image metrics.
+    jobs, threads
+        Worker processes (one material at a time each) and torch threads per process
+        (default: torch's own choice with one process, ``cpu_count // jobs`` otherwise).
+    device
+        Torch device (``None``: CUDA when present).
+    options
+        Method options, ``{method: {option: value}}`` (options not given, or ``None``:
+        the method's defaults; the fields of its options dataclass, see
+        :mod:`brdfkit.methods`).
+    group_by_prefix
+        Also summarise per material family, the family being the name up to its first
+        ``-`` (e.g. ``merl-`` / ``rgl-`` prefixed file names).
+    cache
+        Folder of cached reference renders (default ``output/cache``).
+    """
+
+    output: str
+    data: str | None = None
+    test_list: str | None = None
+    model: str | None = None
+    ipca: str | None = None
+    n: tuple = DEFAULT_N
+    seeds: int = 3
+    first_seed: int = 0
+    methods: tuple = DEFAULT_METHODS
+    compression_models: tuple = ()
+    compression_data: str | None = None
+    resolution: int = DEFAULT_RESOLUTION
+    jobs: int = 1
+    threads: int | None = None
+    device: str | None = None
+    options: dict = dataclasses.field(default_factory=dict)
+    group_by_prefix: bool = False
+    cache: str | None = None
+    command: str = ""
+
+    def model_file(self, method: str) -> str | None:
+        """The model file of a method (the field its ``bench_option`` names)."""
+        from ..methods import get_method
+
+        option = get_method(method).bench_option
+        return getattr(self, option) if option else None
+
+    def compressors(self) -> list:
+        """``(method, model file)`` of the compression benchmark: the hypernetwork models
+        of :attr:`compression_models`, then every other method that can compress and
+        whose model file is given (the PCA basis: its best reconstruction)."""
+        from ..methods import METHODS
+
+        if not self.compression_models:
+            return []
+        hypernet = METHODS["hypernet"]
+        return [(hypernet, path) for path in self.compression_models] + [
+            (m, self.model_file(name)) for name, m in METHODS.items()
+            if m is not hypernet and m.compress_fn is not None and self.model_file(name)]
+
+    def method_options(self, method: str):
+        """The options object of a method: its defaults and :attr:`options`."""
+        from ..methods import get_method
+
+        return get_method(method).make_options(**self.options.get(method, {}))
+
+    def seed_list(self) -> list[int]:
+        return list(range(self.first_seed, self.first_seed + self.seeds))
+
+    def validate(self) -> None:
+        """:class:`InputError` for a configuration that cannot run."""
+        from ..methods import get_method
+
+        if self.data is None and not self.compression_models:
+            raise InputError("nothing to run: give --data (sparse benchmark) and/or "
+                             "--compression-models with --compression-data")
+        if self.data is not None:
+            if not self.methods:
+                raise InputError("--methods: no method given")
+            for m in self.methods:
+                get_method(m)
+            if len(set(self.methods)) != len(self.methods):
+                raise InputError(f"--methods: a method is named twice ({','.join(self.methods)})")
+            if not self.n or any(int(k) < 1 for k in self.n):
+                raise InputError(f"--n: sample counts must be positive integers, got {self.n}")
+            if self.seeds < 1:
+                raise InputError(f"--seeds must be at least 1, got {self.seeds}")
+            if self.first_seed < 0:
+                raise InputError(f"--first-seed must be at least 0, got {self.first_seed}")
+            for m in self.methods:
+                method = get_method(m)
+                if method.needs_model and not self.model_file(m):
+                    raise InputError(f"method {m!r} needs --{method.bench_option} FILE ({method.model_kind})")
+        for m, opts in self.options.items():
+            get_method(m).make_options(**opts)
+        if self.compression_models and not self.compression_data:
+            raise InputError("--compression-models needs --compression-data DIR")
+        if self.compression_data and not self.compression_models:
+            raise InputError("--compression-data needs --compression-models")
+        if self.resolution < 7:
+            raise InputError(f"--resolution must be at least 7 (the SSIM window), got {self.resolution}")
+        if self.jobs < 1:
+            raise InputError(f"--jobs must be at least 1, got {self.jobs}")
+        if self.threads is not None and self.threads < 1:
+            raise InputError(f"--threads must be at least 1, got {self.threads}")
+        for f in [self.model, self.ipca, self.test_list, *self.compression_models]:
+            if f:
+                check_input_file(f)
+        for d in (self.data, self.compression_data):
+            if d is not None and not os.path.isdir(d):
+                raise InputError(f"{d}: not a folder of MERL tables")
+
+
+
+def sample_seed(seed: int, n: int, name: str) -> int:
+    """Seed of the draw of ``n`` samples of material ``name`` for repetition ``seed``:
+    distinct per (seed, N, material), the same for every method."""
+    return int(np.random.SeedSequence([int(seed), int(n), zlib.crc32(name.encode())]).generate_state(1)[0])
+

@@ -1,0 +1,233 @@
+"""The work of one benchmark process: load the models once, reconstruct, render and
+score each material (:func:`brdfkit.metrics.score`), cache the reference renders."""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import os
+import time
+
+from ..errors import InputError
+from .config import BenchConfig, sample_seed
+
+__all__ = ["Worker", "run_task", "init_process", "failed_records", "error_text", "renderer_digest"]
+
+
+def _file_digest(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 22), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def renderer_digest() -> str:
+    """SHA-256 of the source of the modules a reference render depends on, so a changed
+    renderer never reuses a cached render."""
+    from .. import geometry
+    from ..render import brdf, envmap, quadrature, scene
+
+    h = hashlib.sha256()
+    for mod in (quadrature, scene, envmap, brdf, geometry):
+        with open(mod.__file__, "rb") as f:
+            h.update(f.read())
+    return h.hexdigest()
+
+
+def failed_records(cfg: BenchConfig, kind: str, name: str, error: str, compressors=()) -> list[dict]:
+    """The records of every reconstruction of one material, all failed with ``error``
+    (``compressors``: the ``(label, latent)`` of the compression methods)."""
+    if kind == "sparse":
+        return [{"kind": kind, "material": name, "method": m, "n": int(k), "seed": s, "error": error}
+                for m in cfg.methods for k in cfg.n for s in cfg.seed_list()]
+    return [{"kind": kind, "material": name, "method": label, "latent": dim, "error": error}
+            for label, dim in compressors]
+
+
+def error_text(e: BaseException) -> str:
+    return f"{type(e).__name__}: {e}".splitlines()[0][:300]
+
+
+class Worker:
+    """Everything one process needs: loaded models, the scene, the environment."""
+
+    def __init__(self, cfg: BenchConfig):
+        from ..device import resolve_device
+        from ..methods import get_method
+        from ..render.envmap import reference_envmap
+        from ..render.scene import Scene
+
+        self.cfg = cfg
+        self.device = resolve_device(cfg.device)
+        self.scene = Scene(resolution=cfg.resolution)
+        self.env = reference_envmap()
+        self.methods, self.models, self.options = {}, {}, {}
+        if cfg.data is not None:
+            for name in cfg.methods:
+                m = get_method(name)
+                self.methods[name] = m
+                self.models[name] = m.load(cfg.model_file(name), self.device) if m.needs_model else None
+                self.options[name] = cfg.method_options(name)
+        # (label, code size, method, model), see BenchConfig.compressors
+        self.compressors = []
+        self.trained = {}  # compression label -> names of the materials it was trained on
+        for method, path in cfg.compressors():
+            model = method.load(path, self.device)
+            label, size, trained = method.describe_fn(model, path)
+            self.compressors.append((label, size, method, model))
+            self.trained[label] = trained
+        self.warm = set()
+
+    # -- scoring
+
+    def render(self, table):
+        from ..render.brdf import TableBRDF
+        from ..render.quadrature import render
+
+        img, _ = render(TableBRDF(table, device=self.device), self.scene, env=self.env)
+        return img
+
+    def reference(self, name: str, path: str, table):
+        """The cached reference render of a material (rendered on first use)."""
+        from ..render.image import read_exr, write_exr
+
+        cache = self.cfg.cache or os.path.join(self.cfg.output, "cache")
+        # The key is the table's content and everything the render depends on (scene,
+        # quadrature, environment, the renderer's code), not the name: a table reached under another name
+        # (a symlink in a second folder) reuses its render.
+        key = hashlib.sha256("\n".join([_file_digest(path), repr(self.scene), self.env.fingerprint(),
+                                        repr(self.env.bright), renderer_digest()]).encode()).hexdigest()[:16]
+        suffix = f"-{self.cfg.resolution}px-{key}.exr"
+        file = os.path.join(cache, name + suffix)
+        found = [f for f in (os.listdir(cache) if os.path.isdir(cache) else []) if f.endswith(suffix)]
+        for f in sorted(found, key=lambda f: f != name + suffix):
+            try:
+                img = read_exr(os.path.join(cache, f))
+                if img.shape == (self.cfg.resolution, self.cfg.resolution, 3):
+                    return img
+            except InputError:
+                pass  # a damaged cache file is simply rendered again
+        img = self.render(table)
+        os.makedirs(cache, exist_ok=True)
+        write_exr(file, img)
+        return img
+
+    def score(self, table, ref_table, ref_img) -> dict:
+        """:func:`brdfkit.metrics.score` of a reconstruction (rendered here, the render
+        timed as ``render_s``); the BRDF log RMSE is recorded as ``log_rmse``."""
+        from ..metrics import score
+
+        t0 = time.perf_counter()
+        img = self.render(table)
+        render_s = time.perf_counter() - t0
+        out = score(img, ref_img, table, ref_table)
+        out["log_rmse"] = out.pop("brdf_log_rmse")
+        out["render_s"] = render_s
+        return out
+
+    def run(self, kind: str, name: str, path: str) -> list[dict]:
+        """The records of one material: ``kind`` ``"sparse"`` or ``"compression"``."""
+        fn = self.sparse_material if kind == "sparse" else self.compression_material
+        return fn(name, path)
+
+    # -- timed reconstructions
+
+    def _warm_up(self, method: str, table) -> None:
+        """One untimed reconstruction per method and process: first calls pay for lazy
+        imports, allocator growth and cached grids, which no user pays twice."""
+        if method in self.warm:
+            return
+        from ..samples import draw_samples
+
+        try:
+            self.methods[method].reconstruct(draw_samples(table, 40, seed=12345), self.models[method],
+                                             seed=0, device=self.device, options=self.options[method].quick())
+        except Exception:
+            pass  # the timed call will record the failure
+        self.warm.add(method)
+
+    def sparse_material(self, name: str, path: str) -> list[dict]:
+        from ..merl import read_merl
+        from ..samples import draw_samples
+
+        cfg = self.cfg
+        base = {"kind": "sparse", "material": name}
+        try:
+            table = read_merl(path)
+            ref_img = self.reference(name, path, table)
+        except Exception as e:
+            return failed_records(cfg, "sparse", name, error_text(e))
+        records = []
+        for k in cfg.n:
+            for s in cfg.seed_list():
+                draw = sample_seed(s, k, name)
+                try:
+                    samples = draw_samples(table, int(k), seed=draw, source=name)
+                except Exception as e:
+                    records += [dict(base, method=m, n=int(k), seed=s, error=error_text(e))
+                                for m in cfg.methods]
+                    continue
+                for m in cfg.methods:
+                    rec = dict(base, method=m, n=int(k), seed=s, sample_seed=draw)
+                    try:
+                        self._warm_up(m, table)
+                        t0, c0 = time.perf_counter(), time.process_time()
+                        recon = self.methods[m].reconstruct(samples, self.models[m], seed=s,
+                                                            device=self.device, options=self.options[m])
+                        rec["time_s"] = time.perf_counter() - t0
+                        rec["cpu_s"] = time.process_time() - c0
+                        rec.update(self.score(recon, table, ref_img))
+                    except Exception as e:
+                        rec["error"] = error_text(e)
+                    records.append(rec)
+        return records
+
+    def compression_material(self, name: str, path: str) -> list[dict]:
+        from ..merl import read_merl
+
+        base = {"kind": "compression", "material": name}
+        try:
+            table = read_merl(path)
+            ref_img = self.reference(name, path, table)
+        except Exception as e:
+            return failed_records(self.cfg, "compression", name, error_text(e),
+                                   [(label, dim) for label, dim, _, _ in self.compressors])
+        records = []
+        for label, dim, method, model in self.compressors:
+            rec = dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ()))
+            try:
+                t0, c0 = time.perf_counter(), time.process_time()
+                recon = method.compress_fn(model, table, name)
+                rec["time_s"] = time.perf_counter() - t0
+                rec["cpu_s"] = time.process_time() - c0
+                rec.update(self.score(recon, table, ref_img))
+            except Exception as e:
+                rec["error"] = error_text(e)
+            records.append(rec)
+        return records
+
+
+@functools.lru_cache(maxsize=1)
+def _process_worker(cfg_json: str) -> Worker:
+    """The :class:`Worker` of a pool process, built on its first task (one
+    configuration per process)."""
+    from ..threads import set_torch_threads
+
+    cfg = BenchConfig(**json.loads(cfg_json))
+    if cfg.threads is not None:
+        set_torch_threads(cfg.threads)  # a process the benchmark started: its threads are ours
+    return Worker(cfg)
+
+
+def init_process() -> None:
+    """Pool initializer: the parent handles Ctrl-C."""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def run_task(cfg_json: str, kind: str, name: str, path: str) -> list[dict]:
+    """One material's records in a pool process (``cfg_json``: the configuration)."""
+    return _process_worker(cfg_json).run(kind, name, path)

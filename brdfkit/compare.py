@@ -1,0 +1,169 @@
+"""Errors of predicted BRDF files or images against references: the work of
+``brdfkit metrics``.
+
+A BRDF file (MERL ``.binary``, or ``.emb`` with its model) is rendered in the reference
+scene by the quadrature renderer (:func:`brdfkit.render.files.render_brdf_file`); an
+``.exr`` is taken as it is. Each pair is scored by :func:`brdfkit.metrics.score`, the
+same function the benchmark uses. Two folders are compared file by file, matched by
+file stem.
+"""
+
+from __future__ import annotations
+
+import os
+
+from .errors import InputError
+
+__all__ = ["SUFFIXES", "FileLoader", "compare_files", "compare_folders", "mean_scores"]
+
+SUFFIXES = (".binary", ".emb", ".exr")
+KEYS = ("psnr", "delta_e", "ssim", "brdf_log_rmse")
+
+
+def _kind(path: str) -> str:
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".exr":
+        return "image"
+    if ext in (".binary", ".emb"):
+        return "brdf"
+    raise InputError(f"{path}: not a BRDF (.binary, .emb) or an image (.exr)")
+
+
+class FileLoader:
+    """Reads inputs: images, reference-scene renders and dense tables; loads the model
+    (for ``.emb`` inputs) once, on first need.
+
+    Parameters
+    ----------
+    model_path
+        Model file of ``.emb`` inputs (``None``: an ``.emb`` is an error).
+    resolution
+        Render size of BRDF inputs (``None``: the reference scene's 256).
+    progress
+        Show render progress on stderr.
+    """
+
+    def __init__(self, model_path=None, resolution: int | None = None, progress: bool = True):
+        self.model_path = model_path
+        self.resolution = resolution
+        self.progress = progress
+        self._model = None
+
+    def model(self):
+        if self._model is None:
+            if not self.model_path:
+                raise InputError("no model given: an .emb input needs its model "
+                                 "(pass -m MODEL.safetensors or set BRDFKIT_MODEL)")
+            from .api import load_model
+
+            self._model = load_model(self.model_path)
+        return self._model
+
+    def image(self, path, resolution=None):
+        from .render import files
+        from .render.image import read_exr
+
+        if _kind(path) == "image":
+            return read_exr(path)
+        model = self.model() if path.lower().endswith(".emb") else None
+        img, _ = files.render_brdf_file(path, resolution=resolution or self.resolution,
+                                        progress=self.progress, model=model)
+        return img
+
+    def check(self, path):
+        """Read ``path`` (and the model an ``.emb`` needs) without rendering: a bad
+        reference must not cost a render of the prediction first (a 256 px render is
+        minutes on a busy 2-core machine; docs/stability.md)."""
+        if _kind(path) == "image":
+            from .render.image import read_exr
+
+            read_exr(path)
+        elif path.lower().endswith(".emb"):
+            from .embedding import check_compatible, read_embedding
+
+            check_compatible(read_embedding(path), self.model(), path)
+        else:
+            from .merl import read_merl
+
+            read_merl(path)
+
+    def table(self, path):
+        if path.lower().endswith(".binary"):
+            from .merl import read_merl
+
+            return read_merl(path)
+        from .api import decode
+        from .embedding import read_embedding
+
+        return decode(self.model(), read_embedding(path))
+
+
+def compare_files(loader: FileLoader, pred: str, ref: str) -> dict:
+    """:func:`brdfkit.metrics.score` of one prediction against one reference; a BRDF
+    compared with an image is rendered at the image's size."""
+    from .atomic import check_input_file
+    from .metrics import score
+
+    check_input_file(pred)
+    check_input_file(ref)
+    kp, kr = _kind(pred), _kind(ref)
+    loader.check(pred)
+    loader.check(ref)
+    size = None
+    img_r = loader.image(ref) if kr == "image" else None
+    img_p = loader.image(pred) if kp == "image" else None
+    for img, path in ((img_r, ref), (img_p, pred)):
+        if img is not None and size is None:
+            if img.shape[0] != img.shape[1]:
+                if kp != kr:
+                    raise InputError(f"{path}: a {img.shape[1]}x{img.shape[0]} image cannot be compared "
+                                     "with a reference-scene render (square)")
+            size = img.shape[0]
+    if img_p is None:
+        img_p = loader.image(pred, size)
+    if img_r is None:
+        img_r = loader.image(ref, size)
+    if img_p.shape != img_r.shape:
+        raise InputError(f"{pred}, {ref}: image sizes differ ({img_p.shape[1]}x{img_p.shape[0]} "
+                         f"and {img_r.shape[1]}x{img_r.shape[0]})")
+    both = kp == kr == "brdf"
+    return score(img_p, img_r, loader.table(pred) if both else None, loader.table(ref) if both else None)
+
+
+def _stems(folder: str) -> dict:
+    found = {}
+    for name in sorted(os.listdir(folder)):
+        stem, ext = os.path.splitext(name)
+        if ext.lower() in SUFFIXES and os.path.isfile(os.path.join(folder, name)):
+            found.setdefault(stem, os.path.join(folder, name))
+    return found
+
+
+def compare_folders(loader: FileLoader, pred: str, ref: str, on_file=None, on_skip=None) -> dict:
+    """Compare the files of two folders matched by stem: ``{stem: scores}``.
+
+    ``on_skip(stem, folder)`` is called first for each stem only one folder holds,
+    ``on_file(i, n, stem)`` before each pair.
+    """
+    a, b = _stems(pred), _stems(ref)
+    common = [s for s in a if s in b]
+    if not common:
+        raise InputError(f"{pred}, {ref}: no file stems in common (files must be .binary, .emb or .exr)")
+    for stem in sorted(set(a) ^ set(b)):
+        if on_skip is not None:
+            on_skip(stem, pred if stem in a else ref)
+    rows = {}
+    for i, stem in enumerate(common, 1):
+        if on_file is not None:
+            on_file(i, len(common), stem)
+        rows[stem] = compare_files(loader, a[stem], b[stem])
+    return rows
+
+
+def mean_scores(rows: list) -> dict:
+    """Mean of each score over the rows that have it (``None`` where none has)."""
+    out = {}
+    for key in KEYS:
+        vals = [r[key] for r in rows if r.get(key) is not None]
+        out[key] = float(sum(vals) / len(vals)) if vals else None
+    return out

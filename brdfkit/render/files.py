@@ -1,0 +1,76 @@
+"""Render a BRDF file (``.binary`` MERL table, or ``.emb`` with its model): the work of
+``brdfkit render`` and of ``brdfkit metrics`` for BRDF inputs.
+
+Three renderers (``docs/render.md``): the deterministic quadrature of the reference
+scene (:mod:`.quadrature`, the default), the reference scene path-traced by Mitsuba 3,
+or a user's Mitsuba XML scene with the BRDF bound to one of its BSDFs
+(:mod:`.mitsuba_plugin`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from ..console import ProgressBar
+
+__all__ = ["render_brdf_file"]
+
+
+def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mitsuba: bool = False,
+                     spp: int | None = None, supersample: int = 1, scene_file=None, bsdf_id: str | None = None,
+                     progress: bool = True, model=None):
+    """Render a ``.binary`` / ``.emb`` file.
+
+    Parameters
+    ----------
+    path
+        The BRDF file.
+    model_path, model
+        The model of an ``.emb`` (a path, or a model already loaded); for ``scene_file``,
+        also the model of the scene's other ``brdfkit`` BSDFs that name none.
+    resolution
+        Image size in pixels, square (default: the reference scene's 256); with
+        ``scene_file``, overrides the film's size.
+    mitsuba
+        Path-trace the reference scene with Mitsuba instead of the quadrature.
+    spp
+        Mitsuba samples per pixel (default: the scene's).
+    supersample
+        Quadrature: an ``S x S`` grid of points per pixel.
+    scene_file, bsdf_id
+        A Mitsuba XML scene and the id of the BSDF that gets the BRDF.
+    progress
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    tuple
+        ``(image, how)``: float32 ``(H, W, 3)`` linear RGB, and a short description for
+        messages (renderer, samples, BRDF evaluations).
+    """
+    from .brdf import load_brdf
+    from .scene import REFERENCE
+
+    brdf = load_brdf(path, model_path, model=model)
+    scene = dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
+                                supersample=int(supersample))
+    if scene_file is not None:
+        from .mitsuba_plugin import load_user_scene, render_scene
+
+        sc, n = load_user_scene(scene_file, bsdf_id, brdf, resolution=resolution, spp=spp, model_path=model_path)
+        with ProgressBar(f"Mitsuba {os.path.basename(scene_file)}", enabled=progress) as bar:
+            img = render_scene(sc, n, progress=bar if progress else None)
+        return img, f"Mitsuba, {os.path.basename(scene_file)}, {n} spp"
+    if mitsuba:
+        from .mitsuba_plugin import render_reference
+
+        n = int(spp or scene.spp)
+        with ProgressBar(f"Mitsuba {brdf.name}", enabled=progress) as bar:
+            img = render_reference(brdf, scene, spp=n, progress=bar if progress else None)
+        return img, f"Mitsuba reference scene, {n} spp"
+    from .quadrature import render, render_pixels
+
+    with ProgressBar(f"quadrature {brdf.name}", enabled=progress) as bar:
+        img, _ = render(brdf, scene, progress=bar if progress else None)
+    return img, f"quadrature, {render_pixels.last_evaluations:,} BRDF evaluations"
