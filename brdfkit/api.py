@@ -100,7 +100,7 @@ def encode(model, samples_or_table, *, source: str = "") -> Embedding:
     return encode_samples(model, data, name)
 
 
-def decode(model, embedding) -> np.ndarray:
+def decode(model, embedding, *, source: str = "") -> np.ndarray:
     """Decode an embedding into a dense table.
 
     Parameters
@@ -110,6 +110,8 @@ def decode(model, embedding) -> np.ndarray:
         :class:`~brdfkit.errors.ModelMismatchError`).
     embedding
         :class:`Embedding` or the path of an ``.emb`` file.
+    source
+        The name messages give the embedding (default: its path, when given one).
 
     Returns
     -------
@@ -119,10 +121,10 @@ def decode(model, embedding) -> np.ndarray:
     """
     from .neural import NeuralBRDF
 
-    name = ""
+    name = source
     if isinstance(embedding, (str, os.PathLike)):
         from .embedding import read_embedding
-        name = os.fspath(embedding)
+        name = source or os.fspath(embedding)
         embedding = read_embedding(embedding)
     return NeuralBRDF.from_embedding(model, embedding, name).to_table()
 
