@@ -187,3 +187,40 @@ def test_piped_metrics_output_starts_with_the_table(library):
     assert r.returncode == 0, r.stdout
     assert r.stdout.splitlines()[0].strip(), repr(r.stdout[:200])
     assert "\x1b[" not in r.stdout
+
+
+# --- 4. where data comes from -------------------------------------------------------------
+
+def _csv_blocks(text: str) -> list[str]:
+    import re
+
+    return re.findall(r"```csv\n(.*?)```", text, re.S)
+
+
+@pytest.mark.parametrize("doc", ["README.md", "docs/data.md"])
+def test_your_data_example_csv_is_a_valid_sample_set(doc, tmp_path):
+    from brdfkit.samples import read_samples
+
+    blocks = _csv_blocks((REPO / doc).read_text())
+    assert blocks, f"{doc}: no sample CSV example"
+    for i, block in enumerate(blocks):
+        path = tmp_path / f"{i}.csv"
+        path.write_text(block)
+        s = read_samples(path)
+        assert len(s) >= 4
+
+
+def test_help_and_docs_do_not_send_users_to_a_folder_beside_the_checkout():
+    """``../shared`` exists only beside the development checkout: help texts and docs
+    speak of the reference proxies and ``merl-test.txt`` (``docs/data.md`` gives the
+    command that makes the proxies; ``docs/results.md`` records the runs as made)."""
+    for cmd in ("fit", "bench"):
+        r = run_brdfkit([cmd, "--help"])
+        assert r.returncode == 0 and "../shared" not in r.stdout, (cmd, r.stdout)
+    allowed = {"data.md", "results.md"}
+    for doc in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
+        if doc.name in allowed:
+            continue
+        text = doc.read_text()
+        assert "../shared" not in text.replace("python ../shared/tools/nbrdf_to_merl.py", ""), doc
+    assert "## Your data" in (REPO / "README.md").read_text()
