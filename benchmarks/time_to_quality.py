@@ -73,7 +73,7 @@ def main(argv=None):
     from brdfkit.metrics import brdf_log_rmse
     from brdfkit.modelfile import NeuralModel, weights_fingerprint
     from brdfkit.samples import draw_samples
-    from brdfkit.trainset import median_reference_fast
+    from brdfkit.mapping import median_reference as median_reference_fast
 
     curve = []
     with tempfile.TemporaryDirectory() as tmp:

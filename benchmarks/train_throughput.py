@@ -84,7 +84,8 @@ def main(argv=None):
     from brdfkit.geometry import N_CELLS
     from brdfkit.mapping import to_mapped
     from brdfkit.training import TrainOptions
-    from brdfkit.trainset import BatchSampler, TrainingSet, median_reference_fast
+    from brdfkit.mapping import median_reference as median_reference_fast
+    from brdfkit.trainset import BatchSampler, TrainingSet
 
     opts = TrainOptions()
     cfg = hypernet.HyperConfig()

@@ -23,6 +23,7 @@ import numpy as np
 
 from .embedding import Embedding
 from .errors import InputError, ModelMismatchError
+from .geometry import TABLE_SHAPE
 
 __all__ = ["load_model", "encode", "decode", "sparse", "interpolate", "fit"]
 
@@ -63,9 +64,9 @@ def _load_input(obj, source: str):
         return read_merl(path), name
     if isinstance(obj, np.ndarray) or hasattr(obj, "__array__"):
         arr = np.asarray(obj, dtype=np.float64)
-        if arr.shape != (90, 90, 180, 3):
+        if arr.shape != TABLE_SHAPE:
             raise InputError(f"{source or 'table'}: shape {arr.shape}, expected a dense table "
-                             f"(90, 90, 180, 3) or a SampleSet")
+                             f"{TABLE_SHAPE} or a SampleSet")
         return arr, source
     raise InputError(f"cannot encode a {type(obj).__name__}: pass a SampleSet, a (90, 90, 180, 3) "
                      f"table, or the path of a .binary or .csv file")

@@ -28,19 +28,23 @@ are computed in float64.
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
 
 __all__ = [
-    "N_THETA_H", "N_THETA_D", "N_PHI_D", "GRID_SHAPE", "N_CELLS",
+    "N_THETA_H", "N_THETA_D", "N_PHI_D", "GRID_SHAPE", "TABLE_SHAPE", "N_CELLS",
     "half_diff_from_io", "io_from_half_diff", "hd_vectors", "cos_theta_i",
     "grid_angles", "cell_angles", "cell_index", "fractional_indices",
-    "valid_mask", "lookup_nearest", "lookup_trilinear",
+    "valid_mask", "valid_cells", "grid_hd", "grid_directions", "grid_cosine_weight",
+    "lookup_nearest", "lookup_trilinear",
 ]
 
 N_THETA_H, N_THETA_D, N_PHI_D = 90, 90, 180
 GRID_SHAPE = (N_THETA_H, N_THETA_D, N_PHI_D)
+# A BRDF table in memory: [theta_h, theta_d, phi_d, rgb] (brdfkit.merl.read_merl).
+TABLE_SHAPE = GRID_SHAPE + (3,)
 N_CELLS = N_THETA_H * N_THETA_D * N_PHI_D
 HALF_PI = math.pi / 2
 
@@ -214,6 +218,63 @@ def valid_mask():
     th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
     wi, wo = io_from_half_diff(th, td, pd)
     return (wi[..., 2] > 0) & (wo[..., 2] > 0)
+
+
+@functools.lru_cache(maxsize=1)
+def valid_cells() -> np.ndarray:
+    """Flat indices of the cells of :func:`valid_mask`, int64, sorted, read-only; computed
+    once per process."""
+    cells = np.flatnonzero(valid_mask().reshape(-1))
+    cells.setflags(write=False)
+    return cells
+
+
+@functools.lru_cache(maxsize=1)
+def grid_hd() -> np.ndarray:
+    """HD vectors of all MERL grid cells, float32 ``(1458000, 6)`` in flat-index order,
+    read-only.
+
+    Computed once per process (float64, then rounded) and shared: decoding every table
+    and encoding every dense file reuse it. With ``phi_h = 0`` the half vector depends on
+    ``theta_h`` alone and the difference vector on ``(theta_d, phi_d)`` alone, so the
+    90 + 16,200 distinct vectors are computed and broadcast: the same numbers bit for bit
+    as ``hd_vectors(*cell_angles(index))`` for every cell, in a tenth of the time (0.05 s
+    against 0.49 s; it is part of every ``brdfkit decode`` / ``sparse`` process,
+    ``docs/performance.md``).
+    """
+    n_dp = N_THETA_D * N_PHI_D
+    th = cell_angles(np.arange(N_THETA_H) * n_dp)[0]
+    _, td, pd = cell_angles(np.arange(n_dp))
+    hd = np.empty((N_THETA_H, n_dp, 6), dtype=np.float32)
+    zeros_h = np.zeros(N_THETA_H)
+    hd[:, :, :3] = hd_vectors(th, zeros_h, zeros_h)[:, None, :3]
+    hd[:, :, 3:] = hd_vectors(np.zeros(n_dp), td, pd)[None, :, 3:]
+    hd = hd.reshape(N_CELLS, 6)
+    hd.setflags(write=False)
+    return hd
+
+
+@functools.lru_cache(maxsize=1)
+def grid_directions() -> tuple[np.ndarray, np.ndarray]:
+    """``(wi, wo)`` of every MERL cell (``phi_h = 0``), float64 ``(90, 90, 180, 3)`` each,
+    read-only; computed once per process (a synthetic table spends ~40% of its time on
+    them otherwise)."""
+    th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
+    wi, wo = io_from_half_diff(th, td, pd)
+    wi.setflags(write=False)
+    wo.setflags(write=False)
+    return wi, wo
+
+
+@functools.lru_cache(maxsize=1)
+def grid_cosine_weight() -> np.ndarray:
+    """``max(cos theta_i, 0) * max(cos theta_o, 0)`` at every MERL cell, float64 flat
+    ``(N_CELLS,)``, read-only; computed once per process (the cosine weight of Nielsen
+    et al. 2015, which every PCA decode needs)."""
+    wi, wo = grid_directions()
+    w = (np.clip(wi[..., 2], 0.0, None) * np.clip(wo[..., 2], 0.0, None)).reshape(N_CELLS)
+    w.setflags(write=False)
+    return w
 
 
 def _flat_table(table):

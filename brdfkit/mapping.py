@@ -19,13 +19,15 @@ from __future__ import annotations
 
 import json
 import os
-from typing import Iterable, Sequence
+import warnings
+from typing import Sequence
 
 import numpy as np
 
-from .atomic import atomic_path, check_input_file
+from .atomic import atomic_path
 from .errors import FormatError
-from .geometry import N_CELLS, _xp
+from .geometry import N_CELLS, TABLE_SHAPE, _xp
+from .tensorfile import open_safetensors
 
 __all__ = ["EPS", "RHO_MAX", "to_mapped", "from_mapped", "median_reference", "save_reference",
            "load_reference", "REFERENCE_FORMAT"]
@@ -84,36 +86,58 @@ def from_mapped(mapped, rho_ref):
     return xp.clip(rho, 0.0, RHO_MAX)
 
 
-def median_reference(tables: Iterable, chunk: int = 1 << 18) -> np.ndarray:
-    """Per-cell median of a set of BRDF tables (NaN cells ignored).
+def median_reference(tables) -> np.ndarray:
+    """Per-cell median of a set of BRDF tables (NaN cells ignored): the reference table
+    ``rho_ref`` of the mapping (Gokbudak et al. 2024, eq. 1).
+
+    ``np.nanmedian`` is slow; cells measured in every table (almost all of them) take a
+    sort along the material axis instead, and only the rest go through ``nanmedian``:
+    the same numbers, about 5x faster.
 
     Parameters
     ----------
     tables
-        ``(90, 90, 180, 3)`` arrays, or paths of MERL files (read one at a time).
+        ``(90, 90, 180, 3)`` arrays, or paths of MERL files (read one at a time), or the
+        tables already stacked: float32 ``(M, 90 * 90 * 180 * 3)``, NaN where not
+        measured (used as it is, not copied).
 
     Returns
     -------
     numpy.ndarray
         float32 ``(90, 90, 180, 3)``; NaN only where no table has a measurement.
-    """
-    from .merl import read_merl
 
-    stack = []
-    for t in tables:
-        arr = read_merl(t) if isinstance(t, (str, os.PathLike)) else np.asarray(t)
-        stack.append(arr.astype(np.float32).reshape(N_CELLS * 3))
-    if not stack:
+    Raises
+    ------
+    ValueError
+        No table.
+    """
+    if isinstance(tables, np.ndarray) and tables.ndim == 2:
+        stack = tables
+    else:
+        from .merl import read_merl
+
+        rows = [(read_merl(t) if isinstance(t, (str, os.PathLike)) else np.asarray(t))
+                .astype(np.float32).reshape(N_CELLS * 3) for t in tables]
+        stack = np.stack(rows) if rows else np.empty((0, N_CELLS * 3), np.float32)
+    if stack.shape[0] == 0:
         raise ValueError("median_reference needs at least one table")
-    data = np.stack(stack)
-    out = np.empty(N_CELLS * 3, dtype=np.float32)
-    # Chunked so that nanmedian's internal copies stay small.
-    import warnings
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # all-NaN cells below the horizon
-        for s in range(0, out.size, chunk):
-            out[s:s + chunk] = np.nanmedian(data[:, s:s + chunk], axis=0)
-    return out.reshape(90, 90, 180, 3)
+    m = stack.shape[0]
+    finite = np.isfinite(stack)
+    full = finite.all(axis=0)
+    out = np.full(stack.shape[1], np.nan, dtype=np.float32)
+    chunk = 1 << 19
+    for s in range(0, stack.shape[1], chunk):
+        sel = np.flatnonzero(full[s:s + chunk]) + s
+        if sel.size:
+            srt = np.sort(np.ascontiguousarray(stack[:, sel].T), axis=1)
+            # np.median's own rule: the mean of the two middle values for an even count.
+            out[sel] = srt[:, m // 2] if m % 2 else (srt[:, m // 2 - 1] + srt[:, m // 2]) / np.float32(2)
+    part = np.flatnonzero(~full & finite.any(axis=0))
+    if part.size:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            out[part] = np.nanmedian(stack[:, part], axis=0)
+    return out.reshape(TABLE_SHAPE)
 
 
 def save_reference(path: str | os.PathLike, rho_ref: np.ndarray,
@@ -122,8 +146,8 @@ def save_reference(path: str | os.PathLike, rho_ref: np.ndarray,
     from safetensors.numpy import save_file
 
     arr = np.ascontiguousarray(rho_ref, dtype=np.float32)
-    if arr.shape != (90, 90, 180, 3):
-        raise ValueError(f"reference table must have shape (90, 90, 180, 3), not {arr.shape}")
+    if arr.shape != TABLE_SHAPE:
+        raise ValueError(f"reference table must have shape {TABLE_SHAPE}, not {arr.shape}")
     meta = {"format": REFERENCE_FORMAT, "version": "1", "materials": json.dumps(list(materials))}
     with atomic_path(path) as tmp:
         save_file({"rho_ref": arr}, tmp, metadata=meta)
@@ -131,17 +155,12 @@ def save_reference(path: str | os.PathLike, rho_ref: np.ndarray,
 
 def load_reference(path: str | os.PathLike) -> np.ndarray:
     """Load a table saved by :func:`save_reference`; float32 ``(90, 90, 180, 3)``."""
-    from safetensors import SafetensorError, safe_open
-
-    path = check_input_file(path)
-    try:
-        with safe_open(path, framework="numpy") as f:
-            meta = f.metadata() or {}
-            if meta.get("format") != REFERENCE_FORMAT:
-                raise FormatError(path, f"not a brdfkit reference table (format {meta.get('format')!r})")
-            arr = f.get_tensor("rho_ref")
-    except SafetensorError as e:
-        raise FormatError(path, f"not a valid safetensors file ({e})") from None
-    if arr.shape != (90, 90, 180, 3):
-        raise FormatError(path, f"reference table has shape {arr.shape}, expected (90, 90, 180, 3)")
+    path = os.fspath(path)
+    with open_safetensors(path, framework="numpy") as f:
+        meta = f.metadata() or {}
+        if meta.get("format") != REFERENCE_FORMAT:
+            raise FormatError(path, f"not a brdfkit reference table (format {meta.get('format')!r})")
+        arr = f.get_tensor("rho_ref")
+    if arr.shape != TABLE_SHAPE:
+        raise FormatError(path, f"reference table has shape {arr.shape}, expected {TABLE_SHAPE}")
     return arr

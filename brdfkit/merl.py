@@ -21,14 +21,13 @@ import numpy as np
 
 from .atomic import atomic_path, check_input_file
 from .errors import FormatError, InputError
-from .geometry import GRID_SHAPE, N_CELLS
+from .geometry import GRID_SHAPE, N_CELLS, TABLE_SHAPE
 
-__all__ = ["MERL_SCALE", "MERL_FILE_SIZE", "read_merl", "write_merl", "is_merl_file"]
+__all__ = ["MERL_SCALE", "MERL_FILE_SIZE", "TABLE_SHAPE", "read_merl", "write_merl", "is_merl_file"]
 
 MERL_SCALE = np.array([1.0 / 1500.0, 1.15 / 1500.0, 1.66 / 1500.0])
 _HEADER_BYTES = 12
 MERL_FILE_SIZE = _HEADER_BYTES + 3 * N_CELLS * 8  # 34,992,012
-TABLE_SHAPE = GRID_SHAPE + (3,)
 
 # Multiplying by the colour scale is not injective in float64: for about 14% of stored
 # values (stored / scale) * scale != stored. So that write_merl(read_merl(f)) gives the

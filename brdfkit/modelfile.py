@@ -25,8 +25,11 @@ import os
 
 import numpy as np
 
-from .atomic import atomic_path, check_input_file
+from .atomic import atomic_path
+from .device import resolve_device
 from .errors import FormatError
+from .geometry import TABLE_SHAPE
+from .tensorfile import open_safetensors
 
 __all__ = ["MODEL_FORMAT", "MODEL_VERSION", "NeuralModel", "save_model", "load_model",
            "weights_fingerprint"]
@@ -34,8 +37,8 @@ __all__ = ["MODEL_FORMAT", "MODEL_VERSION", "NeuralModel", "save_model", "load_m
 MODEL_FORMAT = "brdfkit-model"
 MODEL_VERSION = "1"
 _PREFIX = "net."
-_REF_SHAPE = (90, 90, 180, 3)
-_HEADER_LIMIT = 100 * 1024 * 1024  # safetensors' own limit on the JSON header
+_REF_SHAPE = TABLE_SHAPE
+_MERL_HINT = " (-m takes the .safetensors file written by `brdfkit fit`)"
 
 
 @dataclasses.dataclass
@@ -139,39 +142,6 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
     return fingerprint
 
 
-def _check_header(path: str) -> None:
-    """Refuse files that are not safetensors before handing them to the parser, with a
-    message that says what they look like."""
-    size = os.path.getsize(path)
-    with open(path, "rb") as f:
-        head = f.read(8)
-        if size < 8:
-            raise FormatError(path, f"not a brdfkit model file: {size} bytes, too short for a safetensors header")
-        # A safetensors header is a JSON object right after its 8-byte length, whose low
-        # byte is 0x80 (the pickle opcode PROTO) in one file of 32: not a pickle then.
-        if (head[:1] == b"\x80" or head[:2] == b"PK") and f.read(1) != b"{":
-            raise FormatError(path, "not a brdfkit model file: this is a pickle / torch.save file, "
-                                    "which brdfkit never loads (model files are .safetensors)")
-        n = int.from_bytes(head, "little")
-        if head[:4] == b"\x5a\x00\x00\x00" and size == 34_992_012:
-            raise FormatError(path, "is a MERL BRDF table, not a brdfkit model file (-m takes the "
-                                    ".safetensors file written by `brdfkit fit`)")
-        if n > _HEADER_LIMIT or n < 2:
-            raise FormatError(path, "not a brdfkit model file: not a safetensors file (bad header length)")
-        if 8 + n > size:
-            raise FormatError(path, f"truncated: {size} bytes, the safetensors header alone needs {8 + n}")
-        try:
-            f.seek(8)
-            header = json.loads(f.read(n))
-            ends = [int(v["data_offsets"][1]) for k, v in header.items() if k != "__metadata__"]
-        except (ValueError, TypeError, KeyError, IndexError, AttributeError, UnicodeDecodeError):
-            raise FormatError(path, "not a brdfkit model file: not a safetensors file (header is not "
-                                    "safetensors JSON)") from None
-    need = 8 + n + max(ends, default=0)
-    if size < need:
-        raise FormatError(path, f"truncated: {size} bytes, its safetensors header describes {need}")
-
-
 def _check_config_sizes(cfg, n_tensors: int, n_values: int) -> None:
     """Raise ``ValueError`` unless every size in ``cfg`` could fit a file of ``n_tensors``
     tensors holding ``n_values`` numbers: each layer adds a tensor, each width a weight."""
@@ -191,14 +161,6 @@ def _check_config_sizes(cfg, n_tensors: int, n_values: int) -> None:
     for name, v in (("latent_dim", cfg.latent_dim), ("hypo_hidden", cfg.hypo_hidden),
                     ("decoder_hidden", cfg.decoder_hidden), *(("encoder_hidden", w) for w in hidden)):
         count(name, v, 1, n_values)
-
-
-def _resolve_device(device):
-    import torch
-
-    if device is None:
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(device)
 
 
 def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
@@ -223,35 +185,30 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
         or weights that do not match the recorded fingerprint. One line naming the file.
     """
     import torch
-    from safetensors import SafetensorError, safe_open
 
     from .hypernet import HyperBRDF, HyperConfig
 
-    path = check_input_file(path)
-    _check_header(path)
-    try:
-        with safe_open(path, framework="pt", device="cpu") as f:
-            md = f.metadata() or {}
-            if md.get("format") != MODEL_FORMAT:
-                raise FormatError(path, f"not a brdfkit model file (format {md.get('format')!r}, "
-                                        f"expected {MODEL_FORMAT!r})")
-            if md.get("version") != MODEL_VERSION:
-                raise FormatError(path, f"model file version {md.get('version')!r} is not supported "
-                                        f"(this brdfkit reads version {MODEL_VERSION})")
-            try:
-                cfg = HyperConfig.from_json(md["config"])
-                meta = json.loads(md.get("meta") or "{}")
-            except (KeyError, TypeError, ValueError) as e:
-                raise FormatError(path, f"bad model config in metadata ({e})") from None
-            if not isinstance(meta, dict):
-                raise FormatError(path, "bad 'meta' in metadata: not a JSON object")
-            names = set(f.keys())
-            if "rho_ref" not in names:
-                raise FormatError(path, "missing tensor 'rho_ref' (the reference table)")
-            ref = f.get_tensor("rho_ref")
-            state = {n[len(_PREFIX):]: f.get_tensor(n) for n in names if n.startswith(_PREFIX)}
-    except SafetensorError as e:
-        raise FormatError(path, f"not a valid safetensors file ({str(e).splitlines()[0]})") from None
+    path = os.fspath(path)
+    with open_safetensors(path, framework="pt", diagnose="brdfkit model file", merl_hint=_MERL_HINT) as f:
+        md = f.metadata() or {}
+        if md.get("format") != MODEL_FORMAT:
+            raise FormatError(path, f"not a brdfkit model file (format {md.get('format')!r}, "
+                                    f"expected {MODEL_FORMAT!r})")
+        if md.get("version") != MODEL_VERSION:
+            raise FormatError(path, f"model file version {md.get('version')!r} is not supported "
+                                    f"(this brdfkit reads version {MODEL_VERSION})")
+        try:
+            cfg = HyperConfig.from_json(md["config"])
+            meta = json.loads(md.get("meta") or "{}")
+        except (KeyError, TypeError, ValueError) as e:
+            raise FormatError(path, f"bad model config in metadata ({e})") from None
+        if not isinstance(meta, dict):
+            raise FormatError(path, "bad 'meta' in metadata: not a JSON object")
+        names = set(f.keys())
+        if "rho_ref" not in names:
+            raise FormatError(path, "missing tensor 'rho_ref' (the reference table)")
+        ref = f.get_tensor("rho_ref")
+        state = {n[len(_PREFIX):]: f.get_tensor(n) for n in names if n.startswith(_PREFIX)}
     if tuple(ref.shape) != _REF_SHAPE:
         raise FormatError(path, f"reference table has shape {tuple(ref.shape)}, expected {_REF_SHAPE}")
     # The config is checked against the file's own tensors before any network is built:
@@ -286,7 +243,7 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
         raise FormatError(path, f"weights do not match the recorded fingerprint "
                                 f"({str(recorded)[:12]} recorded, {fingerprint[:12]} computed): "
                                 f"the file is damaged or was altered")
-    dev = _resolve_device(device)
+    dev = resolve_device(device)
     net = net.to(dev).eval()
     for p in net.parameters():
         p.requires_grad_(False)

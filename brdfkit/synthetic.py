@@ -25,12 +25,11 @@ grazing Fresnel), which a model and a renderer must survive.
 from __future__ import annotations
 
 import dataclasses
-import functools
 import os
 
 import numpy as np
 
-from .geometry import GRID_SHAPE, grid_angles, io_from_half_diff
+from .geometry import TABLE_SHAPE, grid_directions
 
 __all__ = ["Material", "METALS", "STIFF", "evaluate", "table", "library", "write_library"]
 
@@ -146,24 +145,13 @@ def evaluate(material: Material, wi, wo) -> np.ndarray:
     return np.where(above[..., None], out, 0.0)
 
 
-@functools.lru_cache(maxsize=1)
-def _grid_directions():
-    """``(wi, wo)`` of every MERL cell, read-only; computed once (it is ~40% of the
-    cost of a table, and a library needs many tables)."""
-    th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
-    wi, wo = io_from_half_diff(th, td, pd)
-    wi.setflags(write=False)
-    wo.setflags(write=False)
-    return wi, wo
-
-
 def table(material: Material) -> np.ndarray:
     """The material on the MERL grid: ``(90, 90, 180, 3)`` float64, physical units, NaN
     below the horizon (as in measured files)."""
-    wi, wo = _grid_directions()
+    wi, wo = grid_directions()
     out = evaluate(material, wi, wo)
     out[~((wi[..., 2] > 0) & (wo[..., 2] > 0))] = np.nan
-    assert out.shape == GRID_SHAPE + (3,)
+    assert out.shape == TABLE_SHAPE
     return out
 
 

@@ -23,6 +23,7 @@ import threading
 import time
 
 from .atomic import refuse_overwrite_of_inputs
+from .device import resolve_device
 from .errors import BrdfkitError, InputError
 
 __all__ = ["fit", "TrainOptions", "TrainingError", "DEFAULT_STEPS"]
@@ -137,25 +138,6 @@ def _parse_advanced(latent_dim, advanced: dict):
     return opts, cfg
 
 
-def _resolve_device(device, local_rank: int):
-    import torch
-
-    name = "auto" if device is None else str(device)
-    if name == "auto":
-        name = "cuda" if torch.cuda.is_available() else "cpu"
-    if name.startswith("cuda"):
-        if not torch.cuda.is_available():
-            raise InputError(f"device {name!r}: no CUDA device is available (use --device cpu or auto)")
-        if name == "cuda":
-            name = f"cuda:{local_rank % torch.cuda.device_count()}"
-        dev = torch.device(name)
-        torch.cuda.set_device(dev)
-        return dev
-    if name != "cpu":
-        raise InputError(f"device {name!r}: use auto, cpu or cuda")
-    return torch.device("cpu")
-
-
 class _Dist:
     """The torch.distributed process group when launched by ``torchrun`` (``WORLD_SIZE > 1``)."""
 
@@ -168,7 +150,11 @@ class _Dist:
         self.world = int(os.environ.get("WORLD_SIZE", "1"))
         self.rank = int(os.environ.get("RANK", "0"))
         local = int(os.environ.get("LOCAL_RANK", "0"))
-        self.device = _resolve_device(device, local)
+        self.device = resolve_device(device, local_rank=local)
+        if self.device.type == "cuda":
+            import torch
+
+            torch.cuda.set_device(self.device)
         self.owned = False
         if self.world > 1:
             if not dist.is_available():
@@ -358,7 +344,7 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
 
 
 def _collect(data, exclude):
-    from .trainset import collect_materials
+    from .materials import collect_materials
     return collect_materials(data, exclude)
 
 

@@ -22,130 +22,14 @@ sweeps, so that one model serves any number of samples drawn either way.
 from __future__ import annotations
 
 import hashlib
-import os
-import warnings
-from typing import Callable, Iterable, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
 from .errors import BrdfkitError, InputError
 from .geometry import N_CELLS, N_PHI_D, N_THETA_D
 
-__all__ = ["collect_materials", "read_exclude_list", "median_reference_fast", "TrainingSet",
-           "BatchSampler"]
-
-MERL_SUFFIX = ".binary"
-
-
-def _stem(path: str) -> str:
-    base = os.path.basename(path)
-    return base[: -len(MERL_SUFFIX)] if base.endswith(MERL_SUFFIX) else os.path.splitext(base)[0]
-
-
-def collect_materials(data, exclude: Iterable[str] = ()) -> tuple[list[str], list[str], list[str], list[str]]:
-    """Expand the training inputs into a sorted, deterministic list of MERL files.
-
-    Parameters
-    ----------
-    data
-        A path or a sequence of paths: ``.binary`` files, or folders whose ``*.binary``
-        files (not recursive) are all taken.
-    exclude
-        Material names (file stems, ``.binary`` suffix optional) to hold out.
-
-    Returns
-    -------
-    tuple
-        ``(paths, names, excluded, unknown)``: the training files and their names, both
-        sorted by name; the excluded names that were found; the excluded names that
-        matched no input (worth a warning: a typo would let a test material in).
-
-    Raises
-    ------
-    InputError
-        A path that does not exist, a folder without ``.binary`` files, two different
-        files with the same name, or nothing left to train on.
-    """
-    if isinstance(data, (str, os.PathLike)):
-        data = [data]
-    found: dict[str, str] = {}
-    for item in data:
-        item = os.fspath(item)
-        if os.path.isdir(item):
-            files = sorted(os.path.join(item, f) for f in os.listdir(item)
-                           if f.endswith(MERL_SUFFIX) and not f.startswith("."))
-            if not files:
-                raise InputError(f"{item}: folder holds no {MERL_SUFFIX} files")
-        elif os.path.exists(item):
-            files = [item]
-        else:
-            raise InputError(f"{item}: no such file or folder")
-        for f in files:
-            name = _stem(f)
-            if name in found and os.path.realpath(found[name]) != os.path.realpath(f):
-                raise InputError(f"{f}: material name {name!r} also given as {found[name]}; "
-                                 f"names (file stems) must be unique")
-            found[name] = f
-    wanted_out = {_stem(e.strip()) for e in exclude if e and e.strip()}
-    excluded = sorted(wanted_out & set(found))
-    unknown = sorted(wanted_out - set(found))
-    names = sorted(n for n in found if n not in wanted_out)
-    if not names:
-        what = "all inputs are excluded" if found else "no materials given"
-        raise InputError(f"nothing to train on: {what}")
-    return [found[n] for n in names], names, excluded, unknown
-
-
-def read_exclude_list(path: str | os.PathLike) -> list[str]:
-    """Material names from a text file: one a line, ``#`` starts a comment, blank lines
-    ignored (the format of ``../shared/data/merl-test.txt``)."""
-    from .atomic import check_input_file
-
-    path = check_input_file(path)
-    try:
-        with open(path, encoding="utf-8") as f:
-            lines = f.read().splitlines()
-    except UnicodeDecodeError:
-        raise InputError(f"{path}: exclude list is not UTF-8 text") from None
-    names = [ln.split("#", 1)[0].strip() for ln in lines]
-    return [n for n in names if n]
-
-
-def median_reference_fast(stack: np.ndarray) -> np.ndarray:
-    """Per-cell median of stacked tables; the same numbers as
-    :func:`brdfkit.mapping.median_reference`, about 5x faster.
-
-    ``np.nanmedian`` is slow; cells measured in every table (almost all of them) take a
-    sort along the material axis instead, and only the rest go through ``nanmedian``.
-
-    Parameters
-    ----------
-    stack
-        float32 ``(M, 90 * 90 * 180 * 3)``, NaN where not measured.
-
-    Returns
-    -------
-    numpy.ndarray
-        float32 ``(90, 90, 180, 3)``, NaN where no table is measured.
-    """
-    m = stack.shape[0]
-    finite = np.isfinite(stack)
-    full = finite.all(axis=0)
-    out = np.full(stack.shape[1], np.nan, dtype=np.float32)
-    chunk = 1 << 19
-    for s in range(0, stack.shape[1], chunk):
-        sel = np.flatnonzero(full[s:s + chunk]) + s
-        if sel.size:
-            srt = np.sort(np.ascontiguousarray(stack[:, sel].T), axis=1)
-            # np.median's own rule: the mean of the two middle values for an even count.
-            out[sel] = srt[:, m // 2] if m % 2 else (srt[:, m // 2 - 1] + srt[:, m // 2]) / np.float32(2)
-    part = np.flatnonzero(~full & finite.any(axis=0))
-    if part.size:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            out[part] = np.nanmedian(stack[:, part], axis=0)
-    return out.reshape(90, 90, 180, 3)
-
+__all__ = ["TrainingSet", "BatchSampler"]
 
 class TrainingSet:
     """The training materials of one process, mapped and compact.
@@ -196,7 +80,7 @@ class TrainingSet:
         InputError
             No cell is measured in every training material.
         """
-        from .mapping import to_mapped
+        from .mapping import median_reference, to_mapped
         from .merl import read_merl
 
         own = list(range(rank, len(paths), world))
@@ -218,7 +102,7 @@ class TrainingSet:
             measured &= np.isfinite(flat).all(axis=1)
             stack[i] = flat.reshape(-1)
             del table, flat
-        rho_ref = median_reference_fast(stack)
+        rho_ref = median_reference(stack)
         cells = np.flatnonzero(measured).astype(np.int64)
         if cells.size == 0:
             raise InputError("no MERL cell is measured in every training material")

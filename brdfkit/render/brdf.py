@@ -19,7 +19,9 @@ import os
 
 import numpy as np
 
+from ..device import resolve_device
 from ..errors import InputError
+from ..geometry import TABLE_SHAPE
 
 __all__ = ["TableBRDF", "load_brdf", "brdf_kind"]
 
@@ -41,12 +43,11 @@ class TableBRDF:
         import torch
 
         arr = np.asarray(table)
-        if arr.shape != (90, 90, 180, 3):
-            raise InputError(f"{name}: BRDF table of shape {arr.shape}, expected (90, 90, 180, 3)")
+        if arr.shape != TABLE_SHAPE:
+            raise InputError(f"{name}: BRDF table of shape {arr.shape}, expected {TABLE_SHAPE}")
         self.name = name
         self.table = arr
-        self.device = torch.device(device) if device is not None else \
-            torch.device("cuda" if torch.cuda.is_available() else "cpu")
+        self.device = resolve_device(device)
         self._t = torch.as_tensor(np.ascontiguousarray(arr, np.float32), device=self.device)
 
     def eval_dirs(self, wi, wo):
