@@ -30,7 +30,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 
 def plan(ttq_minutes):
     return [
-        ("decode", ["decode_bound.py", "--threads", "1,2", "--repeat", "5", "--multi-repeat", "2"]),
+        ("decode", ["decode.py", "--threads", "1,2", "--repeat", "5", "--multi-repeat", "2"]),
         ("encode", ["encode_bound.py", "--repeat", "20", "--cli-repeat", "2"]),
         ("train", ["train_throughput.py", "--repeat", "5"]),
         ("render", ["render_bound.py", "--resolution", "64", "--spp", "4"]),
