@@ -128,8 +128,8 @@ def main(argv=None):
 
             flops = enc_flops + sum(f for _, f in dec)
             t = common.best_of({"network": network, "bound": bound, "module": module,
-                            "library": lambda: NeuralBRDF.from_embedding(model, api.encode(model, s))},
-                           args.repeat, warmup=2)
+                                "library": lambda: NeuralBRDF.from_embedding(model, api.encode(model, s))},
+                               args.repeat, warmup=2)
             r = {"n": n, "network_s": t["network"], "bound_mm_s": t["bound"], "library_s": t["library"],
                  "model_definition_s": t["module"],
                  "network_median_s": t["network_median"], "bound_median_s": t["bound_median"],
@@ -162,9 +162,9 @@ def main(argv=None):
         cli["load_average"] = common.load_average()
     data = {"machine": common.machine(), "goal": {"network_s_max": 0.002}, "results": results, "cli_sparse": cli}
     common.report("encode", f"Encode: N samples -> hyponet weights, {args.threads} thread(s), best of {args.repeat}",
-              ["N", "network ms", "bound (plain mm) ms", "ratio", "HyperBRDF modules ms",
-               "library (encode + weights) ms",
-               "MFLOP", "load 1/5/15"], rows, data, args.json)
+                  ["N", "network ms", "bound (plain mm) ms", "ratio", "HyperBRDF modules ms",
+                   "library (encode + weights) ms",
+                   "MFLOP", "load 1/5/15"], rows, data, args.json)
     top = ", ".join(f"{k} {v:.2f}" for k, v in cli["import_top_s"].items())
     print(f"brdfkit sparse, 400 samples, whole process (best of {args.cli_repeat}): "
           f"{cli['auto_threads_s']:.2f} s with the load-based thread choice ({chosen} thread(s)), "

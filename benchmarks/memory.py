@@ -140,8 +140,8 @@ def main(argv=None):
             "decode_no_write_peak_rss_bytes": decode_only, "import_floor_peak_rss_bytes": floor,
             "arithmetic": arithmetic}
     common.report("memory", "Peak memory (MB = 10^6 bytes)",
-              ["process", "peak RSS MB", "current RSS MB", "data arithmetic MB",
-               "9 float32 per cell per material would be MB"], rows, data, args.json)
+                  ["process", "peak RSS MB", "current RSS MB", "data arithmetic MB",
+                   "9 float32 per cell per material would be MB"], rows, data, args.json)
     return 0
 
 

@@ -146,8 +146,8 @@ def main(argv=None):
             "first_log_rmse": curve[0][2] if curve else None}
     rows = [[f"{t:.0f}", s, e, "<- stops improving" if k == i else ""] for k, (t, s, e) in enumerate(curve)]
     common.report("time_to_quality", f"Time to quality: {len(train)} synthetic materials, held-out "
-              f"log-RMSE at N = {args.n} ({', '.join(held)})",
-              ["training s", "step", "held-out brdf_log_rmse", ""], rows, data, args.json)
+                  f"log-RMSE at N = {args.n} ({', '.join(held)})",
+                  ["training s", "step", "held-out brdf_log_rmse", ""], rows, data, args.json)
     return 0
 
 

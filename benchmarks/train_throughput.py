@@ -133,7 +133,7 @@ def main(argv=None):
 
         bound, flops = gemm_bound(cfg, sampler.batch, CONTEXT, opts.query_size)
         t = common.best_of({"step": step, "bound": bound, "draw": lambda: sampler.draw(state["step"]),
-                        "fwd_bwd": model_only}, args.repeat, warmup=2)
+                            "fwd_bwd": model_only}, args.repeat, warmup=2)
         q = sampler.batch * opts.query_size
         r = {"threads": threads, "batch_materials": sampler.batch, "query": opts.query_size,
              "context": CONTEXT, "step_s": t["step"], "step_median_s": t["step_median"],
@@ -148,8 +148,8 @@ def main(argv=None):
                      " ".join(f"{v:.1f}" for v in r["load_average"])])
     data = {"machine": common.machine(), "goal": {"fraction_of_bound_min": 0.6}, "results": results}
     common.report("train", f"Training step throughput (8 x 4096 query cells, context {CONTEXT}, best of {args.repeat})",
-              ["threads", "query samples/s", "bound samples/s", "of bound", "step ms", "draw ms",
-               "fwd+bwd ms", "bound ms", "bound GFLOP/s", "load 1/5/15"], rows, data, args.json)
+                  ["threads", "query samples/s", "bound samples/s", "of bound", "step ms", "draw ms",
+                   "fwd+bwd ms", "bound ms", "bound GFLOP/s", "load 1/5/15"], rows, data, args.json)
     return 0
 
 
