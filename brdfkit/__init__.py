@@ -37,6 +37,7 @@ _API = {
     "Embedding": "brdfkit.embedding",
     "read_embedding": "brdfkit.embedding",
     "write_embedding": "brdfkit.embedding",
+    "set_torch_threads": "brdfkit.threads",
 }
 
 __all__ = sorted(_API) + ["geometry", "synthetic", "__version__"]

@@ -69,7 +69,9 @@ def set_default_threads(environ=None) -> int | None:
 def set_torch_threads(threads: int | None = None) -> int:
     """Set torch's thread count to ``threads``, by default to the idle cores (at least 1,
     at most torch's current count); returns the count set. For the command line
-    (``--threads``) and processes brdfkit starts, not for library calls.
+    (``--threads``), processes brdfkit starts, and programs using the library, once at
+    their start (``brdfkit.set_torch_threads()``, as ``examples/python_api.py`` does);
+    never called by library functions: the thread pool is the program's to choose.
 
     Measured: on the shared 2-core machine, 2 threads rendered 256 px in 42 s at load 1.8
     and 621 s at load 6.7, 1 thread in 17.5 s and 27.6 s (OpenMP threads wait for busy

@@ -36,6 +36,11 @@ def main(argv: list[str]) -> int:
     from brdfkit.neural import NeuralBRDF
     from brdfkit.synthetic import write_library
 
+    # The library leaves torch's thread pool as it is; size it to the idle cores first, as
+    # the command line does (on a busy machine torch's default of one thread per core made
+    # this script 10x slower: 104-143 s against 10.7 s; docs/performance.md).
+    brdfkit.set_torch_threads()
+
     model = brdfkit.load_model(argv[0])
     print(f"model {argv[0]}: latent {model.cfg.latent_dim}, fingerprint {model.fingerprint[:12]}, "
           f"device {model.device}")

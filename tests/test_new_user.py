@@ -224,3 +224,23 @@ def test_help_and_docs_do_not_send_users_to_a_folder_beside_the_checkout():
         text = doc.read_text()
         assert "../shared" not in text.replace("python ../shared/tools/nbrdf_to_merl.py", ""), doc
     assert "## Your data" in (REPO / "README.md").read_text()
+
+
+# --- 3. the library's thread pool ---------------------------------------------------------
+
+def test_library_offers_the_clis_thread_choice_and_the_example_uses_it():
+    """``brdfkit.set_torch_threads()``: the idle cores, as the command line chooses;
+    available without importing torch until called."""
+    code = ("import sys, brdfkit\n"
+            "f = brdfkit.set_torch_threads\n"
+            "assert 'torch' not in sys.modules\n"
+            "import torch\n"
+            "n = f()\n"
+            "assert n == torch.get_num_threads() and 1 <= n <= (__import__('os').cpu_count() or 1), n\n"
+            "assert f(1) == 1 == torch.get_num_threads()\n")
+    env = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")}
+    r = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    example = (REPO / "examples" / "python_api.py").read_text()
+    assert "brdfkit.set_torch_threads()" in example
+    assert example.index("brdfkit.set_torch_threads()") < example.index("brdfkit.load_model(")
