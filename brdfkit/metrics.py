@@ -32,7 +32,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["EXPOSURE", "PSNR_CAP", "brdf_log_rmse", "display_encode", "srgb_oetf",
-           "psnr", "delta_e_2000", "ssim", "image_metrics", "score"]
+           "psnr", "delta_e_2000", "delta_e_2000_map", "ssim", "image_metrics", "score"]
 
 EXPOSURE = 1.0
 """Fixed exposure (multiplier of linear radiance) applied before clipping to ``[0, 1]``."""
@@ -160,11 +160,19 @@ def delta_e_2000(pred, ref, mask=None) -> float:
         Mean Delta E 2000 (0 for identical display images; about 1 is a just-noticeable
         difference).
     """
+    a, b, mask = _check_pair(pred, ref, mask)
+    de = delta_e_2000_map(a, b)
+    return float(de[mask].mean() if mask is not None else de.mean())
+
+
+def delta_e_2000_map(pred, ref) -> np.ndarray:
+    """Per-pixel CIEDE2000 of two linear-sRGB images ``(H, W, 3)``: ``(H, W)``, the values
+    :func:`delta_e_2000` averages (same display encoding), e.g. for false-colour error
+    images (:mod:`brdfkit.sheet`)."""
     import colour
 
-    a, b, mask = _check_pair(pred, ref, mask)
-    de = colour.delta_E(_lab(_display_linear(a)), _lab(_display_linear(b)), method="CIE 2000")
-    return float(de[mask].mean() if mask is not None else de.mean())
+    a, b, _ = _check_pair(pred, ref, None)
+    return colour.delta_E(_lab(_display_linear(a)), _lab(_display_linear(b)), method="CIE 2000")
 
 
 def ssim(pred, ref, mask=None) -> float:

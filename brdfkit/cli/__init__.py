@@ -30,7 +30,8 @@ COMMANDS = {
     "render": "Render a BRDF in the reference scene or a Mitsuba scene.",
     "metrics": "Image and BRDF-space errors between predictions and references.",
     "bench": "Error-against-run-time benchmark of the reconstruction methods.",
-    "plot": "Plot BRDFs side by side: in-plane lobes and theta_h/theta_d slices (PNG).",
+    "plot": "Plot BRDFs side by side: in-plane lobes and slices (PNG).",
+    "compare": "Sheet of renders and error images against a reference.",
 }
 
 

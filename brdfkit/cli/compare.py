@@ -1,0 +1,52 @@
+"""``brdfkit compare``: a comparison sheet of predictions against a reference (PNG)."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from .common import model_option
+from .render import threads_option
+
+
+@click.command("compare")
+@click.argument("ref", type=click.Path(dir_okay=False))
+@click.argument("preds", nargs=-1, required=True, type=click.Path(dir_okay=False), metavar="PRED...")
+@model_option
+@click.option("--sheet", "-o", "sheet", required=True, type=click.Path(dir_okay=False),
+              help="Output PNG: renders in a row with their errors, error images below.")
+@click.option("--resolution", type=click.IntRange(min=16, max=4096), default=None,
+              help="Size of the reference-scene renders of BRDF inputs (default 256).")
+@click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
+@threads_option
+@click.option("--quiet", is_flag=True, help="No progress bars.")
+def command(ref, preds, model_path, sheet, resolution, as_json, threads, quiet):
+    """Compare predictions PRED... with the reference REF on one sheet.
+
+    REF comes first (unlike `brdfkit metrics PRED REF`). Inputs are MERL .binary tables,
+    .emb embeddings (with -m MODEL) or .exr images of the same size; BRDFs are rendered
+    in the reference scene. The sheet shows the renders in a row, each prediction
+    labelled with PSNR, Delta E 2000, SSIM and the BRDF log RMSE against REF (the
+    numbers of `brdfkit metrics`), and the per-pixel Delta E 2000 under each
+    (docs/compare.md).
+    """
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..errors import InputError
+    from ..sheet import comparison_sheet
+    from ..threads import set_torch_threads
+
+    refuse_overwrite_of_inputs(sheet, [ref, *preds, model_path])
+    if not sheet.lower().endswith(".png"):
+        raise InputError(f"{sheet}: the sheet is written as PNG; name it .png")
+    set_torch_threads(threads)
+    rows = comparison_sheet(ref, preds, sheet, model_path=model_path, resolution=resolution,
+                            progress=not quiet and not as_json)
+    if as_json:
+        click.echo(json.dumps({"reference": ref, "predictions": rows}))
+    else:
+        for label, s in rows.items():
+            extra = "" if s["brdf_log_rmse"] is None else f", BRDF log RMSE {s['brdf_log_rmse']:.4f}"
+            click.echo(f"{label}: PSNR {s['psnr']:.2f} dB, Delta E 2000 {s['delta_e']:.3f}, "
+                       f"SSIM {s['ssim']:.4f}{extra}")
+    click.echo(f"wrote {sheet}", err=True)

@@ -1,0 +1,139 @@
+"""``brdfkit plot`` and :mod:`brdfkit.plot`: lobes and slices of tables and embeddings."""
+
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from brdfkit import synthetic
+from brdfkit.geometry import GRID_SHAPE, valid_mask
+from brdfkit.merl import write_merl
+from brdfkit.plot import inplane_lobe
+
+BRDFKIT = [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+MIRROR = synthetic.Material("mirror-0.01", "conductor", 0.01, ior=synthetic.METALS["silver"][0],
+                            k=synthetic.METALS["silver"][1])
+
+
+def run_brdfkit(args, timeout=300):
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    return subprocess.run(BRDFKIT + [str(a) for a in args], env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+def _lambert(albedo=(0.6, 0.5, 0.4)):
+    t = np.empty(GRID_SHAPE + (3,))
+    t[:] = np.asarray(albedo) / math.pi
+    t[~valid_mask()] = np.nan
+    return t
+
+
+@pytest.fixture(scope="module")
+def tables(tmp_path_factory):
+    """A Lambertian table and a sharp silver mirror, as MERL files."""
+    folder = tmp_path_factory.mktemp("plot")
+    write_merl(folder / "lambert.binary", _lambert())
+    write_merl(folder / "mirror.binary", synthetic.table(MIRROR))
+    return folder
+
+
+def _png_ok(path):
+    from PIL import Image
+
+    with Image.open(path) as im:
+        assert im.format == "PNG"
+        arr = np.asarray(im.convert("RGB"), dtype=np.float64)
+    assert arr.shape[0] > 300 and arr.shape[1] > 600
+    assert arr.std() > 10  # not a blank page
+    return arr
+
+
+def test_lambertian_lobe_is_flat_and_cosine_weighted_lobe_is_a_cosine():
+    t = _lambert()
+    for theta_i in (0.0, 45.0, 80.0):
+        to, v = inplane_lobe(t, theta_i)
+        y = 0.2126 * 0.6 + 0.7152 * 0.5 + 0.0722 * 0.4
+        assert np.allclose(v, y / math.pi, rtol=1e-9)
+        _, vc = inplane_lobe(t, theta_i, channel="red", cosine=True)
+        assert np.allclose(vc, 0.6 / math.pi * np.cos(np.radians(to)), rtol=1e-9)
+
+
+@pytest.mark.parametrize("theta_i", [0.0, 30.0, 60.0])
+def test_mirror_lobe_peaks_in_the_mirror_direction(theta_i):
+    to, v = inplane_lobe(synthetic.table(MIRROR), theta_i)
+    assert abs(to[np.nanargmax(v)] - theta_i) <= 1.0
+    assert np.nanmax(v) > 100 * np.nanmedian(v)
+
+
+def test_plot_of_tables_writes_a_png_and_imports_no_torch(tables, tmp_path):
+    """Tables only: matplotlib and NumPy, no torch (checked in a fresh process)."""
+    out = tmp_path / "p.png"
+    code = ("import sys\n"
+            "from brdfkit.cli import main\n"
+            "try:\n"
+            f"    main(['plot', {str(tables / 'lambert.binary')!r}, {str(tables / 'mirror.binary')!r},"
+            f" '-o', {str(out)!r}, '--phi-d', '90,45', '--cosine'])\n"
+            "except SystemExit as e:\n"
+            "    assert not e.code, e.code\n"
+            "assert 'torch' not in sys.modules, 'torch imported'\n"
+            "assert 'matplotlib' in sys.modules\n")
+    r = subprocess.run([sys.executable, "-c", code], env={**os.environ, "OMP_NUM_THREADS": "1"},
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    assert "lambert, mirror" in r.stderr
+    _png_ok(out)
+
+
+@pytest.mark.parametrize("view", ["lobes", "slices"])
+def test_each_view_alone(tables, tmp_path, view):
+    r = run_brdfkit(["plot", tables / "mirror.binary", "-o", tmp_path / "p.png", "--view", view,
+                     "--channel", "green", "--linear"])
+    assert r.returncode == 0, r.stderr
+    from PIL import Image
+
+    with Image.open(tmp_path / "p.png") as im:
+        assert im.format == "PNG" and im.size[1] > 150
+
+
+def test_table_and_embedding_side_by_side(tables, tmp_path):
+    pytest.importorskip("torch")
+    from brdfkit import api
+    from brdfkit.embedding import write_embedding
+
+    from helpers_model import make_model
+
+    model_path = tmp_path / "model.safetensors"
+    make_model(model_path)
+    emb = api.encode(api.load_model(model_path), tables / "lambert.binary")
+    write_embedding(tmp_path / "lambert.emb", emb)
+    r = run_brdfkit(["plot", tables / "lambert.binary", tmp_path / "lambert.emb", "-m", model_path,
+                     "-o", tmp_path / "p.png"])
+    assert r.returncode == 0, r.stderr
+    assert "lambert.binary, lambert.emb" in r.stderr  # same stem: named with the extension
+    _png_ok(tmp_path / "p.png")
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{t}/lambert.binary", "{t}/x.emb"], "needs its model"),
+    (["{t}/lambert.binary", "--theta-i", "95"], "--theta-i 95"),
+    (["{t}/lambert.binary", "--phi-d", "abc"], "--phi-d"),
+    (["{t}/lambert.binary", "--decades", "0"], "--decades"),
+    (["{t}/lambert.csv"], "not a MERL table"),
+])
+def test_bad_plot_input_is_one_line(tables, tmp_path, args, message):
+    r = run_brdfkit(["plot", *[a.format(t=tables) for a in args], "-o", tmp_path / "p.png"])
+    assert r.returncode == 2 and message in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1
+    assert not (tmp_path / "p.png").exists()
+
+
+def test_bad_options_fail_before_reading_inputs(tmp_path):
+    r = run_brdfkit(["plot", tmp_path / "missing.binary", "--theta-i", "95", "-o", tmp_path / "p.png"])
+    assert r.returncode == 2 and "--theta-i" in r.stderr, r.stderr
+    r = run_brdfkit(["plot", tmp_path / "missing.binary", "-o", tmp_path / "p.jpg"])
+    assert r.returncode == 2 and ".png" in r.stderr, r.stderr

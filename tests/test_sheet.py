@@ -1,0 +1,91 @@
+"""``brdfkit compare`` and :mod:`brdfkit.sheet`: the comparison sheet."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from brdfkit import synthetic
+from brdfkit.merl import write_merl
+
+BRDFKIT = [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+
+
+def run_brdfkit(args, timeout=300):
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    return subprocess.run(BRDFKIT + [str(a) for a in args], env=env, capture_output=True, text=True,
+                          timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def materials(tmp_path_factory):
+    """Three synthetic materials as MERL files: the reference and two predictions."""
+    folder = tmp_path_factory.mktemp("sheet")
+    for m in synthetic.library(3, seed=3, stiff=False):
+        write_merl(folder / f"{m.name}.binary", synthetic.table(m))
+    return sorted(folder.glob("*.binary"))
+
+
+def test_delta_e_map_is_what_the_mean_delta_e_averages():
+    from brdfkit.metrics import delta_e_2000, delta_e_2000_map
+
+    rng = np.random.default_rng(0)
+    a, b = rng.random((8, 9, 3)) * 1.3, rng.random((8, 9, 3))
+    m = delta_e_2000_map(a, b)
+    assert m.shape == (8, 9) and (m >= 0).all()
+    assert m.mean() == pytest.approx(delta_e_2000(a, b), rel=1e-12)
+
+
+def test_sheet_scores_are_those_of_brdfkit_metrics(materials, tmp_path):
+    """The same numbers as ``brdfkit metrics PRED REF`` (the same render and score
+    functions), and a PNG with one column per input."""
+    pytest.importorskip("torch")
+    from PIL import Image
+
+    from brdfkit.compare import FileLoader, compare_files
+    from brdfkit.sheet import comparison_sheet
+
+    ref, *preds = [str(p) for p in materials]
+    rows = comparison_sheet(ref, preds + [ref], tmp_path / "s.png", resolution=16, progress=False)
+    names = [os.path.splitext(os.path.basename(p))[0] for p in preds]
+    assert list(rows)[:2] == names
+    loader = FileLoader(None, 16, progress=False)
+    for name, pred in zip(names, preds):
+        expected = compare_files(loader, pred, ref)
+        assert rows[name] == pytest.approx(expected, rel=1e-12)
+        assert rows[name]["psnr"] < 60 and rows[name]["delta_e"] > 0.1
+    same = rows[list(rows)[-1]]  # the reference against itself: the label gets its extension
+    assert same["psnr"] == 100.0 and same["delta_e"] == 0.0 and same["brdf_log_rmse"] == 0.0
+    with Image.open(tmp_path / "s.png") as im:
+        assert im.format == "PNG" and im.size[0] > 4 * 200
+        assert np.asarray(im.convert("L"), dtype=float).std() > 10
+
+
+def test_compare_command_json_and_sheet(materials, tmp_path):
+    ref, a, b = materials
+    r = run_brdfkit(["compare", ref, a, b, "--sheet", tmp_path / "s.png", "--resolution", "16", "--json"])
+    assert r.returncode == 0, r.stderr
+    out = json.loads(r.stdout)
+    assert set(out["predictions"]) == {a.stem, b.stem}
+    assert all(v["brdf_log_rmse"] > 0 for v in out["predictions"].values())
+    assert (tmp_path / "s.png").stat().st_size > 10_000
+    assert not [p for p in os.listdir(tmp_path) if p.startswith(".brdfkit-tmp")]
+
+
+@pytest.mark.parametrize("args, message", [
+    (["{ref}", "{a}", "--sheet", "{tmp}/s.jpg"], "name it .png"),
+    (["{ref}", "{a}", "--sheet", "/nonexistent/s.png"], "does not exist"),
+    (["{ref}", "{tmp}/x.emb", "--sheet", "{tmp}/s.png"], "x.emb"),
+    (["{ref}", "{a}", "--sheet", "{ref}"], "also an input"),
+])
+def test_bad_compare_input_is_one_line_before_any_render(materials, tmp_path, args, message):
+    ref, a, _ = materials
+    argv = [x.format(ref=ref, a=a, tmp=tmp_path) for x in args]
+    r = run_brdfkit(["compare", *argv, "--resolution", "16"])
+    assert r.returncode == 2 and message in r.stderr, r.stderr
+    assert r.stderr.count("\n") == 1
