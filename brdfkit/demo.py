@@ -70,18 +70,25 @@ def write_demo_library(folder: str, n: int, seed: int, out=None) -> list[str]:
 
 
 def render_psnr(resolution: int = RENDER_RESOLUTION):
-    """A function ``(pred_table, ref_table) -> PSNR dB`` over the sphere's pixels of the
-    reference scene rendered at ``resolution`` pixels by the quadrature renderer."""
+    """A function ``(pred_table, ref_table, save=None) -> PSNR dB`` over the sphere's pixels
+    of the reference scene rendered at ``resolution`` pixels by the quadrature renderer.
+
+    ``save``, a pair of path prefixes ``(prediction, reference)``, also writes each render
+    as ``PREFIX.exr`` (linear) and ``PREFIX.png`` (displayed as in ``docs/render.md``)."""
     from .metrics import psnr
     from .render.brdf import TableBRDF
+    from .render.image import write_exr, write_png
     from .render.quadrature import render
     from .render.scene import REFERENCE
 
     scene = dataclasses.replace(REFERENCE, resolution=resolution)
 
-    def score(pred, ref):
+    def score(pred, ref, save=None):
         img, mask = render(TableBRDF(pred, "reconstruction"), scene)
         ref_img, _ = render(TableBRDF(ref, "material"), scene)
+        for image, prefix in zip((img, ref_img), save or ()):
+            write_exr(prefix + ".exr", image)
+            write_png(prefix + ".png", image)
         return psnr(img, ref_img, mask=mask)
 
     return score
@@ -166,8 +173,9 @@ def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int 
     err = console()
     t_all = time.monotonic()
     out_dir = os.path.abspath(out_dir)
-    mat_dir, emb_dir, dec_dir = (os.path.join(out_dir, d) for d in ("materials", "embeddings", "decoded"))
-    for d in (out_dir, emb_dir, dec_dir):
+    mat_dir, emb_dir, dec_dir, ren_dir = (os.path.join(out_dir, d)
+                                          for d in ("materials", "embeddings", "decoded", "renders"))
+    for d in (out_dir, emb_dir, dec_dir) + ((ren_dir,) if render else ()):
         os.makedirs(d, exist_ok=True)
     err.print(f"[bold]brdfkit demo[/]: writing everything into {out_dir}")
     # brdfkit.cli.main already sized the pool to the idle cores (brdfkit.threads).
@@ -209,7 +217,9 @@ def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int 
                 # One material: a render takes tens of seconds on a CPU core.
                 err.print(f"rendering {name} and its {n}-sample reconstruction ({RENDER_RESOLUTION} px)")
                 t = time.monotonic()
-                psnr_rows.append((name, scorer(pred, table)))
+                save = (os.path.join(ren_dir, f"{name}-{n}samples"), os.path.join(ren_dir, name))
+                psnr_rows.append((name, scorer(pred, table, save=save)))
+                written += [prefix + ext for prefix in save for ext in (".png", ".exr")]
                 times.append((f"render material + reconstruction ({RENDER_RESOLUTION} px)", time.monotonic() - t))
         t = time.monotonic()
         emb = api.encode(model, table, source=name)

@@ -244,3 +244,24 @@ def test_library_offers_the_clis_thread_choice_and_the_example_uses_it():
     example = (REPO / "examples" / "python_api.py").read_text()
     assert "brdfkit.set_torch_threads()" in example
     assert example.index("brdfkit.set_torch_threads()") < example.index("brdfkit.load_model(")
+
+
+def test_demo_render_writes_its_images(tmp_path):
+    """The demo's rendered reconstruction and material are written (PNG and EXR), not
+    only scored."""
+    pytest.importorskip("torch")
+    from PIL import Image
+
+    from brdfkit.demo import render_psnr
+    from brdfkit.render.image import read_exr
+    from brdfkit.synthetic import STIFF, table
+
+    white = table(STIFF[2])
+    save = (str(tmp_path / "white-half"), str(tmp_path / "white"))
+    value = render_psnr(resolution=12)(white * 0.5, white, save=save)
+    assert 0 < value < 30
+    for prefix in save:
+        assert read_exr(prefix + ".exr").shape == (12, 12, 3)
+        with Image.open(prefix + ".png") as im:
+            assert im.format == "PNG" and im.size == (12, 12)
+    assert read_exr(save[0] + ".exr").sum() < read_exr(save[1] + ".exr").sum()

@@ -67,6 +67,8 @@ def command(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rend
         for name, v in res.psnr:
             pt.add_row(name, f"{v:.2f}")
         report.print(pt)
+        report.print(f"Renders of both (PNG to look at, EXR linear): {os.path.join(res.out_dir, 'renders')}",
+                     soft_wrap=True)
     tt = Table(title="Times")
     tt.add_column("step")
     tt.add_column("seconds", justify="right")
