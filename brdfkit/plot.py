@@ -260,7 +260,8 @@ def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
     if want_lobes:
         sub = subfigs[row]
         row += 1
-        lobes = {(lab, t): inplane_lobe(tables[lab], t, channel, cosine)[1] for lab in labels for t in theta_i}
+        lobes = {(lab, t): inplane_lobe(tables[lab], t, channel, cosine)[1]
+                 for lab in labels for t in theta_i}
         if log:
             lo, hi = _log_range(lobes.values(), decades)
         else:

@@ -17,15 +17,14 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from conftest import brdfkit_command, quiet_env
+from conftest import run_brdfkit as _run_brdfkit
+
 REPO = Path(__file__).resolve().parents[1]
-BRDFKIT = [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
 
 
-def run_brdfkit(args, env=None, timeout=300) -> subprocess.CompletedProcess:
-    """``brdfkit ARGS`` in a subprocess on one thread, output captured as text."""
-    env = {**os.environ, "OMP_NUM_THREADS": "1", **(env or {})}
-    return subprocess.run(BRDFKIT + [str(a) for a in args], env=env, capture_output=True,
-                          text=True, timeout=timeout)
+def run_brdfkit(args, timeout=300) -> subprocess.CompletedProcess:
+    return _run_brdfkit(args, timeout=timeout, env=quiet_env())
 
 
 @pytest.fixture(scope="module")
@@ -181,8 +180,8 @@ def test_fuzz_seeds_leave_nothing_in_the_temporary_folder(tmp_path):
 def test_piped_metrics_output_starts_with_the_table(library):
     """stdout and stderr into one pipe: no blank lines where progress bars were."""
     a, b = sorted(library.glob("*.binary"))
-    r = subprocess.run(BRDFKIT + ["metrics", str(a), str(b), "--resolution", "16"],
-                       env={**os.environ, "OMP_NUM_THREADS": "1"}, stdout=subprocess.PIPE,
+    r = subprocess.run(brdfkit_command() + ["metrics", str(a), str(b), "--resolution", "16"],
+                       env=quiet_env(), stdout=subprocess.PIPE,
                        stderr=subprocess.STDOUT, text=True, timeout=300)
     assert r.returncode == 0, r.stdout
     assert r.stdout.splitlines()[0].strip(), repr(r.stdout[:200])

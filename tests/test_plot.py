@@ -15,15 +15,15 @@ from brdfkit.geometry import GRID_SHAPE, valid_mask
 from brdfkit.merl import write_merl
 from brdfkit.plot import inplane_lobe
 
-BRDFKIT = [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+from conftest import quiet_env
+from conftest import run_brdfkit as _run_brdfkit
+
 MIRROR = synthetic.Material("mirror-0.01", "conductor", 0.01, ior=synthetic.METALS["silver"][0],
                             k=synthetic.METALS["silver"][1])
 
 
 def run_brdfkit(args, timeout=300):
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    return subprocess.run(BRDFKIT + [str(a) for a in args], env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    return _run_brdfkit(args, timeout=timeout, env=quiet_env())
 
 
 def _lambert(albedo=(0.6, 0.5, 0.4)):

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -13,13 +11,13 @@ import pytest
 from brdfkit import synthetic
 from brdfkit.merl import write_merl
 
-BRDFKIT = [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+from conftest import quiet_env
+from conftest import run_brdfkit as _run_brdfkit
+
 
 
 def run_brdfkit(args, timeout=300):
-    env = {**os.environ, "OMP_NUM_THREADS": "1"}
-    return subprocess.run(BRDFKIT + [str(a) for a in args], env=env, capture_output=True, text=True,
-                          timeout=timeout)
+    return _run_brdfkit(args, timeout=timeout, env=quiet_env())
 
 
 @pytest.fixture(scope="module")
