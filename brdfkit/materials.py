@@ -3,7 +3,7 @@
 A material is named by its file stem (``teflon.binary`` is ``teflon``). Training
 (:func:`collect_materials`) and the benchmark (:func:`list_materials`) both scan folders
 with :func:`scan_folder`, so they agree on which files count (``*.binary``, not hidden,
-not recursive) and on the names. Name lists (``../shared/data/merl-test.txt``: one name a
+not recursive) and on the names. Name lists (``merl-test.txt`` of ``docs/data.md``: one name a
 line, ``#`` comments) are read by :func:`read_exclude_list`.
 """
 
@@ -119,7 +119,7 @@ def list_materials(folder: str | os.PathLike, names=None) -> list[tuple[str, str
 
 def read_exclude_list(path: str | os.PathLike) -> list[str]:
     """Material names from a text file: one a line, ``#`` starts a comment, blank lines
-    ignored (the format of ``../shared/data/merl-test.txt``)."""
+    ignored (the format of ``merl-test.txt``, ``docs/data.md``)."""
     from .atomic import check_input_file
 
     path = check_input_file(path)

@@ -3,7 +3,7 @@ Representation and Importance Sampling" (Computer Graphics Forum): one small MLP
 material, here fitted to the given sparse samples only, as the hypernetwork paper
 (Gokbudak et al. 2024) compares it in the sparse setting.
 
-Network (as published, and as the networks in ``../shared/data/nbrdf``)::
+Network (as published, and as the networks behind the reference proxies, ``docs/data.md``)::
 
     (hx, hy, hz, dx, dy, dz) -> 21 -> 21 -> 3,   ReLU, ReLU,   rho = max(exp(x) - 1, 0)
 
