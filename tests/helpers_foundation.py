@@ -29,6 +29,15 @@ def measured_mask() -> np.ndarray:
     return mask
 
 
+def lambert_table(albedo) -> np.ndarray:
+    """A Lambertian table: ``albedo / pi`` (1/sr, RGB ``albedo``) on the measured cells,
+    NaN elsewhere; float64 ``(90, 90, 180, 3)``."""
+    t = np.empty(GRID_SHAPE + (3,))
+    t[:] = np.asarray(albedo, np.float64) / np.pi
+    t[~measured_mask()] = np.nan
+    return t
+
+
 def random_table(seed: int = 0) -> np.ndarray:
     """A cheap physically plausible table: log-uniform values in [1e-4, 1e3] 1/sr on the
     measured cells, NaN elsewhere; float64 ``(90, 90, 180, 3)``."""

@@ -13,17 +13,10 @@ import numpy as np
 import pytest
 
 from brdfkit.errors import BrdfkitError
-from brdfkit.geometry import GRID_SHAPE, valid_mask
 from conftest import run_brdfkit
+from helpers_foundation import lambert_table
 
 torch = pytest.importorskip("torch")
-
-
-def _lambert_table(albedo):
-    t = np.empty(GRID_SHAPE + (3,))
-    t[:] = np.asarray(albedo, np.float64) / math.pi
-    t[~valid_mask()] = np.nan
-    return t
 
 
 def test_missing_libllvm_is_a_clear_error(monkeypatch):
@@ -60,7 +53,7 @@ def lambert_file(tmp_path_factory):
     from brdfkit.merl import write_merl
 
     folder = tmp_path_factory.mktemp("mitsuba")
-    write_merl(folder / "lambert.binary", _lambert_table([0.6, 0.5, 0.4]))
+    write_merl(folder / "lambert.binary", lambert_table([0.6, 0.5, 0.4]))
     return folder / "lambert.binary"
 
 
@@ -97,7 +90,7 @@ def test_plugin_from_dict_with_registered_source(mi):
     from brdfkit.render.brdf import TableBRDF
     from brdfkit.render.mitsuba_plugin import register_source, render_scene
 
-    key = register_source(TableBRDF(_lambert_table([0.3, 0.3, 0.9]), device="cpu"))
+    key = register_source(TableBRDF(lambert_table([0.3, 0.3, 0.9]), device="cpu"))
     scene = mi.load_string(_furnace_xml(f'<bsdf type="brdfkit"><string name="source" value="{key}"/></bsdf>'))
     d = {"type": "scene", "integrator": {"type": "path", "max_depth": 2, "hide_emitters": True},
          "sensor": {"type": "orthographic",

@@ -13,17 +13,10 @@ import numpy as np
 import pytest
 
 from brdfkit.errors import FormatError, InputError
-from brdfkit.geometry import GRID_SHAPE, valid_mask
 from conftest import run_brdfkit
+from helpers_foundation import lambert_table
 
 torch = pytest.importorskip("torch")
-
-
-def _lambert_table(albedo):
-    t = np.empty(GRID_SHAPE + (3,))
-    t[:] = np.asarray(albedo, np.float64) / math.pi
-    t[~valid_mask()] = np.nan
-    return t
 
 
 class _Analytic:
@@ -94,7 +87,7 @@ def test_lambert_uniform_environment_closed_form():
 
     albedo = np.array([0.2, 0.5, 0.8])
     radiance = np.array([1.5, 1.0, 0.5])
-    img, mask = quadrature.render(TableBRDF(_lambert_table(albedo), device="cpu"), Scene(resolution=16),
+    img, mask = quadrature.render(TableBRDF(lambert_table(albedo), device="cpu"), Scene(resolution=16),
                                   env=uniform_envmap(radiance))
     assert mask.sum() > 100 and (img[~mask] == 0).all()
     np.testing.assert_allclose(img[mask], np.broadcast_to(albedo * radiance, img[mask].shape), rtol=1e-3)
@@ -218,7 +211,7 @@ def lambert_file(tmp_path_factory):
     from brdfkit.merl import write_merl
 
     folder = tmp_path_factory.mktemp("brdfs")
-    write_merl(folder / "lambert.binary", _lambert_table([0.6, 0.5, 0.4]))
+    write_merl(folder / "lambert.binary", lambert_table([0.6, 0.5, 0.4]))
     return folder / "lambert.binary"
 
 
