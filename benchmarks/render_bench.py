@@ -83,8 +83,9 @@ def main(argv=None) -> int:
 
     _, mask = scene.pixel_normals()
     small = Scene(resolution=16)
-    q = timed(lambda: quadrature.render(brdf, scene), lambda: quadrature.render(brdf, small))
-    n = quadrature.render_pixels.last_evaluations
+    stats = quadrature.RenderStats()
+    q = timed(lambda: quadrature.render(brdf, scene, stats=stats), lambda: quadrature.render(brdf, small))
+    n = stats.evaluations
     q.update(evaluations=n, object_pixels=int(mask.any(2).sum()),
              evaluations_per_pixel=n / max(1, int(mask.any(2).sum())),
              us_per_evaluation=1e6 * q["min_s"] / max(1, n))
@@ -163,12 +164,12 @@ def accuracy(threads: int) -> dict:
     out = {"default_vs_fine": {}, "fine_vs_brute_force": {}, "fine_quadrature": FINE}
     for m in mats:
         brdf = TableBRDF(synthetic.table(m), m.name, device="cpu")
-        a, _ = quadrature.render(brdf, Scene(resolution=32))
-        n_default = quadrature.render_pixels.last_evaluations
-        b, _ = quadrature.render(brdf, Scene(resolution=32, quadrature=fine_q))
+        sa, sb = quadrature.RenderStats(), quadrature.RenderStats()
+        a, _ = quadrature.render(brdf, Scene(resolution=32), stats=sa)
+        b, _ = quadrature.render(brdf, Scene(resolution=32, quadrature=fine_q), stats=sb)
         out["default_vs_fine"][m.name] = {
             "psnr": metrics.psnr(a, b), "delta_e": metrics.delta_e_2000(a, b),
-            "evaluations": [n_default, quadrature.render_pixels.last_evaluations]}
+            "evaluations": [sa.evaluations, sb.evaluations]}
     env = reference_envmap()
     normals = np.array([[0.0, 0.0, 1.0], [0.5, 0.5, 0.7071], [-0.693, -0.047, 0.719], [-0.153, -0.96, 0.233]])
     normals /= np.linalg.norm(normals, axis=1, keepdims=True)

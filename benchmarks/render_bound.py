@@ -9,7 +9,7 @@ same whatever its weights):
 
 * ``render``: :func:`brdfkit.render.quadrature.render` of the reference scene at
   ``--resolution`` (256 is the scene's own; the driver uses 128 on a busy 2-core
-  machine), with ``render_pixels.last_evaluations``, the BRDF evaluations it needed;
+  machine), with ``RenderStats.evaluations``, the BRDF evaluations it needed;
 * the **bound**: ``eval_dirs`` on that many random direction pairs, in blocks of
   262,144: what the render would cost if the quadrature itself were free;
 * ``mitsuba``: :func:`brdfkit.render.mitsuba_plugin.render_reference` at ``--spp``,
@@ -78,9 +78,10 @@ def main(argv=None):
             wi = wo = None
             for _ in range(args.repeat):  # render, bound, render, bound, ...
                 t0 = time.perf_counter()
-                quadrature.render(brdf, scene)
+                stats = quadrature.RenderStats()
+                quadrature.render(brdf, scene, stats=stats)
                 times.append(time.perf_counter() - t0)
-                n = quadrature.render_pixels.last_evaluations
+                n = stats.evaluations
                 if wi is None:
                     wi, wo = pairs(n)
                 t0 = time.perf_counter()

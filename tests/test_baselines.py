@@ -350,3 +350,32 @@ def test_registry_hypernet_is_api_sparse(library, tmp_path):
     np.testing.assert_array_equal(method.reconstruct(samples, model), api.sparse(model, samples)[0])
     with pytest.raises(InputError, match="needs a hypernetwork model"):
         method.reconstruct(samples)
+
+
+def test_registry_options_and_one_call(basis, library, tmp_path):
+    """Each method's options dataclass holds its defaults and refuses what it does not
+    take; ``reconstruct(samples, method=...)`` is the method's own call."""
+    from brdfkit.methods import reconstruct
+    from brdfkit.methods.ipca import DEFAULT_LAMBDA
+    from brdfkit.methods.nbrdf import DEFAULT_STEPS
+
+    assert get_method("ipca").defaults() == {"lam": DEFAULT_LAMBDA}
+    assert get_method("nbrdf").defaults()["steps"] == DEFAULT_STEPS
+    assert get_method("hypernet").defaults() == {}
+    assert get_method("nbrdf").make_options(steps=None, lr=0.01).steps == DEFAULT_STEPS
+    with pytest.raises(InputError, match="'ipca' takes the option.*lam, got lr"):
+        get_method("ipca").make_options(lr=1.0)
+    with pytest.raises(InputError, match="'hypernet' takes no options"):
+        get_method("hypernet").make_options(lam=1.0)
+    with pytest.raises(InputError, match="lam"):
+        get_method("ipca").make_options(lam=-1.0)
+    path = tmp_path / "basis.safetensors"
+    basis.save(path)
+    samples = draw_samples(library[1], 300, seed=4)
+    np.testing.assert_array_equal(reconstruct(samples, method="ipca", model=path, lam=0.5),
+                                  basis.reconstruct(samples, lam=0.5))
+    with pytest.raises(InputError, match="unknown method"):
+        reconstruct(samples, method="pca")
+    assert [n for n, m in METHODS.items() if m.fit_fn is not None] == ["hypernet", "ipca"]
+    with pytest.raises(InputError, match="has no model to fit"):
+        get_method("nbrdf").fit([], tmp_path / "x.safetensors")

@@ -232,3 +232,18 @@ def test_ctrl_c_during_write_leaves_no_temp_file(tmp_path):
     for name in os.listdir(out):
         assert is_merl_file(out / name)
     assert seen_tmp, "no temporary file seen: the interrupt did not land during a write"
+
+
+def test_library_imports_nothing_from_the_cli():
+    # Data flows one way: the command line imports the library, never the reverse.
+    import re
+
+    root = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "brdfkit")
+    pattern = re.compile(r"^\s*(from\s+(brdfkit\.cli|\.+cli)\b|import\s+brdfkit\.cli\b)", re.M)
+    offenders = []
+    for folder, _, files in os.walk(root):
+        if os.path.relpath(folder, root).split(os.sep)[0] == "cli":
+            continue
+        offenders += [os.path.join(folder, f) for f in files
+                      if f.endswith(".py") and pattern.search(open(os.path.join(folder, f)).read())]
+    assert offenders == []

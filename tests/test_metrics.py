@@ -126,3 +126,16 @@ def test_image_metric_bad_inputs():
         metrics.delta_e_2000(bad, img)
     with pytest.raises(InputError, match="no pixel"):
         metrics.ssim(img, img, np.zeros(img.shape[:2], bool))
+
+
+def test_score_is_what_bench_and_the_metrics_command_report():
+    img = _image(4, 32, 32) * 0.7
+    table = np.full(GRID_SHAPE + (3,), 0.2)
+    table[~valid_mask()] = np.nan
+    got = metrics.score(img, img, table, table)
+    assert got == {"psnr": metrics.PSNR_CAP, "delta_e": 0.0, "ssim": pytest.approx(1.0), "brdf_log_rmse": 0.0}
+    noisy = img + np.random.default_rng(0).normal(0, 0.05, img.shape)
+    got = metrics.score(noisy, img)
+    assert got["brdf_log_rmse"] is None
+    assert got["psnr"] == metrics.psnr(noisy, img) < metrics.PSNR_CAP
+    assert got["ssim"] == metrics.ssim(noisy, img) and got["delta_e"] == metrics.delta_e_2000(noisy, img)

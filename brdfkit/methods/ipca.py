@@ -52,7 +52,6 @@ unless given (see ``docs/baselines.md`` for how it was chosen).
 from __future__ import annotations
 
 import dataclasses
-import functools
 import json
 import os
 from typing import Iterable, Sequence
@@ -61,7 +60,7 @@ import numpy as np
 
 from ..atomic import atomic_path, check_input_file
 from ..errors import FormatError, InputError
-from ..geometry import GRID_SHAPE, N_CELLS, grid_angles, io_from_half_diff, lookup_trilinear
+from ..geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff, lookup_trilinear
 from .method import Method, MethodOptions
 
 __all__ = ["IpcaModel", "IpcaOptions", "fit_ipca", "fit_ipca_files", "load_ipca", "METHOD", "IPCA_FORMAT",
@@ -80,16 +79,6 @@ def cosine_weight(theta_h, theta_d, phi_d) -> np.ndarray:
     Rusinkiewicz angles (radians, broadcastable); float64 of the broadcast shape."""
     wi, wo = io_from_half_diff(theta_h, theta_d, phi_d)
     return np.clip(wi[..., 2], 0.0, None) * np.clip(wo[..., 2], 0.0, None)
-
-
-@functools.lru_cache(maxsize=1)
-def _grid_weight() -> np.ndarray:
-    """``cosine_weight`` at every MERL cell, flat ``(N_CELLS,)``, read-only (cached:
-    every decode needs it and it costs more than the decode itself)."""
-    th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
-    w = cosine_weight(th, td, pd).reshape(N_CELLS)
-    w.flags.writeable = False
-    return w
 
 
 @dataclasses.dataclass
@@ -193,7 +182,7 @@ class IpcaModel:
         ref = self.reference[:, None].astype(np.float64)
         # expm1 form of exp(x') (x_ref + eps) - eps: exact where x' ~ 0 and x_ref ~ 0.
         x = np.expm1(mapped.astype(np.float64)) * (ref + EPS) + ref
-        w = _grid_weight()[self.cells]
+        w = grid_cosine_weight()[self.cells]
         out = np.full((N_CELLS, 3), np.nan)
         out[self.cells] = np.clip(x / w[:, None], 0.0, None)
         return out.reshape(GRID_SHAPE + (3,))
@@ -206,7 +195,7 @@ class IpcaModel:
         """Least-squares coefficients ``(K, 3)`` of a dense table over all basis cells it
         measures (no regulariser): the best this basis can do for that material."""
         flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[self.cells]
-        w = _grid_weight()[self.cells]
+        w = grid_cosine_weight()[self.cells]
         ok = np.isfinite(flat).all(axis=1)
         b = np.log((np.clip(flat[ok], 0, None) * w[ok, None] + EPS) /
                    (self.reference[ok, None].astype(np.float64) + EPS)) - self.mean[ok, None]
@@ -257,7 +246,7 @@ def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
     if n_components > rows - 1:
         raise InputError(f"{n_components} PCA components need at least {n_components + 1} training "
                          f"channel vectors (3 per material), got {len(items)} material(s)")
-    w_all = _grid_weight()
+    w_all = grid_cosine_weight()
     cand = np.flatnonzero(w_all > 0)  # cells where both directions are above the horizon
     w = w_all[cand].astype(np.float32)
     data = np.empty((rows, cand.size), dtype=np.float32)
@@ -318,28 +307,21 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
         Not a safetensors file, another format or version, missing or inconsistent
         tensors, non-finite values.
     """
-    from safetensors import SafetensorError, safe_open
+    from ..tensorfile import open_safetensors
 
     path = check_input_file(path)
-    try:
-        with safe_open(path, framework="numpy") as f:
-            meta = f.metadata() or {}
-            if meta.get("format") != IPCA_FORMAT:
-                raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
-                                        f"expected {IPCA_FORMAT!r})")
-            if meta.get("version") != IPCA_VERSION:
-                raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
-                                        f"(this brdfkit reads version {IPCA_VERSION})")
-            missing = [k for k in _TENSORS if k not in f.keys()]
-            if missing:
-                raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
-            t = {k: f.get_tensor(k) for k in _TENSORS}
-    except FormatError:  # our own, raised above (a ValueError too): not to be wrapped again
-        raise
-    except SafetensorError as e:
-        raise FormatError(path, f"not a valid safetensors file ({e})") from None
-    except (OSError, ValueError) as e:
-        raise FormatError(path, f"not a valid safetensors file ({e})") from None
+    with open_safetensors(path) as f:
+        meta = f.metadata() or {}
+        if meta.get("format") != IPCA_FORMAT:
+            raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
+                                    f"expected {IPCA_FORMAT!r})")
+        if meta.get("version") != IPCA_VERSION:
+            raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
+                                    f"(this brdfkit reads version {IPCA_VERSION})")
+        missing = [k for k in _TENSORS if k not in f.keys()]
+        if missing:
+            raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
+        t = {k: f.get_tensor(k) for k in _TENSORS}
     cells, comp = t["cells"], t["components"]
     p = cells.shape[0] if cells.ndim == 1 else -1
     if (cells.ndim != 1 or comp.ndim != 2 or comp.shape[1] != p or t["reference"].shape != (p,)

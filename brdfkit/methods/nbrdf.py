@@ -26,13 +26,13 @@ from __future__ import annotations
 
 import copy
 import dataclasses
-import functools
 import time
 
 import numpy as np
 
+from ..device import resolve_device
 from ..errors import InputError
-from ..geometry import GRID_SHAPE, N_CELLS, cell_angles, hd_vectors, valid_mask
+from ..geometry import GRID_SHAPE, N_CELLS, grid_hd, valid_cells
 from ..threads import torch_threads
 from .method import Method, MethodOptions
 
@@ -50,14 +50,6 @@ _CHECK_EVERY = 10
 _MAX_LOG = 30.0
 
 
-def _device(device):
-    import torch
-
-    if device is None:
-        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
-    return torch.device(device)
-
-
 def _make_net(seed: int):
     import torch
     from torch import nn
@@ -66,17 +58,6 @@ def _make_net(seed: int):
         torch.manual_seed(seed)
         return nn.Sequential(nn.Linear(6, HIDDEN), nn.ReLU(), nn.Linear(HIDDEN, HIDDEN), nn.ReLU(),
                              nn.Linear(HIDDEN, 3))
-
-
-@functools.lru_cache(maxsize=1)
-def _grid_inputs():
-    """Flat indices ``(P,)`` of the cells MERL can measure and their HD vectors
-    ``(P, 6)`` float32 (cached, read-only: every dense decode needs them)."""
-    cells = np.flatnonzero(valid_mask().reshape(-1))
-    hd = hd_vectors(*cell_angles(cells)).astype(np.float32)
-    cells.flags.writeable = False
-    hd.flags.writeable = False
-    return cells, hd
 
 
 def _rho(net, hd):
@@ -138,11 +119,11 @@ class NbrdfModel:
         either direction is below the horizon (the cells MERL never measures)."""
         import torch
 
-        cells, hd = _grid_inputs()
+        cells, hd = valid_cells(), grid_hd()
         out = np.full((N_CELLS, 3), np.nan)
         with torch.no_grad():
             for s in range(0, cells.size, block):
-                x = torch.from_numpy(hd[s:s + block].copy()).to(self.device)
+                x = torch.from_numpy(hd[cells[s:s + block]]).to(self.device)
                 out[cells[s:s + block]] = _rho(self.net, x).cpu().numpy()
         return out.reshape(GRID_SHAPE + (3,))
 
@@ -181,7 +162,7 @@ def fit_nbrdf(samples, steps: int = DEFAULT_STEPS, seed: int = 0, lr: float = DE
         raise InputError(f"number of NBRDF training steps must be at least 1, got {steps}")
     if not (lr > 0 and np.isfinite(lr)):
         raise InputError(f"NBRDF learning rate must be a positive number, got {lr}")
-    dev = _device(device)
+    dev = resolve_device(device)
     # The network's matrices (N x 21) are far too small for intra-op parallelism: more
     # OpenMP threads only add synchronisation, and on a busy machine their spin-waits
     # dominate (measured: 500 steps at N = 4000 took 2.5 s with 1 thread and 22.6 s with 2

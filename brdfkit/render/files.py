@@ -69,8 +69,9 @@ def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mi
         with ProgressBar(f"Mitsuba {brdf.name}", enabled=progress) as bar:
             img = render_reference(brdf, scene, spp=n, progress=bar if progress else None)
         return img, f"Mitsuba reference scene, {n} spp"
-    from .quadrature import render, render_pixels
+    from .quadrature import RenderStats, render
 
+    stats = RenderStats()
     with ProgressBar(f"quadrature {brdf.name}", enabled=progress) as bar:
-        img, _ = render(brdf, scene, progress=bar if progress else None)
-    return img, f"quadrature, {render_pixels.last_evaluations:,} BRDF evaluations"
+        img, _ = render(brdf, scene, progress=bar if progress else None, stats=stats)
+    return img, f"quadrature, {stats.evaluations:,} BRDF evaluations"

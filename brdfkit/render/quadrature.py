@@ -44,7 +44,7 @@ share of the cosine-weighted hemisphere exactly: ``sum w s_B cos / pi`` to the t
 ``integral s_B0 cos / pi`` (a function of ``theta_o`` only, minus the part the light
 nodes hold), the cosine nodes to the rest. This makes the quadrature exact for a
 constant BRDF under any environment that is constant outside the light rectangles, and
-changes the weights by well under 1% otherwise (``render_pixels.last_scale_range``).
+changes the weights by well under 1% otherwise (:attr:`RenderStats.scale_range`).
 
 The BRDF is evaluated only at the queried direction pairs above the horizon with a
 non-zero share (``brdf.eval_dirs``: a trilinear table lookup or the hyponet itself),
@@ -54,18 +54,36 @@ the BRDF's device.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 
 import numpy as np
 
 from .scene import REFERENCE, Quadrature, Scene
 
-__all__ = ["NodeSet", "render", "render_pixels"]
+__all__ = ["NodeSet", "RenderStats", "render", "render_pixels"]
 
 # Pairs (pixel x node) per block: large enough to amortise Python, small enough for cache.
 BLOCK_PAIRS = 1 << 17
 # Sub-grid per light patch for its averaged radiance.
 _PATCH_SUBGRID = 8
+
+
+@dataclasses.dataclass
+class RenderStats:
+    """What a render did, filled in by :func:`render_pixels` when passed one.
+
+    Attributes
+    ----------
+    evaluations
+        BRDF evaluations made.
+    scale_range
+        ``(min, max)`` of the per-pixel normalisation factors of the half-vector and
+        cosine nodes (``(1, 1)`` when none applied).
+    """
+
+    evaluations: int = 0
+    scale_range: tuple = (1.0, 1.0)
 
 
 def _concentric(a, b):
@@ -272,7 +290,7 @@ class _Nodes:
 
 
 def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | None = None,
-                  progress=None):
+                  progress=None, stats: RenderStats | None = None):
     """Direct lighting of surface points with world normals ``normals``.
 
     Parameters
@@ -289,13 +307,14 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
         Quadrature settings (default: the reference scene's).
     progress
         Optional callable ``progress(done_points, total_points)``.
+    stats
+        Optional :class:`RenderStats`, filled in with the BRDF evaluations made and the
+        range of the normalisation factors.
 
     Returns
     -------
     numpy.ndarray
-        float32 ``(P, 3)`` outgoing radiance. ``render_pixels.last_evaluations`` holds
-        the number of BRDF evaluations made, ``render_pixels.last_scale_range`` the range
-        of the normalisation factors.
+        float32 ``(P, 3)`` outgoing radiance.
     """
     import torch
 
@@ -375,29 +394,28 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
             out[s:s + p].index_add_(0, pix, radiance * f * weight[:, None])
             if progress is not None:
                 progress(min(total, s + p), total)
-    render_pixels.last_evaluations = evaluations
-    render_pixels.last_scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
+    if stats is not None:
+        stats.evaluations = evaluations
+        stats.scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
     return out.float().cpu().numpy()
 
 
-render_pixels.last_evaluations = 0
-render_pixels.last_scale_range = (1.0, 1.0)
-
-
-def render(brdf, scene: Scene = REFERENCE, env=None, progress=None):
+def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: RenderStats | None = None):
     """Render the reference scene.
 
     Parameters
     ----------
     brdf
         Object with ``eval_dirs`` (:class:`~brdfkit.render.brdf.TableBRDF`,
-        :class:`~brdfkit.neural.NeuralBRDF`).
+        :class:`~brdfkit.model.brdf.NeuralBRDF`).
     scene
         :class:`~brdfkit.render.scene.Scene` (resolution, quadrature).
     env
         Environment (default :func:`~brdfkit.render.envmap.reference_envmap`).
     progress
         Optional callable ``progress(done_pixels, total_pixels)``.
+    stats
+        Optional :class:`RenderStats` to fill in (see :func:`render_pixels`).
 
     Returns
     -------
@@ -411,5 +429,6 @@ def render(brdf, scene: Scene = REFERENCE, env=None, progress=None):
     env = env if env is not None else reference_envmap()
     normals, inside = scene.pixel_normals()
     samples = np.zeros(normals.shape, np.float32)
-    samples[inside] = render_pixels(brdf, normals[inside], env, q=scene.quadrature, progress=progress)
+    samples[inside] = render_pixels(brdf, normals[inside], env, q=scene.quadrature, progress=progress,
+                                    stats=stats)
     return samples.mean(2), inside.any(2)
