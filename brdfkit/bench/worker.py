@@ -127,6 +127,19 @@ class Worker:
         out["render_s"] = render_s
         return out
 
+    def _timed(self, rec: dict, table, ref_img, reconstruct) -> dict:
+        """``rec`` with the wall and CPU time of ``reconstruct()`` (``time_s``, ``cpu_s``)
+        and the scores of the table it returns, or with the ``error`` it raised."""
+        try:
+            t0, c0 = time.perf_counter(), time.process_time()
+            recon = reconstruct()
+            rec["time_s"] = time.perf_counter() - t0
+            rec["cpu_s"] = time.process_time() - c0
+            rec.update(self.score(recon, table, ref_img))
+        except Exception as e:
+            rec["error"] = error_text(e)
+        return rec
+
     def run(self, kind: str, name: str, path: str) -> list[dict]:
         """The records of one material: ``kind`` ``"sparse"`` or ``"compression"``."""
         fn = self.sparse_material if kind == "sparse" else self.compression_material
@@ -170,18 +183,11 @@ class Worker:
                                 for m in cfg.methods]
                     continue
                 for m in cfg.methods:
-                    rec = dict(base, method=m, n=int(k), seed=s, sample_seed=draw)
-                    try:
-                        self._warm_up(m, table)
-                        t0, c0 = time.perf_counter(), time.process_time()
-                        recon = self.methods[m].reconstruct(samples, self.models[m], seed=s,
-                                                            device=self.device, options=self.options[m])
-                        rec["time_s"] = time.perf_counter() - t0
-                        rec["cpu_s"] = time.process_time() - c0
-                        rec.update(self.score(recon, table, ref_img))
-                    except Exception as e:
-                        rec["error"] = error_text(e)
-                    records.append(rec)
+                    self._warm_up(m, table)
+                    records.append(self._timed(
+                        dict(base, method=m, n=int(k), seed=s, sample_seed=draw), table, ref_img,
+                        lambda m=m, s=s: self.methods[m].reconstruct(samples, self.models[m], seed=s,
+                                                                     device=self.device, options=self.options[m])))
         return records
 
     def compression_material(self, name: str, path: str) -> list[dict]:
@@ -196,16 +202,9 @@ class Worker:
                                    [(label, dim) for label, dim, _, _ in self.compressors])
         records = []
         for label, dim, method, model in self.compressors:
-            rec = dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ()))
-            try:
-                t0, c0 = time.perf_counter(), time.process_time()
-                recon = method.compress_fn(model, table, name)
-                rec["time_s"] = time.perf_counter() - t0
-                rec["cpu_s"] = time.process_time() - c0
-                rec.update(self.score(recon, table, ref_img))
-            except Exception as e:
-                rec["error"] = error_text(e)
-            records.append(rec)
+            records.append(self._timed(
+                dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ())), table,
+                ref_img, lambda method=method, model=model: method.compress_fn(model, table, name)))
         return records
 
 
