@@ -201,3 +201,23 @@ def test_summary_spreads():
     assert row["psnr_sd_seeds"] == pytest.approx(np.std([15.0, 17.0], ddof=1))
     assert row["psnr_sd_materials"] == pytest.approx(np.std([11.0, 21.0], ddof=1))
     assert (row["count"], row["failures"], row["materials"]) == (4, 1, 2)
+
+
+def test_methods_model_files_and_options_by_name(setup, tmp_path):
+    """A method's model file and options come by method name (``--model-file``, ``-O``),
+    so a new method of brdfkit.methods needs no new bench field."""
+    from brdfkit.errors import InputError
+    from brdfkit.methods.nbrdf import DEFAULT_STEPS
+
+    base = dict(output=str(tmp_path / "o"), data=str(setup["lib"]), n=(40,), seeds=1)
+    cfg = BenchConfig(**base, methods=("ipca", "nbrdf"), models={"ipca": str(setup["basis"])},
+                      options={"nbrdf": {"lr": 0.005}})
+    cfg.validate()
+    assert cfg.model_file("ipca") == str(setup["basis"]) and cfg.model_file("nbrdf") is None
+    assert cfg.method_options("nbrdf").lr == 0.005 and cfg.method_options("nbrdf").steps == DEFAULT_STEPS
+    for kwargs, message in ((dict(methods=("nbrdf",), models={"nbrdf": str(setup["basis"])}), "takes no model file"),
+                            (dict(methods=("ipca",)), "method 'ipca' needs --ipca FILE"),
+                            (dict(methods=("nbrdf",), options={"nbrdf": {"lam": 1.0}}), "takes the option"),
+                            (dict(methods=("nbrdf",), options={"nbrdf": {"steps": 0}}), "steps must be")):
+        with pytest.raises(InputError, match=message):
+            BenchConfig(**base, **kwargs).validate()

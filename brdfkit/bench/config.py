@@ -37,6 +37,10 @@ class BenchConfig:
         skips the sparse benchmark.
     model, ipca
         Hypernetwork model and PCA basis files (needed by the methods that use them).
+    models
+        Model files of any method by name, ``{method: path}`` (``--model-file
+        NAME=FILE``); a method's ``bench_option`` field (``model``, ``ipca``) is used
+        when it has no entry here.
     n, seeds, first_seed, methods
         Sample counts, number of draws per (material, N) (seeds ``first_seed ..
         first_seed + seeds - 1``; a later run with other seeds can be merged, see
@@ -67,6 +71,7 @@ class BenchConfig:
     test_list: str | None = None
     model: str | None = None
     ipca: str | None = None
+    models: dict = dataclasses.field(default_factory=dict)
     n: tuple = DEFAULT_N
     seeds: int = 3
     first_seed: int = 0
@@ -83,11 +88,12 @@ class BenchConfig:
     command: str = ""
 
     def model_file(self, method: str) -> str | None:
-        """The model file of a method (the field its ``bench_option`` names)."""
+        """The model file of a method: :attr:`models`, else the field its
+        ``bench_option`` names."""
         from ..methods import get_method
 
         option = get_method(method).bench_option
-        return getattr(self, option) if option else None
+        return self.models.get(method) or (getattr(self, option) if option else None)
 
     def compressors(self) -> list:
         """``(method, model file)`` of the compression benchmark: the hypernetwork models
@@ -134,7 +140,11 @@ class BenchConfig:
             for m in self.methods:
                 method = get_method(m)
                 if method.needs_model and not self.model_file(m):
-                    raise InputError(f"method {m!r} needs --{method.bench_option} FILE ({method.model_kind})")
+                    flag = f"--{method.bench_option} FILE" if method.bench_option else f"--model-file {m}=FILE"
+                    raise InputError(f"method {m!r} needs {flag} ({method.model_kind})")
+        for m in self.models:
+            if not get_method(m).needs_model:
+                raise InputError(f"--model-file: method {m!r} takes no model file")
         for m, opts in self.options.items():
             get_method(m).make_options(**opts)
         if self.compression_models and not self.compression_data:
@@ -147,7 +157,7 @@ class BenchConfig:
             raise InputError(f"--jobs must be at least 1, got {self.jobs}")
         if self.threads is not None and self.threads < 1:
             raise InputError(f"--threads must be at least 1, got {self.threads}")
-        for f in [self.model, self.ipca, self.test_list, *self.compression_models]:
+        for f in [self.model, self.ipca, self.test_list, *self.compression_models, *self.models.values()]:
             if f:
                 check_input_file(f)
         for d in (self.data, self.compression_data):

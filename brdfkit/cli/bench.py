@@ -5,6 +5,7 @@ from __future__ import annotations
 import click
 
 from ..errors import InputError
+from .common import parse_option
 
 
 def _int_list(value: str, name: str) -> tuple:
@@ -30,6 +31,9 @@ def _str_list(value: str | None) -> tuple:
               help="Hypernetwork model (.safetensors) for the method 'hypernet'.")
 @click.option("--ipca", type=click.Path(dir_okay=False), default=None,
               help="PCA basis (.safetensors, `brdfkit fit --method ipca`) for 'ipca' and the compression reference.")
+@click.option("--model-file", "model_files", multiple=True, metavar="METHOD=FILE",
+              help="The model file of any method that needs one (repeatable); -m and --ipca are "
+                   "the same for hypernet and ipca.")
 @click.option("--n", "n_list", default="40,160,400,2000,4000", show_default=True,
               help="Sample counts N, comma-separated.")
 @click.option("--seeds", type=int, default=3, show_default=True,
@@ -51,6 +55,8 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--device", default=None, help="Torch device (default: CUDA when present, else CPU).")
 @click.option("--nbrdf-steps", type=int, default=None, help="Most optimiser steps of the NBRDF baseline.")
 @click.option("--ipca-lambda", type=float, default=None, help="Ridge weight of the PCA baseline.")
+@click.option("-O", "--option", "method_options", multiple=True, metavar="METHOD.KEY=VALUE",
+              help="An option of a method, e.g. nbrdf.lr=0.005 (repeatable; see docs/baselines.md).")
 @click.option("--group-by-prefix", is_flag=True,
               help="Also summarise per family: the material name up to its first '-' (merl-*, rgl-*).")
 @click.option("--cache", type=click.Path(file_okay=False), default=None,
@@ -63,8 +69,8 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--allow-incomplete", is_flag=True,
               help="With --merge: also merge interrupted runs (the materials every run finished).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def command(data, test_list, model, ipca, n_list, seeds, first_seed, methods, compression_models, compression_data,
-            resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, group_by_prefix, cache, merge, output,
+def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed, methods, compression_models, compression_data,
+            resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, method_options, group_by_prefix, cache, merge, output,
             allow_incomplete, quiet):
     """Measure reconstruction error against run time (and compression error).
 
@@ -86,12 +92,25 @@ def command(data, test_list, model, ipca, n_list, seeds, first_seed, methods, co
         console().print(f"merged {len(merge)} runs: wrote {', '.join(result['outputs'])}")
         return
 
-    cfg = BenchConfig(output=output, data=data, test_list=test_list, model=model, ipca=ipca,
+    options = {m: o for m, o in (("nbrdf", {"steps": nbrdf_steps}), ("ipca", {"lam": ipca_lambda}))
+               if None not in o.values()}
+    for item in method_options:
+        key, value = parse_option(item)
+        method, dot, name = key.partition(".")
+        if not dot or not method or not name:
+            raise InputError(f"-O {item!r}: expected METHOD.KEY=VALUE, e.g. nbrdf.lr=0.005")
+        options.setdefault(method, {})[name] = value
+    models = {}
+    for item in model_files:
+        name, sep, path = item.partition("=")
+        if not sep or not name.strip() or not path:
+            raise InputError(f"--model-file {item!r}: expected METHOD=FILE")
+        models[name.strip()] = path
+    cfg = BenchConfig(output=output, data=data, test_list=test_list, model=model, ipca=ipca, models=models,
                       n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed, methods=_str_list(methods),
                       compression_models=_str_list(compression_models), compression_data=compression_data,
                       resolution=resolution, jobs=jobs, threads=threads, device=device,
-                      options={m: o for m, o in (("nbrdf", {"steps": nbrdf_steps}), ("ipca", {"lam": ipca_lambda}))
-                               if None not in o.values()},
+                      options=options,
                       group_by_prefix=group_by_prefix,
                       cache=cache, command="brdfkit bench " + shlex.join(sys.argv[2:] if len(sys.argv) > 1
                                                                          and sys.argv[1] == "bench" else []))
