@@ -207,8 +207,8 @@ def untrained_model(tmpdir: str, latent_dim: int = 40, device="cpu", config: dic
     import torch
 
     from brdfkit import api, synthetic
-    from brdfkit.hypernet import HyperBRDF, HyperConfig
-    from brdfkit.modelfile import save_model
+    from brdfkit.model.network import HyperBRDF, HyperConfig
+    from brdfkit.model.file import save_model
 
     table = synthetic.table(synthetic.STIFF[2])
     torch.manual_seed(0)

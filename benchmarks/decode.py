@@ -10,7 +10,7 @@ Issue 7, item 1. By default measures, per torch thread count:
 * ``write_merl`` alone;
 * the **bound**: a plain ``torch.mm`` chain with the hyponet's shapes (``6 -> 60 x 4 ->
   3``, hence the same FLOP count) over the same cells in the same cache-sized blocks
-  (:data:`brdfkit.neural.DECODE_BLOCK`), nothing else: no bias, ReLU, mapping or table;
+  (:data:`brdfkit.model.kernels.DECODE_BLOCK`), nothing else: no bias, ReLU, mapping or table;
 * for context: the same chain unblocked (one ``(60, 1.1 M)`` activation: memory-bound)
   and the fp32 rate of a cache-resident 256^3 ``mm``.
 
@@ -58,19 +58,19 @@ def main(argv=None):
                    help="wall and CPU times of decode, dense encode and eval_dirs instead of the bound")
     p.add_argument("--model", help="model file; default: an untrained default-architecture model")
     p.add_argument("--device", default="cpu")
-    p.add_argument("--decode-block", type=int, default=None, help="override neural.DECODE_BLOCK")
-    p.add_argument("--encode-chunk", type=int, default=None, help="override neural.ENCODE_CHUNK")
+    p.add_argument("--decode-block", type=int, default=None, help="override kernels.DECODE_BLOCK")
+    p.add_argument("--encode-chunk", type=int, default=None, help="override kernels.ENCODE_CHUNK")
     p.add_argument("--json", default=None)
     args = p.parse_args(argv)
     if args.repeat is None:
         args.repeat = 9 if args.per_operation else 7
 
-    from brdfkit import neural
+    from brdfkit.model import kernels
 
     if args.decode_block:
-        neural.DECODE_BLOCK = args.decode_block
+        kernels.DECODE_BLOCK = args.decode_block
     if args.encode_chunk:
-        neural.ENCODE_CHUNK = args.encode_chunk
+        kernels.ENCODE_CHUNK = args.encode_chunk
     if args.threads is None:  # 0: leave torch's choice
         args.threads = "0" if args.per_operation else "1,2"
     threads = [int(t) for t in args.threads.split(",") if t]
@@ -98,13 +98,15 @@ def _embedding(model):
 def against_bound(model, thread_counts, args, tmp) -> int:
     import numpy as np
 
-    from brdfkit import api, neural
-    from brdfkit.hypernet import hyponet_shapes
+    from brdfkit import api
+    from brdfkit.model import kernels
+    from brdfkit.model.brdf import NeuralBRDF
+    from brdfkit.model.network import hyponet_shapes
     from brdfkit.merl import write_merl
 
     rows, results = [], []
     emb = _embedding(model)
-    nb = neural.NeuralBRDF.from_embedding(model, emb)
+    nb = NeuralBRDF.from_embedding(model, emb)
     cells = int(np.isfinite(model.rho_ref).all(-1).sum())
     shapes = hyponet_shapes(model.cfg)
     out_path = os.path.join(tmp, "decoded.binary")
@@ -113,7 +115,7 @@ def against_bound(model, thread_counts, args, tmp) -> int:
 
     for threads in thread_counts:
         common.set_threads(threads)
-        blocked, flops = common.mm_chain(shapes, cells, neural.DECODE_BLOCK, device=device)
+        blocked, flops = common.mm_chain(shapes, cells, kernels.DECODE_BLOCK, device=device)
         naive, _ = common.mm_chain(shapes, cells, cells, device=device)
         load_before = common.load_average()
         fns = {"decode": nb.to_table, "bound": blocked,
@@ -126,7 +128,7 @@ def against_bound(model, thread_counts, args, tmp) -> int:
         t.setdefault("decode_write", float("nan"))
         t.setdefault("write", float("nan"))
         peak = common.peak_gemm(device)
-        r = {"threads": threads, "cells": cells, "flops": flops, "block": neural.DECODE_BLOCK,
+        r = {"threads": threads, "cells": cells, "flops": flops, "block": kernels.DECODE_BLOCK,
              "decode_s": t["decode"], "decode_median_s": t["decode_median"],
              "decode_write_s": t["decode_write"], "write_s": t["write"],
              "bound_blocked_mm_s": t["bound"], "bound_median_s": t["bound_median"],
@@ -154,8 +156,9 @@ def per_operation(model, table, thread_counts, repeat) -> int:
     import numpy as np
     import torch
 
-    from brdfkit import api, neural
-    from brdfkit.neural import NeuralBRDF
+    from brdfkit import api
+    from brdfkit.model import kernels
+    from brdfkit.model.brdf import NeuralBRDF
 
     def timed(fn):
         fn()  # warm-up: caches, allocator, lazy init
@@ -182,8 +185,8 @@ def per_operation(model, table, thread_counts, repeat) -> int:
         load = os.getloadavg()[0] if hasattr(os, "getloadavg") else float("nan")
         print(f"device {model.device}, torch threads {torch.get_num_threads()}, "
               f"{os.cpu_count()} CPUs, load average {load:.1f}; hyponet {model.cfg.hypo_hidden} x "
-              f"{model.cfg.hypo_layers}, latent {model.cfg.latent_dim}, decode block {neural.DECODE_BLOCK}, "
-              f"encode chunk {neural.ENCODE_CHUNK}")
+              f"{model.cfg.hypo_layers}, latent {model.cfg.latent_dim}, decode block {kernels.DECODE_BLOCK}, "
+              f"encode chunk {kernels.ENCODE_CHUNK}")
         for name, n, fn in (("decode (to_table)", f"{cells:,} cells", nb.to_table),
                             ("encode dense table", f"{cells:,} cells", lambda: api.encode(model, table)),
                             ("eval_dirs", "262,144 pairs", lambda: nb.eval_dirs(wi, wo))):

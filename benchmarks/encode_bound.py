@@ -6,7 +6,7 @@ rounds, one torch thread unless ``--threads``:
 
 * ``network``: the library's encoder on ``N`` samples (mapping of the sample values,
   set encoder, mean) and the hypernetwork decoder to the hyponet weights
-  (``neural._encode_arrays``, ``neural._hyponet_weights``): the part the goal (under
+  (``kernels.encode_mean``, ``kernels.hyponet_weights``): the part the goal (under
   2 ms for ``N <= 4000``) is about; ``HyperBRDF modules``: the same through the
   ``nn.Module`` definition (``net.encoder``, ``net.hyponet_weights``), for comparison;
 * ``library``: ``api.encode(model, SampleSet)`` then ``NeuralBRDF.from_embedding``: the
@@ -43,7 +43,7 @@ NS = (40, 100, 400, 1000, 4000)
 
 
 def _decoder_shapes(cfg):
-    from brdfkit.hypernet import hyponet_shapes
+    from brdfkit.model.network import hyponet_shapes
 
     hidden = [cfg.decoder_hidden] * cfg.decoder_layers
     nets = []
@@ -89,8 +89,9 @@ def main(argv=None):
     import torch
 
     common.set_threads(args.threads)
-    from brdfkit import api, neural
-    from brdfkit.neural import NeuralBRDF
+    from brdfkit import api
+    from brdfkit.model import kernels
+    from brdfkit.model.brdf import NeuralBRDF
     from brdfkit.samples import draw_samples, write_samples
 
     rows, results = [], []
@@ -111,12 +112,12 @@ def main(argv=None):
 
             hd = s.hd()
             rgb = np.asarray(s.rgb, dtype=np.float64)
-            ref = neural.reference_at(model, s.theta_h, s.theta_d, s.phi_d)
+            ref = model.reference_at(s.theta_h, s.theta_d, s.phi_d)
 
             def network():
-                z = neural._encode_arrays(model, hd, rgb, ref)
+                z = kernels.encode_mean(model, hd, rgb, ref)
                 with torch.inference_mode():
-                    return neural._hyponet_weights(model, torch.from_numpy(z)[None])
+                    return kernels.hyponet_weights(model, torch.from_numpy(z)[None])
 
             enc_chain, enc_flops = common.mm_chain(enc_shapes, n, n, feature_major=False)
             dec = [common.mm_chain(sh, 1, 1, feature_major=False) for sh in dec_shapes]

@@ -100,7 +100,7 @@ def main(argv=None):
         out = os.path.join(tmp, "m.binary")
         decode = child_peak("import sys; from brdfkit.cli import main; "
                             f"main(['decode', {emb_path!r}, '-m', {model_path!r}, '-o', {out!r}])")
-        floor = child_peak("import torch, brdfkit.api, brdfkit.neural, brdfkit.merl")
+        floor = child_peak("import torch, brdfkit.api, brdfkit.model.brdf, brdfkit.merl")
         # load_model + grid_hd + to_table without the write: where the decode's memory goes.
         decode_only = child_peak(
             "import brdfkit.api as a; from brdfkit.embedding import read_embedding; "

@@ -4,7 +4,7 @@ evaluations alone; and a Mitsuba render with the ``brdfkit`` plugin, per sample 
 Issue 7, item 4 (the render engineer's ``benchmarks/render_bench.py`` times the same
 calls; this script adds the bound and the neural BRDF). For a dense table
 (:class:`~brdfkit.render.brdf.TableBRDF`, synthetic ``stiff-white``) and a neural BRDF
-(:class:`~brdfkit.neural.NeuralBRDF` of an untrained default model: the hyponet costs the
+(:class:`~brdfkit.model.brdf.NeuralBRDF` of an untrained default model: the hyponet costs the
 same whatever its weights):
 
 * ``render``: :func:`brdfkit.render.quadrature.render` of the reference scene at
@@ -45,7 +45,7 @@ def main(argv=None):
 
     common.set_threads(args.threads)
     from brdfkit.embedding import Embedding
-    from brdfkit.neural import NeuralBRDF
+    from brdfkit.model.brdf import NeuralBRDF
     from brdfkit.render import quadrature
     from brdfkit.render.brdf import TableBRDF
     from brdfkit.render.scene import Scene

@@ -129,7 +129,7 @@ def section_csv(folder):
 
 def section_config(folder):
     from brdfkit.errors import FormatError
-    from brdfkit.modelfile import load_model
+    from brdfkit.model.file import load_model
 
     _, path, _ = common.untrained_model(folder, config=common.TINY_CONFIG, name="m.safetensors")
     raw = open(path, "rb").read()
@@ -187,7 +187,8 @@ def section_extrapolate(folder, steps=300):
 
     from brdfkit import api
     from brdfkit.mapping import RHO_MAX
-    from brdfkit.neural import NeuralBRDF, grid_hd
+    from brdfkit.geometry import grid_hd
+    from brdfkit.model.brdf import NeuralBRDF
     from brdfkit.samples import draw_samples
 
     model, _ = _fit(folder, os.path.join(folder, "x.safetensors"), steps)
@@ -197,7 +198,7 @@ def section_extrapolate(folder, steps=300):
     for t in (-1000.0, -100.0, -10.0, -3.0, 0.5, 3.0, 10.0, 100.0, 1000.0):
         nb = NeuralBRDF.from_embedding(model, api.interpolate(a, b, t, allow_extrapolation=True))
         with torch.no_grad():
-            peak = float(nb._mapped(probe).max())
+            peak = float(nb.mapped(probe).max())
         table = nb.to_table()
         v = table[np.isfinite(model.rho_ref).all(-1)]
         print(f"  t = {t:7g}: largest mapped value {peak:8.3g} (expm1 overflows float32 past 88.7), "

@@ -68,10 +68,11 @@ def main(argv=None):
     from brdfkit import api, synthetic
     from brdfkit.checkpoint import load_checkpoint
     from brdfkit.errors import BrdfkitError
-    from brdfkit.hypernet import HyperBRDF, HyperConfig
+    from brdfkit.model.network import HyperBRDF, HyperConfig
     from brdfkit.merl import read_merl
     from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.modelfile import NeuralModel, weights_fingerprint
+    from brdfkit.model.file import weights_fingerprint
+    from brdfkit.model.loaded import NeuralModel
     from brdfkit.samples import draw_samples
     from brdfkit.mapping import median_reference as median_reference_fast
 

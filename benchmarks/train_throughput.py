@@ -34,7 +34,7 @@ def gemm_bound(cfg, batch, context, query):
     ``mm``/``bmm`` calls with preallocated outputs."""
     import torch
 
-    from brdfkit.hypernet import hyponet_shapes
+    from brdfkit.model.network import hyponet_shapes
 
     g = torch.Generator().manual_seed(0)
     ops = []  # (kind, A, B, out)
@@ -80,7 +80,8 @@ def main(argv=None):
     import numpy as np
     import torch
 
-    from brdfkit import hypernet, synthetic
+    from brdfkit import synthetic
+    from brdfkit.model import network as hypernet
     from brdfkit.geometry import N_CELLS
     from brdfkit.mapping import to_mapped
     from brdfkit.training import TrainOptions

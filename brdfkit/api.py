@@ -34,15 +34,15 @@ def load_model(path: str | os.PathLike, device=None):
     Parameters
     ----------
     path
-        File written by ``brdfkit fit`` / :func:`brdfkit.modelfile.save_model`.
+        File written by ``brdfkit fit`` / :func:`brdfkit.model.file.save_model`.
     device
         ``torch.device`` or string; ``None``: CUDA when available, else CPU.
 
     Returns
     -------
-    brdfkit.modelfile.NeuralModel
+    brdfkit.model.loaded.NeuralModel
     """
-    from .modelfile import load_model as _load
+    from .model.file import load_model as _load
 
     return _load(path, device)
 
@@ -78,7 +78,7 @@ def encode(model, samples_or_table, *, source: str = "") -> Embedding:
     Parameters
     ----------
     model
-        :class:`~brdfkit.modelfile.NeuralModel` (from :func:`load_model`).
+        :class:`~brdfkit.model.loaded.NeuralModel` (from :func:`load_model`).
     samples_or_table
         A :class:`~brdfkit.samples.SampleSet` (any ``N >= 1``), a dense table
         ``(90, 90, 180, 3)`` in 1/sr with NaN where unmeasured (all measured cells are
@@ -93,7 +93,7 @@ def encode(model, samples_or_table, *, source: str = "") -> Embedding:
         float32 latent of the model's size, with the model's fingerprint and the number
         of samples averaged.
     """
-    from .neural import encode_samples, encode_table
+    from .model.encoding import encode_samples, encode_table
 
     data, name = _load_input(samples_or_table, source)
     if isinstance(data, np.ndarray):
@@ -120,7 +120,7 @@ def decode(model, embedding, *, source: str = "") -> np.ndarray:
         float64 ``(90, 90, 180, 3)``, 1/sr, NaN where the model's reference table is
         unmeasured (below the horizon).
     """
-    from .neural import NeuralBRDF
+    from .model.brdf import NeuralBRDF
 
     name = source
     if isinstance(embedding, (str, os.PathLike)):

@@ -45,7 +45,7 @@ class Embedding:
         float32 ``(L,)``.
     model_fingerprint
         sha256 hex of the weights of the model that made it
-        (:func:`brdfkit.modelfile.weights_fingerprint`).
+        (:func:`brdfkit.model.file.weights_fingerprint`).
     source
         Where the material came from (a file name), for provenance.
     sample_count
@@ -166,7 +166,7 @@ def check_compatible(emb: Embedding, model, name: str = "") -> None:
     emb
         The embedding.
     model
-        A :class:`brdfkit.modelfile.NeuralModel`.
+        A :class:`brdfkit.model.loaded.NeuralModel`.
     name
         How to call the embedding in the message (its file name), optional.
 

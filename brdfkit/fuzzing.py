@@ -75,8 +75,8 @@ def model_seed() -> bytes:
     import torch
 
     from brdfkit import synthetic
-    from brdfkit.hypernet import HyperBRDF, HyperConfig
-    from brdfkit.modelfile import save_model
+    from brdfkit.model.network import HyperBRDF, HyperConfig
+    from brdfkit.model.file import save_model
 
     path = os.path.join(_seed_folder(), "model.safetensors")
     torch.manual_seed(0)
@@ -132,7 +132,7 @@ def merl_seed() -> bytes:
 
 
 def _read_model(path):
-    from brdfkit.modelfile import load_model
+    from brdfkit.model.file import load_model
 
     return load_model(path, "cpu")
 

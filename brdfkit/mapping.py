@@ -29,8 +29,8 @@ from .errors import FormatError
 from .geometry import N_CELLS, TABLE_SHAPE, _xp
 from .tensorfile import open_safetensors
 
-__all__ = ["EPS", "RHO_MAX", "to_mapped", "from_mapped", "median_reference", "save_reference",
-           "load_reference", "REFERENCE_FORMAT"]
+__all__ = ["EPS", "RHO_MAX", "to_mapped", "from_mapped", "mapping_record", "median_reference",
+           "save_reference", "load_reference", "REFERENCE_FORMAT"]
 
 EPS = 0.002
 # The largest BRDF value from_mapped returns (1/sr): 150 times the brightest cell of a GGX
@@ -43,6 +43,13 @@ RHO_MAX = 1e10
 _MAPPED_MAX = float(np.log1p((RHO_MAX + EPS) / EPS))
 REFERENCE_FORMAT = "brdfkit-reference"
 _SNAP = EPS * 2.0 ** -40
+
+
+def mapping_record() -> dict:
+    """This mapping as model files record it (JSON): ``{"name": "log-relative",
+    "formula": ..., "eps": 0.002}``. A model decodes correctly only with the mapping it
+    was trained with."""
+    return {"name": "log-relative", "formula": "ln((rho + eps) / (rho_ref + eps) + 1)", "eps": EPS}
 
 
 def to_mapped(rho, rho_ref):

@@ -2,7 +2,7 @@
 
 :func:`fit` reads the training tables (:class:`brdfkit.trainset.TrainingSet`), builds the
 reference table of the mapping (per-cell median of the training materials, eq. 1), and
-optimises :class:`brdfkit.hypernet.HyperBRDF` with the paper's loss (eq. 3) on batches
+optimises :class:`brdfkit.model.network.HyperBRDF` with the paper's loss (eq. 3) on batches
 drawn on the fly (:class:`brdfkit.trainset.BatchSampler`): per step ``B`` materials, each
 with a query set for the loss and a separate context set of random size for the encoder,
 so that one model serves any number of samples. Adam, gradient clipping, non-finite steps
@@ -87,7 +87,7 @@ class TrainOptions:
 
 def _parse_advanced(latent_dim, advanced: dict):
     """Split ``**advanced`` into :class:`TrainOptions` and a :class:`HyperConfig`."""
-    from .hypernet import HyperConfig
+    from .model.network import HyperConfig
 
     opt_fields = {f.name: f for f in dataclasses.fields(TrainOptions)}
     cfg_fields = {f.name: f for f in dataclasses.fields(HyperConfig)}
@@ -273,7 +273,7 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
         A ``.binary`` file or folder, or a sequence of them (folders: their ``*.binary``
         files). Materials are named by file stem and sorted by name.
     output
-        Model file to write (``.safetensors``, via :func:`brdfkit.modelfile.save_model`);
+        Model file to write (``.safetensors``, via :func:`brdfkit.model.file.save_model`);
         the checkpoint goes to ``<output>.ckpt``.
     latent_dim
         Embedding size (40 as in the paper; 7 for compression).
@@ -292,7 +292,7 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
     progress
         Show a progress bar and messages on stderr (rank 0 only).
     **advanced
-        :class:`TrainOptions` fields and :class:`~brdfkit.hypernet.HyperConfig` fields
+        :class:`TrainOptions` fields and :class:`~brdfkit.model.network.HyperConfig` fields
         (architecture), e.g. ``query_size=256, hypo_hidden=16`` for tiny tests.
 
     Returns
@@ -352,9 +352,9 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
            resume, progress, t_start):
     import torch
 
-    from . import hypernet
+    from .model import network
     from .checkpoint import check_resumable, load_checkpoint, save_checkpoint
-    from .modelfile import save_model, weights_fingerprint
+    from .model.file import save_model, weights_fingerprint
     from .trainset import BatchSampler, TrainingSet
 
     rank, world, device = dist.rank, dist.world, dist.device
@@ -382,7 +382,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
         raise TrainingError("the processes computed different reference tables from the same data")
 
     torch.manual_seed(seed)  # same initial weights on every rank
-    net = hypernet.HyperBRDF(cfg).to(device)
+    net = network.HyperBRDF(cfg).to(device)
     opt = torch.optim.Adam(net.parameters(), lr=opts.lr)
     step, elapsed_before, skipped, resumed_from = 0, 0.0, 0, []
     if state is not None:
@@ -447,7 +447,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
                 ctx_hd, ctx_val, q_hd, q_val, q_cos = sampler.draw(step)
                 opt.zero_grad(set_to_none=True)
                 pred, weights, z = model(ctx_hd, ctx_val, q_hd)
-                total, mse = hypernet.hyper_loss(pred, q_val, q_cos, weights, z, cfg)
+                total, mse = network.hyper_loss(pred, q_val, q_cos, weights, z, cfg)
                 total.backward()
                 gnorm = torch.nn.utils.clip_grad_norm_(net.parameters(), opts.grad_clip)
                 local_bad = ~(torch.isfinite(total.detach()) & torch.isfinite(gnorm))

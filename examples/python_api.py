@@ -33,7 +33,7 @@ def main(argv: list[str]) -> int:
 
     import brdfkit
     from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.neural import NeuralBRDF
+    from brdfkit.model.brdf import NeuralBRDF
     from brdfkit.synthetic import write_library
 
     # The library leaves torch's thread pool as it is; size it to the idle cores first, as

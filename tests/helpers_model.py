@@ -2,7 +2,7 @@
 
 Not a conftest: plain functions imported by the test modules that need them. Models are
 untrained (the tests check plumbing, invariances and formats, not accuracy), saved with
-the real :func:`brdfkit.modelfile.save_model` and loaded with the real loader.
+the real :func:`brdfkit.model.file.save_model` and loaded with the real loader.
 """
 
 from __future__ import annotations
@@ -34,8 +34,8 @@ def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) ->
     paper's default architecture) and return its fingerprint."""
     import torch
 
-    from brdfkit.hypernet import HyperBRDF, HyperConfig
-    from brdfkit.modelfile import save_model
+    from brdfkit.model.network import HyperBRDF, HyperConfig
+    from brdfkit.model.file import save_model
 
     torch.manual_seed(seed)
     cfg = HyperConfig(**(TINY_CONFIG if config is None else config))

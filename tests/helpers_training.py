@@ -33,7 +33,7 @@ def mapped_mse_and_log_rmse(net, rho_ref, table, n_samples=200, n_cells=100_000,
     import torch
 
     from brdfkit.geometry import N_CELLS, cell_angles, cell_index, hd_vectors
-    from brdfkit.hypernet import hyponet_forward
+    from brdfkit.model.network import hyponet_forward
     from brdfkit.mapping import from_mapped, to_mapped
     from brdfkit.metrics import brdf_log_rmse
     from brdfkit.samples import draw_samples

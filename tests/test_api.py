@@ -18,7 +18,8 @@ from brdfkit.errors import InputError, ModelMismatchError
 from brdfkit.geometry import N_CELLS, cell_angles, io_from_half_diff
 from brdfkit.mapping import from_mapped
 from brdfkit.merl import write_merl
-from brdfkit.neural import NeuralBRDF, grid_hd, reference_at
+from brdfkit.geometry import grid_hd
+from brdfkit.model.brdf import NeuralBRDF
 from brdfkit.samples import SampleSet, draw_samples, write_samples
 
 from helpers_model import make_model, material_table
@@ -67,7 +68,7 @@ def test_encoder_matches_model_definition(models, table):
 
     m = models["default"]
     s = draw_samples(table, 300, seed=5)
-    ref = reference_at(m, s.theta_h, s.theta_d, s.phi_d)
+    ref = m.reference_at(s.theta_h, s.theta_d, s.phi_d)
     hd = torch.tensor(s.hd(), dtype=torch.float32)[None]
     mapped = torch.tensor(to_mapped(s.rgb, ref), dtype=torch.float32)[None]
     with torch.no_grad():
@@ -76,7 +77,7 @@ def test_encoder_matches_model_definition(models, table):
 
 
 def test_chunking_does_not_change_the_embedding(models, table, monkeypatch):
-    import brdfkit.neural as neural
+    import brdfkit.model.kernels as neural
 
     m = models["tiny"]
     s = draw_samples(table, 5000, seed=2)
@@ -129,12 +130,12 @@ def test_reference_at_grid_and_between(models):
     flat = m.rho_ref.reshape(-1, 3)
     idx = np.flatnonzero(np.isfinite(flat).all(1))[::9973]
     th, td, pd = cell_angles(idx)
-    np.testing.assert_array_equal(reference_at(m, th, td, pd), flat[idx].astype(np.float64))
+    np.testing.assert_array_equal(m.reference_at(th, td, pd), flat[idx].astype(np.float64))
     # Halfway between two measured phi_d cells: the mean of the two.
     ok = np.isfinite(flat).all(1)
     i = next(k for k in idx if k % 180 < 179 and ok[k + 1])
     a = cell_angles(np.array([i]))
-    mid = reference_at(m, a[0], a[1], a[2] + np.pi / 360)
+    mid = m.reference_at(a[0], a[1], a[2] + np.pi / 360)
     np.testing.assert_allclose(mid[0], (flat[i] + flat[i + 1]) / 2, rtol=1e-5)
 
 
@@ -146,7 +147,7 @@ def test_reference_fallback_where_unmeasured(tmp_path):
     make_model(tmp_path / "m.safetensors", rho_ref=ref)
     m = api.load_model(tmp_path / "m.safetensors", "cpu")
     th, td, pd = cell_angles(np.array([60 * 16200 + 100, 2 * 16200 + 7]))
-    got = reference_at(m, th, td, pd)
+    got = m.reference_at(th, td, pd)
     np.testing.assert_allclose(got[0], [0.5, 0.5, 0.5])   # median: 6 of 10 rows are 0.5
     np.testing.assert_allclose(got[1], [0.1, 0.1, 0.1])   # its own cell
 
@@ -163,8 +164,8 @@ def test_decode_shape_nan_pattern_non_negative(models, table):
 
 
 def test_decode_matches_model_definition(models, table):
-    """The blocked 2-D addmm decode equals hypernet.hyponet_forward (batched baddbmm)."""
-    from brdfkit.hypernet import hyponet_forward
+    """The blocked 2-D addmm decode equals network.hyponet_forward (batched baddbmm)."""
+    from brdfkit.model.network import hyponet_forward
 
     m = models["default"]
     e = api.encode(m, draw_samples(table, 500, seed=4))

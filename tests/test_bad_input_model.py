@@ -25,8 +25,8 @@ def test_model_whose_header_length_starts_with_0x80_loads(tmp_path):
     # refused as a pickle; brdfkit.training had to pad its metadata to avoid it.
     import torch
 
-    from brdfkit.hypernet import HyperBRDF, HyperConfig
-    from brdfkit.modelfile import load_model, save_model
+    from brdfkit.model.network import HyperBRDF, HyperConfig
+    from brdfkit.model.file import load_model, save_model
 
     torch.manual_seed(0)
     net = HyperBRDF(HyperConfig(latent_dim=3, encoder_hidden=(4,), hypo_hidden=4, hypo_layers=1,
@@ -98,7 +98,7 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
     import json
     import re
 
-    from brdfkit.modelfile import load_model
+    from brdfkit.model.file import load_model
 
     def edit(header):
         cfg = json.loads(header["__metadata__"]["config"])
@@ -132,7 +132,7 @@ def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
     # two-line messages. BrdfkitError now prints every non-printable character as a space.
     from brdfkit.errors import FormatError
     from brdfkit.mapping import load_reference, save_reference
-    from brdfkit.modelfile import load_model
+    from brdfkit.model.file import load_model
 
     from conftest import run_brdfkit
 

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from brdfkit.merl import read_merl
-from brdfkit.modelfile import load_model
+from brdfkit.model.file import load_model
 from brdfkit.mapping import median_reference
 
 from conftest import brdfkit_command, quiet_env, tiny_cli_options, tmp_leftovers

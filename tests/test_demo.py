@@ -13,7 +13,7 @@ from rich.console import Console
 from brdfkit.demo import choose_holdout, render_psnr, write_demo_library
 from brdfkit.embedding import read_embedding
 from brdfkit.merl import read_merl
-from brdfkit.modelfile import load_model
+from brdfkit.model.file import load_model
 
 from conftest import brdfkit_command, quiet_env, tiny_cli_options
 

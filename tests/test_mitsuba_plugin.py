@@ -151,7 +151,7 @@ def test_neural_brdf_in_mitsuba(mi, tmp_path):
     from helpers_model import make_model, material_table
 
     from brdfkit.api import encode, load_model
-    from brdfkit.neural import NeuralBRDF
+    from brdfkit.model.brdf import NeuralBRDF
     from brdfkit.render.mitsuba_plugin import render_reference
     from brdfkit.render.scene import Scene
 

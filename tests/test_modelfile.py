@@ -5,14 +5,15 @@ from __future__ import annotations
 import json
 import os
 import pickle
+import re
 
 import numpy as np
 import pytest
 import torch
 
 from brdfkit.errors import FormatError, InputError
-from brdfkit.hypernet import HyperBRDF, HyperConfig
-from brdfkit.modelfile import MODEL_FORMAT, load_model, save_model, weights_fingerprint
+from brdfkit.model.network import HyperBRDF, HyperConfig
+from brdfkit.model.file import MODEL_FORMAT, load_model, save_model, weights_fingerprint
 
 from conftest import TINY_CONFIG
 from helpers_model import make_model, material_table
@@ -70,6 +71,43 @@ def test_default_device_and_metadata(model_path):
     assert meta["format"] == MODEL_FORMAT and meta["version"] == "1"
     assert HyperConfig.from_json(meta["config"]) == HyperConfig(**TINY_CONFIG)
     assert json.loads(meta["meta"])["steps"] == 0
+
+
+def test_mapping_is_recorded(model_path):
+    # The model decodes correctly only with the mapping it was trained with (eq. 1,
+    # eps = 0.002): the file says which, and the loaded model carries it.
+    from brdfkit.mapping import EPS, mapping_record
+
+    _, meta = _raw(model_path)
+    rec = json.loads(meta["mapping"])
+    assert rec == mapping_record() and rec["eps"] == EPS == 0.002 and rec["name"] == "log-relative"
+    assert load_model(model_path, "cpu").mapping == rec
+
+
+def test_file_without_mapping_loads_as_the_papers(model_path, tmp_path):
+    # Files written before the mapping was recorded were all trained with the paper's.
+    from brdfkit.mapping import mapping_record
+
+    old = _resave(model_path, tmp_path / "old.safetensors", edit_meta=lambda m: m.pop("mapping"))
+    _, meta = _raw(old)
+    assert "mapping" not in meta
+    m = load_model(old, "cpu")
+    assert m.mapping == mapping_record()
+    assert m.fingerprint == load_model(model_path, "cpu").fingerprint
+
+
+@pytest.mark.parametrize("mapping, message", [
+    ('{"name": "log-relative", "eps": 0.001}', "trained with the 'log-relative' mapping with eps = 0.001; "
+                                               "this brdfkit maps with 'log-relative', eps = 0.002"),
+    ('{"name": "log", "eps": 0.002}', "trained with the 'log' mapping with eps = 0.002"),
+    ('{"name": "log-relative"}', "bad 'mapping' in metadata: not an object with a name and a numeric eps"),
+    ("[0.002]", "bad 'mapping' in metadata: not an object with a name and a numeric eps"),
+    ("eps=0.002", "bad 'mapping' in metadata: not JSON"),
+])
+def test_other_mapping_refused(model_path, tmp_path, mapping, message):
+    bad = _resave(model_path, tmp_path / "m.safetensors", edit_meta=lambda m: m.update(mapping=mapping))
+    with pytest.raises(FormatError, match=re.escape(message)):
+        load_model(bad, "cpu")
 
 
 def test_fingerprint_tracks_weights():

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from brdfkit.geometry import N_CELLS, cell_angles, hd_vectors
-from brdfkit.neural import grid_hd
+from brdfkit.geometry import grid_hd
 
 
 def test_grid_hd_is_the_per_cell_definition_bit_for_bit():
@@ -41,11 +41,12 @@ def test_thread_choice_leaves_a_user_setting_alone(monkeypatch):
 
 
 def test_fast_encoder_and_decoder_equal_the_model_definition(tmp_path):
-    """The inference paths of brdfkit.neural (bias folded into the matrices, last encoder
+    """The inference paths of brdfkit.model (bias folded into the matrices, last encoder
     layer applied to the mean, the ten decoder MLPs stacked) against HyperBRDF itself."""
     import torch
 
-    from brdfkit import api, neural
+    from brdfkit import api
+    from brdfkit.model import kernels
     from brdfkit.samples import draw_samples
 
     from helpers_model import make_model, material_table
@@ -57,7 +58,7 @@ def test_fast_encoder_and_decoder_equal_the_model_definition(tmp_path):
         model = api.load_model(path, device="cpu")
         s = draw_samples(material_table(1), 500, seed=2)
         emb = api.encode(model, s)
-        ref = neural.reference_at(model, s.theta_h, s.theta_d, s.phi_d)
+        ref = model.reference_at(s.theta_h, s.theta_d, s.phi_d)
         from brdfkit.mapping import to_mapped
 
         x = np.concatenate([s.hd(), to_mapped(np.asarray(s.rgb, np.float64), ref)], axis=1)
@@ -65,7 +66,7 @@ def test_fast_encoder_and_decoder_equal_the_model_definition(tmp_path):
             z = model.net.encoder(torch.from_numpy(x.astype(np.float32))[None])[0].numpy()
             np.testing.assert_allclose(emb.latent, z, rtol=1e-5, atol=1e-6)
             zt = torch.from_numpy(emb.latent)[None]
-            for (w, b), (w2, b2) in zip(model.net.hyponet_weights(zt), neural._hyponet_weights(model, zt)):
+            for (w, b), (w2, b2) in zip(model.net.hyponet_weights(zt), kernels.hyponet_weights(model, zt)):
                 assert w.shape == w2.shape and b.shape == b2.shape
                 np.testing.assert_allclose(w2.numpy(), w.numpy(), rtol=1e-5, atol=1e-6)
                 np.testing.assert_allclose(b2.numpy(), b.numpy(), rtol=1e-5, atol=1e-6)

@@ -299,7 +299,7 @@ def test_cli_render_embedding(tmp_path):
 
     from brdfkit.api import encode, load_model
     from brdfkit.embedding import write_embedding
-    from brdfkit.neural import NeuralBRDF
+    from brdfkit.model.brdf import NeuralBRDF
     from brdfkit.render import quadrature
     from brdfkit.render.image import read_exr
     from brdfkit.render.scene import Scene

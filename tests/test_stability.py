@@ -25,7 +25,8 @@ from brdfkit.errors import InputError
 from brdfkit.geometry import hd_vectors
 from brdfkit.mapping import RHO_MAX, from_mapped, to_mapped
 from brdfkit.metrics import brdf_log_rmse
-from brdfkit.neural import NeuralBRDF, grid_hd
+from brdfkit.geometry import grid_hd
+from brdfkit.model.brdf import NeuralBRDF
 from brdfkit.samples import SampleSet, draw_samples
 
 from helpers_model import make_model
@@ -152,7 +153,7 @@ def test_interpolation_and_extrapolation_stay_finite(trained, stiff):
         mix = api.interpolate(a, b, t, allow_extrapolation=True)
         nb = NeuralBRDF.from_embedding(model, mix)
         with torch.no_grad():
-            peak[t] = float(nb._mapped(probe).abs().max())
+            peak[t] = float(nb.mapped(probe).abs().max())
         table = nb.to_table()
         assert _finite_where_measured(table, model.rho_ref), t
         assert np.nanmax(table) <= RHO_MAX

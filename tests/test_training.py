@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 import torch
 
-from brdfkit import hypernet
+from brdfkit.model import network as hypernet
 from brdfkit.checkpoint import load_checkpoint
 from brdfkit.errors import FormatError, InputError
 from brdfkit.merl import read_merl
-from brdfkit.modelfile import load_model, weights_fingerprint
+from brdfkit.model.file import load_model, weights_fingerprint
 from brdfkit.training import TrainingError, fit
 from brdfkit.mapping import median_reference
 from brdfkit.materials import collect_materials, read_exclude_list

@@ -26,7 +26,7 @@ def render(brdf, scene=None, env=None, progress=None):
     ----------
     brdf
         Object with ``eval_dirs`` (:class:`~brdfkit.render.brdf.TableBRDF`,
-        :class:`~brdfkit.neural.NeuralBRDF`).
+        :class:`~brdfkit.model.brdf.NeuralBRDF`).
     scene, env, progress
         As for :func:`brdfkit.render.quadrature.render` (default: the reference scene).
 

@@ -6,7 +6,7 @@ the horizon) and a ``name``. Two kinds exist:
 
 * :class:`TableBRDF`: a dense MERL-grid table, interpolated with
   :func:`brdfkit.geometry.lookup_trilinear` (NaN-aware; 0 where no corner is measured);
-* :class:`brdfkit.neural.NeuralBRDF`: one material's hyponet, evaluated directly at the
+* :class:`brdfkit.model.brdf.NeuralBRDF`: one material's hyponet, evaluated directly at the
   queried directions (never through a dense table).
 
 :func:`load_brdf` opens either from a file: a MERL ``.binary`` or an embedding ``.emb``
@@ -86,12 +86,12 @@ def load_brdf(path, model_path=None, device=None, model=None):
     device
         Torch device (default: CUDA if available, else CPU).
     model
-        An already loaded :class:`~brdfkit.modelfile.NeuralModel` (instead of
+        An already loaded :class:`~brdfkit.model.loaded.NeuralModel` (instead of
         ``model_path``).
 
     Returns
     -------
-    TableBRDF or brdfkit.neural.NeuralBRDF
+    TableBRDF or brdfkit.model.brdf.NeuralBRDF
         With ``name`` set to the file stem.
     """
     from ..atomic import check_input_file
@@ -103,10 +103,10 @@ def load_brdf(path, model_path=None, device=None, model=None):
 
         return TableBRDF(read_merl(path), name=name, device=device)
     from ..embedding import read_embedding
-    from ..neural import NeuralBRDF
+    from ..model.brdf import NeuralBRDF
 
     if model is None:
-        from ..modelfile import load_model
+        from ..model.file import load_model
 
         if not model_path:
             raise InputError(f"{path}: an embedding needs the model that made it "

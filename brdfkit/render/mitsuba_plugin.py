@@ -10,7 +10,7 @@ works from XML::
 
 and from dict scenes (``{"type": "brdfkit", "filename": ...}``, or
 ``{"type": "brdfkit", "source": register_source(brdf)}`` for a BRDF object already in
-memory: a :class:`~brdfkit.render.brdf.TableBRDF` or a :class:`~brdfkit.neural.NeuralBRDF`).
+memory: a :class:`~brdfkit.render.brdf.TableBRDF` or a :class:`~brdfkit.model.brdf.NeuralBRDF`).
 
 Evaluation calls the BRDF's ``eval_dirs`` (trilinear table lookup, or the hyponet at the
 queried directions) once per wavefront through ``dr.wrap(source="drjit", target="torch")``:

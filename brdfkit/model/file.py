@@ -7,8 +7,11 @@ A model file (``docs/formats.md``, "Model files") holds, with no pickled Python 
   eq. 1), float32 ``(90, 90, 180, 3)`` in 1/sr, NaN where no training material is
   measured;
 * string metadata: ``format = "brdfkit-model"``, ``version = "1"``, ``config`` (the
-  :class:`~brdfkit.hypernet.HyperConfig` as JSON), ``fingerprint`` (see
-  :func:`weights_fingerprint`) and ``meta`` (JSON: training materials, steps, ...).
+  :class:`~brdfkit.model.network.HyperConfig` as JSON), ``fingerprint`` (see
+  :func:`weights_fingerprint`), ``mapping`` (JSON, the mapping the model was trained
+  with: :func:`brdfkit.mapping.mapping_record`, ``eps = 0.002``) and ``meta`` (JSON:
+  training materials, steps, ...). Files written before ``mapping`` was recorded were
+  all trained with the paper's mapping, which is assumed when it is absent.
 
 The fingerprint identifies the weights: an embedding records the fingerprint of the model
 that made it, and decoding it with another model is refused
@@ -18,62 +21,26 @@ weights were altered or damaged is refused too.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import os
 
 import numpy as np
 
-from .atomic import atomic_path
-from .device import resolve_device
-from .errors import FormatError
-from .geometry import TABLE_SHAPE
-from .tensorfile import open_safetensors
+from ..atomic import atomic_path
+from ..device import resolve_device
+from ..errors import FormatError
+from ..geometry import TABLE_SHAPE
+from ..mapping import mapping_record
+from ..tensorfile import open_safetensors
+from .loaded import NeuralModel
 
-__all__ = ["MODEL_FORMAT", "MODEL_VERSION", "NeuralModel", "save_model", "load_model",
-           "weights_fingerprint"]
+__all__ = ["MODEL_FORMAT", "MODEL_VERSION", "save_model", "load_model", "weights_fingerprint"]
 
 MODEL_FORMAT = "brdfkit-model"
 MODEL_VERSION = "1"
 _PREFIX = "net."
-_REF_SHAPE = TABLE_SHAPE
 _MERL_HINT = " (-m takes the .safetensors file written by `brdfkit fit`)"
-
-
-@dataclasses.dataclass
-class NeuralModel:
-    """A loaded model file.
-
-    Attributes
-    ----------
-    net
-        :class:`~brdfkit.hypernet.HyperBRDF` in eval mode on ``device``.
-    cfg
-        Its :class:`~brdfkit.hypernet.HyperConfig`.
-    rho_ref
-        float32 ``(90, 90, 180, 3)`` reference table (1/sr), NaN where unmeasured.
-    fingerprint
-        sha256 hex of the weights (:func:`weights_fingerprint`).
-    meta
-        Training provenance (materials, steps, ...), as saved.
-    device
-        ``torch.device`` the network lives on.
-    path
-        The file it was loaded from.
-    """
-
-    net: object
-    cfg: object
-    rho_ref: np.ndarray
-    fingerprint: str
-    meta: dict
-    device: object
-    path: str
-
-    @property
-    def short_fingerprint(self) -> str:
-        return self.fingerprint[:12]
 
 
 def _unwrap(net):
@@ -99,7 +66,8 @@ def weights_fingerprint(net) -> str:
     return h.hexdigest()
 
 
-def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | None = None) -> str:
+def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | None = None,
+               mapping: dict | None = None) -> str:
     """Write a model file atomically.
 
     Parameters
@@ -107,12 +75,15 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
     path
         Output ``.safetensors`` file.
     net
-        :class:`~brdfkit.hypernet.HyperBRDF` on any device; a DDP (``.module``) or
+        :class:`~brdfkit.model.network.HyperBRDF` on any device; a DDP (``.module``) or
         ``torch.compile`` (``._orig_mod``) wrapper is unwrapped.
     rho_ref
         ``(90, 90, 180, 3)`` reference table, 1/sr, NaN where unmeasured.
     meta
         JSON-serialisable provenance (training materials, steps, ...).
+    mapping
+        The mapping the network was trained with; default
+        :func:`brdfkit.mapping.mapping_record` (the only one brdfkit trains with).
 
     Returns
     -------
@@ -124,8 +95,8 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
 
     net = _unwrap(net)
     ref = np.ascontiguousarray(rho_ref, dtype=np.float32)
-    if ref.shape != _REF_SHAPE:
-        raise ValueError(f"reference table must have shape {_REF_SHAPE}, not {ref.shape}")
+    if ref.shape != TABLE_SHAPE:
+        raise ValueError(f"reference table must have shape {TABLE_SHAPE}, not {ref.shape}")
     tensors = {_PREFIX + name: t.detach().cpu().float().contiguous().clone()
                for name, t in net.state_dict().items()}
     tensors["rho_ref"] = torch.from_numpy(ref.copy())
@@ -135,6 +106,7 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
         "version": MODEL_VERSION,
         "config": net.cfg.to_json(),
         "fingerprint": fingerprint,
+        "mapping": json.dumps(mapping or mapping_record(), sort_keys=True),
         "meta": json.dumps(meta or {}, sort_keys=True, default=str),
     }
     with atomic_path(path) as tmp:
@@ -163,6 +135,25 @@ def _check_config_sizes(cfg, n_tensors: int, n_values: int) -> None:
         count(name, v, 1, n_values)
 
 
+def _read_mapping(path: str, text) -> dict:
+    """The ``mapping`` metadata entry, checked against the mapping brdfkit computes: a
+    model decodes correctly only with the mapping it was trained with."""
+    ours = mapping_record()
+    if text is None:  # written before the entry existed: always the paper's mapping
+        return ours
+    try:
+        rec = json.loads(text)
+    except ValueError:
+        raise FormatError(path, "bad 'mapping' in metadata: not JSON") from None
+    eps = rec.get("eps") if isinstance(rec, dict) else None
+    if isinstance(eps, bool) or not isinstance(eps, (int, float)) or not isinstance(rec.get("name"), str):
+        raise FormatError(path, "bad 'mapping' in metadata: not an object with a name and a numeric eps")
+    if rec["name"] != ours["name"] or eps != ours["eps"]:
+        raise FormatError(path, f"the model was trained with the {rec['name']!r} mapping with eps = {eps:g}; "
+                                f"this brdfkit maps with {ours['name']!r}, eps = {ours['eps']:g}")
+    return rec
+
+
 def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
     """Load a model file written by :func:`save_model`; nothing is unpickled.
 
@@ -181,12 +172,13 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
     ------
     FormatError
         Not a safetensors file (a pickle, truncated, other content), another kind of
-        safetensors file, an unknown version, a bad config, missing or misshapen tensors,
-        or weights that do not match the recorded fingerprint. One line naming the file.
+        safetensors file, an unknown version, a bad config, a mapping other than
+        brdfkit's, missing or misshapen tensors, or weights that do not match the
+        recorded fingerprint. One line naming the file.
     """
     import torch
 
-    from .hypernet import HyperBRDF, HyperConfig
+    from .network import HyperBRDF, HyperConfig
 
     path = os.fspath(path)
     with open_safetensors(path, framework="pt", diagnose="brdfkit model file", merl_hint=_MERL_HINT) as f:
@@ -204,13 +196,14 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
             raise FormatError(path, f"bad model config in metadata ({e})") from None
         if not isinstance(meta, dict):
             raise FormatError(path, "bad 'meta' in metadata: not a JSON object")
+        mapping = _read_mapping(path, md.get("mapping"))
         names = set(f.keys())
         if "rho_ref" not in names:
             raise FormatError(path, "missing tensor 'rho_ref' (the reference table)")
         ref = f.get_tensor("rho_ref")
         state = {n[len(_PREFIX):]: f.get_tensor(n) for n in names if n.startswith(_PREFIX)}
-    if tuple(ref.shape) != _REF_SHAPE:
-        raise FormatError(path, f"reference table has shape {tuple(ref.shape)}, expected {_REF_SHAPE}")
+    if tuple(ref.shape) != TABLE_SHAPE:
+        raise FormatError(path, f"reference table has shape {tuple(ref.shape)}, expected {TABLE_SHAPE}")
     # The config is checked against the file's own tensors before any network is built:
     # sizes bounded by them, then the shapes from a build on torch's "meta" device (no
     # memory). A crafted config (latent_dim = 10^7) took 37 s and 4.7 GB before being
@@ -248,4 +241,4 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
     for p in net.parameters():
         p.requires_grad_(False)
     return NeuralModel(net=net, cfg=cfg, rho_ref=ref.numpy().astype(np.float32, copy=False),
-                       fingerprint=fingerprint, meta=meta, device=dev, path=path)
+                       fingerprint=fingerprint, meta=meta, device=dev, path=path, mapping=mapping)

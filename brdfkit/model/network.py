@@ -18,6 +18,12 @@ mean square of the predicted hyponet weights and ``lambda_z`` times the mean squ
 the latent (both 0.1 by default).
 
 Shapes: ``B`` materials, ``N`` samples per material, ``L`` latent size.
+
+Every MLP here is ``Linear, ReLU, ..., Linear`` (no activation after the last layer).
+:meth:`SetEncoder.layers` and :meth:`HyperDecoder.tensor_layers` hand out those
+``nn.Linear`` layers in order: the fused inference kernels
+(:mod:`brdfkit.model.kernels`) are built from them, never from the modules' internal
+layout.
 """
 
 from __future__ import annotations
@@ -30,7 +36,7 @@ import torch
 from torch import nn
 
 __all__ = ["HyperConfig", "SetEncoder", "HyperDecoder", "HyperBRDF", "hyponet_forward",
-           "hyponet_shapes", "hyper_loss"]
+           "hyponet_shapes", "hyper_loss", "IN_FEATURES", "OUT_FEATURES"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -94,6 +100,10 @@ def _mlp(sizes, last_activation=False):
     return nn.Sequential(*layers)
 
 
+def _linears(seq: nn.Sequential) -> list[nn.Linear]:
+    return [m for m in seq if isinstance(m, nn.Linear)]
+
+
 class SetEncoder(nn.Module):
     """Permutation-invariant encoder: per-sample MLP, then the mean over samples."""
 
@@ -104,6 +114,10 @@ class SetEncoder(nn.Module):
     def forward(self, samples: torch.Tensor) -> torch.Tensor:
         """``samples (B, N, 9)`` -> ``z (B, L)``; any ``N >= 1``."""
         return self.net(samples).mean(dim=1)
+
+    def layers(self) -> list[nn.Linear]:
+        """The per-sample MLP's layers in order, a ReLU after each but the last."""
+        return _linears(self.net)
 
 
 class HyperDecoder(nn.Module):
@@ -130,6 +144,12 @@ class HyperDecoder(nn.Module):
                     bound = math.sqrt(6.0 / fan_in) if nets is self.weight_nets else 1.0 / math.sqrt(fan_in)
                     last.bias.uniform_(-bound, bound)
                 nets.append(net)
+
+    def tensor_layers(self) -> list[list[nn.Linear]]:
+        """The layers of each per-tensor MLP, in hyponet order ``W_0, b_0, W_1, b_1, ...``
+        (weights as ``(in, out)`` row-major, biases ``(out,)``); in each MLP a ReLU
+        follows every layer but the last."""
+        return [_linears(n) for pair in zip(self.weight_nets, self.bias_nets) for n in pair]
 
     def forward(self, z: torch.Tensor) -> list[tuple[torch.Tensor, torch.Tensor]]:
         """``z (B, L)`` -> ``[(W (B, in, out), b (B, 1, out)), ...]`` per hyponet layer."""
