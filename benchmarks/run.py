@@ -33,7 +33,7 @@ def plan(ttq_minutes):
         ("decode", ["decode.py", "--threads", "1,2", "--repeat", "5", "--multi-repeat", "2"]),
         ("encode", ["encode_bound.py", "--repeat", "20", "--cli-repeat", "2"]),
         ("train", ["train_throughput.py", "--repeat", "5"]),
-        ("render", ["render_bound.py", "--resolution", "64", "--spp", "4"]),
+        ("render", ["render.py", "--resolution", "64", "--spp", "4"]),
         ("memory", ["memory.py"]),
         ("time_to_quality", ["time_to_quality.py", "--minutes", str(ttq_minutes), "--materials", "10",
                              "--held-out", "2", "--checkpoint-minutes", "0.2"]),
