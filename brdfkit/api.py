@@ -68,7 +68,7 @@ def _load_input(obj, source: str):
             raise InputError(f"{source or 'table'}: shape {arr.shape}, expected a dense table "
                              f"{TABLE_SHAPE} or a SampleSet")
         return arr, source
-    raise InputError(f"cannot encode a {type(obj).__name__}: pass a SampleSet, a (90, 90, 180, 3) "
+    raise InputError(f"cannot encode a {type(obj).__name__}: pass a SampleSet, a {TABLE_SHAPE} "
                      f"table, or the path of a .binary or .csv file")
 
 

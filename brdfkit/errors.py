@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["BrdfkitError", "InputError", "FormatError", "ModelMismatchError"]
+__all__ = ["BrdfkitError", "InputError", "FormatError", "ModelMismatchError", "TrainingError"]
 
 
 class BrdfkitError(Exception):
@@ -48,3 +48,10 @@ class FormatError(InputError):
 
 class ModelMismatchError(InputError):
     """An embedding or file made with a different model than the one given."""
+
+
+class TrainingError(BrdfkitError):
+    """Training could not go on (e.g. the loss stayed non-finite); exit code 1, since
+    nothing the user handed in was wrong."""
+
+    exit_code = 1

@@ -18,23 +18,15 @@ import dataclasses
 import json
 import math
 import os
-import signal
-import threading
 import time
 
 from .atomic import refuse_overwrite_of_inputs
-from .device import resolve_device
-from .errors import BrdfkitError, InputError
+from .distributed import ProcessGroup, StopSignals
+from .errors import InputError, TrainingError
 
 __all__ = ["fit", "TrainOptions", "TrainingError", "DEFAULT_STEPS"]
 
 DEFAULT_STEPS = 2000
-
-
-class TrainingError(BrdfkitError):
-    """Training could not go on (e.g. the loss stayed non-finite)."""
-
-    exit_code = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -136,87 +128,6 @@ def _parse_advanced(latent_dim, advanced: dict):
         if not isinstance(v, int) or v < 1:
             raise InputError(f"model option {key} must be a positive integer, got {v!r}")
     return opts, cfg
-
-
-class _Dist:
-    """The torch.distributed process group when launched by ``torchrun`` (``WORLD_SIZE > 1``)."""
-
-    def __init__(self, device):
-        import datetime
-
-        import torch.distributed as dist
-
-        self.dist = dist
-        self.world = int(os.environ.get("WORLD_SIZE", "1"))
-        self.rank = int(os.environ.get("RANK", "0"))
-        local = int(os.environ.get("LOCAL_RANK", "0"))
-        self.device = resolve_device(device, local_rank=local)
-        if self.device.type == "cuda":
-            import torch
-
-            torch.cuda.set_device(self.device)
-        self.owned = False
-        if self.world > 1:
-            if not dist.is_available():
-                raise TrainingError("WORLD_SIZE > 1 but this torch build has no torch.distributed")
-            if not dist.is_initialized():
-                backend = "nccl" if self.device.type == "cuda" else "gloo"
-                dist.init_process_group(backend, timeout=datetime.timedelta(minutes=30))
-                self.owned = True
-            self.rank, self.world = dist.get_rank(), dist.get_world_size()
-
-    @property
-    def active(self) -> bool:
-        return self.world > 1
-
-    def sum_(self, t):
-        if self.active:
-            self.dist.all_reduce(t, op=self.dist.ReduceOp.SUM)
-        return t
-
-    def gather_hex(self, hexdigest: str) -> list[str]:
-        """Every rank's sha256 hex digest (to check that ranks agree)."""
-        if not self.active:
-            return [hexdigest]
-        import torch
-
-        mine = torch.tensor(list(bytes.fromhex(hexdigest)), dtype=torch.int64, device=self.device)
-        out = [torch.empty_like(mine) for _ in range(self.world)]
-        self.dist.all_gather(out, mine)
-        return [bytes(t.cpu().tolist()).hex() for t in out]
-
-    def barrier(self):
-        if self.active:
-            self.dist.barrier()
-
-    def close(self):
-        if self.owned and self.dist.is_initialized():
-            self.dist.destroy_process_group()
-
-
-class _StopSignals:
-    """Turns SIGINT / SIGTERM during training into a request honoured between steps (so
-    the checkpoint holds a consistent state); a second signal interrupts at once."""
-
-    def __init__(self):
-        self.requested = False
-        self._old = {}
-
-    def _handler(self, signum, frame):
-        if self.requested:
-            raise KeyboardInterrupt
-        self.requested = True
-
-    def __enter__(self):
-        if threading.current_thread() is threading.main_thread():
-            for sig in (signal.SIGINT, signal.SIGTERM):
-                self._old[sig] = signal.signal(sig, self._handler)
-        return self
-
-    def __exit__(self, *exc):
-        for sig, old in self._old.items():
-            signal.signal(sig, old)
-        return False
 
 
 class _Display:
@@ -335,7 +246,7 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
     if os.path.isdir(output):
         raise InputError(f"{output}: is a directory, expected an output file path")
 
-    dist = _Dist(device)
+    dist = ProcessGroup(device)
     try:
         return _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps, minutes,
                       seed, resume, progress, t_start)
@@ -440,7 +351,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
                 + (f"  skipped {skipped}" if skipped else ""))
 
     net.train()
-    with _StopSignals() as stop:
+    with StopSignals() as stop:
         show.start("training")
         try:
             while steps is None or step < steps:

@@ -30,15 +30,12 @@ converge:
 ``pdf`` is the exact density of that mixture, ``sample`` returns ``f cos / pdf``.
 The ``llvm_ad_rgb`` variant is used.
 
-Mitsuba's LLVM backend needs a ``libLLVM`` that Dr.Jit accepts. LLVM 19 is the version
-seen to work; on Debian 12, LLVM 14 (the default) is refused by Dr.Jit and LLVM 15 aborts
-the whole process while compiling the first kernel (exit 134, ``LLVM ERROR: Cannot
-select: ... fmaximum``). :func:`ensure_libllvm` therefore looks for LLVM 19 only, points
-``DRJIT_LIBLLVM_PATH`` at it when the variable is unset, refuses a variable naming LLVM 15
-or older, and otherwise raises a clear error asking for ``apt-get install -y libllvm19``.
-``BRDFKIT_LIBLLVM_SEARCH`` (``os.pathsep``-separated glob patterns) replaces the search
-list, e.g. to check the no-LLVM path on a machine that has it. Mitsuba is imported only
-in this module.
+Mitsuba's LLVM backend needs a ``libLLVM`` that Dr.Jit accepts: LLVM 19 is seen to work,
+Debian 12's 14 is refused and 15 aborts the process (``docs/render.md``).
+:func:`ensure_libllvm` looks for LLVM 19 only (``BRDFKIT_LIBLLVM_SEARCH``, glob patterns
+separated by ``os.pathsep``, replaces the search), sets ``DRJIT_LIBLLVM_PATH`` when unset,
+refuses one naming LLVM 15 or older, and otherwise asks for ``apt-get install -y
+libllvm19``. Mitsuba is imported only in this module.
 """
 
 from __future__ import annotations
@@ -58,14 +55,8 @@ __all__ = ["LIBLLVM_CANDIDATES", "ensure_libllvm", "libllvm_version", "load_mits
            "load_user_scene"]
 
 VARIANT = "llvm_ad_rgb"
-LIBLLVM_CANDIDATES = (
-    "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1",
-    "/usr/lib/x86_64-linux-gnu/libLLVM-19.so",
-    "/usr/lib/llvm-19/lib/libLLVM.so.19.1",
-    "/usr/lib/llvm-19/lib/libLLVM-19.so",
-    "/usr/lib/aarch64-linux-gnu/libLLVM.so.19.1",
-    "/usr/lib/aarch64-linux-gnu/libLLVM-19.so",
-)
+LIBLLVM_CANDIDATES = tuple(f"/usr/lib/{d}/{n}" for d in ("x86_64-linux-gnu", "llvm-19/lib", "aarch64-linux-gnu")
+                           for n in ("libLLVM.so.19.1", "libLLVM-19.so"))
 LIBLLVM_PATTERNS = ("/usr/lib/*/libLLVM.so.19*", "/usr/lib/*/libLLVM-19.so*",
                     "/usr/lib/llvm-19/lib/libLLVM*.so*")
 # Seen on Debian 12: 14 is refused by Dr.Jit, 15 aborts the process (exit 134).
@@ -79,7 +70,7 @@ LOBE_WEIGHTS = (0.25, 0.5, 0.25)
 PASS_LANES = 1 << 20
 
 _lock = threading.Lock()
-_state: dict = {}
+_state: dict = {}  # the imported modules and the BSDF class, made once
 _sources: dict = {}
 # The model of ``.emb`` BSDFs that name none, while :func:`load_user_scene` loads a scene
 # (the command line's ``-m``); the plugin reads no environment variable of its own.
@@ -228,12 +219,9 @@ def _open_source(props) -> object:
     return load_brdf(filename, model_path=model, device="cpu")
 
 
-_class_cache: dict = {}
-
-
 def _bsdf_class(mi, dr):
-    if "cls" in _class_cache:
-        return _class_cache["cls"]
+    if "cls" in _state:
+        return _state["cls"]
 
     class BrdfkitBSDF(mi.BSDF):
         """Mitsuba BSDF evaluating a brdfkit BRDF (see the module docstring)."""
@@ -311,7 +299,7 @@ def _bsdf_class(mi, dr):
         def to_string(self):
             return f"BrdfkitBSDF[alpha={self.alpha:.4g}]"
 
-    _class_cache["cls"] = BrdfkitBSDF
+    _state["cls"] = BrdfkitBSDF
     return BrdfkitBSDF
 
 
