@@ -4,8 +4,9 @@ Follows Gokbudak, Sztrajman, Zhou, Chung and Oztireli, "Hypernetworks for Genera
 BRDF Representation", ECCV 2024. The public API is imported lazily: ``import brdfkit``
 loads neither torch nor mitsuba; each name pulls in only the module that defines it.
 
-Data flows one way: ``merl`` / ``samples`` (I/O) -> ``geometry`` / ``mapping`` -> model
-modules -> jobs -> ``cli``.
+Data flows one way: ``errors`` / ``atomic`` / ``geometry`` / ``device`` (the ground floor)
+-> I/O (``merl``, ``samples``, ``embedding``, ``materials``, ``tensorfile``) -> ``mapping``
+-> ``model`` -> methods and jobs (``methods``, ``training``, ``render``, ``bench``) -> ``cli``.
 """
 
 from __future__ import annotations

@@ -7,7 +7,8 @@ that the path is a readable file, optionally diagnoses what a file that is *not*
 safetensors looks like (a pickle, a MERL table, a truncated file; :func:`check_header`),
 and turns every parser error into a one-line :class:`~brdfkit.errors.FormatError` that
 names the file. The format-specific checks (metadata ``format`` / ``version``, tensor
-names and shapes) stay with each format's reader.
+names and shapes) stay with each format's reader; :func:`check_format` checks the
+``format`` and ``version`` metadata every brdfkit file carries.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from typing import Iterator
 from .atomic import check_input_file
 from .errors import FormatError
 
-__all__ = ["open_safetensors", "check_header", "HEADER_LIMIT"]
+__all__ = ["open_safetensors", "check_header", "check_format", "HEADER_LIMIT"]
 
 HEADER_LIMIT = 100 * 1024 * 1024  # safetensors' own limit on the JSON header
 _MERL_FILE_SIZE = 34_992_012  # brdfkit.merl.MERL_FILE_SIZE, without importing the reader
@@ -118,3 +119,27 @@ def open_safetensors(path: str | os.PathLike, *, framework: str = "numpy", diagn
     except (SafetensorError, OSError, ValueError) as e:
         first = (str(e).splitlines() or [type(e).__name__])[0]
         raise FormatError(path, f"not a valid safetensors file ({first})") from None
+
+
+def check_format(path: str, f, fmt: str, version: str, kind: str, short: str) -> dict:
+    """The metadata of an open file (:func:`open_safetensors`), after checking that its
+    ``format`` is ``fmt`` and its ``version`` is ``version``.
+
+    Parameters
+    ----------
+    kind, short
+        The format's name in messages: ``"brdfkit model file"`` (another format) and
+        ``"model file"`` (another version).
+
+    Raises
+    ------
+    FormatError
+        Another format, or a version this brdfkit does not read.
+    """
+    md = f.metadata() or {}
+    if md.get("format") != fmt:
+        raise FormatError(path, f"not a {kind} (format {md.get('format')!r}, expected {fmt!r})")
+    if md.get("version") != version:
+        raise FormatError(path, f"{short} version {md.get('version')!r} is not supported "
+                                f"(this brdfkit reads version {version})")
+    return md

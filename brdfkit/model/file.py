@@ -32,7 +32,7 @@ from ..device import resolve_device
 from ..errors import FormatError
 from ..geometry import TABLE_SHAPE
 from ..mapping import mapping_record
-from ..tensorfile import open_safetensors
+from ..tensorfile import check_format, open_safetensors
 from .loaded import NeuralModel
 
 __all__ = ["MODEL_FORMAT", "MODEL_VERSION", "save_model", "load_model", "weights_fingerprint"]
@@ -182,13 +182,7 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
 
     path = os.fspath(path)
     with open_safetensors(path, framework="pt", diagnose="brdfkit model file", merl_hint=_MERL_HINT) as f:
-        md = f.metadata() or {}
-        if md.get("format") != MODEL_FORMAT:
-            raise FormatError(path, f"not a brdfkit model file (format {md.get('format')!r}, "
-                                    f"expected {MODEL_FORMAT!r})")
-        if md.get("version") != MODEL_VERSION:
-            raise FormatError(path, f"model file version {md.get('version')!r} is not supported "
-                                    f"(this brdfkit reads version {MODEL_VERSION})")
+        md = check_format(path, f, MODEL_FORMAT, MODEL_VERSION, "brdfkit model file", "model file")
         try:
             cfg = HyperConfig.from_json(md["config"])
             meta = json.loads(md.get("meta") or "{}")
