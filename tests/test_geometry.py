@@ -302,3 +302,28 @@ def test_float32_tensors_stay_float32():
     assert g.hd_vectors(th, th, th).dtype == torch.float32
     table = torch.rand(g.GRID_SHAPE + (3,), dtype=torch.float32)
     assert g.lookup_trilinear(table, th, th, th).dtype == torch.float32
+
+
+# --- the grid caches (computed once per process, shared by every module) -----------------
+
+def test_grid_caches_are_the_per_cell_definitions():
+    cells = np.arange(0, g.N_CELLS, 613)
+    th, td, pd = g.cell_angles(cells)
+    wi, wo = g.grid_directions()
+    assert wi.shape == wo.shape == g.GRID_SHAPE + (3,) and g.TABLE_SHAPE == g.GRID_SHAPE + (3,)
+    ewi, ewo = g.io_from_half_diff(th, td, pd)
+    np.testing.assert_array_equal(wi.reshape(-1, 3)[cells], ewi)
+    np.testing.assert_array_equal(wo.reshape(-1, 3)[cells], ewo)
+    want = np.clip(ewi[:, 2], 0, None) * np.clip(ewo[:, 2], 0, None)
+    np.testing.assert_array_equal(g.grid_cosine_weight()[cells], want)
+    np.testing.assert_array_equal(g.valid_cells(), np.flatnonzero(g.valid_mask().reshape(-1)))
+    # one copy per process, which nobody may change
+    for arr in (wi, wo, g.grid_cosine_weight(), g.valid_cells(), g.grid_hd()):
+        assert not arr.flags.writeable
+    assert g.grid_directions()[0] is wi and g.grid_hd() is g.grid_hd()
+
+
+def test_merl_table_shape_is_the_geometry_constant():
+    from brdfkit import merl
+
+    assert merl.TABLE_SHAPE is g.TABLE_SHAPE == (90, 90, 180, 3)
