@@ -74,7 +74,7 @@ def main(argv=None):
     from brdfkit.model.file import weights_fingerprint
     from brdfkit.model.loaded import NeuralModel
     from brdfkit.samples import draw_samples
-    from brdfkit.mapping import median_reference as median_reference_fast
+    from brdfkit.mapping import median_reference
 
     curve = []
     with tempfile.TemporaryDirectory() as tmp:
@@ -87,7 +87,7 @@ def main(argv=None):
         tables = {n: read_merl(os.path.join(lib, n + ".binary")) for n in names}
         # The training reference, exactly as TrainingSet computes it.
         stack = np.stack([tables[n].astype(np.float32).reshape(-1) for n in train])
-        rho_ref = median_reference_fast(stack)
+        rho_ref = median_reference(stack)
         del stack
         samples = {n: draw_samples(tables[n], args.n, seed=0) for n in held}
 

@@ -81,11 +81,10 @@ def main(argv=None):
     import torch
 
     from brdfkit import synthetic
-    from brdfkit.model import network as hypernet
     from brdfkit.geometry import N_CELLS
-    from brdfkit.mapping import to_mapped
+    from brdfkit.mapping import median_reference, to_mapped
+    from brdfkit.model import network as hypernet
     from brdfkit.training import TrainOptions
-    from brdfkit.mapping import median_reference as median_reference_fast
     from brdfkit.trainset import BatchSampler, TrainingSet
 
     opts = TrainOptions()
@@ -94,7 +93,7 @@ def main(argv=None):
     tables = [synthetic.table(m).astype(np.float32) for m in mats]
     names = [f"m{i}" for i in range(opts.batch_materials)]
     stack = np.stack([tables[i % 2].reshape(-1) for i in range(len(names))])
-    rho_ref = median_reference_fast(stack)
+    rho_ref = median_reference(stack)
     cells = np.flatnonzero(np.isfinite(stack.reshape(len(names), N_CELLS, 3)).all(axis=(0, 2)))
     ref = rho_ref.reshape(N_CELLS, 3)[cells].astype(np.float64)
     values = np.stack([to_mapped(t.reshape(N_CELLS, 3)[cells].astype(np.float64), ref).astype(np.float32)
