@@ -41,13 +41,24 @@ class FileLoader:
         Render size of BRDF inputs (``None``: the reference scene's 256).
     progress
         Show render progress on stderr.
+    before_torch
+        Called once, before the first render or model load (the first use of torch):
+        ``brdfkit metrics`` sizes torch's thread pool there, so that comparing two
+        images never imports torch.
     """
 
-    def __init__(self, model_path=None, resolution: int | None = None, progress: bool = True):
+    def __init__(self, model_path=None, resolution: int | None = None, progress: bool = True,
+                 before_torch=None):
         self.model_path = model_path
         self.resolution = resolution
         self.progress = progress
         self._model = None
+        self._before_torch = before_torch
+
+    def _torch_needed(self):
+        if self._before_torch is not None:
+            hook, self._before_torch = self._before_torch, None
+            hook()
 
     def model(self):
         if self._model is None:
@@ -56,6 +67,7 @@ class FileLoader:
                                  "(pass -m MODEL.safetensors or set BRDFKIT_MODEL)")
             from .api import load_model
 
+            self._torch_needed()
             self._model = load_model(self.model_path)
         return self._model
 
@@ -66,6 +78,7 @@ class FileLoader:
         if _kind(path) == "image":
             return read_exr(path)
         model = self.model() if path.lower().endswith(".emb") else None
+        self._torch_needed()
         img, _ = files.render_brdf_file(path, resolution=resolution or self.resolution,
                                         progress=self.progress, model=model)
         return img

@@ -68,8 +68,9 @@ def command(ctx, paths, model_path, as_json, resolution, threads, quiet):
     from ..compare import FileLoader, compare_files, compare_folders, mean_scores
     from ..threads import set_torch_threads
 
-    set_torch_threads(threads)
-    loader = FileLoader(model_path, resolution, progress=not quiet and not as_json)
+    # Threads are set on the first render: two images are compared without torch.
+    loader = FileLoader(model_path, resolution, progress=not quiet and not as_json,
+                        before_torch=lambda: set_torch_threads(threads))
     dirs = [os.path.isdir(p) for p in paths]
     if any(dirs) and not all(dirs):
         raise InputError(f"{pred if not dirs[0] else ref}: is a file but the other input is a folder; "

@@ -1,0 +1,91 @@
+"""Start-up (issue 14 item 4): the commands that do not need torch never import it.
+
+Each command runs as a user runs it, in a fresh process, through ``brdfkit.cli.main``; the
+process then prints which of the heavy modules it imported. ``plot`` of tables is checked
+in ``tests/test_plot.py``, ``import brdfkit`` and ``brdfkit --help`` in
+``tests/test_cli_basics.py``.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+HEAVY = ("torch", "mitsuba", "drjit", "colour", "matplotlib", "safetensors")
+
+# Runs ``main(argv)`` for each argv of a JSON list in one process (a command's --help
+# exits, so SystemExit is caught) and prints the heavy modules imported after each.
+RUNNER = """
+import json, sys
+from brdfkit.cli import main
+out = []
+for argv in json.loads(sys.argv[1]):
+    try:
+        main(argv)
+    except SystemExit as e:
+        code = e.code or 0
+    else:
+        code = 0
+    out.append([code, sorted(m for m in HEAVY if m in sys.modules)])
+print("RESULT " + json.dumps(out))
+"""
+
+
+def _run(*argvs, cwd=None):
+    """Run the argvs in one fresh process: ``[(exit code, heavy modules so far), ...]``."""
+    env = {**os.environ, "OMP_NUM_THREADS": "1"}
+    code = f"HEAVY = {HEAVY!r}\n" + RUNNER
+    r = subprocess.run([sys.executable, "-c", code, json.dumps([list(map(str, a)) for a in argvs])],
+                       cwd=cwd, env=env, capture_output=True, text=True, timeout=300)
+    lines = [line for line in r.stdout.splitlines() if line.startswith("RESULT ")]
+    assert r.returncode == 0 and lines, r.stderr[-2000:]
+    return [tuple(x) for x in json.loads(lines[-1][len("RESULT "):])]
+
+
+def test_every_commands_help_imports_nothing_heavy():
+    from brdfkit.cli import COMMANDS
+
+    results = _run(*[[name, "--help"] for name in COMMANDS])
+    for name, (code, heavy) in zip(COMMANDS, results):
+        assert code == 0, name
+        assert heavy == [], f"brdfkit {name} --help imported {heavy}"
+
+
+def test_synth_and_sample_of_a_table_import_no_torch(tmp_path):
+    lib = tmp_path / "lib"
+    (synth, _), (sample, heavy) = _run(["synth", lib, "-n", "1", "--no-stiff"],
+                                       ["sample", lib / "synth-000.binary", "-n", "50", "-o", tmp_path / "s.csv"])
+    assert synth == 0 and sample == 0
+    assert (tmp_path / "s.csv").is_file()
+    assert heavy == []
+
+
+def test_interpolate_without_binary_imports_no_torch(good, tmp_path):
+    out = tmp_path / "mix.emb"
+    [(code, heavy)] = _run(["interpolate", good / "a.emb", good / "b.emb", "-t", "0.25", "-o", out])
+    assert code == 0 and out.is_file()
+    assert heavy == []
+
+
+def test_metrics_of_two_images_imports_no_torch(tmp_path):
+    """Two EXRs need colour-science (Delta E) but no render, so no torch."""
+    from brdfkit.render.image import write_exr
+
+    rng = np.random.default_rng(0)
+    write_exr(tmp_path / "a.exr", rng.uniform(0, 1, (16, 16, 3)).astype(np.float32))
+    write_exr(tmp_path / "b.exr", rng.uniform(0, 1, (16, 16, 3)).astype(np.float32))
+    [(code, heavy)] = _run(["metrics", tmp_path / "a.exr", tmp_path / "b.exr", "--json"])
+    assert code == 0
+    assert "torch" not in heavy and "mitsuba" not in heavy and "colour" in heavy
+
+
+def test_commands_that_run_the_network_do_import_torch(good, tmp_path):
+    """The probe itself: a command that needs torch is seen importing it."""
+    [(code, heavy)] = _run(["encode", good / "samples.csv", "-m", good / "model.safetensors",
+                            "-o", tmp_path / "s.emb"])
+    assert code == 0 and "torch" in heavy
