@@ -86,7 +86,8 @@ class NeuralBRDF:
 
         from ..mapping import from_mapped
 
-        table, fallback = self.model.reference_torch()
+        fallback = self.model.reference_torch()[1]
+        table = self.model.reference_trilinear()
         out = torch.empty(hd.shape[0], 3, dtype=torch.float32, device=self.model.device)
         with torch.no_grad():
             for s in range(0, hd.shape[0], 1 << 16):

@@ -49,17 +49,20 @@ class TableBRDF:
         self.table = arr
         self.device = resolve_device(device)
         self._t = torch.as_tensor(np.ascontiguousarray(arr, np.float32), device=self.device)
+        self._lut = None  # geometry.TrilinearTable of _t, built on the first evaluation
 
     def eval_dirs(self, wi, wo):
         """BRDF ``(N, 3)`` float32 at local direction pairs ``wi, wo`` (torch ``(N, 3)``)."""
         import torch
 
-        from ..geometry import half_diff_from_io, lookup_trilinear
+        from ..geometry import TrilinearTable, half_diff_from_io, lookup_trilinear
 
+        if self._lut is None:
+            self._lut = TrilinearTable(self._t)
         wi_ = wi.to(self.device, torch.float32).reshape(-1, 3)
         wo_ = wo.to(self.device, torch.float32).reshape(-1, 3)
         th, _, td, pd = half_diff_from_io(wi_, wo_)
-        rho = lookup_trilinear(self._t, th, td, pd, fill=0.0)
+        rho = lookup_trilinear(self._lut, th, td, pd, fill=0.0)
         above = (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
         return torch.where(above[:, None], rho, torch.zeros_like(rho)).to(wi.device)
 

@@ -1,0 +1,180 @@
+"""The prepared table of the render's lookup (:class:`brdfkit.geometry.TrilinearTable`)
+gives exactly what :func:`brdfkit.geometry.lookup_trilinear` gives on the plain table,
+NaN semantics included (issue 14 item 1).
+
+The reference below is the plain-table lookup as it was before the prepared table
+existed (eight corner gathers, each corner's NaN left out and the weights renormalised),
+copied here so that a change to the library's plain path cannot move the reference too.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+import torch
+
+from brdfkit import geometry as g
+
+from helpers_foundation import measured_mask
+
+
+def reference_lookup(table, theta_h, theta_d, phi_d, fill=float("nan")):
+    u_h, u_d, u_p = g.fractional_indices(theta_h, theta_d, phi_d)
+    xp = torch if isinstance(u_h, torch.Tensor) else np
+    flat = table.reshape(g.N_CELLS, -1)
+    if xp is np:
+        u_h, u_d, u_p = np.broadcast_arrays(u_h, u_d, u_p)
+        floor = lambda a: np.floor(a).astype(np.int64)  # noqa: E731
+    else:
+        u_h, u_d, u_p = torch.broadcast_tensors(u_h, u_d, u_p)
+        floor = lambda a: torch.floor(a).long()  # noqa: E731
+    i0, j0, k0 = floor(u_h), floor(u_d), floor(u_p)
+    fh, fd, fp = u_h - i0, u_d - j0, u_p - k0
+    i0 = xp.clip(i0, 0, 89)
+    j0 = xp.clip(j0, 0, 89)
+    i1 = xp.clip(i0 + 1, 0, 89)
+    j1 = xp.clip(j0 + 1, 0, 89)
+    k0 = k0 % 180
+    k1 = (k0 + 1) % 180
+    acc = wsum = None
+    for ii, wh in ((i0, 1 - fh), (i1, fh)):
+        for jj, wd in ((j0, 1 - fd), (j1, fd)):
+            for kk, wp in ((k0, 1 - fp), (k1, fp)):
+                v = flat[kk + 180 * (jj + 90 * ii)]
+                w = (wh * wd * wp)[..., None]
+                ok = ~xp.isnan(v)
+                wv = w * xp.where(ok, v, xp.zeros_like(v))
+                wk = xp.where(ok, w, xp.zeros_like(w))
+                acc = wv if acc is None else acc + wv
+                wsum = wk if wsum is None else wsum + wk
+    out = acc / xp.where(wsum > 0, wsum, 1 + 0 * wsum)
+    return xp.where(wsum > 0, out, fill + 0 * out)
+
+
+def _angles(n, seed):
+    """Random angles with the hard cases mixed in: cell boundaries and centres, phi_d at
+    and around multiples of pi (the wrap), theta_h near 0 and pi/2, theta beyond the
+    clamps, negative phi_d."""
+    rng = np.random.default_rng(seed)
+    th = rng.uniform(0, math.pi / 2, n)
+    td = rng.uniform(0, math.pi / 2, n)
+    pd = rng.uniform(-2 * math.pi, 2 * math.pi, n)
+    q = n // 8
+    cells = rng.integers(0, g.N_CELLS, q)
+    ch, cd, cp = g.cell_angles(cells)
+    th[:q], td[:q], pd[:q] = ch, cd, cp                      # on the grid's own angles
+    pd[q:2 * q] = rng.choice([0.0, math.pi, -math.pi, 2 * math.pi, math.pi - 1e-12,
+                              math.pi * (179.5 / 180), 1e-12], q)
+    th[2 * q:3 * q] = rng.choice([0.0, 1e-9, 1e-5, (1 / 90) ** 2 * math.pi / 2, math.pi / 2,
+                                  math.pi / 2 - 1e-9, math.pi / 2 + 0.1, -0.1], q)
+    td[3 * q:4 * q] = rng.choice([0.0, math.pi / 2, math.pi / 2 - 1e-7, 89.5 / 90 * math.pi / 2,
+                                  math.pi / 2 + 1, -1.0], q)
+    return th, td, pd
+
+
+def _tables(seed):
+    rng = np.random.default_rng(seed)
+    measured = rng.random(g.GRID_SHAPE + (3,))
+    measured[~measured_mask()] = np.nan                     # MERL's own unmeasured region
+    holes = measured.copy()
+    holes[rng.random(g.GRID_SHAPE) < 0.3] = np.nan          # scattered NaN cells
+    holes[10:14, 20:30] = np.nan                            # and a NaN block
+    per_channel = holes.copy()
+    per_channel[..., 1][rng.random(g.GRID_SHAPE) < 0.2] = np.nan   # channels differ
+    none = np.full(g.GRID_SHAPE + (1,), np.nan)
+    return {"merl": measured, "holes": holes, "per_channel": per_channel, "all_nan": none}
+
+
+def _same(a, b):
+    """Bit-identical, NaN where the other is NaN."""
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape and a.dtype == b.dtype
+    np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
+    np.testing.assert_array_equal(a[~np.isnan(a)], b[~np.isnan(b)])
+
+
+@pytest.mark.parametrize("kind", ["merl", "holes", "per_channel", "all_nan"])
+def test_prepared_numpy_table_is_bit_identical(kind):
+    table = _tables(0)[kind]
+    lut = g.TrilinearTable(table)
+    th, td, pd = _angles(20000, 1)
+    for fill in (float("nan"), 0.0, -7.0):
+        want = reference_lookup(table, th, td, pd, fill=fill)
+        _same(g.lookup_trilinear(lut, th, td, pd, fill=fill), want)
+        _same(g.lookup_trilinear(table, th, td, pd, fill=fill), want)
+
+
+@pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
+@pytest.mark.parametrize("kind", ["merl", "holes", "per_channel"])
+def test_prepared_torch_table_is_bit_identical(kind, dtype):
+    """Float32, as the renderer's ``TableBRDF`` holds it, and float64."""
+    table = torch.as_tensor(_tables(2)[kind], dtype=dtype)
+    lut = g.TrilinearTable(table)
+    th, td, pd = (torch.as_tensor(a, dtype=dtype) for a in _angles(20000, 3))
+    for fill in (float("nan"), 0.0):
+        want = reference_lookup(table, th, td, pd, fill=fill)
+        got = g.lookup_trilinear(lut, th, td, pd, fill=fill)
+        assert got.dtype == dtype
+        _same(got.numpy(), want.numpy())
+
+
+def test_nan_corner_semantics_on_the_prepared_table():
+    """What the reference does, spelled out: an unmeasured corner is left out; a point on
+    an unmeasured cell, whose measured neighbours all have weight 0, gets ``fill``; a
+    point between measured cells interpolates them."""
+    table = np.ones(g.GRID_SHAPE + (1,))
+    table[40, 40, 90] = np.nan
+    table[40, 40, 91] = 5.0
+    lut = g.TrilinearTable(table)
+    th, td, pd = g.cell_angles(np.array([90 + 180 * (40 + 90 * 40)]))
+    assert np.isnan(g.lookup_trilinear(lut, th, td, pd)[0, 0])
+    assert g.lookup_trilinear(lut, th, td, pd, fill=0.0)[0, 0] == 0.0
+    half = math.pi / 180 / 2
+    # halfway between the NaN cell and the 5.0 cell: the NaN corner left out, 5.0 remains
+    assert g.lookup_trilinear(lut, th, td, pd + half)[0, 0] == pytest.approx(5.0)
+
+
+def test_shapes_broadcast_like_the_plain_table():
+    table = _tables(4)["merl"]
+    lut = g.TrilinearTable(table)
+    th = np.full((4, 5), 0.3)
+    pd = np.linspace(0, 3, 5)
+    assert g.lookup_trilinear(lut, th, 0.2, pd).shape == (4, 5, 3)
+    assert g.lookup_trilinear(lut, 0.3, 0.2, 0.1).shape == (3,)
+    _same(g.lookup_trilinear(lut, th, 0.2, pd), reference_lookup(table, th, 0.2, pd))
+
+
+def test_table_brdf_renders_through_the_prepared_table():
+    """The renderer's BRDF gives what the plain lookup gives at its directions."""
+    from brdfkit.render.brdf import TableBRDF
+
+    table = _tables(5)["merl"]
+    brdf = TableBRDF(table, device="cpu")
+    rng = np.random.default_rng(6)
+    wi = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
+    wo = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
+    wi, wo = wi / wi.norm(dim=1, keepdim=True), wo / wo.norm(dim=1, keepdim=True)
+    th, _, td, pd = g.half_diff_from_io(wi, wo)
+    want = reference_lookup(torch.as_tensor(table, dtype=torch.float32), th, td, pd, fill=0.0)
+    above = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+    want = torch.where(above[:, None], want, torch.zeros_like(want))
+    _same(brdf.eval_dirs(wi, wo).numpy(), want.numpy())
+
+
+def test_neural_brdf_reference_through_the_prepared_table(tmp_path):
+    """A neural BRDF's ``rho_ref`` at its directions is the plain lookup's."""
+    from brdfkit import api
+    from brdfkit.model.loaded import interp_reference
+
+    from helpers_model import make_model
+
+    make_model(tmp_path / "m.safetensors", seed=0)
+    model = api.load_model(tmp_path / "m.safetensors", "cpu")
+    table, fallback = model.reference_torch()
+    th, td, pd = (torch.as_tensor(a, dtype=torch.float32) for a in _angles(4000, 7))
+    want = interp_reference(table, fallback, th, td, pd)
+    got = interp_reference(model.reference_trilinear(), fallback, th, td, pd)
+    _same(got.numpy(), want.numpy())
+    assert model.reference_trilinear() is model.reference_trilinear()
