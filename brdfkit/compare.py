@@ -10,11 +10,13 @@ file stem.
 
 from __future__ import annotations
 
+import dataclasses
+import hashlib
 import os
 
 from .errors import InputError
 
-__all__ = ["SUFFIXES", "FileLoader", "compare_files", "compare_folders", "mean_scores"]
+__all__ = ["SUFFIXES", "FileLoader", "RenderCounts", "compare_files", "compare_folders", "mean_scores"]
 
 SUFFIXES = (".binary", ".emb", ".exr")
 KEYS = ("psnr", "delta_e", "ssim", "brdf_log_rmse")
@@ -29,9 +31,33 @@ def _kind(path: str) -> str:
     raise InputError(f"{path}: not a BRDF (.binary, .emb) or an image (.exr)")
 
 
+@dataclasses.dataclass
+class RenderCounts:
+    """What a :class:`FileLoader` rendered.
+
+    Attributes
+    ----------
+    passes
+        Quadrature passes made (a pair of BRDF files is rendered in one).
+    renders
+        BRDF files rendered.
+    cached
+        Renders taken from the loader's cache instead (same file content, same scene).
+    """
+
+    passes: int = 0
+    renders: int = 0
+    cached: int = 0
+
+
 class FileLoader:
     """Reads inputs: images, reference-scene renders and dense tables; loads the model
     (for ``.emb`` inputs) once, on first need.
+
+    A BRDF file's render is kept in memory, keyed by the SHA-256 of the file's bytes (and
+    of the model's fingerprint for an ``.emb``) and the scene settings, so a reference
+    scored against several predictions is rendered once per loader (``counts`` says how
+    often that happened).
 
     Parameters
     ----------
@@ -54,6 +80,8 @@ class FileLoader:
         self.progress = progress
         self._model = None
         self._before_torch = before_torch
+        self._renders: dict = {}
+        self.counts = RenderCounts()
 
     def _torch_needed(self):
         if self._before_torch is not None:
@@ -72,16 +100,42 @@ class FileLoader:
         return self._model
 
     def image(self, path, resolution=None):
-        from .render import files
+        """An ``.exr`` as it is, a BRDF file rendered in the reference scene."""
         from .render.image import read_exr
 
         if _kind(path) == "image":
             return read_exr(path)
-        model = self.model() if path.lower().endswith(".emb") else None
-        self._torch_needed()
-        img, _ = files.render_brdf_file(path, resolution=resolution or self.resolution,
-                                        progress=self.progress, model=model)
-        return img
+        return self.renders([path], resolution)[0]
+
+    def _render_key(self, path, scene) -> str:
+        h = hashlib.sha256()
+        with open(path, "rb") as f:
+            for chunk in iter(lambda: f.read(1 << 20), b""):
+                h.update(chunk)
+        model = self.model().fingerprint if path.lower().endswith(".emb") else ""
+        return hashlib.sha256("\n".join([h.hexdigest(), model, repr(scene)]).encode()).hexdigest()
+
+    def renders(self, paths, resolution=None) -> list:
+        """Reference-scene renders of BRDF files: float32 ``(R, R, 3)`` each; the ones not
+        cached are rendered together in one quadrature pass."""
+        from .render import files
+
+        scene = files.reference_scene(resolution or self.resolution)
+        keys = [self._render_key(p, scene) for p in paths]
+        todo = {}
+        for key, path in zip(keys, paths):
+            if key not in self._renders:
+                todo.setdefault(key, path)
+        self.counts.cached += len(paths) - len(todo)
+        if todo:
+            model = self.model() if any(p.lower().endswith(".emb") for p in todo.values()) else None
+            self._torch_needed()
+            images = files.render_brdf_files(list(todo.values()), resolution=scene.resolution,
+                                             progress=self.progress, model=model)
+            self._renders.update(zip(todo, images))
+            self.counts.passes += 1
+            self.counts.renders += len(todo)
+        return [self._renders[k].copy() for k in keys]
 
     def check(self, path):
         """Read ``path`` (and the model an ``.emb`` needs) without rendering: a bad
@@ -132,9 +186,11 @@ def compare_files(loader: FileLoader, pred: str, ref: str) -> dict:
                     raise InputError(f"{path}: a {img.shape[1]}x{img.shape[0]} image cannot be compared "
                                      "with a reference-scene render (square)")
             size = img.shape[0]
-    if img_p is None:
+    if img_p is None and img_r is None:
+        img_p, img_r = loader.renders([pred, ref], size)  # one pass for the pair
+    elif img_p is None:
         img_p = loader.image(pred, size)
-    if img_r is None:
+    elif img_r is None:
         img_r = loader.image(ref, size)
     if img_p.shape != img_r.shape:
         raise InputError(f"{pred}, {ref}: image sizes differ ({img_p.shape[1]}x{img_p.shape[0]} "

@@ -14,7 +14,50 @@ import os
 
 from ..console import ProgressBar
 
-__all__ = ["render_brdf_file"]
+__all__ = ["render_brdf_file", "render_brdf_files", "reference_scene"]
+
+
+def reference_scene(resolution: int | None = None, supersample: int = 1):
+    """The reference scene at ``resolution`` pixels square (default its own 256)."""
+    from .scene import REFERENCE
+
+    return dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
+                               supersample=int(supersample))
+
+
+def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = True, model=None) -> list:
+    """Quadrature renders of several BRDF files in the reference scene, in one pass
+    (:func:`brdfkit.render.quadrature.render_many`: each image equals
+    :func:`render_brdf_file`'s of that file, to the bit).
+
+    Parameters
+    ----------
+    paths
+        ``.binary`` / ``.emb`` files.
+    resolution, progress, model
+        As for :func:`render_brdf_file`.
+
+    Returns
+    -------
+    list
+        float32 ``(R, R, 3)`` linear RGB image per file.
+    """
+    from .brdf import load_brdf
+    from .quadrature import render_many
+
+    brdfs = [load_brdf(p, model=model) for p in paths]
+    # One pass needs one device (a table and a model's BRDF may sit on different ones).
+    groups: dict = {}
+    for i, b in enumerate(brdfs):
+        groups.setdefault(str(getattr(b, "device", "cpu")), []).append(i)
+    images = [None] * len(brdfs)
+    for idx in groups.values():
+        with ProgressBar(f"quadrature {' + '.join(brdfs[i].name for i in idx)}", enabled=progress) as bar:
+            done = render_many([brdfs[i] for i in idx], reference_scene(resolution),
+                               progress=bar if progress else None)
+        for i, (img, _) in zip(idx, done):
+            images[i] = img
+    return images
 
 
 def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mitsuba: bool = False,

@@ -61,7 +61,7 @@ import numpy as np
 
 from .scene import REFERENCE, Quadrature, Scene
 
-__all__ = ["NodeSet", "RenderStats", "render", "render_pixels"]
+__all__ = ["NodeSet", "RenderStats", "render", "render_many", "render_pixels"]
 
 # Pairs (pixel x node) per block: large enough to amortise Python, small enough for cache.
 BLOCK_PAIRS = 1 << 17
@@ -76,7 +76,7 @@ class RenderStats:
     Attributes
     ----------
     evaluations
-        BRDF evaluations made.
+        BRDF evaluations made (per BRDF, when several are rendered in one pass).
     scale_range
         ``(min, max)`` of the per-pixel normalisation factors of the half-vector and
         cosine nodes (``(1, 1)`` when none applied).
@@ -316,15 +316,27 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
     numpy.ndarray
         float32 ``(P, 3)`` outgoing radiance.
     """
+    return _render_pixels([brdf], normals, env, wo_world, q, progress, stats)[0]
+
+
+def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | None = None,
+                   progress=None, stats: RenderStats | None = None):
+    """:func:`render_pixels` of several BRDFs in one pass: the nodes, shares and weights
+    are computed once and each BRDF is evaluated at the same direction pairs; each image
+    is the one a render of that BRDF alone gives, to the bit (same operations, same
+    order)."""
     import torch
 
     q = q or REFERENCE.quadrature
-    dev = getattr(brdf, "device", None) or torch.device("cpu")
+    devs = [getattr(b, "device", None) or torch.device("cpu") for b in brdfs]
+    if len({str(torch.device(d)) for d in devs}) != 1:
+        raise ValueError(f"BRDFs rendered together must share a device, got {sorted(map(str, devs))}")
+    dev = devs[0]
     nd = _Nodes(NodeSet(q, env), dev)
     n_all = torch.as_tensor(np.asarray(normals, np.float64), dtype=torch.float64, device=dev)
     wo_w = torch.as_tensor(wo_world, dtype=torch.float64, device=dev)
     total = n_all.shape[0]
-    out = torch.zeros(total, 3, dtype=torch.float64, device=dev)
+    outs = [torch.zeros(total, 3, dtype=torch.float64, device=dev) for _ in brdfs]
     n_nodes = nd.n_c + nd.n_b + nd.n_a
     block = max(1, BLOCK_PAIRS // n_nodes)
     kind_of = torch.cat([torch.full((nd.n_c,), 0), torch.full((nd.n_b,), 1),
@@ -385,19 +397,21 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
             keep = weight > 0
             pix, kind, ai, wi_l, wo_l, wi_w, weight = (
                 a[keep] for a in (pix, kind, ai, wi_l, wo_l, wi_w, weight))
-            f = brdf.eval_dirs(wi_l.float(), wo_l.float()).double()
+            wi_f, wo_f = wi_l.float(), wo_l.float()
             radiance = torch.empty(pix.numel(), 3, dtype=torch.float64, device=dev)
             is_a = kind == 2
             radiance[is_a] = nd.light_rad[ai[is_a]]
             radiance[~is_a] = env.radiance(wi_w[~is_a].float()).double()
             evaluations += int(pix.numel())
-            out[s:s + p].index_add_(0, pix, radiance * f * weight[:, None])
+            for brdf, out in zip(brdfs, outs):
+                f = brdf.eval_dirs(wi_f, wo_f).double()
+                out[s:s + p].index_add_(0, pix, radiance * f * weight[:, None])
             if progress is not None:
                 progress(min(total, s + p), total)
     if stats is not None:
         stats.evaluations = evaluations
         stats.scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
-    return out.float().cpu().numpy()
+    return [out.float().cpu().numpy() for out in outs]
 
 
 def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: RenderStats | None = None):
@@ -424,11 +438,36 @@ def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: Rende
         average of the pixel's sample points) and the boolean mask ``(R, R)`` of pixels
         with at least one sample point on the object.
     """
+    return render_many([brdf], scene, env, progress, stats)[0]
+
+
+def render_many(brdfs, scene: Scene = REFERENCE, env=None, progress=None, stats: RenderStats | None = None):
+    """Render the reference scene with each of ``brdfs`` in one pass (``brdfkit metrics``
+    of two tables): the quadrature's nodes, shares and weights are computed once and every
+    BRDF is evaluated at the same direction pairs, so each image equals :func:`render` of
+    that BRDF alone, to the bit.
+
+    Parameters
+    ----------
+    brdfs
+        Sequence of objects with ``eval_dirs``, on one device.
+    scene, env, progress, stats
+        As for :func:`render` (``stats.evaluations`` counts the evaluations of one BRDF).
+
+    Returns
+    -------
+    list
+        ``(image, mask)`` per BRDF, as :func:`render` returns them.
+    """
     from .envmap import reference_envmap
 
     env = env if env is not None else reference_envmap()
     normals, inside = scene.pixel_normals()
-    samples = np.zeros(normals.shape, np.float32)
-    samples[inside] = render_pixels(brdf, normals[inside], env, q=scene.quadrature, progress=progress,
-                                    stats=stats)
-    return samples.mean(2), inside.any(2)
+    images = _render_pixels(list(brdfs), normals[inside], env, q=scene.quadrature, progress=progress,
+                            stats=stats)
+    out = []
+    for pixels in images:
+        samples = np.zeros(normals.shape, np.float32)
+        samples[inside] = pixels
+        out.append((samples.mean(2), inside.any(2)))
+    return out

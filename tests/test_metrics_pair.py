@@ -1,0 +1,102 @@
+"""``brdfkit metrics`` of two BRDFs renders the pair in one quadrature pass, and a
+reference scored against several predictions is rendered once (issue 14 item 2).
+
+The one-pass images must be the separate renders to the bit: the pass shares the nodes,
+shares and weights, and only the BRDF evaluations differ.
+"""
+
+from __future__ import annotations
+
+import shutil
+
+import numpy as np
+
+from brdfkit.compare import FileLoader, compare_files
+from brdfkit.merl import write_merl
+from brdfkit.metrics import score
+from brdfkit.render import quadrature
+from brdfkit.render.brdf import TableBRDF
+from brdfkit.render.scene import Scene
+
+from helpers_model import make_model, material_table
+
+RES = 16
+
+
+def _same(a, b):
+    assert a.dtype == b.dtype and a.shape == b.shape
+    np.testing.assert_array_equal(a, b)
+
+
+def test_one_pass_equals_separate_renders_table_and_neural(tmp_path):
+    from brdfkit import api
+    from brdfkit.embedding import write_embedding
+    from brdfkit.render.brdf import load_brdf
+    from brdfkit.samples import draw_samples
+
+    make_model(tmp_path / "m.safetensors", seed=0)
+    model = api.load_model(tmp_path / "m.safetensors", "cpu")
+    write_embedding(tmp_path / "w.emb", api.encode(model, draw_samples(material_table(1), 200, seed=0), source="w"))
+    neural = load_brdf(tmp_path / "w.emb", model=model)
+    brdfs = [TableBRDF(material_table(1), "ggx", device="cpu"), TableBRDF(material_table(0), "white", device="cpu"),
+             neural]
+    scene = Scene(resolution=RES)
+    stats = quadrature.RenderStats()
+    together = quadrature.render_many(brdfs, scene, stats=stats)
+    assert len(together) == 3
+    for brdf, (img, mask) in zip(brdfs, together):
+        alone_stats = quadrature.RenderStats()
+        alone, alone_mask = quadrature.render(brdf, scene, stats=alone_stats)
+        _same(img, alone)
+        _same(mask, alone_mask)
+        assert alone_stats.evaluations == stats.evaluations > 0
+    assert not np.array_equal(together[0][0], together[1][0])
+
+
+def test_metrics_of_two_tables_one_pass_and_the_reference_cached(tmp_path):
+    ref, pred, pred2 = tmp_path / "ref.binary", tmp_path / "pred.binary", tmp_path / "pred2.binary"
+    write_merl(ref, material_table(0))
+    write_merl(pred, material_table(1))
+    write_merl(pred2, np.asarray(material_table(1)) * 0.5)
+    loader = FileLoader(resolution=RES, progress=False)
+    got = compare_files(loader, str(pred), str(ref))
+    assert (loader.counts.passes, loader.counts.renders, loader.counts.cached) == (1, 2, 0)
+
+    # what rendering each alone and scoring gives
+    scene = Scene(resolution=RES)
+    img_p, _ = quadrature.render(TableBRDF(material_table(1), device="cpu"), scene)
+    img_r, _ = quadrature.render(TableBRDF(material_table(0), device="cpu"), scene)
+    want = score(img_p, img_r, material_table(1), material_table(0))
+    assert got == want
+
+    # the same reference again, under another name: only the new prediction is rendered
+    shutil.copy(ref, tmp_path / "ref-copy.binary")
+    got2 = compare_files(loader, str(pred2), str(tmp_path / "ref-copy.binary"))
+    assert (loader.counts.passes, loader.counts.renders, loader.counts.cached) == (2, 3, 1)
+    assert got2["psnr"] != got["psnr"]
+    # a cached render is handed out as a copy: changing it does not change the cache
+    img = loader.image(str(ref))
+    img[:] = 0
+    assert loader.image(str(ref)).any()
+    assert loader.counts.renders == 3
+
+
+def test_a_changed_file_or_resolution_is_rendered_again(tmp_path):
+    path = tmp_path / "a.binary"
+    write_merl(path, material_table(0))
+    loader = FileLoader(resolution=RES, progress=False)
+    a = loader.image(str(path))
+    loader.image(str(path), RES + 4)
+    assert loader.counts.renders == 2
+    write_merl(path, material_table(1))
+    b = loader.image(str(path))
+    assert loader.counts.renders == 3 and not np.array_equal(a, b)
+
+
+def test_the_same_file_twice_is_rendered_once(tmp_path):
+    path = tmp_path / "a.binary"
+    write_merl(path, material_table(1))
+    loader = FileLoader(resolution=RES, progress=False)
+    r = compare_files(loader, str(path), str(path))
+    assert r["psnr"] == 100.0 and r["delta_e"] == 0.0  # identical images (PSNR capped)
+    assert (loader.counts.passes, loader.counts.renders, loader.counts.cached) == (1, 1, 1)
