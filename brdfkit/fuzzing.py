@@ -96,10 +96,11 @@ def embedding_seed() -> bytes:
 
 @functools.lru_cache(maxsize=None)
 def reference_seed() -> bytes:
+    from brdfkit.geometry import TABLE_SHAPE
     from brdfkit.mapping import save_reference
 
     path = os.path.join(_seed_folder(), "ref.safetensors")
-    table = np.full((90, 90, 180, 3), 0.5, dtype=np.float32)
+    table = np.full(TABLE_SHAPE, 0.5, dtype=np.float32)
     save_reference(path, table, ["a", "b"])
     return _take(path)
 
