@@ -39,7 +39,8 @@ def _caption(scores: dict) -> str:
 
 def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
                      output: str | os.PathLike, *, model_path: str | os.PathLike | None = None,
-                     resolution: int | None = None, progress: bool = True, dpi: int = 110) -> dict:
+                     resolution: int | None = None, progress: bool = True, dpi: int = 110,
+                     before_torch=None) -> dict:
     """Render, score and draw ``preds`` against ``ref`` into the PNG ``output``.
 
     Parameters
@@ -57,6 +58,9 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
         reference sets it).
     progress
         Render progress bars on stderr (drawn only on a terminal).
+    before_torch
+        Called once before the first render (:class:`brdfkit.compare.FileLoader`): a
+        sheet of images only never imports torch.
 
     Returns
     -------
@@ -78,13 +82,18 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     preds = [os.fspath(p) for p in preds]
     if not preds:
         raise InputError("compare: give a reference and at least one prediction")
-    loader = FileLoader(model_path, resolution, progress)
+    loader = FileLoader(model_path, resolution, progress, before_torch=before_torch)
     for path in [ref, *preds]:  # every input readable before the first render
         check_input_file(path)
         loader.check(path)
     is_image = {p: p.lower().endswith(".exr") for p in [ref, *preds]}
-    img_ref = loader.image(ref)
-    size = img_ref.shape[0] if is_image[ref] else None
+    img_ref = loader.image(ref) if is_image[ref] else None
+    size = None if img_ref is None else img_ref.shape[0]
+    brdfs = [p for p in [ref, *preds] if not is_image[p]]
+    if len(brdfs) > 1:
+        loader.renders(brdfs, size)  # all BRDF inputs in one quadrature pass (then cached)
+    if img_ref is None:
+        img_ref = loader.image(ref)
     table_ref = None if is_image[ref] else loader.table(ref)
     labels = input_labels([ref, *preds])
     rows, images, maps = {}, [], []

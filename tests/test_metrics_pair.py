@@ -100,3 +100,18 @@ def test_the_same_file_twice_is_rendered_once(tmp_path):
     r = compare_files(loader, str(path), str(path))
     assert r["psnr"] == 100.0 and r["delta_e"] == 0.0  # identical images (PSNR capped)
     assert (loader.counts.passes, loader.counts.renders, loader.counts.cached) == (1, 1, 1)
+
+
+def test_sheet_renders_all_brdfs_in_one_pass_with_the_same_scores(tmp_path):
+    """``brdfkit compare`` of a table against two tables: the scores of ``metrics``."""
+    from brdfkit.sheet import comparison_sheet
+
+    ref, a, b = tmp_path / "ref.binary", tmp_path / "a.binary", tmp_path / "b.binary"
+    write_merl(ref, material_table(0))
+    write_merl(a, material_table(1))
+    write_merl(b, np.asarray(material_table(1)) * 0.5)
+    rows = comparison_sheet(ref, [a, b], tmp_path / "sheet.png", resolution=RES, progress=False)
+    loader = FileLoader(resolution=RES, progress=False)
+    assert rows["a"] == compare_files(loader, str(a), str(ref))
+    assert rows["b"] == compare_files(loader, str(b), str(ref))
+    assert (tmp_path / "sheet.png").is_file()

@@ -84,6 +84,18 @@ def test_metrics_of_two_images_imports_no_torch(tmp_path):
     assert "torch" not in heavy and "mitsuba" not in heavy and "colour" in heavy
 
 
+def test_compare_sheet_of_images_imports_no_torch(tmp_path):
+    from brdfkit.render.image import write_exr
+
+    rng = np.random.default_rng(1)
+    for name in ("ref", "a", "b"):
+        write_exr(tmp_path / f"{name}.exr", rng.uniform(0, 1, (16, 16, 3)).astype(np.float32))
+    [(code, heavy)] = _run(["compare", tmp_path / "ref.exr", tmp_path / "a.exr", tmp_path / "b.exr",
+                            "-o", tmp_path / "sheet.png", "--json"])
+    assert code == 0 and (tmp_path / "sheet.png").is_file()
+    assert "torch" not in heavy and "mitsuba" not in heavy
+
+
 def test_commands_that_run_the_network_do_import_torch(good, tmp_path):
     """The probe itself: a command that needs torch is seen importing it."""
     [(code, heavy)] = _run(["encode", good / "samples.csv", "-m", good / "model.safetensors",

@@ -39,9 +39,10 @@ def command(ref, preds, model_path, sheet, resolution, as_json, threads, quiet):
     refuse_overwrite_of_inputs(sheet, [ref, *preds, model_path])
     if not sheet.lower().endswith(".png"):
         raise InputError(f"{sheet}: the sheet is written as PNG; name it .png")
-    set_torch_threads(threads)
+    # Threads are set on the first render: a sheet of images never imports torch.
     rows = comparison_sheet(ref, preds, sheet, model_path=model_path, resolution=resolution,
-                            progress=not quiet and not as_json)
+                            progress=not quiet and not as_json,
+                            before_torch=lambda: set_torch_threads(threads))
     if as_json:
         click.echo(json.dumps({"reference": ref, "predictions": rows}))
     else:
