@@ -146,12 +146,15 @@ def test_shapes_broadcast_like_the_plain_table():
     _same(g.lookup_trilinear(lut, th, 0.2, pd), reference_lookup(table, th, 0.2, pd))
 
 
-def test_table_brdf_renders_through_the_prepared_table():
-    """The renderer's BRDF gives what the plain lookup gives at its directions."""
+@pytest.mark.parametrize("prepare_after", [0, 1 << 40])
+def test_table_brdf_renders_through_the_prepared_table(prepare_after):
+    """The renderer's BRDF gives what the plain lookup gives at its directions, with the
+    prepared table (a render's many pairs) or without (a tiny render's few)."""
     from brdfkit.render.brdf import TableBRDF
 
     table = _tables(5)["merl"]
     brdf = TableBRDF(table, device="cpu")
+    brdf.PREPARE_AFTER = prepare_after
     rng = np.random.default_rng(6)
     wi = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
     wo = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
@@ -161,6 +164,7 @@ def test_table_brdf_renders_through_the_prepared_table():
     above = (wi[:, 2] > 0) & (wo[:, 2] > 0)
     want = torch.where(above[:, None], want, torch.zeros_like(want))
     _same(brdf.eval_dirs(wi, wo).numpy(), want.numpy())
+    assert (brdf._lut is not None) == (prepare_after == 0)
 
 
 def test_neural_brdf_reference_through_the_prepared_table(tmp_path):

@@ -37,7 +37,13 @@ class TableBRDF:
         Shown in progress messages and metric tables.
     device
         Torch device of the float32 copy used for lookups (default: CUDA if available).
+
+    Lookups go through a :class:`brdfkit.geometry.TrilinearTable` once the BRDF has been
+    asked for :attr:`PREPARE_AFTER` pairs (same values to the bit; building it costs
+    about as much as two plain lookups of a render's block, so a tiny render skips it).
     """
+
+    PREPARE_AFTER = 1 << 18
 
     def __init__(self, table, name: str = "table", device=None):
         import torch
@@ -49,7 +55,8 @@ class TableBRDF:
         self.table = arr
         self.device = resolve_device(device)
         self._t = torch.as_tensor(np.ascontiguousarray(arr, np.float32), device=self.device)
-        self._lut = None  # geometry.TrilinearTable of _t, built on the first evaluation
+        self._lut = None  # geometry.TrilinearTable of _t, built after PREPARE_AFTER pairs
+        self._pairs = 0
 
     def eval_dirs(self, wi, wo):
         """BRDF ``(N, 3)`` float32 at local direction pairs ``wi, wo`` (torch ``(N, 3)``)."""
@@ -57,12 +64,13 @@ class TableBRDF:
 
         from ..geometry import TrilinearTable, half_diff_from_io, lookup_trilinear
 
-        if self._lut is None:
+        self._pairs += wi.numel() // 3
+        if self._lut is None and self._pairs >= self.PREPARE_AFTER:
             self._lut = TrilinearTable(self._t)
         wi_ = wi.to(self.device, torch.float32).reshape(-1, 3)
         wo_ = wo.to(self.device, torch.float32).reshape(-1, 3)
         th, _, td, pd = half_diff_from_io(wi_, wo_)
-        rho = lookup_trilinear(self._lut, th, td, pd, fill=0.0)
+        rho = lookup_trilinear(self._t if self._lut is None else self._lut, th, td, pd, fill=0.0)
         above = (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
         return torch.where(above[:, None], rho, torch.zeros_like(rho)).to(wi.device)
 
