@@ -1,0 +1,121 @@
+"""Study: how far can the linear basis itself go on the validation materials (issue 12)?
+
+IPCA (8 components, ridge in its own log space) against the same basis with its
+coefficients refined in the evaluation metric's space, on the fixed validation split.
+
+    python benchmarks/study_pca.py --proxies DIR
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+import torch
+
+from brdfkit.methods.ipca import EPS, cosine_weight, fit_ipca
+from brdfkit.geometry import N_CELLS, cell_index, cos_theta_i
+from brdfkit.samples import draw_samples
+
+from study_data import load_library, validation_materials
+
+
+def refine(model, samples, c0, s2=1e-3, steps=60, density=False, ipca_term=False, lam=0.1):
+    """Coefficients ``(K, 3)`` of the basis fitted in the evaluation metric's space.
+
+    Minimises ``sum wt_s (ln(1 + rho_hat cos_i) - ln(1 + rho cos_i))^2 / s2 + |c / sigma|^2``
+    over the samples (LBFGS from the IPCA ridge solution ``c0``): a Gaussian likelihood in
+    the space of :func:`brdfkit.metrics.brdf_log_rmse` with noise variance ``s2`` and the
+    basis's Gaussian prior. ``density`` weights each sample by ``theta_h^-1/2``, the density
+    of MERL cells per radian of ``theta_h``, so the samples (uniform over angles) count as
+    the metric's cells do. ``ipca_term`` adds IPCA's own likelihood
+    ``|mapped - b|^2 / lam`` (its ridge), which keeps the information of dark samples that
+    the metric's space flattens."""
+    idx = cell_index(samples.theta_h, samples.theta_d, samples.phi_d)
+    dense = model._table()
+    at = dense[idx]
+    w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+    ok = np.isfinite(at).all(1) & (w > 0)
+    at, w = at[ok], w[ok]
+    cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
+    rho = np.clip(samples.rgb[ok], 0, None)
+    T = lambda a: torch.as_tensor(np.asarray(a, np.float64))
+    ref, mean, comp = T(at[:, 0]), T(at[:, 1]), T(at[:, 2:])
+    w, cos, target = T(w), T(cos), torch.log1p(T(rho) * T(cos)[:, None])
+    wt = T(np.clip(samples.theta_h[ok], 1e-3, None) ** -0.5) if density else torch.ones(len(w), dtype=torch.float64)
+    wt = wt / wt.mean()
+    sigma = T(model.sigma)
+    b = torch.log((T(rho) * w[:, None] + EPS) / (ref[:, None] + EPS))
+    c = T(c0).clone().requires_grad_(True)
+    opt = torch.optim.LBFGS([c], lr=1, max_iter=steps, line_search_fn="strong_wolfe")
+
+    def closure():
+        opt.zero_grad()
+        mapped = mean[:, None] + comp @ c
+        x = torch.expm1(mapped.clamp(max=30)) * (ref[:, None] + EPS) + ref[:, None]
+        pred = torch.log1p((x / w[:, None]).clamp(min=0) * cos[:, None])
+        loss = (wt[:, None] * (pred - target) ** 2).sum() / s2 + ((c / sigma[:, None]) ** 2).sum()
+        if ipca_term:  # the IPCA likelihood too (its ridge: noise variance lam, unit prior)
+            loss = loss + ((mapped - b) ** 2).sum() / lam
+        loss.backward()
+        return loss
+
+    opt.step(closure)
+    return c.detach().numpy()
+
+
+S2 = (1e-2, 1e-3)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--proxies", required=True)
+    ap.add_argument("--n", type=int, nargs="+", default=[40, 400, 4000])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0])
+    ap.add_argument("--components", type=int, nargs="+", default=[8])
+    ap.add_argument("--s2", type=float, nargs="+", default=None)
+    args = ap.parse_args()
+    global S2
+    S2 = tuple(args.s2 or S2)
+    torch.set_num_threads(1)
+    t = time.time()
+    lib = load_library(args.proxies)
+    val = validation_materials()
+    train = [n for n in lib.names if n not in val and not n.startswith("rgl:")]
+    print(f"library {len(lib.names)} tables, {lib.cells.size} cells, {time.time() - t:.1f} s; "
+          f"train {len(train)}, validation {len(val)}")
+    for k in args.components:
+        t = time.time()
+        model = fit_ipca([lib.table(n) for n in train], k, names=train)
+        print(f"ipca K={k} fit {time.time() - t:.1f} s")
+        evaluate(lib, model, val, args)
+
+
+def evaluate(lib, model, val, args):
+    variants = {"ipca": None}
+    for s2 in S2:
+        variants[f"metric s2={s2:g}"] = dict(s2=s2)
+        variants[f"metric+density s2={s2:g}"] = dict(s2=s2, density=True)
+        variants[f"hybrid s2={s2:g}"] = dict(s2=s2, ipca_term=True)
+        variants[f"hybrid+density s2={s2:g}"] = dict(s2=s2, ipca_term=True, density=True)
+    errs = {k: {n: [] for n in args.n} for k in list(variants) + ["oracle"]}
+    for name in val:
+        table = lib.table(name)
+        flat_cells = lib.cells
+        errs["oracle"][args.n[0]].append(lib.log_rmse(name, model.decode(model.project(table)).reshape(N_CELLS, 3)[flat_cells]))
+        for n in args.n:
+            for seed in args.seeds:
+                s = draw_samples(table, n, seed=seed)
+                c0 = model.coefficients(s)
+                for k, kw in variants.items():
+                    c = c0 if kw is None else refine(model, s, c0, **kw)
+                    pred = model.decode(c).reshape(N_CELLS, 3)[flat_cells]
+                    errs[k][n].append(lib.log_rmse(name, pred))
+    print(f"{'method':28s} " + " ".join(f"N={n:>6d}" for n in args.n))
+    for k, d in errs.items():
+        print(f"{k:28s} " + " ".join(f"{np.mean(v) if v else float('nan'):8.4f}" for v in d.values()))
+
+
+if __name__ == "__main__":
+    main()
