@@ -210,7 +210,7 @@ def _brute_force(material, normal, env, n=800):
     import torch
 
     from brdfkit.render.envmap import uv_to_direction
-    from brdfkit.render.quadrature import _frames
+    from brdfkit.render.nodes import _frames
     from brdfkit.synthetic import evaluate
 
     t, b = (a[0].numpy() for a in _frames(torch.tensor(normal[None], dtype=torch.float64)))

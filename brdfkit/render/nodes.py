@@ -1,0 +1,220 @@
+"""The reference scene's quadrature nodes: the fixed directions and weights of the
+cosine (C), half-vector (B) and light (A) techniques, and the share each technique takes
+of a direction (see :mod:`brdfkit.render.quadrature` for the method and its sources).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .scene import Quadrature
+
+__all__ = ["NodeSet", "half_share"]
+
+# Sub-grid per light patch for its averaged radiance.
+_PATCH_SUBGRID = 8
+
+
+def _concentric(a, b):
+    """Shirley-Chiu concentric map of ``[0,1]^2`` to the unit disk."""
+    x, y = 2 * a - 1, 2 * b - 1
+    big = np.abs(x) > np.abs(y)
+    r = np.where(big, x, y)
+    phi = np.where(big, (np.pi / 4) * y / np.where(x == 0, 1, x),
+                   np.pi / 2 - (np.pi / 4) * x / np.where(y == 0, 1, y))
+    return r * np.cos(phi), r * np.sin(phi)
+
+
+def _smoothstep(x):
+    x = x.clamp(0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+class NodeSet:
+    """The fixed quadrature directions and their weights for one environment.
+
+    Attributes
+    ----------
+    cosine
+        float64 ``(N_C, 3)`` local directions.
+    half, half_weight
+        float64 ``(N_B, 3)`` local half vectors; weights in half-vector solid angle (times
+        ``4 wo.h`` for the solid angle of ``wi``).
+    light, light_weight, light_radiance
+        float64 ``(N_A, 3)`` world directions, solid-angle weights ``(N_A,)`` and
+        patch-averaged radiance ``(N_A, 3)``.
+    rects
+        ``(u0, u1, v0, v1, ramp_u, ramp_v)`` per light rectangle.
+    """
+
+    def __init__(self, q: Quadrature, env):
+        from .envmap import uv_to_direction
+
+        self.q = q
+        n = q.cosine_grid
+        a, b = np.meshgrid((np.arange(n) + 0.5) / n, (np.arange(n) + 0.5) / n, indexing="ij")
+        x, y = _concentric(a.ravel(), b.ravel())
+        self.cosine = np.stack([x, y, np.sqrt(np.clip(1 - x * x - y * y, 0, None))], -1)
+
+        k, p = q.half_rings, q.half_power
+        u = np.arange(k) + 0.5
+        theta = (np.pi / 2) * (u / k) ** p
+        dtheta_du = (np.pi / 2) * p * u ** (p - 1) / k ** p
+        self.ring_m = np.maximum(q.half_phi_min, np.round(q.half_phi * np.sqrt(np.sin(theta)))).astype(int)
+        hs, ws = [], []
+        for t, dt, m in zip(theta, dtheta_du, self.ring_m):
+            f = 2 * np.pi * (np.arange(m) + 0.5) / m
+            hs.append(np.stack([np.sin(t) * np.cos(f), np.sin(t) * np.sin(f), np.full(m, np.cos(t))], -1))
+            ws.append(np.full(m, np.sin(t) * dt * 2 * np.pi / m))
+        self.half = np.concatenate(hs)
+        self.half_weight = np.concatenate(ws)
+
+        lights, weights, rads, rects = [], [], [], []
+        for (u0, u1, v0, v1, nu, nv, ru, rv) in env.bright:
+            nu = max(1, round(nu * q.light_density))
+            nv = max(1, round(nv * q.light_density))
+            du, dv = (u1 - u0) / nu, (v1 - v0) / nv
+            uc, vc = np.meshgrid(u0 + (np.arange(nu) + 0.5) * du, v0 + (np.arange(nv) + 0.5) * dv,
+                                 indexing="ij")
+            uc, vc = uc.ravel(), vc.ravel()
+            lights.append(uv_to_direction(uc % 1.0, vc))
+            # Patch integrals on an s x s sub-grid: d(omega) = 2 pi^2 sin(pi v) du dv.
+            s = _PATCH_SUBGRID
+            off = (np.arange(s) + 0.5) / s - 0.5
+            su = (uc[:, None, None] + off[None, :, None] * du) % 1.0
+            sv = vc[:, None, None] + off[None, None, :] * dv
+            su, sv = np.broadcast_arrays(su, sv)
+            dw = 2 * np.pi ** 2 * np.sin(np.pi * sv) * du * dv / (s * s)
+            rad = _env_radiance_np(env, uv_to_direction(su.ravel(), sv.ravel())).reshape(len(uc), s * s, 3)
+            w = dw.reshape(len(uc), s * s)
+            weights.append(w.sum(1))
+            rads.append((rad * w[..., None]).sum(1) / w.sum(1)[:, None])
+            rects.append((u0, u1, v0, v1, ru, rv))
+        self.light = np.concatenate(lights) if lights else np.zeros((0, 3))
+        self.light_weight = np.concatenate(weights) if weights else np.zeros(0)
+        self.light_radiance = np.concatenate(rads) if rads else np.zeros((0, 3))
+        self.rects = rects
+
+    @property
+    def count(self) -> int:
+        """Nodes per pixel before the horizon test."""
+        return len(self.cosine) + len(self.half) + len(self.light)
+
+
+def _env_radiance_np(env, d):
+    import torch
+
+    return env.radiance(torch.as_tensor(d, dtype=torch.float64)).double().numpy()
+
+
+def half_share(q: Quadrature, theta_h, wo_dot_h, cos_i):
+    """``s_B0``: the half-vector nodes' share before the light rectangles, a function of
+    the pair's geometry only (NumPy or torch arrays).
+
+    A balance between the half-vector nodes' density ``d_B`` (per steradian of ``wi``,
+    with the ring count taken as a continuous function of ``theta_h``) and the cosine
+    nodes' ``N_C max(cos theta_i, 0.25) / pi``, raised to ``q.share_power``, times a
+    smooth cut to 0 at ``theta_h = half_extent``:
+    ``s_B0 = cut / (1 + (d_C / d_B)^k)``.
+    """
+    xp = np if isinstance(theta_h, np.ndarray) else __import__("torch")
+    k, p = q.half_rings, q.half_power
+    th = xp.clip(theta_h, 1e-12, None) if xp is np else theta_h.clamp_min(1e-12)
+    u = k * (th / (math.pi / 2)) ** (1.0 / p)
+    dth_du = (math.pi / 2) * p * u ** (p - 1) / k ** p
+    m = xp.maximum(q.half_phi * xp.sqrt(xp.sin(th)), q.half_phi_min + 0 * th)
+    d_b = m / (2 * math.pi * xp.sin(th) * dth_du * 4 * (xp.clip(wo_dot_h, 1e-12, None) if xp is np
+                                                        else wo_dot_h.clamp_min(1e-12)))
+    d_c = q.cosine_grid ** 2 * (xp.clip(cos_i, 0.25, None) if xp is np else cos_i.clamp_min(0.25)) / math.pi
+    x = xp.clip(th / q.half_extent, 0.0, 1.0) if xp is np else (th / q.half_extent).clamp(0.0, 1.0)
+    cut = 1.0 - x * x * (3.0 - 2.0 * x)
+    return cut / (1.0 + (d_c / d_b) ** q.share_power)
+
+
+_SHARE_TABLES: dict = {}
+
+
+def _half_share_table(q: Quadrature, n_o: int = 129, n_t: int = 300, n_p: int = 180):
+    """``I_B(cos theta_o) = integral of s_B0(wi, wo) cos(theta_i) / pi dwi`` (:func:`half_share`) over the upper
+    hemisphere at ``n_o`` values of ``cos theta_o`` (error about 1e-5), by a fine midpoint
+    rule in half-vector space (``dwi = 4 wo.h dh``; ``wo`` in the ``xz`` plane, so
+    ``phi_h`` in ``[0, pi]`` counts twice); computed once per setting and process."""
+    key = (q, n_o, n_t, n_p)
+    if key not in _SHARE_TABLES:
+        cos_o = np.linspace(0.0, 1.0, n_o)
+        th = (np.arange(n_t) + 0.5) / n_t * q.half_extent
+        ph = (np.arange(n_p) + 0.5) / n_p * np.pi
+        st, ct = np.sin(th)[:, None], np.cos(th)[:, None]
+        hx, hz = st * np.cos(ph), np.broadcast_to(ct, (n_t, n_p))
+        thb = np.broadcast_to(th[:, None], (n_t, n_p))
+        out = np.empty(n_o)
+        for i, c in enumerate(cos_o):
+            so = math.sqrt(max(0.0, 1 - c * c))
+            woh = hx * so + hz * c
+            wi_z = 2 * woh * hz - c
+            share = half_share(q, thb, woh, wi_z)
+            f = np.where((woh > 0) & (wi_z > 0), wi_z * 4 * woh * share, 0.0) * st / np.pi
+            out[i] = 2 * f.sum() * (q.half_extent / n_t) * (np.pi / n_p)
+        _SHARE_TABLES[key] = (cos_o, out)
+    return _SHARE_TABLES[key]
+
+
+def _frames(n):
+    """Orthonormal tangent frames (Duff et al. 2017), continuous for ``n_z > -1``."""
+    import torch
+
+    s = torch.where(n[:, 2] >= 0, 1.0, -1.0).to(n.dtype)
+    a = -1.0 / (s + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    t = torch.stack([1 + s * n[:, 0] ** 2 * a, s * b, -s * n[:, 0]], -1)
+    bt = torch.stack([b, s + n[:, 1] ** 2 * a, -n[:, 1]], -1)
+    return t, bt
+
+
+def _rect_ramp(rects, d):
+    """``rho``: 1 inside the light rectangles, falling to 0 across their margins, for world
+    directions ``d (N, 3)``."""
+    import torch
+
+    from .envmap import direction_to_uv
+
+    out = torch.zeros(d.shape[0], dtype=d.dtype, device=d.device)
+    if not rects:
+        return out
+    # Texture coordinates only for directions in the rectangles' band of elevations.
+    y = d[:, 1]
+    band = torch.zeros_like(y, dtype=torch.bool)
+    for _, _, v0, v1, _, _ in rects:
+        band |= (y <= math.cos(math.pi * max(v0, 0.0))) & (y >= math.cos(math.pi * min(v1, 1.0)))
+    idx = band.nonzero(as_tuple=True)[0]
+    if idx.numel() == 0:
+        return out
+    u, v = direction_to_uv(d[idx])
+    ramp_all = torch.zeros_like(u)
+    for u0, u1, v0, v1, ru, rv in rects:
+        uu = torch.where(u < u0, u + 1.0, u) if u0 < 0 else u  # a rectangle may cross u = 0
+        ramp = (_smoothstep((uu - u0) / ru) * _smoothstep((u1 - uu) / ru)
+                * _smoothstep((v - v0) / rv) * _smoothstep((v1 - v) / rv))
+        ramp_all = torch.maximum(ramp_all, ramp)
+    out[idx] = ramp_all
+    return out
+
+
+class _Nodes:
+    """Torch copies of a :class:`NodeSet` on one device (float64: the first half-vector
+    rings sit 1e-5 rad from the specular direction, below float32 resolution)."""
+
+    def __init__(self, ns: NodeSet, device):
+        import torch
+
+        f = dict(dtype=torch.float64, device=device)
+        self.cos = torch.as_tensor(ns.cosine, **f)
+        self.half = torch.as_tensor(ns.half, **f)
+        self.half_w = torch.as_tensor(ns.half_weight, **f)
+        self.light = torch.as_tensor(ns.light, **f)
+        self.light_w = torch.as_tensor(ns.light_weight, **f)
+        self.light_rad = torch.as_tensor(ns.light_radiance, **f)
+        self.rects = ns.rects
+        self.n_c, self.n_b, self.n_a = len(ns.cosine), len(ns.half), len(ns.light)
