@@ -65,6 +65,35 @@ def refine(model, samples, c0, s2=1e-3, steps=60, density=False, ipca_term=False
     return c.detach().numpy()
 
 
+def gauss_newton(model, samples, s2=1e-2, density=False, ipca_term=True, lam=0.1):
+    """Closed-form approximation of :func:`refine`: the metric term linearised around the
+    observed values (one Gauss-Newton step from them), so it is a weighted ridge.
+
+    With ``m = ln(1 + rho cos_i)`` and IPCA's mapped value ``b = ln((rho w + eps) /
+    (ref + eps))``, ``dm/db = cos_i (rho + eps / w) / (1 + rho cos_i)`` at the observed
+    ``rho``; each sample's squared residual in ``b`` is weighted by its square over
+    ``s2``, plus ``1 / lam`` for IPCA's own likelihood."""
+    idx = cell_index(samples.theta_h, samples.theta_d, samples.phi_d)
+    at = model._table()[idx].astype(np.float64)
+    w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+    ok = np.isfinite(at).all(1) & (w > 0)
+    at, w = at[ok], w[ok]
+    cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
+    rho = np.clip(np.asarray(samples.rgb, np.float64)[ok], 0, None)
+    ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
+    b = np.log((rho * w[:, None] + EPS) / (ref[:, None] + EPS)) - mean[:, None]
+    g = cos[:, None] * (rho + EPS / w[:, None]) / (1 + rho * cos[:, None])
+    wt = np.clip(samples.theta_h[ok], 1e-3, None) ** -0.5 if density else np.ones(len(w))
+    wt = wt / wt.mean()
+    sig = model.sigma.astype(np.float64)
+    c = np.empty((comp.shape[1], 3))
+    for ch in range(3):
+        q = wt * g[:, ch] ** 2 / s2 + (1.0 / lam if ipca_term else 0.0)
+        lhs = comp.T @ (comp * q[:, None]) + np.diag(1.0 / sig ** 2)
+        c[:, ch] = np.linalg.solve(lhs, comp.T @ (q * b[:, ch]))
+    return c
+
+
 S2 = (1e-2, 1e-3)
 
 
@@ -75,6 +104,7 @@ def main():
     ap.add_argument("--seeds", type=int, nargs="+", default=[0])
     ap.add_argument("--components", type=int, nargs="+", default=[8])
     ap.add_argument("--s2", type=float, nargs="+", default=None)
+    ap.add_argument("--gn-only", action="store_true", help="the closed-form (Gauss-Newton) fits only")
     args = ap.parse_args()
     global S2
     S2 = tuple(args.s2 or S2)
@@ -94,7 +124,14 @@ def main():
 
 def evaluate(lib, model, val, args):
     variants = {"ipca": None}
-    for s2 in S2:
+    if args.gn_only:
+        for s2 in S2:
+            for lam in (0.1, 1.0, None):
+                for dens in (False, True):
+                    variants[f"gn s2={s2:g} lam={lam} d={int(dens)}"] = dict(gn=True, s2=s2, density=dens,
+                                                                             ipca_term=lam is not None, lam=lam or 1)
+        variants["metric+density s2=0.01"] = dict(s2=1e-2, density=True)
+    for s2 in S2 if not args.gn_only else ():
         variants[f"metric s2={s2:g}"] = dict(s2=s2)
         variants[f"metric+density s2={s2:g}"] = dict(s2=s2, density=True)
         variants[f"hybrid s2={s2:g}"] = dict(s2=s2, ipca_term=True)
@@ -109,7 +146,12 @@ def evaluate(lib, model, val, args):
                 s = draw_samples(table, n, seed=seed)
                 c0 = model.coefficients(s)
                 for k, kw in variants.items():
-                    c = c0 if kw is None else refine(model, s, c0, **kw)
+                    if kw is None:
+                        c = c0
+                    elif kw.get("gn"):
+                        c = gauss_newton(model, s, **{k: v for k, v in kw.items() if k != "gn"})
+                    else:
+                        c = refine(model, s, c0, **kw)
                     pred = model.decode(c).reshape(N_CELLS, 3)[flat_cells]
                     errs[k][n].append(lib.log_rmse(name, pred))
     print(f"{'method':28s} " + " ".join(f"N={n:>6d}" for n in args.n))
