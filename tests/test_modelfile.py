@@ -198,8 +198,8 @@ def test_other_safetensors_refused(tmp_path):
 
 
 def test_wrong_version(model_path, tmp_path):
-    bad = _resave(model_path, tmp_path / "v2.safetensors", edit_meta=lambda m: m.update(version="2"))
-    with pytest.raises(FormatError, match="version '2' is not supported"):
+    bad = _resave(model_path, tmp_path / "v3.safetensors", edit_meta=lambda m: m.update(version="3"))
+    with pytest.raises(FormatError, match=r"version '3' is not supported \(this brdfkit reads version 1 or 2\)"):
         load_model(bad)
 
 
