@@ -62,7 +62,9 @@ class FileLoader:
     Parameters
     ----------
     model_path
-        Model file of ``.emb`` inputs (``None``: an ``.emb`` is an error).
+        Model file (or built-in name) of ``.emb`` inputs; ``None``: the built-in the first
+        ``.emb`` names by fingerprint, else the default built-in, else an ``.emb`` is an
+        error.
     resolution
         Render size of BRDF inputs (``None``: the reference scene's 256).
     progress
@@ -88,15 +90,16 @@ class FileLoader:
             hook, self._before_torch = self._before_torch, None
             hook()
 
-    def model(self):
+    def model(self, emb_path):
+        """The model of the ``.emb`` inputs: ``model_path``, else the built-in the first
+        embedding asked about names (:func:`brdfkit.model.builtin.embedding_model`)."""
         if self._model is None:
-            if not self.model_path:
-                raise InputError("no model given: an .emb input needs its model "
-                                 "(pass -m MODEL.safetensors or set BRDFKIT_MODEL)")
             from .api import load_model
+            from .model.builtin import embedding_model
 
+            path = embedding_model(self.model_path, emb_path)
             self._torch_needed()
-            self._model = load_model(self.model_path)
+            self._model = load_model(path)
         return self._model
 
     def image(self, path, resolution=None):
@@ -112,7 +115,7 @@ class FileLoader:
         with open(path, "rb") as f:
             for chunk in iter(lambda: f.read(1 << 20), b""):
                 h.update(chunk)
-        model = self.model().fingerprint if path.lower().endswith(".emb") else ""
+        model = self.model(path).fingerprint if path.lower().endswith(".emb") else ""
         return hashlib.sha256("\n".join([h.hexdigest(), model, repr(scene)]).encode()).hexdigest()
 
     def renders(self, paths, resolution=None) -> list:
@@ -128,7 +131,8 @@ class FileLoader:
                 todo.setdefault(key, path)
         self.counts.cached += len(paths) - len(todo)
         if todo:
-            model = self.model() if any(p.lower().endswith(".emb") for p in todo.values()) else None
+            embs = [p for p in todo.values() if p.lower().endswith(".emb")]
+            model = self.model(embs[0]) if embs else None
             self._torch_needed()
             images = files.render_brdf_files(list(todo.values()), resolution=scene.resolution,
                                              progress=self.progress, model=model)
@@ -148,7 +152,7 @@ class FileLoader:
         elif path.lower().endswith(".emb"):
             from .embedding import check_compatible, read_embedding
 
-            check_compatible(read_embedding(path), self.model(), path)
+            check_compatible(read_embedding(path), self.model(path), path)
         else:
             from .merl import read_merl
 
@@ -162,7 +166,7 @@ class FileLoader:
         from .api import decode
         from .embedding import read_embedding
 
-        return decode(self.model(), read_embedding(path))
+        return decode(self.model(path), read_embedding(path))
 
 
 def compare_files(loader: FileLoader, pred: str, ref: str) -> dict:

@@ -65,7 +65,9 @@ def load_tables(paths: Sequence[str | os.PathLike], model_path: str | os.PathLik
     """Read MERL tables and decode embeddings: ``{label: (90, 90, 180, 3) table}`` in the
     order given, labels the file stems (unique; see :func:`input_labels`).
 
-    An ``.emb`` needs ``model_path`` (the model that made it); only then is torch imported.
+    An ``.emb`` needs ``model_path`` (the model that made it: a file or a built-in name;
+    ``None``: the built-in the first embedding names, :func:`brdfkit.model.builtin.model_for_embedding`);
+    only then is torch imported.
     """
     from .merl import read_merl
 
@@ -77,12 +79,12 @@ def load_tables(paths: Sequence[str | os.PathLike], model_path: str | os.PathLik
     for label, path in zip(input_labels(paths), paths):
         ext = os.path.splitext(path)[1].lower()
         if ext == ".emb":
-            if model_path is None:
-                raise InputError(f"{path}: an embedding needs its model: pass -m MODEL.safetensors")
             from . import api
 
             if model is None:
-                model = api.load_model(model_path)
+                from .model.builtin import embedding_model
+
+                model = api.load_model(embedding_model(model_path, path))
             out[label] = api.decode(model, path)
         elif ext == ".binary":
             out[label] = read_merl(path)

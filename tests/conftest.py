@@ -49,11 +49,20 @@ def one_torch_thread():
     torch.set_num_threads(old)
 
 
+@pytest.fixture(scope="session")
+def no_builtin_models(tmp_path_factory):
+    """An empty built-in models folder."""
+    return tmp_path_factory.mktemp("no-builtin-models")
+
+
 @pytest.fixture(autouse=True)
-def no_model_env(monkeypatch):
-    """No test sees the developer's ``$BRDFKIT_MODEL`` (commands take ``-m`` from it); a
-    test that wants it sets it."""
+def no_model_env(monkeypatch, no_builtin_models):
+    """No test sees the developer's ``$BRDFKIT_MODEL`` (commands take ``-m`` from it), nor
+    the package's built-in models (a default model would answer every "no model given"
+    test): ``$BRDFKIT_BUILTIN_MODELS`` names an empty folder. A test that wants either
+    sets it."""
     monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
+    monkeypatch.setenv("BRDFKIT_BUILTIN_MODELS", str(no_builtin_models))
 
 
 # --- the files of the bad-input tests (test_bad_input_*.py, helpers_bad_input.py) -----------

@@ -32,6 +32,7 @@ COMMANDS = {
     "bench": "Error-against-run-time benchmark of the reconstruction methods.",
     "plot": "Plot BRDFs side by side: in-plane lobes and slices (PNG).",
     "compare": "Sheet of renders and error images against a reference.",
+    "models": "List the built-in pretrained models (the names -m takes).",
 }
 
 

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import json
-import os
 
 import click
 
@@ -13,19 +12,36 @@ MODEL_ENV = "BRDFKIT_MODEL"
 
 
 def model_option(f):
-    """``-m/--model``, falling back to ``$BRDFKIT_MODEL``."""
+    """``-m/--model``, falling back to ``$BRDFKIT_MODEL``: a model file or the name of a
+    built-in model (resolved by :func:`require_model` / :func:`optional_model`)."""
     return click.option("-m", "--model", "model_path", type=click.Path(dir_okay=False),
-                        default=None, envvar=MODEL_ENV, show_envvar=True,
-                        help="Model file (.safetensors) made by `brdfkit fit`.")(f)
+                        default=None, envvar=MODEL_ENV, show_envvar=True, metavar="NAME|FILE",
+                        help="Built-in model name (`brdfkit models`) or model file (.safetensors) "
+                             "made by `brdfkit fit`; default: the built-in default.")(f)
 
 
-def require_model(model_path: str | None) -> str:
-    """The model path, or an error saying how to get one."""
-    if not model_path:
-        raise InputError("no model given: pass -m MODEL.safetensors or set BRDFKIT_MODEL "
-                         "(make one with `brdfkit fit DATA... -o model.safetensors`, "
-                         "or run `brdfkit demo`, which trains one)")
-    return os.fspath(model_path)
+def optional_model(model_path: str | None) -> str | None:
+    """The file a given ``-m`` value names (a built-in name resolved), or ``None`` when
+    none was given: the library then picks a built-in for each embedding."""
+    from ..model.builtin import resolve_model
+
+    return resolve_model(model_path) if model_path else None
+
+
+def require_model(model_path: str | None, fingerprint: str | None = None) -> str:
+    """The model file to use: ``-m`` / ``$BRDFKIT_MODEL`` (a file or a built-in name),
+    else the built-in whose fingerprint is ``fingerprint`` (an embedding's), else the
+    default built-in; else an error saying how to get one."""
+    from ..model.builtin import default_model, model_for_embedding, resolve_model
+
+    if model_path:
+        return resolve_model(model_path)
+    found = model_for_embedding(fingerprint) if fingerprint else default_model()
+    if found is None:
+        raise InputError("no model given: pass -m NAME or -m MODEL.safetensors, or set BRDFKIT_MODEL (no default "
+                         "built-in model is installed; `brdfkit models` lists the built-in ones; make a model with "
+                         "`brdfkit fit DATA... -o model.safetensors`, or run `brdfkit demo`, which trains one)")
+    return found
 
 
 def parse_float(value: str, name: str) -> float:

@@ -15,6 +15,7 @@ from .common import model_option, require_model
 def command(embedding, model_path, output):
     """Decode EMBEDDING (.emb) with the model that made it into a MERL .binary table.
 
+    Without -m, the built-in model whose fingerprint the embedding records is used.
     Cells below the horizon are written as -1 (MERL's "not measured").
     """
     import os
@@ -26,9 +27,10 @@ def command(embedding, model_path, output):
 
     if output is None:
         output = os.path.splitext(embedding)[0] + ".binary"
-    model_path = require_model(model_path)
-    refuse_overwrite_of_inputs(output, [embedding, model_path])
+    refuse_overwrite_of_inputs(output, [embedding])
     emb = read_embedding(embedding)
+    model_path = require_model(model_path, emb.model_fingerprint)
+    refuse_overwrite_of_inputs(output, [model_path])
     model = load_model(model_path)
     table = decode(model, emb, source=embedding)
     write_merl(output, table)

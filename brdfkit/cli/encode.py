@@ -28,7 +28,8 @@ def command(inputs, model_path, output_dir):
     from ..embedding import write_embedding
     from ..errors import BrdfkitError, InputError
 
-    model = load_model(require_model(model_path))
+    model_path = require_model(model_path)
+    model = load_model(model_path)
     if output_dir:
         os.makedirs(output_dir, exist_ok=True)
     out = console()

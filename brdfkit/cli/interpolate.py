@@ -39,7 +39,7 @@ def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
     mix = interpolate(ea, eb, t, allow_extrapolation=allow_extrapolation)
     table = None
     if binary:
-        model = load_model(require_model(model_path))
+        model = load_model(require_model(model_path, mix.model_fingerprint))
         table = decode(model, mix, source=output)
     write_embedding(output, mix)
     if table is not None:

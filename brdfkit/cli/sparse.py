@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from ..methods import METHODS
-from .common import model_option
+from .common import model_option, optional_model, require_model
 
 
 def _model_from_env() -> bool:
@@ -27,7 +27,8 @@ def command(samples, model_path, output, emb_path, method):
     """Reconstruct a dense MERL table from the sample set SAMPLES (.csv).
 
     Make a sample set with `brdfkit sample`; its format is in docs/formats.md.
-    Cells below the horizon are written as -1.
+    Cells below the horizon are written as -1. The hypernet method without -m uses the
+    default built-in model (`brdfkit models`).
     """
     from ..atomic import refuse_overwrite_of_inputs
     from ..embedding import write_embedding
@@ -35,13 +36,19 @@ def command(samples, model_path, output, emb_path, method):
     from ..merl import write_merl
     from ..samples import read_samples
 
+    chosen = METHODS[method]
+    if not chosen.needs_model and _model_from_env():
+        model_path = None  # $BRDFKIT_MODEL names a hypernetwork, not meant for this method
+    model_path = optional_model(model_path)
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
     data = read_samples(samples)
-    chosen = METHODS[method]
-    if not chosen.needs_model and _model_from_env():
-        model_path = None  # $BRDFKIT_MODEL names a hypernetwork, not meant for this method
+    if model_path is None and method == "hypernet":
+        # The built-ins are hypernetworks: only this method takes the default one.
+        model_path = require_model(None)
+        refuse_overwrite_of_inputs(output, [model_path])
+        refuse_overwrite_of_inputs(emb_path, [model_path])
     table, emb = chosen.sparse(data, model_path)
     if emb_path and emb is None:
         raise InputError(f"--emb: method {method!r} makes no embedding")

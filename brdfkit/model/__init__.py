@@ -7,6 +7,10 @@ One module per concept, in the order data flows:
   hypernetwork decoder, batched hyponet), :class:`HyperConfig` and the paper's loss.
 * :mod:`~brdfkit.model.file`: model files (``.safetensors``): :func:`save_model`,
   :func:`load_model`, :func:`weights_fingerprint`; never unpickles.
+* :mod:`~brdfkit.model.storage`: compact storage in model files (the reference table at
+  its measured cells, float16, a reference file shared by several models).
+* :mod:`~brdfkit.model.builtin`: the built-in pretrained models (``brdfkit/models/``,
+  ``$BRDFKIT_BUILTIN_MODELS``): listing, names to files, their fingerprints checked.
 * :mod:`~brdfkit.model.loaded`: :class:`NeuralModel`, a loaded model with its reference
   table lookups and a typed cache of what is derived from it.
 * :mod:`~brdfkit.model.kernels`: the fused inference kernels (encoder mean, decoder for
@@ -35,8 +39,14 @@ _NAMES = {
     "save_model": "file",
     "load_model": "file",
     "weights_fingerprint": "file",
+    "state_fingerprint": "file",
     "MODEL_FORMAT": "file",
     "MODEL_VERSION": "file",
+    "MODEL_VERSIONS": "file",
+    "builtin_models": "builtin",
+    "resolve_model": "builtin",
+    "load_builtin": "builtin",
+    "pack_model": "builtin",
     "NeuralModel": "loaded",
     "ModelCache": "loaded",
     "encode_samples": "encoding",

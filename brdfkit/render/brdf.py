@@ -93,7 +93,9 @@ def load_brdf(path, model_path=None, device=None, model=None):
     path
         A MERL ``.binary`` table or an embedding ``.emb``.
     model_path
-        The model (``.safetensors``) an ``.emb`` was made with; required for ``.emb``.
+        The model (``.safetensors``, or a built-in name) an ``.emb`` was made with;
+        ``None``: the installed built-in whose fingerprint the embedding records, else
+        the default built-in (:func:`brdfkit.model.builtin.model_for_embedding`).
     device
         Torch device (default: CUDA if available, else CPU).
     model
@@ -117,12 +119,10 @@ def load_brdf(path, model_path=None, device=None, model=None):
     from ..model.brdf import NeuralBRDF
 
     if model is None:
+        from ..model.builtin import embedding_model
         from ..model.file import load_model
 
-        if not model_path:
-            raise InputError(f"{path}: an embedding needs the model that made it "
-                             "(pass -m MODEL.safetensors or set BRDFKIT_MODEL)")
-        model = load_model(model_path, device=device)
+        model = load_model(embedding_model(model_path, path), device=device)
     brdf = NeuralBRDF.from_embedding(model, read_embedding(path), name=path)
     brdf.name = name
     return brdf

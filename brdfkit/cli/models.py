@@ -1,0 +1,70 @@
+"""``brdfkit models``: list the built-in pretrained models."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+
+def _duration(seconds) -> str:
+    if seconds is None:
+        return "-"
+    if seconds < 120:
+        return f"{seconds:.0f} s"
+    if seconds < 7200:
+        return f"{seconds / 60:.0f} min"
+    return f"{seconds / 3600:.1f} h"
+
+
+@click.command("models")
+@click.option("--json", "as_json", is_flag=True, help="Print the manifest's entries as JSON on stdout.")
+@click.option("--check", is_flag=True, help="Also load each model and check its weights against the manifest.")
+def command(as_json, check):
+    """List the built-in models: the names `-m` takes, with how each was trained.
+
+    Validation figures are the BRDF log RMSE on held-out materials from N samples. The
+    folder is the package's brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
+    """
+    from ..model.builtin import load_builtin, read_manifest
+
+    man = read_manifest()
+    installed = man.installed()
+    if check:
+        for m in installed:
+            # Resolving checks the file's recorded fingerprint against the manifest,
+            # loading its weights against the recorded fingerprint: FormatError if not.
+            load_builtin(m.name, device="cpu")
+    if as_json:
+        click.echo(json.dumps({"folder": man.folder, "default": man.default,
+                               "models": [m.to_json() for m in man.models]}, indent=1))
+        return
+    if not installed:
+        click.echo(f"no built-in models installed (in {man.folder}); pass -m MODEL.safetensors from `brdfkit fit`")
+        return
+    from rich import box
+    from rich.console import Console
+    from rich.table import Table
+
+    ns = sorted({n for m in installed for n in m.validation})
+    # Narrow enough for an 80-column terminal; the paths follow the table.
+    tab = Table(title=f"Built-in models in {man.folder}", box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False,
+                collapse_padding=True, show_edge=False,
+                caption="*: the default. N=...: BRDF log RMSE on held-out materials from N samples.")
+    for col in ("name", "dim", "mats", "steps", "time", *(f"N={n}" for n in ns), "fingerprint"):
+        tab.add_column(col, justify="left" if col in ("name", "fingerprint") else "right", no_wrap=True)
+    for m in installed:
+        val = ["-" if m.validation.get(n) is None else f"{m.validation[n]:.3f}" for n in ns]
+        tab.add_row(m.name + (" *" if m.default else ""), str(m.latent_dim),
+                    "-" if m.materials is None else str(m.materials), "-" if m.steps is None else f"{m.steps:,}",
+                    _duration(m.train_seconds), *val, m.fingerprint[:12])
+    out = Console()
+    out.print(tab)
+    for m in installed:
+        lists = f" (materials: {m.materials_list})" if m.materials_list else ""
+        out.print(f"{m.name}: {m.path}{lists}", soft_wrap=True)
+    missing = [m.name for m in man.models if not m.installed]
+    if missing:
+        out.print(f"in the manifest but not installed: {', '.join(missing)}")
+    if check:
+        out.print(f"checked: {len(installed)} model(s) load and match the manifest")

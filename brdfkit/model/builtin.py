@@ -1,0 +1,326 @@
+"""Built-in models: pretrained model files shipped inside the package, by name.
+
+The folder ``brdfkit/models/`` (or ``$BRDFKIT_BUILTIN_MODELS``, for tests and for models
+kept elsewhere) holds model files and ``manifest.json`` (``docs/models.md``)::
+
+    {"format": "brdfkit-builtin-models", "version": 1, "default": "merl-rgl-l40",
+     "models": [{"name": "merl-rgl-l40", "file": "merl-rgl-l40.safetensors",
+                 "latent_dim": 40, "materials": 151, "materials_list": "MERL + RGL",
+                 "steps": 30000, "train_seconds": 3000.0, "command": "brdfkit fit ...",
+                 "validation": {"40": 0.21, "400": 0.13, "4000": 0.12},
+                 "fingerprint": "3f2a..."}]}
+
+A built-in model is *installed* when its file is in the folder. Wherever a model is asked
+for (``-m``, ``$BRDFKIT_MODEL``), a name resolves to its file (:func:`resolve_model`);
+with none given, an embedding picks the built-in whose fingerprint it records
+(:func:`model_for_embedding`), anything else the manifest's default
+(:func:`default_model`). A resolved built-in's recorded fingerprint is checked against
+the manifest, and loading checks the weights against the recorded fingerprint, so a
+damaged or replaced file is refused (:class:`~brdfkit.errors.FormatError`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import os
+import re
+
+from ..atomic import atomic_open
+from ..errors import FormatError, InputError
+
+__all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "BuiltinModel", "Manifest", "models_folder",
+           "read_manifest", "builtin_models", "is_path_spec", "resolve_model", "default_model",
+           "model_for_embedding", "embedding_model", "load_builtin", "pack_model", "manifest_entry", "write_manifest"]
+
+BUILTIN_ENV = "BRDFKIT_BUILTIN_MODELS"
+MANIFEST = "manifest.json"
+MANIFEST_FORMAT = "brdfkit-builtin-models"
+MANIFEST_VERSION = 1
+_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*\Z")
+_HEX64 = re.compile(r"[0-9a-f]{64}\Z")
+
+
+@dataclasses.dataclass(frozen=True)
+class BuiltinModel:
+    """One entry of the manifest.
+
+    Attributes
+    ----------
+    name, file, path
+        Its name (``-m NAME``), file name in the folder, and full path.
+    latent_dim
+        Size of its embeddings.
+    fingerprint
+        sha256 hex of its weights (:func:`brdfkit.model.file.weights_fingerprint`).
+    materials, materials_list
+        Number of training materials, and the name of their list (or ``None``).
+    steps, train_seconds, command
+        Training steps, wall time (s) and the command that trained it (or ``None``).
+    validation
+        ``{N: BRDF log RMSE}`` on held-out materials from ``N`` samples.
+    default, installed
+        Whether it is the manifest's default, and whether its file is present.
+    """
+
+    name: str
+    file: str
+    path: str
+    latent_dim: int
+    fingerprint: str
+    materials: int | None = None
+    materials_list: str | None = None
+    steps: int | None = None
+    train_seconds: float | None = None
+    command: str | None = None
+    validation: dict = dataclasses.field(default_factory=dict)
+    default: bool = False
+    installed: bool = False
+
+    def to_json(self) -> dict:
+        d = dataclasses.asdict(self)
+        d["validation"] = {str(k): v for k, v in self.validation.items()}
+        return d
+
+
+@dataclasses.dataclass(frozen=True)
+class Manifest:
+    """The manifest of a built-in models folder: ``models`` in its order, installed or
+    not; ``default`` the default's name (``None``: none)."""
+
+    folder: str
+    default: str | None
+    models: tuple
+
+    def installed(self) -> list[BuiltinModel]:
+        return [m for m in self.models if m.installed]
+
+
+def models_folder() -> str:
+    """``$BRDFKIT_BUILTIN_MODELS``, else the package's ``brdfkit/models``."""
+    env = os.environ.get(BUILTIN_ENV)
+    if env:
+        return os.path.abspath(env)
+    return os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
+
+
+def _entry(where: str, folder: str, d, default: str | None) -> BuiltinModel:
+    if not isinstance(d, dict):
+        raise FormatError(where, "each entry of 'models' must be an object")
+
+    def bad(msg):
+        return FormatError(where, f"model {d.get('name')!r}: {msg}")
+
+    name, file, fp = d.get("name"), d.get("file"), d.get("fingerprint")
+    if not isinstance(name, str) or not _NAME.match(name) or name.lower().endswith(".safetensors"):
+        raise bad("'name' must be a word of letters, digits, '.', '_' or '-'")
+    if not isinstance(file, str) or os.path.basename(file) != file or not file.endswith(".safetensors"):
+        raise bad("'file' must be a .safetensors file name in the folder")
+    if not isinstance(fp, str) or not _HEX64.match(fp):
+        raise bad("'fingerprint' must be 64 lowercase hex digits")
+    latent = d.get("latent_dim")
+    if isinstance(latent, bool) or not isinstance(latent, int) or latent < 1:
+        raise bad("'latent_dim' must be a positive whole number")
+    mats = d.get("materials")
+    if isinstance(mats, list):
+        mats = len(mats)
+    for key, kinds, value in (("materials", int, mats), ("steps", int, d.get("steps")),
+                              ("train_seconds", (int, float), d.get("train_seconds")),
+                              ("materials_list", str, d.get("materials_list")), ("command", str, d.get("command"))):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, kinds)):
+            raise bad(f"'{key}' has the wrong type")
+    val = d.get("validation") or {}
+    try:
+        validation = {int(k): float(v) for k, v in val.items()}
+    except (AttributeError, TypeError, ValueError):
+        raise bad("'validation' must map sample counts to log RMSE values") from None
+    path = os.path.join(folder, file)
+    return BuiltinModel(name=name, file=file, path=path, latent_dim=latent, fingerprint=fp, materials=mats,
+                        materials_list=d.get("materials_list"), steps=d.get("steps"),
+                        train_seconds=d.get("train_seconds"), command=d.get("command"),
+                        validation=dict(sorted(validation.items())), default=name == default,
+                        installed=os.path.isfile(path))
+
+
+def read_manifest(folder: str | os.PathLike | None = None) -> Manifest:
+    """The manifest of ``folder`` (default :func:`models_folder`); no manifest there:
+    no built-in models.
+
+    Raises
+    ------
+    FormatError
+        A manifest that is not JSON, not this format or version, or has a bad entry (one
+        line naming the manifest).
+    """
+    folder = os.path.abspath(os.fspath(folder)) if folder is not None else models_folder()
+    where = os.path.join(folder, MANIFEST)
+    if not os.path.isfile(where):
+        return Manifest(folder, None, ())
+    try:
+        with open(where, encoding="utf-8") as f:
+            doc = json.load(f)
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise FormatError(where, f"not a built-in models manifest ({e})") from None
+    if not isinstance(doc, dict) or doc.get("format") != MANIFEST_FORMAT:
+        raise FormatError(where, f"not a built-in models manifest (format {MANIFEST_FORMAT!r} expected)")
+    if doc.get("version") != MANIFEST_VERSION:
+        raise FormatError(where, f"manifest version {doc.get('version')!r} is not supported "
+                                 f"(this brdfkit reads version {MANIFEST_VERSION})")
+    default, models = doc.get("default"), doc.get("models")
+    if default is not None and not isinstance(default, str):
+        raise FormatError(where, "'default' must be a model name")
+    if not isinstance(models, list):
+        raise FormatError(where, "'models' must be a list")
+    entries = tuple(_entry(where, folder, d, default) for d in models)
+    names = [m.name for m in entries]
+    dup = sorted({n for n in names if names.count(n) > 1})
+    if dup:
+        raise FormatError(where, f"model name {dup[0]!r} appears twice")
+    return Manifest(folder, default, entries)
+
+
+def builtin_models() -> list[BuiltinModel]:
+    """The installed built-in models, in the manifest's order."""
+    return read_manifest().installed()
+
+
+def is_path_spec(spec: str | os.PathLike) -> bool:
+    """Whether a ``-m`` value means a file rather than a built-in name: it exists, holds
+    a path separator, or ends with ``.safetensors``."""
+    text = os.fspath(spec)
+    return (os.path.exists(text) or any(sep in text for sep in ("/", os.sep, os.altsep) if sep)
+            or text.lower().endswith(".safetensors"))
+
+
+def _checked(m: BuiltinModel) -> str:
+    """The path of an installed built-in after checking the fingerprint its file records
+    against the manifest (reading the header only; loading then checks the weights
+    against the recorded fingerprint)."""
+    from ..tensorfile import open_safetensors
+
+    with open_safetensors(m.path, framework="numpy", diagnose="brdfkit model file") as f:
+        recorded = (f.metadata() or {}).get("fingerprint")
+    if recorded != m.fingerprint:
+        raise FormatError(m.path, f"built-in model {m.name!r}: the file records fingerprint {str(recorded)[:12]}, "
+                                  f"the manifest {m.fingerprint[:12]}: the file is damaged or was replaced")
+    return m.path
+
+
+def _unknown(spec: str, installed: list[BuiltinModel]) -> InputError:
+    if installed:
+        names = ", ".join(m.name for m in installed)
+        return InputError(f"unknown model {spec!r}: no such file, and not a built-in model "
+                          f"(built-in: {names}; `brdfkit models` lists them)")
+    return InputError(f"unknown model {spec!r}: no such file, and no built-in models are installed "
+                      "(pass a model file made by `brdfkit fit`)")
+
+
+def resolve_model(spec: str | os.PathLike) -> str:
+    """The model file a ``-m`` value names: a path as it is (:func:`is_path_spec`), else
+    the installed built-in of that name, its fingerprint checked.
+
+    Raises
+    ------
+    InputError
+        Neither a file nor an installed built-in (one line listing the built-in names).
+    FormatError
+        The built-in's file records another fingerprint than the manifest.
+    """
+    if is_path_spec(spec):
+        return os.fspath(spec)
+    installed = builtin_models()
+    for m in installed:
+        if m.name == spec:
+            return _checked(m)
+    raise _unknown(os.fspath(spec), installed)
+
+
+def default_model() -> str | None:
+    """The manifest's default built-in, checked, if it is installed; else ``None``."""
+    man = read_manifest()
+    for m in man.installed():
+        if m.default:
+            return _checked(m)
+    return None
+
+
+def model_for_embedding(fingerprint: str | None) -> str | None:
+    """The installed built-in whose fingerprint is ``fingerprint`` (an embedding's
+    ``model_fingerprint``), else :func:`default_model`."""
+    for m in builtin_models():
+        if fingerprint and m.fingerprint == fingerprint:
+            return _checked(m)
+    return default_model()
+
+
+def embedding_model(model_path: str | os.PathLike | None, emb_path: str | os.PathLike) -> str:
+    """The model file to decode the embedding file ``emb_path`` with: ``model_path`` (a
+    file or a built-in name) when given, else :func:`model_for_embedding` of the
+    fingerprint it records.
+
+    Raises
+    ------
+    InputError
+        No model given and no built-in installed (one line naming the embedding).
+    """
+    if model_path:
+        return resolve_model(model_path)
+    found = None
+    if builtin_models():  # else the embedding is not read here: its own errors come later
+        from ..embedding import read_embedding
+
+        found = model_for_embedding(read_embedding(emb_path).model_fingerprint)
+    if found is None:
+        raise InputError(f"{os.fspath(emb_path)}: an embedding needs its model, the one that made it: pass "
+                         "-m MODEL.safetensors or set BRDFKIT_MODEL (`brdfkit models` lists the built-in ones)")
+    return found
+
+
+def load_builtin(spec: str | os.PathLike, device=None):
+    """Load a built-in model by name (or a model file by path, :func:`resolve_model`).
+
+    Returns
+    -------
+    brdfkit.model.loaded.NeuralModel
+    """
+    from .file import load_model
+
+    return load_model(resolve_model(spec), device=device)
+
+
+def pack_model(src: str | os.PathLike, dst: str | os.PathLike, *, half: bool = True,
+               reference_file: str | None = None) -> str:
+    """Re-save a trained model file for shipping: reference at its measured cells only,
+    float16 unless ``half=False``, optionally in a shared reference file beside ``dst``
+    (:func:`brdfkit.model.file.save_model`). Returns the new file's fingerprint (for the
+    manifest; with ``half`` it differs from the source's)."""
+    from .file import load_model, save_model
+
+    m = load_model(src, device="cpu")
+    return save_model(dst, m.net, m.rho_ref, m.meta, m.mapping, compact=True, half=half,
+                      reference_file=reference_file)
+
+
+def manifest_entry(path: str | os.PathLike, name: str, *, command: str, validation: dict,
+                   materials_list: str | None = None) -> dict:
+    """A manifest entry for a (packed) model file in the built-in folder, its latent
+    size, fingerprint and training figures read from the file."""
+    from .file import load_model
+
+    m = load_model(path, device="cpu")
+    mats = m.meta.get("materials")
+    return {"name": name, "file": os.path.basename(os.fspath(path)), "latent_dim": m.cfg.latent_dim,
+            "materials": len(mats) if isinstance(mats, list) else mats, "materials_list": materials_list,
+            "steps": m.meta.get("steps"), "train_seconds": m.meta.get("wall_time_s"), "command": command,
+            "validation": {str(k): float(v) for k, v in validation.items()}, "fingerprint": m.fingerprint}
+
+
+def write_manifest(folder: str | os.PathLike, entries: list[dict], default: str | None) -> str:
+    """Write ``manifest.json`` into ``folder`` atomically, its entries checked first."""
+    doc = {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION, "default": default, "models": entries}
+    path = os.path.join(os.fspath(folder), MANIFEST)
+    for d in entries:  # refused before anything is written
+        _entry(path, os.fspath(folder), d, default)
+    with atomic_open(path, "w", encoding="utf-8") as f:
+        f.write(json.dumps(doc, indent=1) + "\n")
+    return path

@@ -1,0 +1,321 @@
+"""Built-in models (``brdfkit.model.builtin``, ``brdfkit models``, ``-m NAME``) and the
+compact model files they ship as (``save_model(compact=True, half=True,
+reference_file=...)``).
+
+The built-in folder of every test is a temporary one named by ``$BRDFKIT_BUILTIN_MODELS``
+(conftest points it at an empty folder by default), holding tiny untrained models packed
+with the real :func:`brdfkit.model.builtin.pack_model` and a manifest written with the
+real :func:`~brdfkit.model.builtin.write_manifest`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+
+import numpy as np
+import pytest
+import torch
+
+from brdfkit import api
+from brdfkit.cli import main
+from brdfkit.embedding import read_embedding, write_embedding
+from brdfkit.errors import FormatError, InputError
+from brdfkit.merl import read_merl, write_merl
+from brdfkit.model import builtin
+from brdfkit.model.file import load_model, save_model, state_fingerprint
+from brdfkit.model.network import HyperBRDF, HyperConfig
+from brdfkit.samples import draw_samples, write_samples
+
+from conftest import TINY_CONFIG
+from helpers_model import make_model, material_table
+
+F16_EPS = 2.0 ** -11  # float16's relative rounding error
+
+
+def _cli(capsys, args):
+    """Run the CLI in-process: ``(exit code, stdout, stderr)``."""
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err
+
+
+def _one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: "), err
+    return lines[0]
+
+
+def _tiny_net(seed: int) -> HyperBRDF:
+    torch.manual_seed(seed)
+    return HyperBRDF(HyperConfig(**TINY_CONFIG))
+
+
+@pytest.fixture(scope="module")
+def shelf(tmp_path_factory):
+    """A built-in folder: ``tiny-a`` (the default) and ``tiny-b``, sharing one reference
+    file, and a folder of inputs (a table, a sample set)."""
+    src = tmp_path_factory.mktemp("trained")
+    folder = tmp_path_factory.mktemp("builtin")
+    entries = []
+    for name, seed in (("tiny-a", 0), ("tiny-b", 1)):
+        make_model(src / f"{name}.safetensors", seed=seed)
+        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+                           reference_file="tiny.reference.safetensors")
+        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command=f"brdfkit fit ({name})",
+                                              validation={40: 0.3, 400: 0.2}, materials_list="stiff"))
+    builtin.write_manifest(folder, entries, default="tiny-a")
+    inputs = tmp_path_factory.mktemp("inputs")
+    write_merl(inputs / "mat.binary", material_table(1))
+    write_samples(inputs / "s.csv", draw_samples(material_table(1), 200, seed=0))
+    return folder, inputs
+
+
+@pytest.fixture
+def installed(shelf, monkeypatch):
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf[0]))
+    return shelf
+
+
+# --- compact model files ---------------------------------------------------------------------
+
+def test_compact_and_half_round_trip(tmp_path):
+    net, ref = _tiny_net(0), material_table(0).astype(np.float32)
+    fp_dense = save_model(tmp_path / "dense.safetensors", net, ref)
+    fp_cells = save_model(tmp_path / "cells.safetensors", net, ref, compact=True)
+    fp_half = save_model(tmp_path / "half.safetensors", net, ref, half=True)
+    assert fp_cells == fp_dense  # float32 weights: the same network, the same fingerprint
+    half_weights = {k: v.half() for k, v in net.state_dict().items()}
+    assert fp_half == state_fingerprint(half_weights) != fp_dense
+    sizes = {n: os.path.getsize(tmp_path / f"{n}.safetensors") for n in ("dense", "cells", "half")}
+    assert sizes["half"] < sizes["cells"] < sizes["dense"]
+
+    dense = load_model(tmp_path / "dense.safetensors", "cpu")
+    cells = load_model(tmp_path / "cells.safetensors", "cpu")
+    half = load_model(tmp_path / "half.safetensors", "cpu")
+    np.testing.assert_array_equal(cells.rho_ref, dense.rho_ref)  # NaN where NaN, bit for bit
+    assert half.rho_ref.dtype == np.float32 and half.fingerprint == fp_half
+    np.testing.assert_array_equal(np.isnan(half.rho_ref), np.isnan(ref))
+    np.testing.assert_allclose(half.rho_ref, ref, rtol=F16_EPS, atol=6e-8, equal_nan=True)
+    for name, t in net.state_dict().items():
+        loaded = half.net.state_dict()[name]
+        assert loaded.dtype == torch.float32
+        torch.testing.assert_close(loaded, t, rtol=F16_EPS, atol=6e-8)
+
+    # Saved again, half or not, the loaded half model keeps its fingerprint.
+    assert save_model(tmp_path / "again.safetensors", half.net, half.rho_ref, half=True) == fp_half
+    assert save_model(tmp_path / "again32.safetensors", half.net, half.rho_ref) == fp_half
+    assert load_model(tmp_path / "again.safetensors", "cpu").fingerprint == fp_half
+
+
+def test_half_refuses_values_beyond_float16(tmp_path):
+    ref = material_table(0).astype(np.float32).copy()
+    ref[0, 0, 0, 0] = 1e5
+    with pytest.raises(ValueError, match="float16"):
+        save_model(tmp_path / "m.safetensors", _tiny_net(0), ref, half=True)
+    net = _tiny_net(0)
+    with torch.no_grad():
+        next(net.parameters()).view(-1)[0] = 7e4
+    with pytest.raises(ValueError, match="float16"):
+        save_model(tmp_path / "m.safetensors", net, material_table(0), half=True)
+    assert not (tmp_path / "m.safetensors").exists()
+
+
+def test_shared_reference(tmp_path):
+    ref = material_table(0)
+    fa = save_model(tmp_path / "a.safetensors", _tiny_net(0), ref, half=True, reference_file="r.safetensors")
+    fb = save_model(tmp_path / "b.safetensors", _tiny_net(1), ref, half=True, reference_file="r.safetensors")
+    a, b = load_model(tmp_path / "a.safetensors", "cpu"), load_model(tmp_path / "b.safetensors", "cpu")
+    assert (a.fingerprint, b.fingerprint) == (fa, fb)
+    np.testing.assert_array_equal(a.rho_ref, b.rho_ref)
+    assert os.path.getsize(tmp_path / "a.safetensors") < os.path.getsize(tmp_path / "r.safetensors")
+
+    with pytest.raises(ValueError, match="another reference table"):
+        save_model(tmp_path / "c.safetensors", _tiny_net(2), ref * 2, half=True,
+                   reference_file="r.safetensors")
+    with pytest.raises(ValueError, match="bare file name"):
+        save_model(tmp_path / "c.safetensors", _tiny_net(2), ref, reference_file="../r.safetensors")
+
+    # The model file alone, away from its reference, and a damaged reference, are refused.
+    (tmp_path / "alone").mkdir()
+    shutil.copy(tmp_path / "a.safetensors", tmp_path / "alone" / "a.safetensors")
+    with pytest.raises(FormatError, match="shared reference table r.safetensors is missing"):
+        load_model(tmp_path / "alone" / "a.safetensors", "cpu")
+    data = bytearray((tmp_path / "r.safetensors").read_bytes())
+    data[-10] ^= 0xFF
+    (tmp_path / "r.safetensors").write_bytes(bytes(data))
+    with pytest.raises(FormatError, match="damaged"):
+        load_model(tmp_path / "a.safetensors", "cpu")
+
+
+def test_damaged_compact_reference_refused(tmp_path):
+    from safetensors import safe_open
+    from safetensors.torch import load_file, save_file
+
+    save_model(tmp_path / "m.safetensors", _tiny_net(0), material_table(0), half=True)
+    with safe_open(str(tmp_path / "m.safetensors"), framework="pt") as f:
+        meta = f.metadata()
+    tensors = load_file(str(tmp_path / "m.safetensors"))
+    tensors["rho_ref_values"] = tensors["rho_ref_values"].clone()
+    tensors["rho_ref_values"][5, 0] *= 2
+    save_file(tensors, str(tmp_path / "bad.safetensors"), metadata=meta)
+    with pytest.raises(FormatError, match="does not match the digest"):
+        load_model(tmp_path / "bad.safetensors", "cpu")
+    tensors.pop("rho_ref_mask")
+    save_file(tensors, str(tmp_path / "nomask.safetensors"), metadata=meta)
+    with pytest.raises(FormatError, match="missing tensor 'rho_ref_mask'"):
+        load_model(tmp_path / "nomask.safetensors", "cpu")
+    for record, message in ((None, "bad or missing 'reference'"), ("[1]", "bad or missing 'reference'"),
+                            (json.dumps({"storage": "file", "file": "../r.safetensors", "digest": "0"}),
+                             "bad shared reference file name")):
+        md = {k: v for k, v in meta.items() if k != "reference"}
+        if record is not None:
+            md["reference"] = record
+        save_file(tensors, str(tmp_path / "rec.safetensors"), metadata=md)
+        with pytest.raises(FormatError, match=re.escape(message)):
+            load_model(tmp_path / "rec.safetensors", "cpu")
+
+
+# --- the built-in folder ---------------------------------------------------------------------
+
+def test_package_manifest_reads(monkeypatch):
+    monkeypatch.delenv(builtin.BUILTIN_ENV)
+    import brdfkit
+
+    man = builtin.read_manifest()
+    assert os.path.samefile(man.folder, os.path.join(os.path.dirname(brdfkit.__file__), "models"))
+    assert man.default == "merl-rgl-l40"
+    for m in man.installed():
+        assert os.path.isfile(m.path)
+
+
+def test_listing_and_resolution(installed):
+    folder, _ = installed
+    models = builtin.builtin_models()
+    assert [m.name for m in models] == ["tiny-a", "tiny-b"]
+    assert [m.default for m in models] == [True, False]
+    a = models[0]
+    assert a.latent_dim == TINY_CONFIG["latent_dim"] and a.materials == 1 and a.steps == 0
+    assert a.validation == {40: 0.3, 400: 0.2} and a.command == "brdfkit fit (tiny-a)"
+    assert builtin.resolve_model("tiny-b") == str(folder / "tiny-b.safetensors")
+    assert builtin.default_model() == str(folder / "tiny-a.safetensors")
+    assert builtin.load_builtin("tiny-a", device="cpu").fingerprint == a.fingerprint
+    # Paths stay paths, even missing ones, when they look like paths.
+    for spec in ("x.safetensors", "dir/x", str(folder / "tiny-a.safetensors")):
+        assert builtin.resolve_model(spec) == spec
+    with pytest.raises(InputError, match=r"unknown model 'tiny-c'.*built-in: tiny-a, tiny-b"):
+        builtin.resolve_model("tiny-c")
+
+
+def test_unknown_name_is_one_line_exit_2(installed, capsys):
+    _, inputs = installed
+    code, _, err = _cli(capsys, ["encode", inputs / "mat.binary", "-m", "nope", "-o", inputs / "out"])
+    line = _one_error_line(err)
+    assert code == 2 and "unknown model 'nope'" in line and "tiny-a, tiny-b" in line
+
+
+def test_no_builtin_no_model_error(capsys, tmp_path):
+    write_merl(tmp_path / "mat.binary", material_table(1))
+    code, _, err = _cli(capsys, ["encode", tmp_path / "mat.binary"])
+    line = _one_error_line(err)
+    assert code == 2 and "no model given" in line and "brdfkit models" in line
+    code, _, err = _cli(capsys, ["encode", tmp_path / "mat.binary", "-m", "merl-rgl-l40"])
+    assert code == 2 and "no built-in models are installed" in _one_error_line(err)
+
+
+def test_default_and_env_resolution(installed, capsys, monkeypatch, tmp_path):
+    folder, inputs = installed
+    fps = {m.name: m.fingerprint for m in builtin.builtin_models()}
+    code, _, err = _cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "d"])
+    assert code == 0, err
+    assert read_embedding(tmp_path / "d" / "mat.emb").model_fingerprint == fps["tiny-a"]
+    monkeypatch.setenv("BRDFKIT_MODEL", "tiny-b")
+    code, _, err = _cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "e"])
+    assert code == 0, err
+    assert read_embedding(tmp_path / "e" / "mat.emb").model_fingerprint == fps["tiny-b"]
+    monkeypatch.delenv("BRDFKIT_MODEL")
+    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "s.binary", "--emb", tmp_path / "s.emb"])
+    assert code == 0, err
+    assert read_embedding(tmp_path / "s.emb").model_fingerprint == fps["tiny-a"]
+
+
+def test_other_methods_get_no_builtin(installed, capsys, tmp_path):
+    _, inputs = installed
+    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "--method", "ipca", "-o", tmp_path / "x.binary"])
+    line = _one_error_line(err)
+    assert code == 2 and "method 'ipca' needs" in line
+    assert not (tmp_path / "x.binary").exists()
+
+
+def test_embedding_picks_its_builtin(installed, capsys, tmp_path):
+    folder, inputs = installed
+    b = api.load_model(folder / "tiny-b.safetensors", "cpu")
+    write_embedding(tmp_path / "x.emb", api.encode(b, inputs / "mat.binary"))
+    write_embedding(tmp_path / "y.emb", api.encode(b, inputs / "s.csv"))
+    assert builtin.embedding_model(None, tmp_path / "x.emb") == str(folder / "tiny-b.safetensors")
+    code, _, err = _cli(capsys, ["decode", tmp_path / "x.emb", "-o", tmp_path / "x.binary"])  # not the default
+    assert code == 0, err
+    np.testing.assert_allclose(read_merl(tmp_path / "x.binary"), api.decode(b, tmp_path / "x.emb"), rtol=1e-12,
+                               equal_nan=True)  # through the MERL scales and back
+    code, _, err = _cli(capsys, ["interpolate", tmp_path / "x.emb", tmp_path / "y.emb", "--t", "0.5",
+                                 "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary"])
+    assert code == 0, err
+    assert (tmp_path / "m.binary").exists()
+    # An embedding of a model that is not built in falls back to the default: refused by
+    # fingerprint, naming both.
+    make_model(tmp_path / "own.safetensors", seed=5)
+    own = api.load_model(tmp_path / "own.safetensors", "cpu")
+    write_embedding(tmp_path / "own.emb", api.encode(own, inputs / "s.csv"))
+    code, _, err = _cli(capsys, ["decode", tmp_path / "own.emb", "-o", tmp_path / "own.binary"])
+    assert code == 2 and own.fingerprint[:12] in _one_error_line(err)
+
+
+def test_damaged_builtin_refused(shelf, monkeypatch, capsys, tmp_path):
+    folder = tmp_path / "builtin"
+    shutil.copytree(shelf[0], folder)
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(folder))
+    # One weight flipped: the file no longer matches the fingerprint it (and the manifest) records.
+    path = folder / "tiny-a.safetensors"
+    data = bytearray(path.read_bytes())
+    data[-3] ^= 0x40
+    path.write_bytes(bytes(data))
+    code, _, err = _cli(capsys, ["encode", shelf[1] / "mat.binary", "-m", "tiny-a", "-o", tmp_path / "o"])
+    assert code == 2 and "damaged" in _one_error_line(err)
+    # Another valid model under a built-in's name: its recorded fingerprint is not the manifest's.
+    shutil.copy(folder / "tiny-b.safetensors", path)
+    code, _, err = _cli(capsys, ["encode", shelf[1] / "mat.binary", "-o", tmp_path / "o"])
+    line = _one_error_line(err)
+    assert code == 2 and "built-in model 'tiny-a'" in line and "the manifest" in line
+
+
+def test_bad_manifest_refused(monkeypatch, capsys, tmp_path):
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(tmp_path))
+    (tmp_path / "manifest.json").write_text('{"format": "brdfkit-builtin-models", "version": 1, '
+                                            '"models": [{"name": "a b", "file": "x.safetensors"}]}')
+    code, _, err = _cli(capsys, ["models"])
+    assert code == 2 and "manifest.json: model 'a b'" in _one_error_line(err)
+
+
+def test_models_command(installed, capsys):
+    code, out, err = _cli(capsys, ["models", "--check"])
+    assert code == 0, err
+    for m in builtin.builtin_models():
+        assert m.name in out and m.fingerprint[:12] in out
+    assert "tiny-a *" in out and "N=400" in out and "0.300" in out and "checked: 2 model(s)" in out
+    assert f"tiny-b: {installed[0] / 'tiny-b.safetensors'}" in out
+    code, out, err = _cli(capsys, ["models", "--json"])
+    assert code == 0, err
+    doc = json.loads(out)
+    assert doc["default"] == "tiny-a" and [m["name"] for m in doc["models"]] == ["tiny-a", "tiny-b"]
+    assert doc["models"][1]["validation"] == {"40": 0.3, "400": 0.2} and doc["models"][0]["installed"]
+
+
+def test_models_command_with_none_installed(capsys):
+    code, out, err = _cli(capsys, ["models"])
+    assert code == 0, err
+    assert out.count("\n") == 1 and "no built-in models installed" in out
+    code, out, _ = _cli(capsys, ["models", "--json"])
+    assert code == 0 and json.loads(out)["models"] == []
