@@ -1,0 +1,126 @@
+"""A frozen copy of the quadrature renderer as it was before the per-kind rewrite
+(``brdfkit.render.quadrature._render_pixels`` at commit e046ae5): the float64 pass over
+the full (pixel x node) tensor. ``tests/test_quadrature_pinned.py`` pins the renderer to it.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from brdfkit.render.nodes import NodeSet, _frames, _half_share_table, _rect_ramp, _smoothstep, half_share
+from brdfkit.render.scene import REFERENCE, Quadrature
+
+BLOCK_PAIRS = 1 << 17
+
+
+class _Nodes:
+    """Torch copies of a :class:`NodeSet` on one device (float64: the first half-vector
+    rings sit 1e-5 rad from the specular direction, below float32 resolution)."""
+
+    def __init__(self, ns: NodeSet, device):
+        import torch
+
+        f = dict(dtype=torch.float64, device=device)
+        self.cos = torch.as_tensor(ns.cosine, **f)
+        self.half = torch.as_tensor(ns.half, **f)
+        self.half_w = torch.as_tensor(ns.half_weight, **f)
+        self.light = torch.as_tensor(ns.light, **f)
+        self.light_w = torch.as_tensor(ns.light_weight, **f)
+        self.light_rad = torch.as_tensor(ns.light_radiance, **f)
+        self.rects = ns.rects
+        self.n_c, self.n_b, self.n_a = len(ns.cosine), len(ns.half), len(ns.light)
+
+
+def render_pixels_v1(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | None = None,
+                      progress=None, stats=None):
+    """The old ``_render_pixels(brdfs, ...)``, unchanged: a list of float32 ``(P, 3)``
+    images, one per BRDF."""
+    import torch
+
+    q = q or REFERENCE.quadrature
+    devs = [getattr(b, "device", None) or torch.device("cpu") for b in brdfs]
+    if len({str(torch.device(d)) for d in devs}) != 1:
+        raise ValueError(f"BRDFs rendered together must share a device, got {sorted(map(str, devs))}")
+    dev = devs[0]
+    nd = _Nodes(NodeSet(q, env), dev)
+    n_all = torch.as_tensor(np.asarray(normals, np.float64), dtype=torch.float64, device=dev)
+    wo_w = torch.as_tensor(wo_world, dtype=torch.float64, device=dev)
+    total = n_all.shape[0]
+    outs = [torch.zeros(total, 3, dtype=torch.float64, device=dev) for _ in brdfs]
+    n_nodes = nd.n_c + nd.n_b + nd.n_a
+    block = max(1, BLOCK_PAIRS // n_nodes)
+    kind_of = torch.cat([torch.full((nd.n_c,), 0), torch.full((nd.n_b,), 1),
+                         torch.full((nd.n_a,), 2)]).to(dev)
+    cos_o_tab, share_tab = _half_share_table(q)
+    lo, hi = math.log(q.light_handover[0]), math.log(q.light_handover[1])
+    evaluations, smin, smax = 0, math.inf, -math.inf
+    with torch.no_grad():
+        for s in range(0, total, block):
+            n = n_all[s:s + block]
+            p = n.shape[0]
+            t, bt = _frames(n)
+            frame = torch.stack([t, bt, n], 1)  # (P, 3, 3): rows are the local axes
+            wo = frame @ wo_w  # (P, 3) local
+            woh = wo @ nd.half.T  # (P, Nb)
+            wi = torch.cat([nd.cos.expand(p, -1, -1),
+                            2 * woh[..., None] * nd.half[None] - wo[:, None],  # mirror wo about h
+                            torch.einsum("pij,nj->pni", frame, nd.light)], 1)  # (P, N, 3) local
+            ok = wi[..., 2] > 0
+            ok[:, nd.n_c:nd.n_c + nd.n_b] &= woh > 0
+            pix, node = ok.nonzero(as_tuple=True)
+            kind = kind_of[node]
+            wi_l = torch.nn.functional.normalize(wi[pix, node], dim=-1)
+            wo_l = wo[pix]
+            cos = wi_l[:, 2]
+            wi_w = (wi_l[:, :, None] * frame[pix]).sum(1)  # local -> world
+            hv = wi_l + wo_l
+            th = torch.atan2(torch.sqrt(hv[:, 0] ** 2 + hv[:, 1] ** 2), hv[:, 2])
+            s_b0 = half_share(q, th, (wo_l * hv).sum(-1) / hv.norm(dim=-1), cos)
+            beta = 1.0 - _smoothstep((torch.log(th.clamp_min(1e-30)) - lo) / (hi - lo))
+            rho = _rect_ramp(nd.rects, wi_w)
+            share = torch.where(kind == 0, (1 - s_b0) * (1 - rho),
+                                torch.where(kind == 1, s_b0 * (1 - rho + rho * beta),
+                                            rho * (1 - s_b0 * beta)))
+            bi = (node - nd.n_c).clamp(0, max(nd.n_b - 1, 0))
+            ai = (node - nd.n_c - nd.n_b).clamp(0, max(nd.n_a - 1, 0))
+            w = torch.where(kind == 0, math.pi / (nd.n_c * cos),
+                            torch.where(kind == 1, nd.half_w[bi] * 4 * woh[pix, bi] if nd.n_b else cos,
+                                        nd.light_w[ai] if nd.n_a else cos))
+            # Normalise B and C to the exact measure of their shares, per pixel.
+            geo = w * cos / math.pi
+            mass = torch.zeros(p, 4, dtype=torch.float64, device=dev)
+            mass.index_put_((pix, kind), geo * share, accumulate=True)
+            is_a = kind == 2
+            mass[:, 3].index_add_(0, pix[is_a], (geo * s_b0 * rho * (1 - beta))[is_a])
+            i_b = torch.as_tensor(np.interp(wo[:, 2].cpu().numpy(), cos_o_tab, share_tab),
+                                  dtype=torch.float64, device=dev)
+            target_b = i_b - mass[:, 3]
+            target_c = 1.0 - target_b - mass[:, 2]
+            scale = torch.ones(p, 3, dtype=torch.float64, device=dev)
+            scale[:, 0] = torch.where(mass[:, 0] > 1e-9, target_c / mass[:, 0].clamp_min(1e-300), 1.0)
+            scale[:, 1] = torch.where(mass[:, 1] > 1e-9, target_b / mass[:, 1].clamp_min(1e-300), 1.0)
+            big = mass[:, :2] > 1e-3
+            if big.any():
+                smin = min(smin, float(scale[:, :2][big].min()))
+                smax = max(smax, float(scale[:, :2][big].max()))
+            weight = w * share * scale[pix, kind] * cos
+            keep = weight > 0
+            pix, kind, ai, wi_l, wo_l, wi_w, weight = (
+                a[keep] for a in (pix, kind, ai, wi_l, wo_l, wi_w, weight))
+            wi_f, wo_f = wi_l.float(), wo_l.float()
+            radiance = torch.empty(pix.numel(), 3, dtype=torch.float64, device=dev)
+            is_a = kind == 2
+            radiance[is_a] = nd.light_rad[ai[is_a]]
+            radiance[~is_a] = env.radiance(wi_w[~is_a].float()).double()
+            evaluations += int(pix.numel())
+            for brdf, out in zip(brdfs, outs):
+                f = brdf.eval_dirs(wi_f, wo_f).double()
+                out[s:s + p].index_add_(0, pix, radiance * f * weight[:, None])
+            if progress is not None:
+                progress(min(total, s + p), total)
+    if stats is not None:
+        stats.evaluations = evaluations
+        stats.scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
+    return [out.float().cpu().numpy() for out in outs]
