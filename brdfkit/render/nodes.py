@@ -200,21 +200,3 @@ def _rect_ramp(rects, d):
         ramp_all = torch.maximum(ramp_all, ramp)
     out[idx] = ramp_all
     return out
-
-
-class _Nodes:
-    """Torch copies of a :class:`NodeSet` on one device (float64: the first half-vector
-    rings sit 1e-5 rad from the specular direction, below float32 resolution)."""
-
-    def __init__(self, ns: NodeSet, device):
-        import torch
-
-        f = dict(dtype=torch.float64, device=device)
-        self.cos = torch.as_tensor(ns.cosine, **f)
-        self.half = torch.as_tensor(ns.half, **f)
-        self.half_w = torch.as_tensor(ns.half_weight, **f)
-        self.light = torch.as_tensor(ns.light, **f)
-        self.light_w = torch.as_tensor(ns.light_weight, **f)
-        self.light_rad = torch.as_tensor(ns.light_radiance, **f)
-        self.rects = ns.rects
-        self.n_c, self.n_b, self.n_a = len(ns.cosine), len(ns.half), len(ns.light)

@@ -48,8 +48,13 @@ changes the weights by well under 1% otherwise (:attr:`RenderStats.scale_range`)
 
 The BRDF is evaluated only at the queried direction pairs above the horizon with a
 non-zero share (``brdf.eval_dirs``: a trilinear table lookup or the hyponet itself),
-in blocks of pixels x nodes. Background pixels are black. Everything runs in torch on
-the BRDF's device.
+in blocks of pixels x nodes, and each pixel sums its pairs in float64. The pairs, their
+directions and their ``L_env w s cos`` are computed technique by technique, mostly in
+float32, by :mod:`brdfkit.render.pairs`; they depend on the scene, not on the BRDF, so
+those of the last scene rendered (up to :data:`PAIR_CACHE_BYTES`, 0.47 GB at 256 x 256)
+are kept for the next render of the same scene in the process (:func:`clear_cache`
+frees them). Background pixels are black. Everything runs in torch on the BRDF's
+device; ``eval_dirs`` must not modify its arguments.
 """
 
 from __future__ import annotations
@@ -59,13 +64,35 @@ import math
 
 import numpy as np
 
-from .nodes import NodeSet, _frames, _half_share_table, _Nodes, _rect_ramp, _smoothstep, half_share  # noqa: F401 (NodeSet, half_share re-exported)
+from .nodes import NodeSet, half_share  # noqa: F401 (re-exported)
+from .pairs import Techniques, block_pairs
 from .scene import REFERENCE, Quadrature, Scene
 
-__all__ = ["NodeSet", "RenderStats", "render", "render_many", "render_pixels"]
+__all__ = ["NodeSet", "RenderStats", "clear_cache", "render", "render_many", "render_pixels"]
 
 # Pairs (pixel x node) per block: large enough to amortise Python, small enough for cache.
 BLOCK_PAIRS = 1 << 17
+# Most bytes of BRDF-independent pairs kept for the next render of the same scene.
+PAIR_CACHE_BYTES = 1 << 30
+
+_TECHNIQUES: dict = {}
+_PAIRS: dict = {}
+
+
+def _techniques(q, env, device):
+    """The :class:`~brdfkit.render.pairs.Techniques` of ``(q, env, device)``, the last one
+    kept per process (a render of several BRDFs in turn builds it once)."""
+    key = (q, env.fingerprint(), env.bright, str(device))
+    if key not in _TECHNIQUES:
+        _TECHNIQUES.clear()
+        _TECHNIQUES[key] = Techniques(NodeSet(q, env), env, device)
+    return _TECHNIQUES[key]
+
+
+def clear_cache():
+    """Free the pairs and node constants kept from the last render (:func:`render_pixels`)."""
+    _PAIRS.clear()
+    _TECHNIQUES.clear()
 
 
 @dataclasses.dataclass
@@ -118,96 +145,59 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
 def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | None = None,
                    progress=None, stats: RenderStats | None = None):
     """:func:`render_pixels` of several BRDFs in one pass: the nodes, shares and weights
-    are computed once and each BRDF is evaluated at the same direction pairs; each image
-    is the one a render of that BRDF alone gives, to the bit (same operations, same
-    order)."""
+    are computed once (or taken from the last render of the same scene) and each BRDF is
+    evaluated at the same direction pairs; each image is the one a render of that BRDF
+    alone gives, to the bit (same pairs, same operations, same order)."""
+    import hashlib
+
     import torch
 
     q = q or REFERENCE.quadrature
     devs = [getattr(b, "device", None) or torch.device("cpu") for b in brdfs]
     if len({str(torch.device(d)) for d in devs}) != 1:
         raise ValueError(f"BRDFs rendered together must share a device, got {sorted(map(str, devs))}")
-    dev = devs[0]
-    nd = _Nodes(NodeSet(q, env), dev)
-    n_all = torch.as_tensor(np.asarray(normals, np.float64), dtype=torch.float64, device=dev)
-    wo_w = torch.as_tensor(wo_world, dtype=torch.float64, device=dev)
-    total = n_all.shape[0]
-    outs = [torch.zeros(total, 3, dtype=torch.float64, device=dev) for _ in brdfs]
-    n_nodes = nd.n_c + nd.n_b + nd.n_a
-    block = max(1, BLOCK_PAIRS // n_nodes)
-    kind_of = torch.cat([torch.full((nd.n_c,), 0), torch.full((nd.n_b,), 1),
-                         torch.full((nd.n_a,), 2)]).to(dev)
-    cos_o_tab, share_tab = _half_share_table(q)
-    lo, hi = math.log(q.light_handover[0]), math.log(q.light_handover[1])
+    dev = torch.device(devs[0])
+    normals = np.ascontiguousarray(normals, np.float64)
+    key = (q, env.fingerprint(), env.bright, str(dev), tuple(map(float, wo_world)),
+           hashlib.sha256(normals.tobytes()).hexdigest())
+    cached = _PAIRS.get(key)
+    if cached is None:
+        _PAIRS.clear()  # one scene kept: free the last before building the next
+        tq = _techniques(q, env, dev)
+        n_all = torch.as_tensor(normals, device=dev)
+        wo_w = torch.as_tensor(wo_world, dtype=torch.float64, device=dev)
+        block = max(1, BLOCK_PAIRS // (tq.n_c + tq.n_b + tq.n_a))
+        blocks, kept_bytes = [], 0
+    total = normals.shape[0]
+    outs = [torch.zeros(3, total, dtype=torch.float64, device=dev) for _ in brdfs]
     evaluations, smin, smax = 0, math.inf, -math.inf
     with torch.no_grad():
-        for s in range(0, total, block):
-            n = n_all[s:s + block]
-            p = n.shape[0]
-            t, bt = _frames(n)
-            frame = torch.stack([t, bt, n], 1)  # (P, 3, 3): rows are the local axes
-            wo = frame @ wo_w  # (P, 3) local
-            woh = wo @ nd.half.T  # (P, Nb)
-            wi = torch.cat([nd.cos.expand(p, -1, -1),
-                            2 * woh[..., None] * nd.half[None] - wo[:, None],  # mirror wo about h
-                            torch.einsum("pij,nj->pni", frame, nd.light)], 1)  # (P, N, 3) local
-            ok = wi[..., 2] > 0
-            ok[:, nd.n_c:nd.n_c + nd.n_b] &= woh > 0
-            pix, node = ok.nonzero(as_tuple=True)
-            kind = kind_of[node]
-            wi_l = torch.nn.functional.normalize(wi[pix, node], dim=-1)
-            wo_l = wo[pix]
-            cos = wi_l[:, 2]
-            wi_w = (wi_l[:, :, None] * frame[pix]).sum(1)  # local -> world
-            hv = wi_l + wo_l
-            th = torch.atan2(torch.sqrt(hv[:, 0] ** 2 + hv[:, 1] ** 2), hv[:, 2])
-            s_b0 = half_share(q, th, (wo_l * hv).sum(-1) / hv.norm(dim=-1), cos)
-            beta = 1.0 - _smoothstep((torch.log(th.clamp_min(1e-30)) - lo) / (hi - lo))
-            rho = _rect_ramp(nd.rects, wi_w)
-            share = torch.where(kind == 0, (1 - s_b0) * (1 - rho),
-                                torch.where(kind == 1, s_b0 * (1 - rho + rho * beta),
-                                            rho * (1 - s_b0 * beta)))
-            bi = (node - nd.n_c).clamp(0, max(nd.n_b - 1, 0))
-            ai = (node - nd.n_c - nd.n_b).clamp(0, max(nd.n_a - 1, 0))
-            w = torch.where(kind == 0, math.pi / (nd.n_c * cos),
-                            torch.where(kind == 1, nd.half_w[bi] * 4 * woh[pix, bi] if nd.n_b else cos,
-                                        nd.light_w[ai] if nd.n_a else cos))
-            # Normalise B and C to the exact measure of their shares, per pixel.
-            geo = w * cos / math.pi
-            mass = torch.zeros(p, 4, dtype=torch.float64, device=dev)
-            mass.index_put_((pix, kind), geo * share, accumulate=True)
-            is_a = kind == 2
-            mass[:, 3].index_add_(0, pix[is_a], (geo * s_b0 * rho * (1 - beta))[is_a])
-            i_b = torch.as_tensor(np.interp(wo[:, 2].cpu().numpy(), cos_o_tab, share_tab),
-                                  dtype=torch.float64, device=dev)
-            target_b = i_b - mass[:, 3]
-            target_c = 1.0 - target_b - mass[:, 2]
-            scale = torch.ones(p, 3, dtype=torch.float64, device=dev)
-            scale[:, 0] = torch.where(mass[:, 0] > 1e-9, target_c / mass[:, 0].clamp_min(1e-300), 1.0)
-            scale[:, 1] = torch.where(mass[:, 1] > 1e-9, target_b / mass[:, 1].clamp_min(1e-300), 1.0)
-            big = mass[:, :2] > 1e-3
-            if big.any():
-                smin = min(smin, float(scale[:, :2][big].min()))
-                smax = max(smax, float(scale[:, :2][big].max()))
-            weight = w * share * scale[pix, kind] * cos
-            keep = weight > 0
-            pix, kind, ai, wi_l, wo_l, wi_w, weight = (
-                a[keep] for a in (pix, kind, ai, wi_l, wo_l, wi_w, weight))
-            wi_f, wo_f = wi_l.float(), wo_l.float()
-            radiance = torch.empty(pix.numel(), 3, dtype=torch.float64, device=dev)
-            is_a = kind == 2
-            radiance[is_a] = nd.light_rad[ai[is_a]]
-            radiance[~is_a] = env.radiance(wi_w[~is_a].float()).double()
-            evaluations += int(pix.numel())
+        for b, s in enumerate(range(0, total, block) if cached is None else (c[0] for c in cached)):
+            if cached is None:
+                p = min(block, total - s)
+                pix, wi, wo, rw, (scale, big) = block_pairs(tq, n_all[s:s + p], wo_w)
+                lo, hi = (float(scale[big].min()), float(scale[big].max())) if big.any() else (math.inf, -math.inf)
+                if blocks is not None:
+                    blocks.append((s, p, pix, wi, wo, rw, lo, hi))
+                    kept_bytes += 40 * wi.shape[0]
+                    if kept_bytes > PAIR_CACHE_BYTES:
+                        blocks = None
+            else:
+                s, p, pix, wi, wo, rw, lo, hi = cached[b]
+            smin, smax = min(smin, lo), max(smax, hi)
+            evaluations += wi.shape[0]
             for brdf, out in zip(brdfs, outs):
-                f = brdf.eval_dirs(wi_f, wo_f).double()
-                out[s:s + p].index_add_(0, pix, radiance * f * weight[:, None])
+                contrib = brdf.eval_dirs(wi, wo).T * rw
+                for ch in range(3):
+                    out[ch, s:s + p].index_add_(0, pix, contrib[ch].double())
             if progress is not None:
-                progress(min(total, s + p), total)
+                progress(s + p, total)
+    if cached is None and blocks is not None:
+        _PAIRS[key] = blocks
     if stats is not None:
         stats.evaluations = evaluations
         stats.scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
-    return [out.float().cpu().numpy() for out in outs]
+    return [out.T.float().cpu().numpy() for out in outs]
 
 
 def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: RenderStats | None = None):

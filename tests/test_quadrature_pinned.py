@@ -1,0 +1,147 @@
+"""The quadrature renderer pinned to the one it replaced (issue 14 item 1): the per-technique
+float32 passes of :mod:`brdfkit.render.pairs` against the frozen float64 renderer of
+``helpers_quadrature``, and the pairs kept from one render for the next.
+
+Tolerance: every pixel within 1e-4 of the old one relative to ``max(|old|, 0.01)``
+(measured: 7e-6 at the sun's reflection in the near-mirror, 6e-7 elsewhere), the same
+BRDF evaluations, the same normalisation range to 1e-6.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from helpers_foundation import lambert_table
+from helpers_quadrature import render_pixels_v1
+
+torch = pytest.importorskip("torch")
+
+RES = 24
+
+
+def _materials():
+    from brdfkit import synthetic
+
+    copper = synthetic.Material("copper-0.05", "conductor", 0.05, ior=synthetic.METALS["copper"][0],
+                                k=synthetic.METALS["copper"][1])
+    return [synthetic.STIFF[2], synthetic.STIFF[0], synthetic.STIFF[3], copper]
+
+
+def _normals(res=RES, supersample=1):
+    from brdfkit.render.scene import Scene
+
+    n, inside = Scene(resolution=res, supersample=supersample).pixel_normals()
+    return n[inside]
+
+
+def _pinned(new, old, new_stats, old_stats):
+    assert new.dtype == old.dtype == np.float32 and new.shape == old.shape
+    rel = np.abs(new.astype(np.float64) - old) / np.maximum(np.abs(old), 0.01)
+    assert rel.max() < 1e-4, rel.max()
+    assert new_stats.evaluations == old_stats.evaluations > 0
+    np.testing.assert_allclose(new_stats.scale_range, old_stats.scale_range, rtol=1e-6)
+
+
+@pytest.mark.parametrize("index", range(4), ids=lambda i: _materials()[i].name)
+def test_synthetic_tables_match_the_old_renderer(index):
+    from brdfkit import metrics, synthetic
+    from brdfkit.render import quadrature
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.envmap import reference_envmap
+
+    m = _materials()[index]
+    brdf = TableBRDF(synthetic.table(m), m.name, device="cpu")
+    normals, env = _normals(), reference_envmap()
+    old_stats, new_stats = quadrature.RenderStats(), quadrature.RenderStats()
+    old = render_pixels_v1([brdf], normals, env, stats=old_stats)[0]
+    quadrature.clear_cache()
+    new = quadrature.render_pixels(brdf, normals, env, stats=new_stats)
+    _pinned(new, old, new_stats, old_stats)
+    assert metrics.psnr(new.reshape(1, -1, 3), old.reshape(1, -1, 3)) > 100
+
+
+def test_uniform_environment_no_light_nodes_and_supersampling_match():
+    from brdfkit.render import quadrature
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.envmap import uniform_envmap
+
+    brdf = TableBRDF(lambert_table([0.2, 0.5, 0.8]), device="cpu")
+    normals, env = _normals(12, supersample=2), uniform_envmap((1.5, 1.0, 0.5))
+    old_stats, new_stats = quadrature.RenderStats(), quadrature.RenderStats()
+    old = render_pixels_v1([brdf], normals, env, stats=old_stats)[0]
+    new = quadrature.render_pixels(brdf, normals, env, stats=new_stats)
+    _pinned(new, old, new_stats, old_stats)
+
+
+def test_kept_pairs_give_the_same_image_and_are_bounded(monkeypatch):
+    from brdfkit import synthetic
+    from brdfkit.render import quadrature
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.scene import Scene
+
+    brdf = TableBRDF(synthetic.table(synthetic.STIFF[0]), device="cpu")
+    scene = Scene(resolution=12)
+    quadrature.clear_cache()
+    calls = []
+    cold_stats, warm_stats = quadrature.RenderStats(), quadrature.RenderStats()
+    cold, _ = quadrature.render(brdf, scene, stats=cold_stats, progress=lambda d, t: calls.append((d, t)))
+    assert len(quadrature._PAIRS) == 1
+    warm, _ = quadrature.render(brdf, scene, stats=warm_stats, progress=lambda d, t: calls.append((d, t)))
+    np.testing.assert_array_equal(cold, warm)
+    assert (cold_stats.evaluations, cold_stats.scale_range) == (warm_stats.evaluations, warm_stats.scale_range)
+    assert calls[-1][0] == calls[-1][1] and len(calls) % 2 == 0 and calls[: len(calls) // 2] == calls[len(calls) // 2:]
+    # Another scene replaces it; one over the byte bound is not kept; clear_cache empties it.
+    quadrature.render(brdf, Scene(resolution=10))
+    assert len(quadrature._PAIRS) == 1
+    monkeypatch.setattr(quadrature, "PAIR_CACHE_BYTES", 1000)
+    quadrature.render(brdf, Scene(resolution=11))
+    assert not quadrature._PAIRS
+    monkeypatch.undo()
+    quadrature.render(brdf, scene)
+    quadrature.clear_cache()
+    assert not quadrature._PAIRS and not quadrature._TECHNIQUES
+
+
+def test_outside_of_the_light_rectangles_and_environment_lookup():
+    from brdfkit.render.envmap import reference_envmap
+    from brdfkit.render.nodes import _rect_ramp
+    from brdfkit.render.pairs import _EnvLookup, _outside, _uv
+
+    env = reference_envmap()
+    g = torch.Generator().manual_seed(0)
+    d = torch.nn.functional.normalize(torch.randn(20000, 3, dtype=torch.float64, generator=g), dim=-1)
+    rects = [(u0, u1, v0, v1, ru, rv) for u0, u1, v0, v1, _, _, ru, rv in env.bright]  # NodeSet.rects
+    u, v = _uv(*d.T)
+    outside = _outside(rects, u, v)
+    np.testing.assert_allclose(outside.numpy(), 1 - _rect_ramp(rects, d).numpy(), atol=1e-12)
+    assert 0 < (outside < 1).float().mean() < 0.1
+    # A rectangle moved across u = 0 ramps the same at the moved directions.
+    (u0, u1, v0, v1, ru, rv), shift = rects[1], -0.1 - rects[1][0]
+    moved = _outside([(u0 + shift, u1 + shift, v0, v1, ru, rv)], torch.remainder(u + shift, 1.0), v)
+    np.testing.assert_allclose(moved.numpy(), _outside(rects[1:], u, v).numpy(), atol=1e-9)
+    assert (moved < 1).any()
+    # Mitsuba's bilinear lookup, to float32 rounding.
+    got = _EnvLookup(env, "cpu")(*_uv(*d.float().T)).T
+    want = env.radiance(d.float())
+    assert float(((got - want).abs() / want.abs().clamp_min(1e-3)).max()) < 1e-4
+    assert float((got - want).abs().max()) < 800 * 1e-6 * 4  # the sun's edge: a texel of 800
+
+
+def test_share_terms_match_half_share():
+    from brdfkit.render.nodes import half_share
+    from brdfkit.render.pairs import theta_terms
+    from brdfkit.render.scene import REFERENCE
+
+    q = REFERENCE.quadrature
+    th = torch.tensor([2.5e-5, 1e-3, 0.01, 0.3, 1.0, 1.5], dtype=torch.float64)
+    woh = torch.tensor([0.9, 0.5, 0.99, 0.7, 0.3, 0.05], dtype=torch.float64)
+    cos = torch.tensor([0.8, 0.1, 0.5, 0.9, 0.2, 0.05], dtype=torch.float64)
+    g, sx, sy = theta_terms(q, th.clone())
+    d_c = q.cosine_grid ** 2 * cos.clamp_min(0.25) / math.pi
+    np.testing.assert_allclose((1 - sx) / (1 + d_c * woh * g), half_share(q, th, woh, cos), rtol=1e-12)
+    lo, hi = math.log(q.light_handover[0]), math.log(q.light_handover[1])
+    x = ((torch.log(th) - lo) / (hi - lo)).clamp(0, 1)
+    np.testing.assert_allclose(sy, x * x * (3 - 2 * x), atol=1e-15)
