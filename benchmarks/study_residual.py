@@ -29,7 +29,7 @@ import time
 import numpy as np
 import torch
 
-from brdfkit.geometry import N_THETA_D, N_PHI_D, N_CELLS, cell_index, grid_cosine_weight, grid_hd
+from brdfkit.geometry import N_THETA_D, N_PHI_D, N_CELLS, cell_index, cos_theta_i, grid_cosine_weight, grid_hd
 from brdfkit.methods.ipca import EPS, cosine_weight, fit_ipca
 from brdfkit.model.network import HyperBRDF, HyperConfig, hyponet_forward
 from brdfkit.samples import draw_samples
@@ -43,7 +43,7 @@ def basis_at_cells(model, cells):
     return np.ascontiguousarray(model._table()[cells], dtype=np.float32)
 
 
-def gn_batch(tab, rho, w, cos, sigma, s2, lam):
+def gn_batch(tab, rho, w, cos, sigma, s2, lam, mu=None):
     """Batched :func:`study_pca.gauss_newton` on cells: ``tab (B, C, K + 2)``, ``rho (B, C, 3)``,
     ``w``, ``cos`` ``(B, C)``, ``sigma (B, K)``; coefficients ``(B, 3, K)`` (float64 solve)."""
     ref, mean, comp = tab[..., 0:1], tab[..., 1:2], tab[..., 2:].double()
@@ -53,6 +53,8 @@ def gn_batch(tab, rho, w, cos, sigma, s2, lam):
     lhs = torch.einsum("bck,bcj,bcl->blkj", comp, comp, q)  # (B, 3, K, K)
     lhs = lhs + torch.diag_embed(1.0 / sigma.double() ** 2)[:, None]
     rhs = torch.einsum("bck,bcl->blk", comp, q * b.double())
+    if mu is not None:  # a prior mean (B, 3, K) instead of 0: c = argmin ... + |(c - mu) / sigma|^2
+        rhs = rhs + mu.double() / sigma.double()[:, None] ** 2
     return torch.linalg.solve(lhs, rhs).float(), b
 
 
@@ -102,12 +104,14 @@ class CoefNet(torch.nn.Module):
             self.head[-1].weight.zero_()
             self.head[-1].bias.zero_()
 
-    def forward(self, ctx_hd, ctx_resid, c, sigma, n):
+    def forward(self, ctx_hd, ctx_resid, c, sigma, n, delta_only=False):
         z = self.enc(torch.cat([ctx_hd, ctx_resid], -1)).mean(1)
         b, k = c.shape[0], c.shape[-1]
         feats = torch.cat([z, (c / sigma[:, None]).reshape(b, -1),
                            torch.full((b, 1), math.log(n) / math.log(4000))], -1)
         dc = self.head(feats).view(b, 3, k)
+        if delta_only:  # the prior mean: dc sigma (zero at the start: the basis's own prior)
+            return dc * sigma[:, None], z, dc
         return c + dc * sigma[:, None], z, dc
 
 
@@ -132,6 +136,10 @@ def main():
     ap.add_argument("--zero-init", action="store_true")
     ap.add_argument("--no-basis", action="store_true", help="control: no basis fit (c = 0)")
     ap.add_argument("--coef", action="store_true", help="the network corrects the coefficients (CoefNet)")
+    ap.add_argument("--align", action="store_true", help="rotate the fold bases onto the full basis")
+    ap.add_argument("--ema", type=float, default=0.999, help="weight EMA decay for evaluation (0: off)")
+    ap.add_argument("--final-seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--prior", action="store_true", help="with --coef: the network gives the prior mean")
     ap.add_argument("--mixup", type=float, default=0.0, help="share of batch materials mixed with another")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--save", default=None, help="write the trained state here (torch.save)")
@@ -145,6 +153,7 @@ def main():
     cells = lib.cells
     K, F = args.components, args.folds
     full = fit_ipca([lib.table(n) for n in train], K, names=train)
+    full_tab = basis_at_cells(full, cells)
     merl_train = [n for n in train if not n.startswith("rgl:")]
     fold_of = {n: i % F for i, n in enumerate(sorted(train))}
     # The fold bases take minutes; cached beside the proxies, keyed by what they depend on.
@@ -161,6 +170,18 @@ def main():
             tabs.append(basis_at_cells(fold, cells))
             sigmas.append(fold.sigma)
         np.savez(cache, tabs=np.stack(tabs), sigmas=np.stack(sigmas))
+    if args.align:
+        # Each fold's principal directions differ from the full basis's by signs and
+        # rotations; a coefficient corrector needs one meaning per coefficient. Rotate each
+        # fold's components onto the full basis (orthogonal Procrustes over the cells) and
+        # carry its prior's variances along (the diagonal of R^T diag(sigma^2) R).
+        full_comp = full_tab[:, 2:].astype(np.float64)
+        for f in range(F):
+            comp = tabs[f][:, 2:].astype(np.float64)
+            u, _, vt = np.linalg.svd(comp.T @ full_comp)
+            r = u @ vt
+            tabs[f] = np.concatenate([tabs[f][:, :2], (comp @ r).astype(np.float32)], 1)
+            sigmas[f] = np.sqrt(np.einsum("ij,i,ij->j", r, sigmas[f].astype(np.float64) ** 2, r)).astype(np.float32)
     fold_sig = torch.from_numpy(np.stack(sigmas))  # (F, K)
     fold_members = [torch.tensor([lib.index(n) for n in train if fold_of[n] == f]) for f in range(F)]
     print(f"library {len(lib.names)}, train {len(train)} ({len(merl_train)} MERL), validation {len(val)}; "
@@ -181,10 +202,23 @@ def main():
     cfg = HyperConfig(latent_dim=args.latent)
     model = CoefNet(K, latent=args.latent) if args.coef else Residual(cfg, zero_init=args.zero_init)
     opt = torch.optim.Adam(model.parameters(), lr=args.lr)
+    # Evaluated with an exponential moving average of the weights (Polyak averaging): the
+    # raw weights' validation error at N = 40 swings by 0.05 from one snapshot to the next.
+    ema = torch.optim.swa_utils.AveragedModel(
+        model, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(args.ema)) if args.ema else None
     g = torch.Generator().manual_seed(args.seed)
-    full_tab = basis_at_cells(full, cells)
 
     def evaluate(n_cells=None, seeds=(0,)):
+        nonlocal model
+        live = model
+        if ema is not None:
+            model = ema.module
+        try:
+            return _evaluate(n_cells, seeds)
+        finally:
+            model = live
+
+    def _evaluate(n_cells=None, seeds=(0,)):
         sub = np.sort(np.random.default_rng(1).choice(P, n_cells, replace=False)) if n_cells else None
         out = {k: {n: [] for n in (40, 400, 4000)} for k in ("ipca", "basis", "residual")}
         model.eval()
@@ -213,7 +247,13 @@ def main():
                     with torch.no_grad():
                         if args.coef:
                             cn, _, _ = model(ctx_hd, ctx_r, torch.from_numpy(c.T.astype(np.float32))[None],
-                                             torch.from_numpy(full.sigma.astype(np.float32))[None], int(ok.sum()))
+                                             torch.from_numpy(full.sigma.astype(np.float32))[None], int(ok.sum()),
+                                             delta_only=args.prior)
+                            if args.prior:
+                                T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
+                                sig1 = torch.from_numpy(full.sigma.astype(np.float64))[None]
+                                cn, _ = gn_batch(T(at[ok]), T(rho), T(wts[ok]), T(np.clip(cos_theta_i(
+                                    s.theta_h, s.theta_d, s.phi_d)[ok], 0, None)), sig1, args.s2, args.lam, mu=cn)
                             cm = cn[0].double().numpy().T
                             res = torch.zeros(1, qhd.shape[0], 3)
                         else:
@@ -266,7 +306,14 @@ def main():
             c = torch.zeros_like(c)
         with torch.no_grad():
             ctx_r = b - torch.einsum("bck,blk->bcl", ctab[..., 2:], c)
-        if args.coef:
+        if args.coef and args.prior:
+            # The network predicts the prior mean of the coefficients; the fit to the
+            # samples is solved again around it, so many samples outweigh it.
+            mu, z, dc = model(hd_all[c_pos], ctx_r, c, fold_sig[folds].float(), n_ctx, delta_only=True)
+            c, _ = gn_batch(ctab, crho, w_all[c_pos], cos_all[c_pos], fold_sig[folds], args.s2, args.lam, mu=mu)
+            resid = torch.zeros(())
+            reg = args.lambda_w * (dc ** 2).mean() + args.lambda_z * (z ** 2).mean()
+        elif args.coef:
             c, z, dc = model(hd_all[c_pos], ctx_r, c, fold_sig[folds].float(), n_ctx)
             resid = torch.zeros(())
             reg = args.lambda_w * (dc ** 2).mean() + args.lambda_z * (z ** 2).mean()
@@ -280,7 +327,12 @@ def main():
         opt.zero_grad()
         (loss + reg).backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)
+        frac = min(1.0, (time.time() - t_train) / (args.minutes * 60))
+        for grp in opt.param_groups:  # cosine decay to a tenth over the budget
+            grp["lr"] = args.lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * frac)))
         opt.step()
+        if ema is not None:
+            ema.update_parameters(model)
         losses.append(float(loss.detach()))
         step += 1
         if time.time() - t_eval > args.eval_minutes * 60:
@@ -291,7 +343,7 @@ def main():
             t_eval = time.time()
     el = time.time() - t_train
     print(f"trained {step} steps in {el / 60:.1f} min, loss {np.mean(losses[-200:]):.5f}", flush=True)
-    show(f"final step {step}, all cells", evaluate(None), el)
+    show(f"final step {step}, all cells, seeds {args.final_seeds}", evaluate(None, tuple(args.final_seeds)), el)
     if args.save:
         torch.save({"state": model.state_dict(), "args": vars(args)}, args.save)
 
