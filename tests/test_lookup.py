@@ -182,3 +182,39 @@ def test_neural_brdf_reference_through_the_prepared_table(tmp_path):
     got = interp_reference(model.reference_trilinear(), fallback, th, td, pd)
     _same(got.numpy(), want.numpy())
     assert model.reference_trilinear() is model.reference_trilinear()
+
+
+@pytest.mark.parametrize("block", [1, 977, 1 << 14])
+def test_prepared_table_blocks_and_edges(block):
+    """Points split over blocks (a ragged last one, one point a block), no points, NaN
+    angles (NaN whatever ``fill``, as in the reference), and float64 angles on a float32
+    table (a neural BRDF's ``rho_ref``: the lookup is done in float64)."""
+    table32 = torch.as_tensor(_tables(8)["holes"], dtype=torch.float32)
+    lut = g.TrilinearTable(table32)
+    lut.block = block
+    n = 3000 if block == 1 else 20000
+    for dtype in (torch.float32, torch.float64):
+        th, td, pd = (torch.as_tensor(a[:n], dtype=dtype) for a in _angles(20000, 9))
+        th[:7] = float("nan")
+        pd[7:9] = float("nan")
+        for fill in (float("nan"), 0.0):
+            got = g.lookup_trilinear(lut, th, td, pd, fill=fill)
+            want = reference_lookup(table32, th, td, pd, fill=fill)
+            assert got.dtype == want.dtype == dtype
+            assert torch.isnan(got[:9]).all()
+            _same(got.numpy(), want.numpy())
+    empty = torch.zeros(0)
+    assert g.lookup_trilinear(lut, empty, empty, empty).shape == (0, 3)
+
+
+@pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")
+def test_prepared_table_with_infinite_values():
+    """A table holding infinities (not a MERL table, but a table): ``fill + 0 * value``
+    where no corner is measured, as the reference computes it."""
+    table = _tables(10)["holes"]
+    table[table > 0.9] = np.inf
+    lut = g.TrilinearTable(table)
+    assert not lut.finite
+    th, td, pd = _angles(20000, 11)
+    for fill in (float("nan"), 0.0):
+        _same(g.lookup_trilinear(lut, th, td, pd, fill=fill), reference_lookup(table, th, td, pd, fill=fill))

@@ -40,7 +40,7 @@ class TableBRDF:
 
     Lookups go through a :class:`brdfkit.geometry.TrilinearTable` once the BRDF has been
     asked for :attr:`PREPARE_AFTER` pairs (same values to the bit; building it costs
-    about as much as two plain lookups of a render's block, so a tiny render skips it).
+    about as much as one plain lookup of a render's block, so a tiny render skips it).
     """
 
     PREPARE_AFTER = 1 << 18
@@ -72,7 +72,9 @@ class TableBRDF:
         th, _, td, pd = half_diff_from_io(wi_, wo_)
         rho = lookup_trilinear(self._t if self._lut is None else self._lut, th, td, pd, fill=0.0)
         above = (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
-        return torch.where(above[:, None], rho, torch.zeros_like(rho)).to(wi.device)
+        # In place on the (3, N) rows: the prepared lookup's (N, 3) is channel-major in
+        # memory, and so is what comes back (the quadrature reads it per channel).
+        return rho.T.masked_fill_(~above, 0.0).T.to(wi.device)
 
 
 def brdf_kind(path) -> str:

@@ -1,0 +1,150 @@
+"""The MERL-grid table prepared for a renderer's many trilinear lookups.
+
+:class:`TrilinearTable` gives what :func:`brdfkit.geometry.lookup_trilinear` gives on the
+plain table, to the bit, NaN semantics included (corners not measured left out, the
+weights renormalised over the rest; ``fill`` where none is measured), only faster: a
+render of a table evaluates 11.8 M direction pairs, and this lookup was most of each
+(issue 14). ``lookup_trilinear`` dispatches here when handed a prepared table;
+``brdfkit.geometry.TrilinearTable`` names the class.
+
+How, and why this way (PyTorch's CPU kernels, one thread; ``docs/performance.md``):
+
+* One row per cell: its ``C`` values with NaN replaced by 0, then its measured flags (1
+  or 0; one flag when every channel is measured or not together, as in MERL tables,
+  else one per channel), padded to 8 or a multiple of 16 bytes (16 for a float32 MERL
+  table). A lookup fetches each of its eight corners as *one* element of a 1-D gather
+  (an ``int64`` or ``complex128`` view of the rows): eight gathers a point, all of a
+  corner's numbers from one cache line, no NaN tests.
+* Each ``(theta_h, theta_d)`` run of cells repeats its ``phi_d = 0`` cell after the last
+  (181 cells a run), so the wrap of ``phi_d`` over ``pi`` costs no operation.
+* The gathered rows are turned channel-major once, copied as integers of the same width
+  (PyTorch transposes an ``int32`` array about twice as fast as a ``float32`` one, or as
+  a multiplication reading it strided), and all the arithmetic runs on contiguous
+  ``(8, m)`` and ``(m,)`` arrays (no strided or broadcast ``(m, C)`` operations, which
+  run several times slower), in blocks of :attr:`TrilinearTable.block` points: large
+  enough to amortise each operation's few microseconds of dispatch, small enough to
+  stay in cache.
+* Each term and each sum is the one the plain lookup computes, in the same order: value
+  times weight and flag times weight (exact: the flag is 0 or 1), the weight
+  ``(w_h w_d) w_phi``, summed corner by corner with ``theta_h`` outermost; so the result
+  is the same to the bit (``tests/test_lookup.py`` pins it against a frozen copy).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H
+
+__all__ = ["TrilinearTable", "lookup_prepared"]
+
+
+class TrilinearTable:
+    """A MERL-grid table prepared for many :func:`brdfkit.geometry.lookup_trilinear` calls.
+
+    Costs 1.34 times a float32 MERL table's memory (23.5 MB), and to build about as much
+    as one plain lookup of 100,000 points; build it once per table. Runs in torch, on the
+    table's device: a NumPy table is held as a CPU tensor, and its lookups return NumPy
+    arrays.
+
+    Parameters
+    ----------
+    table
+        ``(90, 90, 180, C)`` array or tensor, NaN where not measured.
+    """
+
+    def __init__(self, table):
+        import torch
+
+        self.numpy = isinstance(table, np.ndarray)
+        flat = torch.from_numpy(np.ascontiguousarray(table)) if self.numpy else table
+        flat = flat.reshape(N_CELLS, -1)
+        self.channels = c = flat.shape[1]
+        nan = torch.isnan(flat)
+        # One flag per cell when every channel is measured or not together (MERL tables).
+        shared = bool((nan == nan[:, :1]).all())
+        measured = ~(nan[:, :1] if shared else nan)
+        self.flags = measured.shape[1]
+        width, size = c + self.flags, flat.element_size()
+        while width * size != 8 and width * size % 16:
+            width += 1
+        rows = flat.new_zeros((N_THETA_H * N_THETA_D, N_PHI_D + 1, width))
+        rows[:, :N_PHI_D, :c] = torch.where(nan, 0.0, flat).reshape(-1, N_PHI_D, c)
+        rows[:, :N_PHI_D, c:c + self.flags] = measured.reshape(-1, N_PHI_D, self.flags)
+        rows[:, N_PHI_D] = rows[:, 0]
+        self.finite = bool(torch.isfinite(rows).all())
+        self.rows = rows.reshape(-1, width)
+        view = self.rows.view(torch.int64 if width * size == 8 else torch.complex128)
+        self._elements = view.reshape(-1) if view.shape[1] == 1 else view
+        self._int = {2: torch.int16, 4: torch.int32, 8: torch.int64}[size]
+        # Per axis (theta_h, theta_d, phi_d), corners 0 and 1: weights frac * (-1, 1) +
+        # (1, 0); indices floor + (0, 1), clamped to the grid (phi_d's corner 1 may be 180,
+        # the repeated cell) and scaled to row numbers.
+        f32, i32 = dict(device=flat.device), dict(dtype=torch.int32, device=flat.device)
+        self._sign = torch.tensor([[-1.0], [1.0]], **f32)
+        self._one_zero = torch.tensor([[1.0], [0.0]], **f32)
+        self._zero_one = torch.tensor([[0], [1]], **i32)
+        top = [[[N_THETA_H - 1]] * 2, [[N_THETA_D - 1]] * 2, [[N_PHI_D - 1], [N_PHI_D]]]
+        self._top = torch.tensor(top, **i32)
+        self._step = torch.tensor([[[N_THETA_D * (N_PHI_D + 1)]], [[N_PHI_D + 1]], [[1]]], **i32)
+        # Points per block (2^13 and 2^15 were slower on one CPU thread); a GPU takes more.
+        self.block = 1 << 14 if flat.device.type == "cpu" else 1 << 20
+
+
+def lookup_prepared(lut: TrilinearTable, u_h, u_d, u_p, fill):
+    """Trilinear lookup at continuous grid coordinates (those of
+    :func:`brdfkit.geometry.fractional_indices`), broadcastable, shape ``(...)``.
+
+    Returns ``(..., C)`` of the promoted type of the table and the coordinates, a tensor
+    (channel-major in memory for 1-D coordinates) or a NumPy array for a NumPy table.
+    """
+    import torch
+
+    if lut.numpy:
+        u = torch.from_numpy(np.stack(np.broadcast_arrays(u_h, u_d, u_p)))
+    else:
+        u = torch.stack(torch.broadcast_tensors(u_h, u_d, u_p))
+    shape, n = u.shape[1:], u[0].numel()
+    u = u.view(3, n)
+    out = u.new_empty((lut.channels, n), dtype=torch.promote_types(lut.rows.dtype, u.dtype))
+    for s in range(0, n, lut.block):
+        _lookup_block(lut, u[:, s:s + lut.block] if n > lut.block else u, fill,
+                      out[:, s:s + lut.block] if n > lut.block else out)
+    out = out.T.reshape(shape + (lut.channels,))
+    return out.numpy() if lut.numpy else out
+
+
+def _lookup_block(lut, u, fill, out):
+    """Lookup at grid coordinates ``u`` ``(3, m)`` into ``out`` ``(C, m)``, in few operations
+    (each costs a few microseconds of dispatch on a CPU, whatever its size)."""
+    import torch
+
+    m, c, rows = u.shape[1], lut.channels, lut.rows
+    f = torch.floor(u)
+    # Weights -frac + 1 (the plain lookup's 1 - frac) and frac + 0, frac = u - floor(u)
+    # (its u - i0); NaN (whose weight makes the result NaN, as in the plain lookup) made
+    # a valid index.
+    frac = (u - f)[:, None]
+    wh, wd, wp = frac.mul(lut._sign.to(u.dtype)).add_(lut._one_zero.to(u.dtype)).unbind(0)
+    i = f.nan_to_num_(0.0).int()[:, None].add(lut._zero_one)
+    ih, id_, ip = i.clamp_(max=lut._top).mul_(lut._step).unbind(0)
+    # Corner (a, b, k) at 4 a + 2 b + k: the plain lookup's loop order (theta_h outer),
+    # its weight (w_h w_d) w_phi.
+    corner = ih.view(2, 1, 1, m) + id_.view(1, 2, 1, m) + ip.view(1, 1, 2, m)
+    w = (wh.view(2, 1, 1, m) * wd.view(1, 2, 1, m) * wp.view(1, 1, 2, m)).view(8, m)
+    g = lut._elements.index_select(0, corner.view(-1))
+    t = g.view(lut._int).view(8, m, -1).permute(2, 0, 1).contiguous().view(rows.dtype)
+    t = t.mul_(w) if t.dtype == w.dtype else t * w
+    t = t.unbind(1)
+    acc = t[0] + t[1]
+    for k in range(2, 8):
+        acc += t[k]
+    val, wsum = acc[:c], acc[c:c + lut.flags]
+    # The weights are >= 0 or NaN: wsum > 0 fails only where wsum is 0 (no measured
+    # corner: the plain lookup's acc / 1, then fill + 0 * that) or NaN (NaN either way).
+    none = wsum == 0
+    torch.div(val, wsum + none, out=out)
+    if lut.finite:  # fill + 0 * out is fill
+        out.masked_fill_(none, fill)
+    else:
+        out.copy_(torch.where(none, fill + 0 * out, out))
