@@ -10,6 +10,7 @@ file stem.
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import hashlib
 import os
@@ -20,6 +21,9 @@ __all__ = ["SUFFIXES", "FileLoader", "RenderCounts", "compare_files", "compare_f
 
 SUFFIXES = (".binary", ".emb", ".exr")
 KEYS = ("psnr", "delta_e", "ssim", "brdf_log_rmse")
+# Dense tables a FileLoader keeps (35 MB each): the pair being compared, and the
+# reference of the next pair in a folder.
+TABLES_KEPT = 3
 
 
 def _kind(path: str) -> str:
@@ -83,6 +87,7 @@ class FileLoader:
         self._model = None
         self._before_torch = before_torch
         self._renders: dict = {}
+        self._tables: collections.OrderedDict = collections.OrderedDict()
         self.counts = RenderCounts()
 
     def _torch_needed(self):
@@ -133,9 +138,10 @@ class FileLoader:
         if todo:
             embs = [p for p in todo.values() if p.lower().endswith(".emb")]
             model = self.model(embs[0]) if embs else None
+            tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(".binary")}
             self._torch_needed()
             images = files.render_brdf_files(list(todo.values()), resolution=scene.resolution,
-                                             progress=self.progress, model=model)
+                                             progress=self.progress, model=model, tables=tables)
             self._renders.update(zip(todo, images))
             self.counts.passes += 1
             self.counts.renders += len(todo)
@@ -154,15 +160,25 @@ class FileLoader:
 
             check_compatible(read_embedding(path), self.model(path), path)
         else:
-            from .merl import read_merl
-
-            read_merl(path)
+            self.table(path)
 
     def table(self, path):
+        """The dense table of a BRDF file; a ``.binary`` is read once per loader (the
+        check, the render and the BRDF-space error all need it), the last
+        :data:`TABLES_KEPT` kept."""
         if path.lower().endswith(".binary"):
             from .merl import read_merl
 
-            return read_merl(path)
+            st = os.stat(path)
+            key = (os.path.realpath(path), st.st_ino, st.st_size, st.st_mtime_ns)  # a rewritten file is read again
+            if key not in self._tables:
+                table = read_merl(path)
+                table.setflags(write=False)  # shared by the check, the render and the scores
+                self._tables[key] = table
+                while len(self._tables) > TABLES_KEPT:
+                    self._tables.popitem(last=False)
+            self._tables.move_to_end(key)
+            return self._tables[key]
         from .api import decode
         from .embedding import read_embedding
 

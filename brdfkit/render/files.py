@@ -25,7 +25,8 @@ def reference_scene(resolution: int | None = None, supersample: int = 1):
                                supersample=int(supersample))
 
 
-def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = True, model=None) -> list:
+def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = True, model=None,
+                      tables: dict | None = None) -> list:
     """Quadrature renders of several BRDF files in the reference scene, in one pass
     (:func:`brdfkit.render.quadrature.render_many`: each image equals
     :func:`render_brdf_file`'s of that file, to the bit).
@@ -36,16 +37,21 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
         ``.binary`` / ``.emb`` files.
     resolution, progress, model
         As for :func:`render_brdf_file`.
+    tables
+        Optional ``{path: dense table}`` of ``.binary`` files the caller has already read
+        (``brdfkit metrics`` reads each once).
 
     Returns
     -------
     list
         float32 ``(R, R, 3)`` linear RGB image per file.
     """
-    from .brdf import load_brdf
+    from .brdf import TableBRDF, load_brdf
     from .quadrature import render_many
 
-    brdfs = [load_brdf(p, model=model) for p in paths]
+    tables = tables or {}
+    brdfs = [TableBRDF(tables[p], name=os.path.splitext(os.path.basename(p))[0]) if p in tables
+             else load_brdf(p, model=model) for p in paths]
     # One pass needs one device (a table and a model's BRDF may sit on different ones).
     groups: dict = {}
     for i, b in enumerate(brdfs):
