@@ -20,7 +20,7 @@ from __future__ import annotations
 import contextlib
 import os
 
-__all__ = ["threads_for_load", "idle_cores", "set_default_threads", "set_torch_threads", "torch_threads"]
+__all__ = ["threads_for_load", "idle_cores", "running_others", "set_default_threads", "set_torch_threads", "torch_threads"]
 
 # Any of these set by the user means the thread count is theirs to choose.
 USER_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
@@ -36,12 +36,32 @@ def _cpus() -> int:
     return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
 
 
+def running_others() -> int | None:
+    """Tasks runnable right now besides this process (the 4th field of ``/proc/loadavg``,
+    ``running/total``, minus one), or ``None`` where there is no such file."""
+    try:
+        with open("/proc/loadavg") as f:
+            running = int(f.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return max(0, running - 1)
+
+
 def idle_cores() -> int | None:
-    """:func:`threads_for_load` of this machine now; ``None`` without a load average."""
+    """:func:`threads_for_load` of this machine now; ``None`` without a load average.
+
+    The load is the smaller of the 1-minute load average and the tasks runnable now
+    besides this one: the average still counts commands that have finished (a user's
+    previous command holds it near 1 for a minute on an idle machine, which made
+    ``brdfkit render`` run on one of two idle cores), while a job that keeps a core busy
+    shows in both."""
     try:
         load = os.getloadavg()[0]
     except (AttributeError, OSError):
         return None
+    now = running_others()
+    if now is not None:
+        load = min(load, now)
     return threads_for_load(_cpus(), load)
 
 

@@ -33,11 +33,33 @@ def test_thread_choice_leaves_a_user_setting_alone(monkeypatch):
     env = {"OMP_NUM_THREADS": "7"}
     assert threads.set_default_threads(env) is None and env == {"OMP_NUM_THREADS": "7"}
     monkeypatch.setattr(threads.os, "getloadavg", lambda: (50.0, 50.0, 50.0))
+    monkeypatch.setattr(threads, "running_others", lambda: 50)
     env = {}
     assert threads.set_default_threads(env) == 1 and env == {"OMP_NUM_THREADS": "1"}
     monkeypatch.setattr(threads.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
     env = {}
     assert threads.set_default_threads(env) >= 1 and "OMP_NUM_THREADS" not in env
+
+
+def test_a_finished_command_does_not_hold_threads_back(monkeypatch):
+    """Load average 1.0 left by the previous command, nothing runnable now: both cores."""
+    from brdfkit import threads
+
+    monkeypatch.setattr(threads, "_cpus", lambda: 2)
+    monkeypatch.setattr(threads.os, "getloadavg", lambda: (1.0, 1.0, 1.0))
+    monkeypatch.setattr(threads, "running_others", lambda: 0)
+    assert threads.idle_cores() == 2
+    monkeypatch.setattr(threads, "running_others", lambda: 1)  # a job keeps a core busy
+    assert threads.idle_cores() == 1
+    monkeypatch.setattr(threads, "running_others", lambda: None)  # no /proc/loadavg
+    assert threads.idle_cores() == 1
+
+
+def test_running_others_reads_this_machine():
+    from brdfkit import threads
+
+    n = threads.running_others()
+    assert n is None or n >= 0
 
 
 def test_fast_encoder_and_decoder_equal_the_model_definition(tmp_path):
