@@ -318,3 +318,20 @@ def test_cli_render_embedding(tmp_path):
     r = run_brdfkit(["render", tmp_path / "w.emb", "-o", tmp_path / "x.exr"],
                     env={k: v for k, v in os.environ.items() if k != "BRDFKIT_MODEL"})
     assert r.returncode == 2 and "model" in r.stderr
+
+
+def test_sun_coverage_rows_only_are_the_full_coverage():
+    """The sun's texel coverage evaluated on the rows near it only (a start-up cost of
+    every render) equals the one over all rows, to the bit."""
+    import math
+
+    from brdfkit.render import envmap
+
+    s = envmap.uv_to_direction(*envmap.SUN_UV)
+    cos_r = math.cos(math.radians(envmap.SUN_RADIUS_DEG))
+    disc = lambda uu, vv: (envmap.uv_to_direction(uu, vv) @ s >= cos_r).astype(np.float64)  # noqa: E731
+    r_v = math.radians(envmap.SUN_RADIUS_DEG) / math.pi
+    full = envmap._texel_coverage(256, 128, disc)
+    rows = envmap._texel_coverage(256, 128, disc, v_range=(envmap.SUN_UV[1] - r_v, envmap.SUN_UV[1] + r_v))
+    assert full.sum() > 0
+    np.testing.assert_array_equal(rows, full)

@@ -146,19 +146,31 @@ def _smoothstep(e0, e1, x):
     return t * t * (3 - 2 * t)
 
 
-def _texel_coverage(width, height, inside, n=8):
+def _texel_coverage(width, height, inside, n=8, v_range=None):
     """Fraction of each texel's area (in ``u, v``) where ``inside(u, v)`` holds, from an
-    ``n x n`` supersampling of the texel around its sample point."""
+    ``n x n`` supersampling of the texel around its sample point.
+
+    ``v_range = (v_lo, v_hi)``: ``inside`` is false outside it, so only the rows whose
+    samples reach it are evaluated (the sun's disc covers a few of the 128 rows; testing
+    all of them was 0.85 s of every render's start). The other rows are 0."""
     j = np.arange(width)
     i = np.arange(height)
+    if v_range is not None:
+        lo = max(0, int(np.floor(v_range[0] * (height - 1))) - 2)
+        hi = min(height, int(np.ceil(v_range[1] * (height - 1))) + 3)
+        i = i[lo:hi]
     off = (np.arange(n) + 0.5) / n - 0.5
-    cov = np.zeros((height, width))
+    cov = np.zeros((i.size, width))
     for a in off:
         for b in off:
             u = ((j + 0.5 + a) / width) % 1.0
             v = np.clip((i + b) / (height - 1), 0.0, 1.0)
             cov += inside(u[None, :], v[:, None])
-    return cov / (n * n)
+    if v_range is None:
+        return cov / (n * n)
+    out = np.zeros((height, width))
+    out[i] = cov / (n * n)
+    return out
 
 
 @functools.lru_cache(maxsize=4)
@@ -212,7 +224,8 @@ def reference_envmap(width: int = 256, height: int = 128) -> EnvMap:
     def disc(uu, vv):
         return (uv_to_direction(uu, vv) @ s >= cos_r).astype(np.float64)
 
-    cs = _texel_coverage(width, height, disc)[..., None]
+    r_v = math.radians(SUN_RADIUS_DEG) / math.pi  # the disc's extent in v (theta = pi v)
+    cs = _texel_coverage(width, height, disc, v_range=(SUN_UV[1] - r_v, SUN_UV[1] + r_v))[..., None]
     img = img * (1 - cs) + cs * SUN_RADIANCE * np.array(SUN_COLOUR)
 
     # Poles: Mitsuba replaces the first and last rows by their mean; make them constant.
