@@ -21,6 +21,21 @@ from brdfkit.samples import draw_samples
 from study_data import load_library, validation_materials
 
 
+def sample_rows(model, samples):
+    """What every fit of the basis to ``samples`` starts from, on the samples a basis cell
+    covers with a non-zero cosine weight: ``(ok, at, w, cos, rho)`` with ``ok`` the boolean
+    mask over the samples, ``at`` the float64 ``[reference, mean, components]`` rows of
+    their cells, ``w`` IPCA's cosine weight, ``cos`` = ``max(cos theta_i, 0)`` and ``rho``
+    the values clipped at 0 (float64)."""
+    idx = cell_index(samples.theta_h, samples.theta_d, samples.phi_d)
+    at = model._table()[idx].astype(np.float64)
+    w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+    ok = np.isfinite(at).all(1) & (w > 0)
+    cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
+    rho = np.clip(np.asarray(samples.rgb, np.float64)[ok], 0, None)
+    return ok, at[ok], w[ok], cos, rho
+
+
 def refine(model, samples, c0, s2=1e-3, steps=60, density=False, ipca_term=False, lam=0.1):
     """Coefficients ``(K, 3)`` of the basis fitted in the evaluation metric's space.
 
@@ -32,14 +47,7 @@ def refine(model, samples, c0, s2=1e-3, steps=60, density=False, ipca_term=False
     the metric's cells do. ``ipca_term`` adds IPCA's own likelihood
     ``|mapped - b|^2 / lam`` (its ridge), which keeps the information of dark samples that
     the metric's space flattens."""
-    idx = cell_index(samples.theta_h, samples.theta_d, samples.phi_d)
-    dense = model._table()
-    at = dense[idx]
-    w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
-    ok = np.isfinite(at).all(1) & (w > 0)
-    at, w = at[ok], w[ok]
-    cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
-    rho = np.clip(samples.rgb[ok], 0, None)
+    ok, at, w, cos, rho = sample_rows(model, samples)
     T = lambda a: torch.as_tensor(np.asarray(a, np.float64))
     ref, mean, comp = T(at[:, 0]), T(at[:, 1]), T(at[:, 2:])
     w, cos, target = T(w), T(cos), torch.log1p(T(rho) * T(cos)[:, None])
@@ -73,13 +81,7 @@ def gauss_newton(model, samples, s2=1e-2, density=False, ipca_term=True, lam=0.1
     (ref + eps))``, ``dm/db = cos_i (rho + eps / w) / (1 + rho cos_i)`` at the observed
     ``rho``; each sample's squared residual in ``b`` is weighted by its square over
     ``s2``, plus ``1 / lam`` for IPCA's own likelihood."""
-    idx = cell_index(samples.theta_h, samples.theta_d, samples.phi_d)
-    at = model._table()[idx].astype(np.float64)
-    w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
-    ok = np.isfinite(at).all(1) & (w > 0)
-    at, w = at[ok], w[ok]
-    cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
-    rho = np.clip(np.asarray(samples.rgb, np.float64)[ok], 0, None)
+    ok, at, w, cos, rho = sample_rows(model, samples)
     ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
     b = np.log((rho * w[:, None] + EPS) / (ref[:, None] + EPS)) - mean[:, None]
     g = cos[:, None] * (rho + EPS / w[:, None]) / (1 + rho * cos[:, None])

@@ -29,13 +29,13 @@ import time
 import numpy as np
 import torch
 
-from brdfkit.geometry import N_THETA_D, N_PHI_D, N_CELLS, cell_index, cos_theta_i, grid_cosine_weight, grid_hd
-from brdfkit.methods.ipca import EPS, cosine_weight, fit_ipca
+from brdfkit.geometry import N_THETA_D, N_PHI_D, N_CELLS, grid_cosine_weight, grid_hd
+from brdfkit.methods.ipca import EPS, fit_ipca
 from brdfkit.model.network import HyperBRDF, HyperConfig, hyponet_forward
 from brdfkit.samples import draw_samples
 
 from study_data import load_library, validation_materials
-from study_pca import gauss_newton
+from study_pca import gauss_newton, sample_rows
 
 
 def basis_at_cells(model, cells):
@@ -229,14 +229,10 @@ def main():
                     s = draw_samples(table, n, seed=seed)
                     c0 = full.coefficients(s)
                     c = gauss_newton(full, s, s2=args.s2, density=False, ipca_term=True, lam=args.lam)
-                    idx = cell_index(s.theta_h, s.theta_d, s.phi_d)
-                    at = full._table()[idx].astype(np.float64)
-                    wts = cosine_weight(s.theta_h, s.theta_d, s.phi_d)
-                    ok = np.isfinite(at).all(1) & (wts > 0)
-                    rho = np.clip(np.asarray(s.rgb, np.float64)[ok], 0, None)
-                    b = np.log((rho * wts[ok, None] + EPS) / (at[ok, 0:1] + EPS)) - at[ok, 1:2]
+                    ok, at, wts, cos_s, rho = sample_rows(full, s)
+                    b = np.log((rho * wts[:, None] + EPS) / (at[:, 0:1] + EPS)) - at[:, 1:2]
                     cm = np.zeros_like(c) if args.no_basis else c
-                    r = b - at[ok, 2:] @ cm
+                    r = b - at[:, 2:] @ cm
                     ctx_hd = torch.from_numpy(s.hd()[ok].astype(np.float32))[None]
                     ctx_r = torch.from_numpy(r.astype(np.float32))[None]
                     pc = cells if sub is None else cells[sub]
@@ -252,8 +248,7 @@ def main():
                             if args.prior:
                                 T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
                                 sig1 = torch.from_numpy(full.sigma.astype(np.float64))[None]
-                                cn, _ = gn_batch(T(at[ok]), T(rho), T(wts[ok]), T(np.clip(cos_theta_i(
-                                    s.theta_h, s.theta_d, s.phi_d)[ok], 0, None)), sig1, args.s2, args.lam, mu=cn)
+                                cn, _ = gn_batch(T(at), T(rho), T(wts), T(cos_s), sig1, args.s2, args.lam, mu=cn)
                             cm = cn[0].double().numpy().T
                             res = torch.zeros(1, qhd.shape[0], 3)
                         else:

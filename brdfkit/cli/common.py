@@ -32,11 +32,11 @@ def require_model(model_path: str | None, fingerprint: str | None = None) -> str
     """The model file to use: ``-m`` / ``$BRDFKIT_MODEL`` (a file or a built-in name),
     else the built-in whose fingerprint is ``fingerprint`` (an embedding's), else the
     default built-in; else an error saying how to get one."""
-    from ..model.builtin import default_model, model_for_embedding, resolve_model
+    from ..model.builtin import model_for_embedding, resolve_model
 
     if model_path:
         return resolve_model(model_path)
-    found = model_for_embedding(fingerprint) if fingerprint else default_model()
+    found = model_for_embedding(fingerprint)  # the default built-in when none matches
     if found is None:
         raise InputError("no model given: pass -m NAME or -m MODEL.safetensors, or set BRDFKIT_MODEL (no default "
                          "built-in model is installed; `brdfkit models` lists the built-in ones; make a model with "
