@@ -9,7 +9,8 @@ import math
 
 import numpy as np
 
-from brdfkit.render.nodes import NodeSet, _frames, _half_share_table, _rect_ramp, _smoothstep, half_share
+from brdfkit.render.envmap import direction_to_uv
+from brdfkit.render.nodes import NodeSet, _frames, _half_share_table, _smoothstep, half_share
 from brdfkit.render.scene import REFERENCE, Quadrature
 
 BLOCK_PAIRS = 1 << 17
@@ -124,3 +125,30 @@ def render_pixels_v1(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadratur
         stats.evaluations = evaluations
         stats.scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
     return [out.float().cpu().numpy() for out in outs]
+
+
+def _rect_ramp(rects, d):
+    """``rho``: 1 inside the light rectangles, falling to 0 across their margins, for world
+    directions ``d (N, 3)``."""
+    import torch
+
+    out = torch.zeros(d.shape[0], dtype=d.dtype, device=d.device)
+    if not rects:
+        return out
+    # Texture coordinates only for directions in the rectangles' band of elevations.
+    y = d[:, 1]
+    band = torch.zeros_like(y, dtype=torch.bool)
+    for _, _, v0, v1, _, _ in rects:
+        band |= (y <= math.cos(math.pi * max(v0, 0.0))) & (y >= math.cos(math.pi * min(v1, 1.0)))
+    idx = band.nonzero(as_tuple=True)[0]
+    if idx.numel() == 0:
+        return out
+    u, v = direction_to_uv(d[idx])
+    ramp_all = torch.zeros_like(u)
+    for u0, u1, v0, v1, ru, rv in rects:
+        uu = torch.where(u < u0, u + 1.0, u) if u0 < 0 else u  # a rectangle may cross u = 0
+        ramp = (_smoothstep((uu - u0) / ru) * _smoothstep((u1 - uu) / ru)
+                * _smoothstep((v - v0) / rv) * _smoothstep((v1 - v) / rv))
+        ramp_all = torch.maximum(ramp_all, ramp)
+    out[idx] = ramp_all
+    return out

@@ -107,7 +107,7 @@ def test_kept_pairs_give_the_same_image_and_are_bounded(monkeypatch):
 
 def test_outside_of_the_light_rectangles_and_environment_lookup():
     from brdfkit.render.envmap import reference_envmap
-    from brdfkit.render.nodes import _rect_ramp
+    from helpers_quadrature import _rect_ramp
     from brdfkit.render.pairs import _EnvLookup, _outside, _uv
 
     env = reference_envmap()

@@ -104,8 +104,8 @@ def _uv(x, y, z):
 
 
 def _outside(rects, u, v):
-    """``1 - rho``, :func:`brdfkit.render.nodes._rect_ramp`'s ramp, from texture
-    coordinates; computed as such so that it keeps its relative precision next to 0
+    """``1 - rho``, the ramp of the old renderer's ``_rect_ramp`` (now only in
+    ``tests/helpers_quadrature.py``), from texture coordinates; computed as such so that it keeps its relative precision next to 0
     (float32 ``rho`` rounds to 1 within 6e-8 of it).
 
     A rectangle at least twice its ramps wide has at most one ramp below 1 at any ``u``
