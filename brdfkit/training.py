@@ -1,14 +1,15 @@
 """Training the hypernetwork BRDF model (Gokbudak et al. 2024) on MERL tables.
 
 :func:`fit` reads the training tables (:class:`brdfkit.trainset.TrainingSet`), builds the
-reference table of the mapping (per-cell median of the training materials, eq. 1), and
-optimises :class:`brdfkit.model.network.HyperBRDF` with the paper's loss (eq. 3) on batches
-drawn on the fly (:class:`brdfkit.trainset.BatchSampler`): per step ``B`` materials, each
-with a query set for the loss and a separate context set of random size for the encoder,
-so that one model serves any number of samples. Adam, gradient clipping, non-finite steps
-skipped, periodic atomic checkpoints (:mod:`brdfkit.checkpoint`) and resume, Ctrl-C
-saved, and data-parallel training under ``torchrun`` (one process per share of the
-materials). ``docs/training.md`` documents the options and the measured throughput.
+reference table of the mapping (per-cell median of the training materials, eq. 1, or
+another model's, ``reference``), and optimises :class:`brdfkit.model.network.HyperBRDF`
+with the paper's loss (eq. 3) on batches drawn on the fly
+(:class:`brdfkit.trainset.BatchSampler`): per step ``B`` materials, each with a query set
+for the loss and a separate context set of random size for the encoder, so that one
+model serves any number of samples. Adam, gradient clipping, non-finite steps skipped,
+periodic atomic checkpoints (:mod:`brdfkit.checkpoint`) and resume, Ctrl-C saved, and
+data-parallel training under ``torchrun`` (one process per share of the materials).
+``docs/training.md`` documents the options and the measured throughput.
 """
 
 from __future__ import annotations
@@ -175,7 +176,7 @@ def _lr_factor(step: int, fraction: float, opts: TrainOptions) -> float:
 
 def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes: float | None = None,
         seed: int = 0, device=None, exclude=(), resume: bool = False, progress: bool = True,
-        **advanced) -> str:
+        reference=None, **advanced) -> str:
     """Train a hypernetwork BRDF model on MERL tables and save it.
 
     Parameters
@@ -202,6 +203,9 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
         Continue from ``<output>.ckpt``; refused if it was made for other data or options.
     progress
         Show a progress bar and messages on stderr (rank 0 only).
+    reference
+        A model file or built-in name whose reference table replaces the median, so that
+        models trained on other materials share one reference file (``docs/training.md``).
     **advanced
         :class:`TrainOptions` fields and :class:`~brdfkit.model.network.HyperConfig` fields
         (architecture), e.g. ``query_size=256, hypo_hidden=16`` for tiny tests.
@@ -214,8 +218,10 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
     Raises
     ------
     InputError
-        No materials, unreadable files, bad options, output equal to an input, or a
-        checkpoint that does not match.
+        No materials, unreadable files, bad options, output equal to an input (the
+        reference model too), no such reference model, or a checkpoint that does not match.
+    FormatError
+        A training table or the reference model is not what it should be.
     TrainingError
         The loss stayed non-finite for ``max_bad_steps`` consecutive steps, or the ranks
         of a distributed run disagree.
@@ -234,12 +240,14 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
         exclude = [exclude]
 
     from .checkpoint import checkpoint_path
+    from .trainset import given_reference
 
     output = os.fspath(output)
     ckpt = checkpoint_path(output)
     paths, names, excluded, unknown = _collect(data, exclude)
-    refuse_overwrite_of_inputs(output, paths)
-    refuse_overwrite_of_inputs(ckpt, paths)
+    ref = given_reference(reference)
+    refuse_overwrite_of_inputs(output, [*paths, ref.path])
+    refuse_overwrite_of_inputs(ckpt, [*paths, ref.path])
     folder = os.path.dirname(os.path.abspath(output))
     if not os.path.isdir(folder):
         raise InputError(f"{output}: output folder {folder} does not exist")
@@ -249,7 +257,7 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
     dist = ProcessGroup(device)
     try:
         return _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps, minutes,
-                      seed, resume, progress, t_start)
+                      seed, resume, progress, t_start, ref)
     finally:
         dist.close()
 
@@ -260,7 +268,7 @@ def _collect(data, exclude):
 
 
 def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps, minutes, seed,
-           resume, progress, t_start):
+           resume, progress, t_start, ref):
     import torch
 
     from .model import network
@@ -282,9 +290,10 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
         state = load_checkpoint(ckpt, "cpu")
         check_resumable(ckpt, state, config=cfg.to_json(), options=opts.identity_json(),
                         materials=names, seed=seed)
+        ref.check_resumable(ckpt, state)
 
     show.start("reading")
-    tset = TrainingSet.load(paths, names, rank, world,
+    tset = TrainingSet.load(paths, names, rank, world, reference=ref.table,
                             on_read=lambda i, p: show.update(i / len(paths), os.path.basename(p)))
     show.update(1.0, f"{len(paths)} tables, {tset.cells.size:,} cells measured in all")
     show.stop()
@@ -329,7 +338,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
                 "skipped": skipped, "resumed_from": resumed_from,
                 "net": net.state_dict(), "optimizer": opt.state_dict(),
                 "config": cfg.to_json(), "options": opts.identity_json(), "materials": names,
-                "data_digest": tset.digest, "seed": seed, "world_size": world}
+                "data_digest": tset.digest, "seed": seed, "world_size": world, "reference_from": ref.fingerprint}
 
     recent = collections.deque(maxlen=50)  # (loss, mse) of the last good steps, summed over ranks
     consecutive_bad = 0
@@ -427,6 +436,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
             "world_size": world, "final_loss": final_loss, "final_mapped_mse": final_mse,
             "device": device.type, "options": json.loads(opts.identity_json()),
             "resumed_from_steps": resumed_from, "rank_fingerprints": fingerprints,
+            "reference_from": ref.fingerprint,  # None: the median of "materials"
             "query_samples_per_s": round(samples_total / loop_time, 1) if loop_time > 0 else None}
     if rank == 0:
         save_checkpoint(ckpt, checkpoint_state())

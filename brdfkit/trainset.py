@@ -17,19 +17,87 @@ log-uniformly in ``[context_min, context_max]``, feeds the set encoder. Half of 
 context sets are uniform over the measured cells and half uniform over the Rusinkiewicz
 angles, the default of :func:`brdfkit.samples.draw_samples` and of real gonioreflectometer
 sweeps, so that one model serves any number of samples drawn either way.
+
+The reference may instead come from another model (:func:`given_reference`, ``fit(...,
+reference=MODEL)``), so that models trained on different materials share one reference
+table, and one shared reference file once packed (``docs/training.md``).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import hashlib
+import os
 from typing import Callable, Sequence
 
 import numpy as np
 
-from .errors import BrdfkitError, InputError
-from .geometry import N_CELLS, N_PHI_D, N_THETA_D
+from .errors import BrdfkitError, FormatError, InputError
+from .geometry import N_CELLS, N_PHI_D, N_THETA_D, TABLE_SHAPE
 
-__all__ = ["TrainingSet", "BatchSampler"]
+__all__ = ["TrainingSet", "BatchSampler", "GivenReference", "given_reference"]
+
+
+@dataclasses.dataclass(frozen=True)
+class GivenReference:
+    """Where a training run's reference table comes from (:func:`given_reference`).
+
+    Attributes
+    ----------
+    path, fingerprint
+        The model file it was taken from and that model's weights fingerprint; ``None``:
+        the median of the training materials (eq. 1).
+    table
+        float32 ``(90, 90, 180, 3)``, 1/sr, NaN where unmeasured; ``None`` for the median.
+    """
+
+    path: str | None = None
+    table: np.ndarray | None = None
+    fingerprint: str | None = None
+
+    def check_resumable(self, ckpt: str, state: dict) -> None:
+        """Refuse a checkpoint (``state``, its ``reference_from``) trained against
+        another reference: the mapped values, and so the weights, depend on it."""
+        was = state.get("reference_from")  # absent in older checkpoints: the median
+        if was != self.fingerprint:
+            then, now = (f"model {str(fp)[:12]}" if fp else "the median" for fp in (was, self.fingerprint))
+            raise InputError(f"{ckpt}: checkpoint was trained against another reference table "
+                             f"({then} then, {now} now); train afresh without --resume, or give "
+                             f"the same reference")
+
+
+def given_reference(spec) -> GivenReference:
+    """The reference table of an existing model, to train another model against.
+
+    Parameters
+    ----------
+    spec
+        A brdfkit hypernetwork model file (``.safetensors``, loaded on the CPU, nothing
+        unpickled) or the name of an installed built-in model
+        (:func:`brdfkit.model.builtin.resolve_model`); ``None``: the median of the
+        training materials.
+
+    Raises
+    ------
+    InputError
+        Not a string or path, no such file, or a name that is no installed built-in.
+    FormatError
+        Not a brdfkit model file, or a damaged one; a reference with negative values.
+    """
+    from .model.builtin import resolve_model
+    from .model.file import load_model
+
+    if spec is None:
+        return GivenReference()
+    if not isinstance(spec, (str, os.PathLike)) or not os.fspath(spec):
+        raise InputError(f"training option reference: {spec!r} is not a model file or built-in model name")
+    path = resolve_model(spec)
+    model = load_model(path, device="cpu")
+    ref = np.ascontiguousarray(model.rho_ref, dtype=np.float32)
+    if (ref < 0).any():  # the mapping divides by rho_ref + eps (eq. 1): a BRDF is never negative
+        raise FormatError(path, "its reference table has negative values")
+    return GivenReference(path, ref, model.fingerprint)
+
 
 class TrainingSet:
     """The training materials of one process, mapped and compact.
@@ -40,10 +108,12 @@ class TrainingSet:
         All training materials (every rank), sorted by name.
     rho_ref
         float32 ``(90, 90, 180, 3)``: per-cell median of *all* training materials, the
-        same on every rank; NaN where none is measured.
+        same on every rank, NaN where none is measured; or the reference given to
+        :meth:`load`.
     cells
         int64 ``(n_cells,)``: flat MERL indices of the cells measured in every training
-        material (the cells losses and contexts are drawn from).
+        material, and where the reference is finite (the cells losses and contexts are
+        drawn from).
     own
         Indices into ``names`` of this rank's share, ``range(rank, M, world)``.
     values
@@ -67,18 +137,22 @@ class TrainingSet:
 
     @classmethod
     def load(cls, paths: Sequence[str], names: Sequence[str], rank: int = 0, world: int = 1,
-             on_read: Callable[[int, str], None] | None = None) -> "TrainingSet":
+             on_read: Callable[[int, str], None] | None = None,
+             reference: np.ndarray | None = None) -> "TrainingSet":
         """Read every training file, compute the reference, keep this rank's share.
 
         Every rank reads every file: the reference table (the mapping's denominator) must
         be the median of *all* training materials and bit-identical across ranks.
+        ``reference`` (float32 ``(90, 90, 180, 3)``, :func:`given_reference`) replaces
+        that median; the cells where it is NaN are left out of training, since a value
+        cannot be mapped without its reference.
 
         Raises
         ------
         FormatError
             A file that is not a MERL table (naming it).
         InputError
-            No cell is measured in every training material.
+            No cell is measured in every training material (and in ``reference``).
         """
         from .mapping import median_reference, to_mapped
         from .merl import read_merl
@@ -102,10 +176,15 @@ class TrainingSet:
             measured &= np.isfinite(flat).all(axis=1)
             stack[i] = flat.reshape(-1)
             del table, flat
-        rho_ref = median_reference(stack)
+        if reference is None:
+            rho_ref = median_reference(stack)
+        else:
+            rho_ref = np.ascontiguousarray(reference, dtype=np.float32).reshape(TABLE_SHAPE)
+            measured &= np.isfinite(rho_ref.reshape(N_CELLS, 3)).all(axis=1)
         cells = np.flatnonzero(measured).astype(np.int64)
         if cells.size == 0:
-            raise InputError("no MERL cell is measured in every training material")
+            raise InputError("no MERL cell is measured in every training material"
+                             + (" and in the given reference" if reference is not None else ""))
         ref_cells = rho_ref.reshape(N_CELLS, 3)[cells].astype(np.float64)
         values = np.empty((len(own), cells.size, 3), dtype=np.float32)
         for j, i in enumerate(own):
