@@ -11,6 +11,8 @@ name         method                                                      ``-m`` 
              (Nielsen, Jensen and Ramamoorthi 2015; :mod:`.ipca`)
 ``nbrdf``    one 6-21-21-3 MLP fitted to the samples alone               none
              (Sztrajman et al. 2021; :mod:`.nbrdf`)
+``prior``    the basis fitted around a learnt prior: a set encoder of the   learnt-prior
+             samples predicts the coefficients' prior mean (:mod:`.prior`)   model file
 ============ =========================================================== ==============
 
 Every method has the same interface (:class:`~.method.Method`), so ``brdfkit sparse``,
@@ -37,7 +39,7 @@ A new method is one module defining ``METHOD = Method(...)`` and one line in
 from __future__ import annotations
 
 from ..errors import InputError
-from . import hypernet, ipca, nbrdf
+from . import hypernet, ipca, nbrdf, prior
 from .method import Method, MethodOptions
 
 __all__ = ["Method", "MethodOptions", "METHODS", "get_method", "reconstruct"]
@@ -46,6 +48,7 @@ METHODS: dict[str, Method] = {
     "hypernet": hypernet.METHOD,
     "ipca": ipca.METHOD,
     "nbrdf": nbrdf.METHOD,
+    "prior": prior.METHOD,
 }
 """The reconstruction methods by name."""
 

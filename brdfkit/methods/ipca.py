@@ -60,14 +60,15 @@ import numpy as np
 
 from ..atomic import atomic_path, check_input_file
 from ..errors import FormatError, InputError
-from ..geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff, lookup_trilinear
+from ..geometry import GRID_SHAPE, N_CELLS, N_PHI_D, grid_cosine_weight, io_from_half_diff, lookup_trilinear
 from .method import Method, MethodOptions
 
 __all__ = ["IpcaModel", "IpcaOptions", "fit_ipca", "fit_ipca_files", "load_ipca", "METHOD", "IPCA_FORMAT",
-           "IPCA_VERSION", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
+           "IPCA_VERSION", "read_ipca", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
 
 IPCA_FORMAT = "brdfkit-ipca"
-IPCA_VERSION = "1"
+IPCA_VERSION = "2"
+_READS = ("1", "2")  # version 2 adds the optional float16 and half-phi_d storage
 EPS = 0.001
 DEFAULT_COMPONENTS = 8
 DEFAULT_LAMBDA = 0.1
@@ -114,21 +115,47 @@ class IpcaModel:
     def n_components(self) -> int:
         return int(self.components.shape[0])
 
-    def save(self, path: str | os.PathLike) -> None:
-        """Write the basis as one safetensors file (format ``brdfkit-ipca``), atomically."""
+    def save(self, path: str | os.PathLike, *, half: bool = False, phi_stride: int = 1) -> None:
+        """Write the basis as one safetensors file (format ``brdfkit-ipca``), atomically;
+        ``half`` and ``phi_stride`` as :meth:`tensors` takes them."""
         from safetensors.numpy import save_file
 
-        tensors = {"cells": np.ascontiguousarray(self.cells, dtype=np.int64),
-                   "reference": np.ascontiguousarray(self.reference, dtype=np.float32),
-                   "mean": np.ascontiguousarray(self.mean, dtype=np.float32),
-                   "components": np.ascontiguousarray(self.components, dtype=np.float32),
+        tensors, meta = self.tensors(half=half, phi_stride=phi_stride, where=os.fspath(path))
+        with atomic_path(path) as tmp:
+            save_file(tensors, tmp, metadata=meta)
+
+    def tensors(self, *, half: bool = False, phi_stride: int = 1, prefix: str = "",
+                where: str = "basis") -> tuple[dict, dict]:
+        """The tensors and metadata of the basis's file (names prefixed with ``prefix``
+        when it is stored inside another model file).
+
+        ``half`` stores the per-cell tensors in float16 and ``phi_stride = 2`` only the
+        cells of even ``phi_d`` index (:mod:`brdfkit.methods.basis_storage`): together a
+        quarter of the size, for the bases shipped with the package. The reader restores
+        the full grid the same way every time, so a model trained on the restored basis
+        sees exactly what it is shipped with.
+        """
+        from .basis_storage import check_half, compact
+
+        cells, per_cell = compact(self.cells, [self.reference, self.mean, self.components], phi_stride)
+        if half:
+            check_half(where, per_cell)
+        dtype = np.float16 if half else np.float32
+        # Compact files name their cells by a bit mask over the grid (0.18 MB), not by
+        # int64 indices (4.4 MB for half the grid).
+        where_cells = ({"cell_mask": np.packbits(np.isin(np.arange(N_CELLS), cells))} if half or phi_stride != 1
+                       else {"cells": np.ascontiguousarray(cells, dtype=np.int64)})
+        tensors = {**where_cells,
+                   "reference": np.ascontiguousarray(per_cell[0], dtype=dtype),
+                   "mean": np.ascontiguousarray(per_cell[1], dtype=dtype),
+                   "components": np.ascontiguousarray(per_cell[2], dtype=dtype),
                    "sigma": np.ascontiguousarray(self.sigma, dtype=np.float32)}
         meta = {"format": IPCA_FORMAT, "version": IPCA_VERSION,
                 "n_components": str(self.n_components), "eps": repr(EPS),
                 "weight": "cos_i*cos_o", "channels": "separate observations, shared basis",
+                "phi_d_stride": str(int(phi_stride)), "dtype": "float16" if half else "float32",
                 "materials": json.dumps(list(self.materials))}
-        with atomic_path(path) as tmp:
-            save_file(tensors, tmp, metadata=meta)
+        return ({prefix + k: v for k, v in tensors.items()}, {prefix + k: v for k, v in meta.items()})
 
     def _table(self) -> np.ndarray:
         """Dense ``(N_CELLS, K + 2)`` float32 ``[reference, mean, components...]``, NaN
@@ -311,17 +338,32 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
 
     path = check_input_file(path)
     with open_safetensors(path) as f:
-        meta = f.metadata() or {}
-        if meta.get("format") != IPCA_FORMAT:
-            raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
-                                    f"expected {IPCA_FORMAT!r})")
-        if meta.get("version") != IPCA_VERSION:
-            raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
-                                    f"(this brdfkit reads version {IPCA_VERSION})")
-        missing = [k for k in _TENSORS if k not in f.keys()]
-        if missing:
-            raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
-        t = {k: f.get_tensor(k) for k in _TENSORS}
+        return read_ipca(f, path)
+
+
+def read_ipca(f, path: str, prefix: str = "") -> IpcaModel:
+    """The basis in an open safetensors file ``f`` (tensors and metadata keys named
+    ``prefix + name``: a basis stored inside another model file); errors name ``path``."""
+    meta = {k[len(prefix):]: v for k, v in (f.metadata() or {}).items() if k.startswith(prefix)}
+    if meta.get("format") != IPCA_FORMAT:
+        raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
+                                f"expected {IPCA_FORMAT!r})")
+    if meta.get("version") not in _READS:
+        raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
+                                f"(this brdfkit reads versions {', '.join(_READS)})")
+    stride = meta.get("phi_d_stride", "1")
+    if stride not in ("1", "2"):
+        raise FormatError(path, f"PCA basis phi_d_stride {stride!r} is not 1 or 2")
+    keys = set(f.keys())
+    missing = [k for k in _TENSORS if prefix + k not in keys and not (k == "cells" and prefix + "cell_mask" in keys)]
+    if missing:
+        raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
+    t = {k: f.get_tensor(prefix + k) for k in _TENSORS if prefix + k in keys}
+    if "cells" not in t:
+        mask = f.get_tensor(prefix + "cell_mask")
+        if mask.dtype != np.uint8 or mask.shape != ((N_CELLS + 7) // 8,):
+            raise FormatError(path, "PCA basis cell mask is not a bit mask of the MERL grid")
+        t["cells"] = np.flatnonzero(np.unpackbits(mask)[:N_CELLS]).astype(np.int64)
     cells, comp = t["cells"], t["components"]
     p = cells.shape[0] if cells.ndim == 1 else -1
     if (cells.ndim != 1 or comp.ndim != 2 or comp.shape[1] != p or t["reference"].shape != (p,)
@@ -332,6 +374,8 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
     for k in ("reference", "mean", "components", "sigma"):
         if not np.isfinite(t[k]).all():
             raise FormatError(path, f"PCA basis tensor {k!r} holds non-finite values")
+    if not (t["sigma"] > 0).all():
+        raise FormatError(path, "PCA basis tensor 'sigma' must be positive")
     try:
         materials = json.loads(meta.get("materials", "[]"))
     except json.JSONDecodeError:
@@ -339,17 +383,23 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
     # found by benchmarks/fuzz_parsers.py: 'materials' = "5" raised a TypeError below
     if not isinstance(materials, list) or not all(isinstance(m, str) for m in materials):
         raise FormatError(path, "PCA basis metadata 'materials' is not a list of names")
-    return IpcaModel(cells.astype(np.int64), t["reference"].astype(np.float32),
-                     t["mean"].astype(np.float32), comp.astype(np.float32),
-                     t["sigma"].astype(np.float32), list(materials))
+    cells = cells.astype(np.int64)
+    per_cell = [t["reference"].astype(np.float32), t["mean"].astype(np.float32), comp.astype(np.float32)]
+    if stride == "2":
+        if ((cells % N_PHI_D) % 2).any():
+            raise FormatError(path, "a half-phi_d PCA basis may hold only cells of even phi_d index")
+        from .basis_storage import expand
+        cells, per_cell = expand(cells, per_cell)
+    return IpcaModel(cells, *per_cell, t["sigma"].astype(np.float32), list(materials))
 
 
 def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
-                   components: int = DEFAULT_COMPONENTS) -> str:
+                   components: int = DEFAULT_COMPONENTS, half: bool = False, phi_stride: int = 1) -> str:
     """Fit a basis to the MERL tables ``data`` (files or folders, as
     :func:`brdfkit.materials.collect_materials` reads them) less the materials named in
-    ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``). Returns
-    ``output``."""
+    ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``; ``half`` and
+    ``phi_stride``, ``-O half=true -O phi_stride=2``, store it as the package ships
+    bases, :meth:`IpcaModel.tensors`). Returns ``output``."""
     import sys
 
     from ..materials import collect_materials
@@ -357,7 +407,10 @@ def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
     paths, names, _, unknown = collect_materials(data, exclude)
     if unknown:
         print(f"brdfkit: warning: excluded name(s) matched no input: {', '.join(unknown)}", file=sys.stderr)
-    fit_ipca(paths, components, names=names).save(output)
+    if not isinstance(half, bool) or phi_stride not in (1, 2):
+        raise InputError(f"--method ipca: options half (true/false) and phi_stride (1 or 2), got "
+                         f"{half!r} and {phi_stride!r}")
+    fit_ipca(paths, components, names=names).save(output, half=half, phi_stride=phi_stride)
     print(f"wrote PCA basis ({components} components, {len(names)} materials) to {output}", file=sys.stderr)
     return output
 
@@ -374,7 +427,9 @@ class IpcaOptions(MethodOptions):
 
 
 def _load(path, device):
-    return load_ipca(path)
+    from ..model.builtin import resolve_basis
+
+    return load_ipca(resolve_basis(path))
 
 
 def _reconstruct(samples, model, options, *, seed, device):
@@ -392,5 +447,5 @@ def _describe(model, path):
 METHOD = Method("ipca", "PCA basis of log-mapped tables fitted by ridge regression (Nielsen et al. 2015)",
                 "PCA basis (.safetensors from `brdfkit fit --method ipca`)", options=IpcaOptions,
                 load_model=_load, reconstruct_fn=_reconstruct, fit_fn=fit_ipca_files,
-                fit_options=("components",), compress_fn=_compress, describe_fn=_describe,
+                fit_options=("components", "half", "phi_stride"), compress_fn=_compress, describe_fn=_describe,
                 bench_option="ipca")

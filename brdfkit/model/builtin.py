@@ -31,7 +31,7 @@ from ..errors import FormatError, InputError
 
 __all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "BuiltinModel", "Manifest", "models_folder",
            "read_manifest", "builtin_models", "is_path_spec", "resolve_model", "default_model",
-           "model_for_embedding", "embedding_model", "load_builtin", "pack_model", "manifest_entry", "write_manifest"]
+           "model_for_embedding", "embedding_model", "resolve_prior", "resolve_basis", "load_builtin", "pack_model", "manifest_entry", "write_manifest"]
 
 BUILTIN_ENV = "BRDFKIT_BUILTIN_MODELS"
 MANIFEST = "manifest.json"
@@ -76,6 +76,8 @@ class BuiltinModel:
     validation: dict = dataclasses.field(default_factory=dict)
     default: bool = False
     installed: bool = False
+    prior: str | None = None
+    prior_fingerprint: str | None = None
 
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
@@ -134,8 +136,16 @@ def _entry(where: str, folder: str, d, default: str | None) -> BuiltinModel:
         validation = {int(k): float(v) for k, v in val.items()}
     except (AttributeError, TypeError, ValueError):
         raise bad("'validation' must map sample counts to log RMSE values") from None
+    prior, prior_fp = d.get("prior"), d.get("prior_fingerprint")
+    if prior is not None and (not isinstance(prior, str) or os.path.basename(prior) != prior
+                              or not prior.endswith(".safetensors")):
+        raise bad("'prior' must be a .safetensors file name in the folder")
+    if (prior is None) != (prior_fp is None) or (prior_fp is not None and not (isinstance(prior_fp, str)
+                                                                             and _HEX64.match(prior_fp))):
+        raise bad("'prior' and 'prior_fingerprint' (64 lowercase hex digits) go together")
     path = os.path.join(folder, file)
-    return BuiltinModel(name=name, file=file, path=path, latent_dim=latent, fingerprint=fp, materials=mats,
+    return BuiltinModel(prior=prior, prior_fingerprint=prior_fp,
+                        name=name, file=file, path=path, latent_dim=latent, fingerprint=fp, materials=mats,
                         materials_list=d.get("materials_list"), steps=d.get("steps"),
                         train_seconds=d.get("train_seconds"), command=d.get("command"),
                         validation=dict(sorted(validation.items())), default=name == default,
@@ -192,18 +202,58 @@ def is_path_spec(spec: str | os.PathLike) -> bool:
             or text.lower().endswith(".safetensors"))
 
 
-def _checked(m: BuiltinModel) -> str:
-    """The path of an installed built-in after checking the fingerprint its file records
-    against the manifest (reading the header only; loading then checks the weights
-    against the recorded fingerprint)."""
+def _checked(m: BuiltinModel, part: str = "model") -> str:
+    """The path of an installed built-in's file (``part`` ``"model"``, its hypernetwork,
+    or ``"prior"``, its learnt-prior model) after checking the fingerprint the file
+    records against the manifest (reading the header only; loading then checks the
+    weights against the recorded fingerprint)."""
     from ..tensorfile import open_safetensors
 
-    with open_safetensors(m.path, framework="numpy", diagnose="brdfkit model file") as f:
+    path, want = (m.path, m.fingerprint) if part == "model" else (os.path.join(os.path.dirname(m.path), m.prior),
+                                                                  m.prior_fingerprint)
+    if not os.path.isfile(path):
+        raise InputError(f"built-in model {m.name!r}: its file {os.path.basename(path)} is not installed")
+    with open_safetensors(path, framework="numpy", diagnose="brdfkit model file") as f:
         recorded = (f.metadata() or {}).get("fingerprint")
-    if recorded != m.fingerprint:
-        raise FormatError(m.path, f"built-in model {m.name!r}: the file records fingerprint {str(recorded)[:12]}, "
-                                  f"the manifest {m.fingerprint[:12]}: the file is damaged or was replaced")
-    return m.path
+    if recorded != want:
+        raise FormatError(path, f"built-in model {m.name!r}: the file records fingerprint {str(recorded)[:12]}, "
+                                f"the manifest {want[:12]}: the file is damaged or was replaced")
+    return path
+
+
+def _builtin_part(spec, part: str) -> str:
+    """An installed built-in's ``part`` file by name; :class:`InputError` otherwise."""
+    installed = builtin_models()
+    for m in installed:
+        if m.name == spec:
+            if part == "prior" and m.prior is None:
+                raise InputError(f"built-in model {m.name!r} has no learnt prior (`brdfkit models` says which do)")
+            return _checked(m, part)
+    raise _unknown(os.fspath(spec), installed)
+
+
+def resolve_prior(spec: str | os.PathLike) -> str:
+    """The learnt-prior model file a ``-m`` value names: a path as it is, else the
+    learnt prior of the installed built-in of that name (its fingerprint checked)."""
+    if is_path_spec(spec):
+        return os.fspath(spec)
+    return _builtin_part(spec, "prior")
+
+
+def resolve_basis(spec: str | os.PathLike) -> str:
+    """The PCA basis file a ``-m`` value names: a path as it is, else the basis file of
+    the installed built-in of that name (the one its learnt prior is fitted with)."""
+    if is_path_spec(spec):
+        return os.fspath(spec)
+    prior = _builtin_part(spec, "prior")
+    from ..tensorfile import open_safetensors
+
+    with open_safetensors(prior, framework="numpy") as f:
+        name = (f.metadata() or {}).get("basis_file")
+    if not name:
+        raise InputError(f"built-in model {spec!r} keeps its basis inside its learnt prior; load it with "
+                         f"--method prior")
+    return os.path.join(os.path.dirname(prior), name)
 
 
 def _unknown(spec: str, installed: list[BuiltinModel]) -> InputError:

@@ -1,0 +1,75 @@
+"""BRDF log RMSE of sparse reconstructions on a list of materials, without rendering.
+
+For a learnt-prior model (a file or a built-in name): the learnt prior, the plain basis
+fit (the network unused) and IPCA's ridge fit with the same basis, from N samples drawn
+uniformly over the angles (draws 0, 1, 2), mean over the materials; optionally a
+hypernetwork model beside them. The quick check behind the built-in models' validation
+figures (``docs/models.md``); the full comparison with renders is ``brdfkit bench``.
+
+    python benchmarks/eval_sparse.py --prior merl80-l40 --list ../shared/data/merl-test.txt \
+        --data PROXIES/merl [--hypernet merl80-l40]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import time
+
+import numpy as np
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--prior", required=True, help="learnt-prior model file or built-in name")
+    ap.add_argument("--hypernet", default=None, help="also a hypernetwork model (file or built-in name)")
+    ap.add_argument("--data", required=True, help="folder of MERL .binary tables")
+    ap.add_argument("--list", required=True, help="material names, one a line")
+    ap.add_argument("--n", type=int, nargs="+", default=[40, 400, 4000])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--json", default=None, help="also write the per-material records here")
+    args = ap.parse_args()
+
+    from brdfkit.materials import read_exclude_list
+    from brdfkit.merl import read_merl
+    from brdfkit.methods import get_method
+    from brdfkit.metrics import brdf_log_rmse
+    from brdfkit.samples import draw_samples
+
+    prior = get_method("prior").load(args.prior)
+    names = read_exclude_list(args.list)
+    variants = {"prior": lambda s: prior.reconstruct(s),
+                "basis fit": lambda s: prior.reconstruct(s, use_prior=False),
+                "ipca": lambda s: prior.basis.reconstruct(s)}
+    if args.hypernet:
+        from brdfkit import api
+        from brdfkit.model.builtin import load_builtin
+        hyper = load_builtin(args.hypernet, device="cpu")
+        variants["hypernet"] = lambda s: api.sparse(hyper, s)[0]
+    errs = {k: {n: [] for n in args.n} for k in variants}
+    secs = {k: [] for k in variants}
+    records = []
+    for name in names:
+        table = read_merl(os.path.join(args.data, name + ".binary"))
+        for n in args.n:
+            for seed in args.seeds:
+                s = draw_samples(table, n, seed=seed)
+                for k, f in variants.items():
+                    t = time.process_time()
+                    pred = f(s)
+                    secs[k].append(time.process_time() - t)
+                    e = float(brdf_log_rmse(pred, table))
+                    errs[k][n].append(e)
+                    records.append({"material": name, "n": n, "seed": seed, "method": k, "log_rmse": e})
+    print(f"{len(names)} materials, draws {args.seeds}; mean BRDF log RMSE")
+    print(f"{'method':10s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  CPU s/recon")
+    for k in variants:
+        print(f"{k:10s} " + " ".join(f"{np.mean(errs[k][n]):7.4f}" for n in args.n) + f"  {np.mean(secs[k]):.3f}")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump({"materials": names, "records": records}, f)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,57 @@
+"""The learnt prior as a reconstruction method: a PCA basis fitted in closed form around
+the prior mean a set encoder reads from the samples (:mod:`.prior_model`); trained by
+``brdfkit fit --method prior`` (:mod:`.prior_fit`). ``brdfkit sparse``'s default with
+the built-in models (``docs/generalisation.md`` says why it is not the paper's decoder)."""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from .method import Method, MethodOptions
+from .prior_fit import FIT_OPTIONS
+
+__all__ = ["METHOD", "PriorOptions"]
+
+
+@dataclasses.dataclass(frozen=True)
+class PriorOptions(MethodOptions):
+    """``use_prior``: solve around the network's prior mean (``False``: the plain basis
+    fit, the network unused; for comparison)."""
+
+    use_prior: bool = True
+
+
+def _load(path, device):
+    from ..model.builtin import resolve_prior
+    from .prior_file import load_prior
+
+    return load_prior(resolve_prior(path), device)
+
+
+def _reconstruct(samples, model, options, *, seed, device):
+    return model.reconstruct(samples, use_prior=options.use_prior), None
+
+
+def _fit(data, output, *, exclude=(), progress=True, **options):
+    from .prior_fit import fit_prior
+
+    return fit_prior(data, output, exclude=exclude, progress=progress, **options)
+
+
+def _compress(model, table, name):
+    return model.basis.decode(model.basis.project(table))
+
+
+def _describe(model, path):
+    stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
+    return (f"prior {model.basis.n_components} components ({stem})", model.basis.n_components,
+            set(model.meta.get("materials") or ()))
+
+
+METHOD = Method("prior", "PCA basis fitted around a learnt prior: a set encoder of the samples gives the "
+                "coefficients' prior mean (brdfkit's default, docs/generalisation.md)",
+                "learnt-prior model (.safetensors from `brdfkit fit --method prior`, or a built-in name)",
+                options=PriorOptions, load_model=_load, reconstruct_fn=_reconstruct, fit_fn=_fit,
+                fit_options=FIT_OPTIONS,
+                compress_fn=_compress, describe_fn=_describe)  # bench: --model-file prior=FILE

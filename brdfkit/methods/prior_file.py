@@ -1,0 +1,167 @@
+"""The learnt-prior model file (format ``brdfkit-prior``): safetensors, never pickle.
+
+One file holds the network's weights (``net.*``) and its basis, either inside
+(``basis.*`` tensors and metadata, as :meth:`IpcaModel.tensors` writes them) or in a
+basis file beside it (metadata ``basis_file``, a bare name, and ``basis_digest``, the
+sha256 of that file), so that the built-in models trained on one basis ship it once.
+Metadata ``config`` is the :class:`~brdfkit.methods.prior_model.PriorConfig` as JSON and
+``fingerprint`` the sha256 of the weights and the basis, checked on loading.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import os
+
+import numpy as np
+
+from ..atomic import atomic_path, check_input_file
+from ..errors import FormatError, InputError
+from .prior_model import PriorConfig, PriorModel, prior_net
+
+__all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file"]
+
+PRIOR_FORMAT = "brdfkit-prior"
+PRIOR_VERSION = "1"
+
+
+def _digest(tensors: dict) -> str:
+    h = hashlib.sha256()
+    for k in sorted(tensors):
+        a = np.ascontiguousarray(tensors[k])
+        h.update(k.encode() + b"\0" + str(a.dtype).encode() + b"\0" + repr(a.shape).encode())
+        h.update(a.tobytes())
+    return h.hexdigest()
+
+
+def _file_digest(path: str) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False, phi_stride: int = 1,
+               basis_file: str | None = None) -> str:
+    """Write ``model`` atomically; returns its fingerprint.
+
+    Parameters
+    ----------
+    half, phi_stride
+        How the basis is stored (:meth:`IpcaModel.tensors`); the network stays float32
+        (it is 60k numbers).
+    basis_file
+        A bare file name: the basis goes into that file beside ``path`` (written when it
+        does not exist, else checked to hold the same basis) instead of inside.
+    """
+    from safetensors.numpy import save_file
+
+    path = os.fspath(path)
+    net = {f"net.{k}": v.detach().cpu().float().numpy() for k, v in model.net.state_dict().items()}
+    meta = {"format": PRIOR_FORMAT, "version": PRIOR_VERSION,
+            "config": json.dumps(dataclasses.asdict(model.cfg), sort_keys=True)}
+    meta.update({k: json.dumps(v) for k, v in model.meta.items()})
+    if basis_file is None:
+        btens, bmeta = model.basis.tensors(half=half, phi_stride=phi_stride, prefix="basis.", where=path)
+        tensors = {**net, **btens}
+        meta.update(bmeta)
+        basis_digest = _digest(btens)
+    else:
+        if os.path.basename(basis_file) != basis_file:
+            raise InputError(f"basis_file {basis_file!r}: give a bare file name (it lives beside the model)")
+        where = os.path.join(os.path.dirname(os.path.abspath(path)), basis_file)
+        if not os.path.exists(where):
+            model.basis.save(where, half=half, phi_stride=phi_stride)
+        else:  # shared with another model: it must be this model's basis as stored
+            from .ipca import load_ipca
+            other = load_ipca(where)
+            if not (np.array_equal(other.cells, model.basis.cells)
+                    and np.array_equal(other.components, model.basis.components)):
+                raise InputError(f"{where}: holds another basis than this model's")
+        tensors = net
+        basis_digest = _file_digest(where)
+        meta.update(basis_file=basis_file, basis_digest=basis_digest)
+    fingerprint = hashlib.sha256((_digest(net) + basis_digest).encode()).hexdigest()
+    meta["fingerprint"] = fingerprint
+    with atomic_path(path) as tmp:
+        save_file(tensors, tmp, metadata=meta)
+    return fingerprint
+
+
+def is_prior_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a safetensors file of format ``brdfkit-prior`` (header only)."""
+    from ..tensorfile import open_safetensors
+
+    try:
+        with open_safetensors(os.fspath(path)) as f:
+            return (f.metadata() or {}).get("format") == PRIOR_FORMAT
+    except (FormatError, OSError):
+        return False
+
+
+def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
+    """Read a learnt-prior model file (on the CPU: its work is a few small solves).
+
+    Raises
+    ------
+    FormatError
+        Not such a file, a missing or changed basis file, inconsistent tensors, or
+        weights that do not match the recorded fingerprint.
+    """
+    import torch
+
+    from ..tensorfile import open_safetensors
+    from .ipca import load_ipca, read_ipca
+
+    path = check_input_file(path)
+    with open_safetensors(path, diagnose="brdfkit learnt-prior model file") as f:
+        meta = f.metadata() or {}
+        if meta.get("format") != PRIOR_FORMAT:
+            raise FormatError(path, f"not a brdfkit learnt-prior model (format {meta.get('format')!r}, "
+                                    f"expected {PRIOR_FORMAT!r})")
+        if meta.get("version") != PRIOR_VERSION:
+            raise FormatError(path, f"learnt-prior model version {meta.get('version')!r} is not supported "
+                                    f"(this brdfkit reads version {PRIOR_VERSION})")
+        try:
+            cfg = PriorConfig(**json.loads(meta.get("config", "")))
+        except (TypeError, ValueError):
+            raise FormatError(path, "learnt-prior model metadata 'config' is not a valid configuration") from None
+        net_t = {k: f.get_tensor(k) for k in f.keys() if k.startswith("net.")}
+        if "basis_file" in meta:
+            name = meta["basis_file"]
+            if os.path.basename(name) != name:
+                raise FormatError(path, f"basis_file {name!r} is not a bare file name")
+            where = os.path.join(os.path.dirname(os.path.abspath(path)), name)
+            if not os.path.isfile(where):
+                raise FormatError(path, f"its basis file {name} is missing beside it")
+            basis_digest = _file_digest(where)
+            if basis_digest != meta.get("basis_digest"):
+                raise FormatError(path, f"its basis file {name} is not the one it was saved with (digest differs)")
+            basis = load_ipca(where)
+        else:
+            basis = read_ipca(f, path, prefix="basis.")
+            basis_digest = _digest({k: f.get_tensor(k) for k in f.keys() if k.startswith("basis.")})
+    if hashlib.sha256((_digest(net_t) + basis_digest).encode()).hexdigest() != meta.get("fingerprint"):
+        raise FormatError(path, "the weights do not match the recorded fingerprint: the file is damaged")
+    if basis.n_components != cfg.n_components:
+        raise FormatError(path, f"the basis has {basis.n_components} components, the network expects "
+                                f"{cfg.n_components}")
+    net = prior_net(cfg)
+    try:
+        net.load_state_dict({k[4:]: torch.from_numpy(np.array(v, np.float32)) for k, v in net_t.items()})
+    except RuntimeError:
+        raise FormatError(path, "the network's tensors do not match its configuration") from None
+    if not all(torch.isfinite(p).all() for p in net.parameters()):
+        raise FormatError(path, "the network holds non-finite weights")
+    net.eval()
+    record = {}
+    for k, v in meta.items():
+        if k in ("materials", "steps", "wall_time_s", "command", "seed", "training"):
+            try:
+                record[k] = json.loads(v)
+            except ValueError:
+                record[k] = v
+    return PriorModel(basis, net, cfg, record, meta["fingerprint"])

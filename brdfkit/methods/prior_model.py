@@ -1,0 +1,207 @@
+"""The learnt-prior model: a set encoder that gives a PCA basis fit its prior.
+
+Sparse reconstruction with a linear basis (Nielsen et al. 2015) solves a ridge problem
+whose prior says "the mean material": from 40 samples the fit is pulled to it, from 4,000
+the samples decide. Here a set encoder in the style of Gokbudak et al. 2024 (per sample
+``[H, D, r] -> 128 -> 128 -> latent``, ReLU, mean over the samples) reads the samples'
+residuals ``r`` against the plain fit and predicts a better prior *mean* for the basis
+coefficients; the coefficients are then solved again in closed form around it. The
+model therefore contains the basis fit as a special case (a zero prior mean), and many
+samples outweigh whatever the network says.
+
+Closed-form fit (:func:`solve`)
+-------------------------------
+With the basis's mapped value of a sample ``b = ln((rho w + eps) / (x_ref + eps)) - mean``
+(:mod:`brdfkit.methods.ipca`), per channel::
+
+    min_c  sum_s q_s (A_s c - b_s)^2 + |(c - mu) / sigma|^2,
+    q_s = g_s^2 / s2 + 1 / lam,      g_s = cos_i (rho + eps / w) / (1 + rho cos_i)
+
+the evaluation metric's likelihood (``ln(1 + rho cos_i)``, :func:`brdfkit.metrics.brdf_log_rmse`,
+noise variance ``s2``) linearised around the observed values, plus IPCA's own likelihood
+(noise variance ``lam``), and the Gaussian prior of the training coefficients
+(standard deviations ``sigma``) centred on ``mu``. ``benchmarks/study_pca.py`` measured this
+closed form within 0.002 of the iterative fit in the metric's space.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+
+import numpy as np
+
+from ..errors import InputError
+from ..geometry import GRID_SHAPE, lookup_trilinear
+from .ipca import EPS, IpcaModel, cosine_weight
+
+__all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF"]
+
+N_REF = 4000
+"""The sample count the network's count feature is scaled by (``ln N / ln N_REF``)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class PriorConfig:
+    """Sizes and the fit's constants.
+
+    Attributes
+    ----------
+    n_components
+        ``K``, the basis's components.
+    latent_dim, width
+        The set encoder's output and hidden widths.
+    s2, lam
+        Noise variances of the metric's and of IPCA's likelihood in :func:`solve`.
+    """
+
+    n_components: int = 8
+    latent_dim: int = 40
+    width: int = 128
+    s2: float = 1e-2
+    lam: float = 0.1
+
+
+def _mlp(*sizes):
+    import torch
+
+    layers = []
+    for a, b in zip(sizes[:-1], sizes[1:]):
+        layers += [torch.nn.Linear(a, b), torch.nn.ReLU()]
+    return torch.nn.Sequential(*layers[:-1])
+
+
+def prior_net(cfg: PriorConfig):
+    """The network: ``encoder`` (9 -> width -> width -> latent, mean-pooled) and ``head``
+    (latent + 3 K + 1 -> width -> width -> 3 K), the head's last layer zero (an untrained
+    model is the plain basis fit)."""
+    import torch
+
+    class PriorNet(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            k = cfg.n_components
+            self.encoder = _mlp(9, cfg.width, cfg.width, cfg.latent_dim)
+            self.head = _mlp(cfg.latent_dim + 3 * k + 1, cfg.width, cfg.width, 3 * k)
+            with torch.no_grad():
+                self.head[-1].weight.zero_()
+                self.head[-1].bias.zero_()
+
+        def forward(self, hd, resid, c, sigma, n):
+            """Prior mean ``(B, 3, K)`` from the samples' ``hd (B, S, 6)``, residuals
+            ``(B, S, 3)``, plain-fit coefficients ``c (B, 3, K)``, the basis's ``sigma
+            (B, K)`` and the sample count ``n``; also the latent and the raw output."""
+            z = self.encoder(torch.cat([hd, resid], -1)).mean(1)
+            b, k = c.shape[0], c.shape[-1]
+            feats = torch.cat([z, (c / sigma[:, None]).reshape(b, -1),
+                               torch.full((b, 1), math.log(max(n, 1)) / math.log(N_REF), dtype=z.dtype)], -1)
+            dc = self.head(feats).view(b, 3, k)
+            return dc * sigma[:, None], z, dc
+
+    return PriorNet()
+
+
+def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None):
+    """The closed-form fit of the module docstring, batched (torch).
+
+    Parameters
+    ----------
+    tab
+        ``(B, S, K + 2)`` ``[x_ref, mean, components]`` of the basis at the samples.
+    rho
+        ``(B, S, 3)`` BRDF values (1/sr, ``>= 0``).
+    w, cos
+        ``(B, S)`` IPCA's cosine weight ``cos_i cos_o`` (``> 0``) and ``cos_i``.
+    sigma
+        ``(B, K)`` the prior's standard deviations.
+    mu
+        ``(B, 3, K)`` prior mean, or ``None`` (zero).
+
+    Returns
+    -------
+    tuple
+        Coefficients ``(B, 3, K)`` (float32, solved in float64) and the mapped values
+        ``b`` ``(B, S, 3)``.
+    """
+    import torch
+
+    ref, mean, comp = tab[..., 0:1], tab[..., 1:2], tab[..., 2:].double()
+    b = torch.log((rho * w[..., None] + EPS) / (ref + EPS)) - mean
+    g = cos[..., None] * (rho + EPS / w[..., None]) / (1 + rho * cos[..., None])
+    q = (g ** 2 / s2 + 1.0 / lam).double()
+    lhs = torch.einsum("bck,bcj,bcl->blkj", comp, comp, q)
+    lhs = lhs + torch.diag_embed(1.0 / sigma.double() ** 2)[:, None]
+    rhs = torch.einsum("bck,bcl->blk", comp, q * b.double())
+    if mu is not None:
+        rhs = rhs + mu.double() / sigma.double()[:, None] ** 2
+    return torch.linalg.solve(lhs, rhs).float(), b
+
+
+def sample_rows(basis: IpcaModel, samples):
+    """The samples a basis cell covers with a non-zero cosine weight, as float64 arrays:
+    ``(ok, tab (S, K + 2), w, cos_i, rho, hd (S, 6))``, ``ok`` the mask over the
+    samples. The basis is read trilinearly at each sample's angles (exactly at a cell's
+    own angles), as :meth:`IpcaModel.coefficients` reads it."""
+    from ..geometry import cos_theta_i
+
+    tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
+                           samples.phi_d).astype(np.float64)
+    w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+    ok = np.isfinite(tab).all(1) & (w > 0)
+    cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
+    rho = np.clip(np.nan_to_num(np.asarray(samples.rgb, np.float64)[ok], nan=0.0), 0, None)
+    return ok, tab[ok], w[ok], cos, rho, samples.hd()[ok]
+
+
+@dataclasses.dataclass
+class PriorModel:
+    """A basis and the network that gives its fit a prior.
+
+    Attributes
+    ----------
+    basis
+        :class:`~brdfkit.methods.ipca.IpcaModel` (``K`` components).
+    net
+        The torch module of :func:`prior_net`, in eval mode on the CPU.
+    cfg
+        :class:`PriorConfig`.
+    meta
+        Training record (``materials``, ``steps``, ``wall_time_s`` ...).
+    fingerprint
+        sha256 hex of the weights and the basis (:mod:`brdfkit.methods.prior_file`).
+    """
+
+    basis: IpcaModel
+    net: object
+    cfg: PriorConfig
+    meta: dict = dataclasses.field(default_factory=dict)
+    fingerprint: str = ""
+
+    def coefficients(self, samples, *, use_prior: bool = True) -> np.ndarray:
+        """Basis coefficients ``(K, 3)`` fitted to a sample set (BRDF in 1/sr): the plain
+        closed-form fit, then (``use_prior``) the fit again around the network's prior
+        mean."""
+        import torch
+
+        if len(samples) == 0:
+            raise InputError(f"{samples.source or 'samples'}: no samples to fit")
+        ok, tab, w, cos, rho, hd = sample_rows(self.basis, samples)
+        if not ok.any():
+            raise InputError(f"{samples.source or 'samples'}: no sample lies on a cell the basis covers "
+                             f"above the horizon")
+        T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
+        sig = torch.from_numpy(self.basis.sigma.astype(np.float32))[None]
+        args = (T(tab), T(rho), T(w), T(cos), sig, self.cfg.s2, self.cfg.lam)
+        with torch.no_grad():
+            c, b = solve(*args)
+            if use_prior:
+                resid = b - torch.einsum("bck,blk->bcl", T(tab)[..., 2:], c)
+                mu, _, _ = self.net(T(hd), resid, c, sig, int(ok.sum()))
+                c, _ = solve(*args, mu=mu)
+        if not torch.isfinite(c).all():
+            raise InputError(f"{samples.source or 'samples'}: the fit did not give finite coefficients")
+        return c[0].double().numpy().T
+
+    def reconstruct(self, samples, *, use_prior: bool = True) -> np.ndarray:
+        """Dense table ``(90, 90, 180, 3)`` (1/sr, ``>= 0``, NaN off the basis cells)."""
+        return self.basis.decode(self.coefficients(samples, use_prior=use_prior))
