@@ -230,7 +230,7 @@ def test_nbrdf_refuses_bad_parameters():
 # --- registry ---------------------------------------------------------------------------------
 
 def test_registry_names_and_uniform_interface(basis, library, tmp_path):
-    assert set(METHODS) == {"hypernet", "ipca", "nbrdf"}
+    assert set(METHODS) == {"hypernet", "ipca", "nbrdf", "prior"}
     with pytest.raises(InputError, match="unknown method 'pca'.*ipca"):
         get_method("pca")
     ipca = get_method("ipca")
@@ -376,6 +376,6 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
                                   basis.reconstruct(samples, lam=0.5))
     with pytest.raises(InputError, match="unknown method"):
         reconstruct(samples, method="pca")
-    assert [n for n, m in METHODS.items() if m.fit_fn is not None] == ["hypernet", "ipca"]
+    assert [n for n, m in METHODS.items() if m.fit_fn is not None] == ["hypernet", "ipca", "prior"]
     with pytest.raises(InputError, match="has no model to fit"):
         get_method("nbrdf").fit([], tmp_path / "x.safetensors")

@@ -107,13 +107,24 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
 
     if steps is None and minutes is None:
         steps = 3000
-    for key, value, ok in (("steps", steps, steps is None or (isinstance(steps, int) and steps >= 1)),
-                           ("minutes", minutes, minutes is None or (minutes > 0 and math.isfinite(minutes))),
-                           ("folds", folds, isinstance(folds, int) and folds >= 2),
-                           ("mixup", mixup, 0.0 <= mixup <= 1.0), ("ema", ema, 0.0 <= ema < 1.0),
-                           ("batch_materials", batch_materials, isinstance(batch_materials, int) and batch_materials >= 1),
-                           ("query_size", query_size, isinstance(query_size, int) and query_size >= 1),
-                           ("lr", lr, lr > 0), ("latent_dim", latent_dim, isinstance(latent_dim, int) and latent_dim >= 1)):
+
+    def real(v):  # -O values arrive parsed as JSON: a word or a bool is no number
+        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+
+    def count(v, least=1):
+        return isinstance(v, int) and not isinstance(v, bool) and v >= least
+
+    for key, value, ok in (("steps", steps, steps is None or count(steps)),
+                           ("minutes", minutes, minutes is None or (real(minutes) and minutes > 0)),
+                           ("folds", folds, count(folds, 2)),
+                           ("mixup", mixup, real(mixup) and 0.0 <= mixup <= 1.0),
+                           ("ema", ema, real(ema) and 0.0 <= ema < 1.0),
+                           ("batch_materials", batch_materials, count(batch_materials)),
+                           ("query_size", query_size, count(query_size)), ("lr", lr, real(lr) and lr > 0),
+                           ("lambda_w", lambda_w, real(lambda_w) and lambda_w >= 0),
+                           ("lambda_z", lambda_z, real(lambda_z) and lambda_z >= 0),
+                           ("latent_dim", latent_dim, count(latent_dim)), ("width", width, count(width)),
+                           ("components", components, count(components))):
         if not ok:
             raise InputError(f"--method prior: option {key} = {value!r} is out of range")
     t0 = time.monotonic()
