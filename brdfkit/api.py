@@ -4,7 +4,7 @@ interpolate, train.
 Everything a user does with a trained hypernetwork (Gokbudak et al. 2024) in a few calls::
 
     import brdfkit
-    model = brdfkit.load_model("model.safetensors")
+    model = brdfkit.load_model("model.safetensors")     # or a built-in's name
     emb = brdfkit.encode(model, "teflon.binary")        # a MERL table -> 40 numbers
     table = brdfkit.decode(model, emb)                   # -> (90, 90, 180, 3), 1/sr
     table, emb = brdfkit.sparse(model, "samples.csv")    # N measurements -> dense table
@@ -29,12 +29,16 @@ __all__ = ["load_model", "encode", "decode", "sparse", "interpolate", "fit"]
 
 
 def load_model(path: str | os.PathLike, device=None):
-    """Load a model file (``.safetensors``, never pickle).
+    """Load a hypernetwork model file (``.safetensors``, never pickle), or a built-in
+    model by name.
 
     Parameters
     ----------
     path
-        File written by ``brdfkit fit`` / :func:`brdfkit.model.file.save_model`.
+        File written by ``brdfkit fit`` / :func:`brdfkit.model.file.save_model`, or the
+        name of an installed built-in model (``brdfkit models``; ``docs/models.md``: a
+        value is a file when it exists, holds a path separator or ends in
+        ``.safetensors``), its file checked against the manifest's fingerprint.
     device
         ``torch.device`` or string; ``None``: CUDA when available, else CPU.
 
@@ -42,9 +46,10 @@ def load_model(path: str | os.PathLike, device=None):
     -------
     brdfkit.model.loaded.NeuralModel
     """
+    from .model.builtin import resolve_model
     from .model.file import load_model as _load
 
-    return _load(path, device)
+    return _load(resolve_model(path), device)
 
 
 def _load_input(obj, source: str):

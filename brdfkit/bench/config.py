@@ -40,7 +40,11 @@ class BenchConfig:
     models
         Model files of any method by name, ``{method: path}`` (``--model-file
         NAME=FILE``); a method's ``bench_option`` field (``model``, ``ipca``) is used
-        when it has no entry here.
+        when it has no entry here (``prior`` has none: ``--model-file prior=FILE``).
+
+    Every model file may be given as a built-in model's name instead (``-m
+    merl80-l40``): :meth:`resolved` replaces it by the file of the part that method takes
+    (the hypernetwork, the PCA basis, the learnt prior).
     n, seeds, first_seed, methods
         Sample counts, number of draws per (material, N) (seeds ``first_seed ..
         first_seed + seeds - 1``; a later run with other seeds can be merged, see
@@ -94,6 +98,26 @@ class BenchConfig:
 
         option = get_method(method).bench_option
         return self.models.get(method) or (getattr(self, option) if option else None)
+
+    def resolved(self) -> "BenchConfig":
+        """This configuration with the built-in names among its model files replaced by
+        the files (:func:`brdfkit.methods.model_spec.resolve_for`: each method's part of
+        the built-in, checked against the manifest); paths stay as given. :func:`run_bench`
+        runs and records the resolved one.
+
+        Raises
+        ------
+        InputError
+            An unknown name, or a built-in without the part a method takes.
+        """
+        from ..methods import METHODS
+        from ..methods.model_spec import resolve_for
+
+        fields = {m.bench_option: name for name, m in METHODS.items() if m.bench_option}
+        return dataclasses.replace(
+            self, **{f: resolve_for(name, getattr(self, f)) for f, name in fields.items() if getattr(self, f)},
+            models={m: resolve_for(m, p) if p else p for m, p in self.models.items()},
+            compression_models=tuple(resolve_for("hypernet", p) for p in self.compression_models))
 
     def compressors(self) -> list:
         """``(method, model file)`` of the compression benchmark: the hypernetwork models

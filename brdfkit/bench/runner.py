@@ -81,8 +81,10 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     Raises
     ------
     InputError
-        Bad options, missing files or test materials, unreadable model files.
+        Bad options, missing files or test materials, unreadable model files, unknown
+        built-in model names.
     """
+    cfg = cfg.resolved()  # built-in names -> their files, recorded as such
     cfg.validate()
     os.makedirs(cfg.output, exist_ok=True)
     if cfg.jobs > 1 and cfg.threads is None:

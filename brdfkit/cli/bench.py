@@ -27,13 +27,14 @@ def _str_list(value: str | None) -> tuple:
               help="Folder of MERL tables for the sparse benchmark.")
 @click.option("--test-list", type=click.Path(dir_okay=False), default=None,
               help="Test material names, one a line (e.g. merl-test.txt, the paper's 20 test materials: docs/data.md); default: all of --data.")
-@click.option("-m", "--model", type=click.Path(dir_okay=False), default=None,
-              help="Hypernetwork model (.safetensors) for the method 'hypernet'.")
-@click.option("--ipca", type=click.Path(dir_okay=False), default=None,
-              help="PCA basis (.safetensors, `brdfkit fit --method ipca`) for 'ipca' and the compression reference.")
+@click.option("-m", "--model", type=click.Path(dir_okay=False), default=None, metavar="NAME|FILE",
+              help="Hypernetwork model (.safetensors, or a built-in name) for the method 'hypernet'.")
+@click.option("--ipca", type=click.Path(dir_okay=False), default=None, metavar="NAME|FILE",
+              help="PCA basis (.safetensors from `brdfkit fit --method ipca`, or a built-in name: its basis) "
+                   "for 'ipca' and the compression reference.")
 @click.option("--model-file", "model_files", multiple=True, metavar="METHOD=FILE",
-              help="The model file of any method that needs one (repeatable); -m and --ipca are "
-                   "the same for hypernet and ipca.")
+              help="The model file (or built-in name) of any method that needs one (repeatable), e.g. "
+                   "prior=merl80-l40; -m and --ipca are the same for hypernet and ipca.")
 @click.option("--n", "n_list", default="40,160,400,2000,4000", show_default=True,
               help="Sample counts N, comma-separated.")
 @click.option("--seeds", type=int, default=3, show_default=True,
@@ -43,7 +44,8 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--methods", default="hypernet,ipca,nbrdf", show_default=True,
               help="Reconstruction methods, comma-separated.")
 @click.option("--compression-models", default=None,
-              help="Hypernetwork models to test on encode -> decode, comma-separated (e.g. m7.safetensors,m40.safetensors).")
+              help="Hypernetwork models (files or built-in names) to test on encode -> decode, comma-separated "
+                   "(e.g. merl-rgl-l7,m40.safetensors).")
 @click.option("--compression-data", type=click.Path(file_okay=False), default=None,
               help="Folder of MERL tables for the compression benchmark.")
 @click.option("--resolution", type=int, default=128, show_default=True,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 
 import click
 
@@ -17,27 +18,51 @@ def _duration(seconds) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
+def _prior_path(m) -> str:
+    return os.path.join(os.path.dirname(m.path), m.prior)
+
+
+def _prior_state(m) -> str:
+    if not m.prior:
+        return "-"
+    return "yes" if os.path.isfile(_prior_path(m)) else "missing"
+
+
+def _json(m) -> dict:
+    d = m.to_json()
+    d["prior_installed"] = bool(m.prior) and os.path.isfile(_prior_path(m))
+    return d
+
+
 @click.command("models")
 @click.option("--json", "as_json", is_flag=True, help="Print the manifest's entries as JSON on stdout.")
-@click.option("--check", is_flag=True, help="Also load each model and check its weights against the manifest.")
+@click.option("--check", is_flag=True,
+              help="Also load each model (and learnt prior) and check its weights against the manifest.")
 def command(as_json, check):
     """List the built-in models: the names `-m` takes, with how each was trained.
 
-    Validation figures are the BRDF log RMSE on held-out materials from N samples. The
-    folder is the package's brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
+    Validation figures are the BRDF log RMSE on held-out materials from N samples. A
+    model with a learnt prior (column prior) reconstructs sparse samples with it by
+    default (`brdfkit sparse`, docs/models.md). The folder is the package's
+    brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
     """
     from ..model.builtin import load_builtin, read_manifest
 
     man = read_manifest()
     installed = man.installed()
     if check:
+        from ..methods.prior_file import load_prior
+        from ..model.builtin import resolve_prior
+
         for m in installed:
             # Resolving checks the file's recorded fingerprint against the manifest,
             # loading its weights against the recorded fingerprint: FormatError if not.
             load_builtin(m.name, device="cpu")
+            if m.prior:
+                load_prior(resolve_prior(m.name), device="cpu")  # and its basis file's digest
     if as_json:
         click.echo(json.dumps({"folder": man.folder, "default": man.default,
-                               "models": [m.to_json() for m in man.models]}, indent=1))
+                               "models": [_json(m) for m in man.models]}, indent=1))
         return
     if not installed:
         click.echo(f"no built-in models installed (in {man.folder}); pass -m MODEL.safetensors from `brdfkit fit`")
@@ -50,12 +75,13 @@ def command(as_json, check):
     # Narrow enough for an 80-column terminal; the paths follow the table.
     tab = Table(title=f"Built-in models in {man.folder}", box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False,
                 collapse_padding=True, show_edge=False,
-                caption="*: the default. N=...: BRDF log RMSE on held-out materials from N samples.")
-    for col in ("name", "dim", "mats", "steps", "time", *(f"N={n}" for n in ns), "fingerprint"):
+                caption="*: the default. prior: has a learnt prior (sparse's default method with it). "
+                        "N=...: BRDF log RMSE on held-out materials from N samples.")
+    for col in ("name", "dim", "prior", "mats", "steps", "time", *(f"N={n}" for n in ns), "fingerprint"):
         tab.add_column(col, justify="left" if col in ("name", "fingerprint") else "right", no_wrap=True)
     for m in installed:
         val = ["-" if m.validation.get(n) is None else f"{m.validation[n]:.3f}" for n in ns]
-        tab.add_row(m.name + (" *" if m.default else ""), str(m.latent_dim),
+        tab.add_row(m.name + (" *" if m.default else ""), str(m.latent_dim), _prior_state(m),
                     "-" if m.materials is None else str(m.materials), "-" if m.steps is None else f"{m.steps:,}",
                     _duration(m.train_seconds), *val, m.fingerprint[:12])
     out = Console()
@@ -63,8 +89,12 @@ def command(as_json, check):
     for m in installed:
         lists = f" (materials: {m.materials_list})" if m.materials_list else ""
         out.print(f"{m.name}: {m.path}{lists}", soft_wrap=True)
+        if m.prior:
+            out.print(f"{m.name} learnt prior: {_prior_path(m)} ({m.prior_fingerprint[:12]})", soft_wrap=True)
     missing = [m.name for m in man.models if not m.installed]
     if missing:
         out.print(f"in the manifest but not installed: {', '.join(missing)}")
     if check:
-        out.print(f"checked: {len(installed)} model(s) load and match the manifest")
+        priors = sum(1 for m in installed if m.prior)
+        also = f" and {priors} learnt prior(s)" if priors else ""
+        out.print(f"checked: {len(installed)} model(s){also} load and match the manifest")

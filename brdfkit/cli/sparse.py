@@ -5,7 +5,9 @@ from __future__ import annotations
 import click
 
 from ..methods import METHODS
-from .common import model_option, optional_model, require_model
+from .common import model_option, require_model
+
+_AUTO = "auto"  # brdfkit.methods.model_spec.AUTO, not imported here: --help stays light
 
 
 def _model_from_env() -> bool:
@@ -21,39 +23,41 @@ def _model_from_env() -> bool:
               help="Output dense MERL .binary table.")
 @click.option("--emb", "emb_path", type=click.Path(dir_okay=False), default=None,
               help="Also write the embedding (.emb) (hypernet only).")
-@click.option("--method", type=click.Choice(sorted(METHODS)), default="hypernet", show_default=True,
-              help="Reconstruction method.")
+@click.option("--method", type=click.Choice([_AUTO] + sorted(METHODS)), default=_AUTO, show_default=True,
+              help="Reconstruction method; auto: a built-in's learnt prior when it has one, else its "
+                   "hypernetwork; a model file's own method.")
 def command(samples, model_path, output, emb_path, method):
     """Reconstruct a dense MERL table from the sample set SAMPLES (.csv).
 
     Make a sample set with `brdfkit sample`; its format is in docs/formats.md.
-    Cells below the horizon are written as -1. The hypernet method without -m uses the
-    default built-in model (`brdfkit models`).
+    Cells below the horizon are written as -1. Without -m the default built-in model is
+    used (`brdfkit models`): its learnt prior (method prior) when it has one, else its
+    hypernetwork. The message line says which method and model ran.
     """
     from ..atomic import refuse_overwrite_of_inputs
     from ..embedding import write_embedding
     from ..errors import InputError
     from ..merl import write_merl
+    from ..methods.model_spec import choose
     from ..samples import read_samples
 
-    chosen = METHODS[method]
-    if not chosen.needs_model and _model_from_env():
-        model_path = None  # $BRDFKIT_MODEL names a hypernetwork, not meant for this method
-    model_path = optional_model(model_path)
+    if method != _AUTO and not METHODS[method].needs_model and _model_from_env():
+        model_path = None  # $BRDFKIT_MODEL names a model, not meant for this method
+    choice = choose(method, model_path)
+    method, model_path = choice.method, choice.path
+    if emb_path and method != "hypernet":  # refused before the work (nbrdf's takes minutes)
+        what = "the learnt prior (method prior)" if method == "prior" else f"method {method!r}"
+        raise InputError(f"--emb: {what} makes no embedding; --method hypernet does")
+    if model_path is None and method in ("hypernet", "prior"):
+        require_model(None)  # nothing installed: the "no model given" error, with its advice
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
     data = read_samples(samples)
-    if model_path is None and method == "hypernet":
-        # The built-ins are hypernetworks: only this method takes the default one.
-        model_path = require_model(None)
-        refuse_overwrite_of_inputs(output, [model_path])
-        refuse_overwrite_of_inputs(emb_path, [model_path])
-    table, emb = chosen.sparse(data, model_path)
-    if emb_path and emb is None:
-        raise InputError(f"--emb: method {method!r} makes no embedding")
+    table, emb = METHODS[method].sparse(data, model_path)
     write_merl(output, table)
     if emb_path:
         write_embedding(emb_path, emb)
     extra = f" and {emb_path}" if emb_path else ""
-    click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({method})", err=True)
+    used = f"method {method}" + (f", model {choice.label}" if choice.label else "")
+    click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used})", err=True)

@@ -60,7 +60,8 @@ class Method:
         the compression benchmark.
     bench_option
         The ``brdfkit bench`` option (and :class:`brdfkit.bench.BenchConfig` field) that
-        names its model file; ``None`` when it needs no model.
+        names its model file; ``None`` when it needs no model, or takes it by
+        ``--model-file METHOD=FILE`` only (a new method needs no new bench field).
     """
 
     name: str

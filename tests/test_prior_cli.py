@@ -1,0 +1,262 @@
+"""The learnt prior as part of a built-in model: ``brdfkit sparse``'s method ``auto``
+(``brdfkit.methods.model_spec``), ``-m NAME`` for every method, ``brdfkit models``,
+``brdfkit bench`` with built-in names, ``brdfkit.load_model(NAME)``.
+
+The built-in folder is a temporary one (``$BRDFKIT_BUILTIN_MODELS``): ``tiny-p`` (the
+default: an untrained tiny hypernetwork and an untrained learnt prior over a 3-component
+PCA basis of two synthetic tables, the basis in a shared file beside it) and ``tiny-h``
+(a hypernetwork only), packed and listed with the real functions. Untrained models: the
+tests check which file runs, not how well.
+"""
+
+from __future__ import annotations
+
+import json
+import shutil
+
+import numpy as np
+import pytest
+
+from brdfkit import api
+from brdfkit.cli import main
+from brdfkit.embedding import read_embedding
+from brdfkit.merl import read_merl, write_merl
+from brdfkit.methods import get_method
+from brdfkit.model import builtin
+from brdfkit.samples import draw_samples, read_samples, write_samples
+
+from helpers_model import make_model, material_table
+
+BASIS = "tiny.basis.safetensors"
+PRIOR = "tiny-p.prior.safetensors"
+
+
+def _cli(capsys, args):
+    """Run the CLI in-process: ``(exit code, stdout, stderr)``."""
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err
+
+
+def _one_error_line(err: str) -> str:
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: "), err
+    return lines[0]
+
+
+def _pack_prior(path, tables) -> str:
+    """An untrained learnt prior over a 3-component basis of ``tables``, the basis in
+    :data:`BASIS` beside it; returns its fingerprint."""
+    import torch
+
+    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.methods.prior_file import save_prior
+    from brdfkit.methods.prior_model import PriorConfig, PriorModel, prior_net
+
+    basis = fit_ipca(tables, n_components=3, names=["stiff-white", "ggx"])
+    cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
+    torch.manual_seed(0)
+    return save_prior(path, PriorModel(basis, prior_net(cfg), cfg, {"materials": ["stiff-white", "ggx"]}),
+                      basis_file=BASIS)
+
+
+@pytest.fixture(scope="module")
+def shelf(tmp_path_factory):
+    """``(folder, inputs)``: the built-in folder and a folder with ``mat.binary`` and a
+    200-sample set ``s.csv`` of it."""
+    src = tmp_path_factory.mktemp("trained")
+    folder = tmp_path_factory.mktemp("builtin")
+    entries = []
+    for name, seed in (("tiny-p", 0), ("tiny-h", 1)):
+        make_model(src / f"{name}.safetensors", seed=seed)
+        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+                           reference_file="tiny.reference.safetensors")
+        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command=f"brdfkit fit ({name})",
+                                              validation={40: 0.3}))
+    fp = _pack_prior(folder / PRIOR, [material_table(0), material_table(1)])
+    entries[0].update(prior=PRIOR, prior_fingerprint=fp)
+    builtin.write_manifest(folder, entries, default="tiny-p")
+    inputs = tmp_path_factory.mktemp("inputs")
+    write_merl(inputs / "mat.binary", material_table(1))
+    write_samples(inputs / "s.csv", draw_samples(material_table(1), 200, seed=0))
+    return folder, inputs
+
+
+@pytest.fixture
+def installed(shelf, monkeypatch):
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf[0]))
+    return shelf
+
+
+def _check_table(out, method: str, model, samples) -> None:
+    """``out`` holds what ``method`` reconstructs from ``samples`` with ``model`` (through
+    the MERL file's scales and back)."""
+    want = get_method(method).reconstruct(read_samples(samples), str(model), device="cpu")
+    np.testing.assert_allclose(read_merl(out), want, rtol=1e-12, equal_nan=True)
+
+
+# --- brdfkit sparse ---------------------------------------------------------------------------
+
+def test_sparse_default_is_the_default_builtins_prior(installed, capsys, tmp_path):
+    folder, inputs = installed
+    code, out, err = _cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "a.binary"])
+    assert code == 0, err
+    assert out == "" and "(method prior, model tiny-p, the default built-in)" in err
+    _check_table(tmp_path / "a.binary", "prior", folder / PRIOR, inputs / "s.csv")
+    # --method prior without -m takes the same file.
+    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "--method", "prior", "-o", tmp_path / "b.binary"])
+    assert code == 0 and "(method prior, model tiny-p, the default built-in)" in err
+    assert (tmp_path / "b.binary").read_bytes() == (tmp_path / "a.binary").read_bytes()
+
+
+def test_sparse_default_without_a_prior_is_the_hypernetwork(installed, capsys, monkeypatch, tmp_path):
+    """A default built-in without a learnt prior: its hypernetwork, as before."""
+    folder, inputs = installed
+    alt = tmp_path / "builtin"
+    shutil.copytree(folder, alt)
+    entries = [m.to_json() for m in builtin.read_manifest(alt).models]
+    for e in entries:
+        for key in ("path", "default", "installed"):
+            e.pop(key)
+    builtin.write_manifest(alt, entries, default="tiny-h")
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(alt))
+    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "h.binary", "--emb", tmp_path / "h.emb"])
+    assert code == 0, err
+    assert "(method hypernet, model tiny-h, the default built-in)" in err
+    assert read_embedding(tmp_path / "h.emb").model_fingerprint == builtin.builtin_models()[1].fingerprint
+
+
+def test_sparse_builtin_name_for_every_method(installed, capsys, tmp_path):
+    folder, inputs = installed
+    s = inputs / "s.csv"
+    fps = {m.name: m.fingerprint for m in builtin.builtin_models()}
+    cases = [([], "tiny-p", "prior", folder / PRIOR),
+             ([], "tiny-h", "hypernet", folder / "tiny-h.safetensors"),
+             (["--method", "prior"], "tiny-p", "prior", folder / PRIOR),
+             (["--method", "ipca"], "tiny-p", "ipca", folder / BASIS),
+             (["--method", "hypernet"], "tiny-p", "hypernet", folder / "tiny-p.safetensors")]
+    for i, (extra, name, method, model) in enumerate(cases):
+        out = tmp_path / f"{i}.binary"
+        code, _, err = _cli(capsys, ["sparse", s, "-m", name, *extra, "-o", out])
+        assert code == 0, (extra, name, err)
+        assert f"(method {method}, model {name})" in err, err
+        _check_table(out, method, model, s)
+    code, _, err = _cli(capsys, ["sparse", s, "-m", "tiny-p", "--method", "hypernet", "-o", tmp_path / "e.binary",
+                                 "--emb", tmp_path / "e.emb"])
+    assert code == 0, err
+    assert read_embedding(tmp_path / "e.emb").model_fingerprint == fps["tiny-p"]  # the hypernetwork's
+
+
+def test_sparse_file_by_its_format(installed, capsys, tmp_path):
+    folder, inputs = installed
+    s = inputs / "s.csv"
+    for i, (file, method) in enumerate(((PRIOR, "prior"), (BASIS, "ipca"), ("tiny-h.safetensors", "hypernet"))):
+        out = tmp_path / f"{i}.binary"
+        code, _, err = _cli(capsys, ["sparse", s, "-m", folder / file, "-o", out])
+        assert code == 0, err
+        assert f"(method {method}, model {folder / file})" in err
+        _check_table(out, method, folder / file, s)
+    # Not a model file at all: the hypernetwork loader names what it is.
+    code, _, err = _cli(capsys, ["sparse", s, "-m", inputs / "mat.binary", "-o", tmp_path / "x.binary"])
+    assert code == 2 and "mat.binary" in _one_error_line(err)
+    assert not (tmp_path / "x.binary").exists()
+
+
+def test_sparse_usage_errors(installed, capsys, tmp_path):
+    folder, inputs = installed
+    s, out = inputs / "s.csv", tmp_path / "x.binary"
+    for argv, words in (([], ("learnt prior", "makes no embedding", "--method hypernet")),
+                        (["--method", "prior", "-m", "tiny-p"], ("learnt prior", "--method hypernet")),
+                        (["--method", "ipca", "-m", "tiny-p"], ("method 'ipca' makes no embedding",))):
+        code, _, err = _cli(capsys, ["sparse", s, *argv, "-o", out, "--emb", tmp_path / "x.emb"])
+        line = _one_error_line(err)
+        assert code == 2 and all(w in line for w in words), line
+    for argv, words in ((["-m", "tiny-h", "--method", "prior"], ("'tiny-h' has no learnt prior",)),
+                        (["-m", "nope"], ("unknown model 'nope'", "tiny-p, tiny-h"))):
+        code, _, err = _cli(capsys, ["sparse", s, *argv, "-o", out])
+        line = _one_error_line(err)
+        assert code == 2 and all(w in line for w in words), line
+    assert not out.exists() and not (tmp_path / "x.emb").exists()
+
+
+def test_sparse_with_nothing_installed(capsys, tmp_path):
+    write_samples(tmp_path / "s.csv", draw_samples(material_table(1), 50, seed=0))
+    for argv in ([], ["--method", "prior"], ["--method", "hypernet"]):
+        code, _, err = _cli(capsys, ["sparse", tmp_path / "s.csv", *argv, "-o", tmp_path / "x.binary"])
+        assert code == 2 and "no model given" in _one_error_line(err)
+
+
+def test_damaged_basis_refused(shelf, monkeypatch, capsys, tmp_path):
+    folder = tmp_path / "builtin"
+    shutil.copytree(shelf[0], folder)
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(folder))
+    data = bytearray((folder / BASIS).read_bytes())
+    data[-3] ^= 0x40
+    (folder / BASIS).write_bytes(bytes(data))
+    for argv in (["sparse", shelf[1] / "s.csv", "-o", tmp_path / "x.binary"], ["models", "--check"]):
+        code, _, err = _cli(capsys, argv)
+        assert code == 2 and "not the one it was saved with" in _one_error_line(err)
+
+
+# --- brdfkit models, brdfkit.load_model ---------------------------------------------------------
+
+def test_models_command_shows_the_prior(installed, capsys):
+    folder, _ = installed
+    code, out, err = _cli(capsys, ["models", "--check"])
+    assert code == 0, err
+    rows = {line.split()[0]: line.split() for line in out.splitlines() if line.startswith("tiny-") and "/" not in line}
+    assert rows["tiny-p"][1:4] == ["*", "7", "yes"] and rows["tiny-h"][1:3] == ["7", "-"]
+    assert f"tiny-p learnt prior: {folder / PRIOR}" in out
+    assert "checked: 2 model(s) and 1 learnt prior(s) load and match the manifest" in out
+    code, out, err = _cli(capsys, ["models", "--json"])
+    assert code == 0, err
+    models = {m["name"]: m for m in json.loads(out)["models"]}
+    assert models["tiny-p"]["prior"] == PRIOR and models["tiny-p"]["prior_installed"]
+    assert len(models["tiny-p"]["prior_fingerprint"]) == 64
+    assert models["tiny-h"]["prior"] is None and not models["tiny-h"]["prior_installed"]
+
+
+def test_load_model_takes_a_builtin_name(installed):
+    folder, _ = installed
+    m = api.load_model("tiny-h", device="cpu")
+    assert m.fingerprint == builtin.builtin_models()[1].fingerprint
+    import brdfkit
+
+    assert brdfkit.load_model("tiny-p", device="cpu").fingerprint == builtin.builtin_models()[0].fingerprint
+
+
+# --- brdfkit bench ------------------------------------------------------------------------------
+
+def test_bench_takes_builtin_names(installed, capsys, tmp_path):
+    from brdfkit.bench import BenchConfig
+    from brdfkit.errors import InputError
+
+    folder, inputs = installed
+    cfg = BenchConfig(output=str(tmp_path / "o"), data=str(inputs), model="tiny-h", ipca="tiny-p",
+                      models={"prior": "tiny-p"}, compression_models=("tiny-h",), compression_data=str(inputs))
+    r = cfg.resolved()
+    assert (r.model, r.ipca, r.models, r.compression_models) == (
+        str(folder / "tiny-h.safetensors"), str(folder / BASIS), {"prior": str(folder / PRIOR)},
+        (str(folder / "tiny-h.safetensors"),))
+    assert BenchConfig(output="o", model="x/m.safetensors").resolved().model == "x/m.safetensors"
+    with pytest.raises(InputError, match="'tiny-h' has no learnt prior"):
+        BenchConfig(output="o", models={"prior": "tiny-h"}).resolved()
+    with pytest.raises(InputError, match="method 'prior' needs --model-file prior=FILE"):
+        BenchConfig(output="o", data=str(inputs), methods=("prior",)).validate()
+
+    out = tmp_path / "out"
+    code, _, err = _cli(capsys, ["bench", "--data", inputs, "--methods", "hypernet,ipca,prior", "-m", "tiny-h",
+                                 "--ipca", "tiny-p", "--model-file", "prior=tiny-p", "--n", "40", "--seeds", "1",
+                                 "--resolution", "8", "--threads", "1", "-q", "-o", out])
+    assert code == 0, err
+    result = json.loads((out / "bench.json").read_text())
+    assert result["complete"] and result["config"]["models"] == {"prior": str(folder / PRIOR)}
+    assert result["config"]["model"] == str(folder / "tiny-h.safetensors")
+    recs = result["records"]
+    assert sorted(r["method"] for r in recs) == ["hypernet", "ipca", "prior"]
+    assert all("error" not in r for r in recs), recs
+
+    code, _, err = _cli(capsys, ["bench", "--data", inputs, "--methods", "prior", "--model-file", "prior=nope",
+                                 "-o", tmp_path / "bad"])
+    assert code == 2 and "unknown model 'nope'" in _one_error_line(err)
