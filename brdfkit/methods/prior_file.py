@@ -21,7 +21,7 @@ from ..atomic import atomic_path, check_input_file
 from ..errors import FormatError, InputError
 from .prior_model import PriorConfig, PriorModel, prior_net
 
-__all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file"]
+__all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior"]
 
 PRIOR_FORMAT = "brdfkit-prior"
 PRIOR_VERSION = "1"
@@ -78,8 +78,12 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
         else:  # shared with another model: it must be this model's basis as stored
             from .ipca import load_ipca
             other = load_ipca(where)
-            if not (np.array_equal(other.cells, model.basis.cells)
-                    and np.array_equal(other.components, model.basis.components)):
+            same = (np.array_equal(other.cells, model.basis.cells)
+                    and np.array_equal(other.components, model.basis.components))
+            if not same and (half or phi_stride != 1):  # the file holds it rounded: compare as stored
+                same = (_digest(other.tensors(half=half, phi_stride=phi_stride)[0])
+                        == _digest(model.basis.tensors(half=half, phi_stride=phi_stride)[0]))
+            if not same:
                 raise InputError(f"{where}: holds another basis than this model's")
         tensors = net
         basis_digest = _file_digest(where)
@@ -98,7 +102,7 @@ def is_prior_file(path: str | os.PathLike) -> bool:
     try:
         with open_safetensors(os.fspath(path)) as f:
             return (f.metadata() or {}).get("format") == PRIOR_FORMAT
-    except (FormatError, OSError):
+    except (FormatError, InputError, OSError):  # a missing file or a folder is no prior file
         return False
 
 
@@ -165,3 +169,20 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
             except ValueError:
                 record[k] = v
     return PriorModel(basis, net, cfg, record, meta["fingerprint"])
+
+
+def pack_prior(src: str | os.PathLike, dst: str | os.PathLike, basis_file: str) -> str:
+    """Re-save a learnt-prior model for shipping with its basis in the shared file
+    ``basis_file`` beside ``dst``, stored as the source stores it (so the model is the
+    same to the bit). Returns the packed file's fingerprint (for the manifest)."""
+    from ..tensorfile import open_safetensors
+
+    model = load_prior(src)
+    src = os.fspath(src)
+    with open_safetensors(src) as f:
+        meta = f.metadata() or {}
+    if "basis_file" in meta:
+        with open_safetensors(os.path.join(os.path.dirname(os.path.abspath(src)), meta["basis_file"])) as f:
+            meta = {f"basis.{k}": v for k, v in (f.metadata() or {}).items()}
+    storage = {"half": meta.get("basis.dtype") == "float16", "phi_stride": int(meta.get("basis.phi_d_stride", "1"))}
+    return save_prior(dst, model, basis_file=basis_file, **storage)
