@@ -1,0 +1,350 @@
+"""Regenerate ``docs/results.md`` by one command: run the two benchmarks, write the page.
+
+    python benchmarks/results.py --proxies PROXIES --runs RUNS [--jobs 2] [--skip-run]
+                                 [--out docs/results.md] [--test-list ../shared/data/merl-test.txt]
+
+Run from the repository root. ``PROXIES`` holds ``merl/`` and ``rgl/`` folders of proxy
+tables (``python ../shared/tools/nbrdf_to_merl.py merl|rgl DIR``, ``docs/data.md``);
+``RUNS`` receives the PCA bases, the two bench folders and the shared render cache.
+Unless ``--skip-run``, it runs, printing each command first:
+
+1. ``RUNS/ipca80.safetensors`` (when missing): ``brdfkit fit --method ipca`` on the 80
+   MERL training materials, the materials ``merl80-l40`` was trained on;
+2. the sparse benchmark (``prior``, ``ipca``, ``nbrdf``, ``hypernet``; 5 N; 3 draws;
+   128 px) into ``RUNS/bench-sparse``;
+3. ``RUNS/all151``, a folder of links to every MERL and RGL proxy (refused when a name
+   is in both), and ``RUNS/ipca151.safetensors`` (when missing) fitted on it;
+4. the compression benchmark of ``merl-rgl-l40``, ``merl-rgl-l7`` and that basis on all
+   151 tables into ``RUNS/bench-compression``.
+
+Then (or straight away with ``--skip-run``) it reads the two ``bench.json``, writes the
+page (atomically) and copies the bench figures beside it (``images/bench-*.png``), and
+prints issue 12's done-when check. Every figure on the page is computed from the records
+(``results_page.py``). Bad input: one line, exit code 2; a failed command: its exit code.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import shlex
+import shutil
+import subprocess
+import sys
+
+import results_page as page
+from brdfkit.atomic import atomic_open, atomic_path
+from brdfkit.errors import InputError
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+FIGURES = (("sparse", "error_vs_cpu_time.png", "bench-error-vs-cpu-time.png"),
+           ("sparse", "error_vs_time.png", "bench-error-vs-time.png"),
+           ("sparse", "error_vs_n.png", "bench-error-vs-n.png"),
+           ("compression", "compression.png", "bench-compression.png"))
+
+
+def plan(proxies: str, runs: str, test_list: str, jobs: int) -> dict:
+    """The commands, as argument lists starting with ``brdfkit`` (what is printed and put
+    on the page), and the files the fits make."""
+    j = lambda *p: os.path.join(*p)  # noqa: E731
+    common = ["--resolution", "128", "--jobs", str(jobs), "--threads", "1", "--device", "cpu",
+              "--cache", j(runs, "bench-cache")]
+    return {
+        "ipca80": j(runs, "ipca80.safetensors"), "ipca151": j(runs, "ipca151.safetensors"),
+        "all151": j(runs, "all151"),
+        "fit80": ["brdfkit", "fit", "--method", "ipca", j(proxies, "merl"), "--exclude-list", test_list,
+                  "-o", j(runs, "ipca80.safetensors")],
+        "sparse": ["brdfkit", "bench", "--data", j(proxies, "merl"), "--test-list", test_list, "-m", "merl80-l40",
+                   "--ipca", j(runs, "ipca80.safetensors"), "--model-file", "prior=merl80-l40",
+                   "--methods", "prior,ipca,nbrdf,hypernet", "--n", "40,160,400,2000,4000", "--seeds", "3",
+                   *common, "-o", j(runs, "bench-sparse")],
+        "fit151": ["brdfkit", "fit", "--method", "ipca", j(runs, "all151"), "-o", j(runs, "ipca151.safetensors")],
+        "compression": ["brdfkit", "bench", "--compression-models", "merl-rgl-l40,merl-rgl-l7",
+                        "--compression-data", j(runs, "all151"), "--ipca", j(runs, "ipca151.safetensors"),
+                        *common, "-o", j(runs, "bench-compression")],
+    }
+
+
+def _brdfkit() -> list[str]:
+    script = os.path.join(os.path.dirname(sys.executable), "brdfkit")
+    if os.path.exists(script):
+        return [script]
+    return [sys.executable, "-c", "import sys; from brdfkit.cli import main; main(sys.argv[1:])"]
+
+
+def run(argv: list[str]) -> None:
+    print("$ " + shlex.join(argv), flush=True)
+    code = subprocess.run(_brdfkit() + argv[1:]).returncode
+    if code:
+        print(f"results.py: error: the command above failed (exit code {code})", file=sys.stderr)
+        sys.exit(code)
+
+
+def link_all(proxies: str, folder: str) -> int:
+    """Make ``folder`` a folder of links to every ``PROXIES/merl`` and ``PROXIES/rgl``
+    table (links it made before are updated, stale ones removed); returns their count."""
+    sources: dict = {}
+    for sub in ("merl", "rgl"):
+        d = os.path.join(proxies, sub)
+        if not os.path.isdir(d):
+            raise InputError(f"{d}: not a folder (PROXIES must hold merl/ and rgl/)")
+        for f in sorted(os.listdir(d)):
+            if not f.endswith(".binary"):
+                continue
+            clash = [k for k in sources if k.lower() == f.lower()]
+            if clash:
+                raise InputError(f"{f}: a material of that name is in both {sources[clash[0]]} and {d}; "
+                                 f"rename one (the compression folder holds both)")
+            sources[f] = os.path.abspath(os.path.join(d, f))
+    os.makedirs(folder, exist_ok=True)
+    for f in os.listdir(folder):
+        p = os.path.join(folder, f)
+        if f.endswith(".binary") and not os.path.islink(p):
+            raise InputError(f"{p}: not a link; {folder} must hold only links this script makes")
+        if f.endswith(".binary") and os.readlink(p) != sources.get(f):
+            os.unlink(p)
+    for f, src in sources.items():
+        if not os.path.lexists(os.path.join(folder, f)):
+            os.symlink(src, os.path.join(folder, f))
+    return len(sources)
+
+
+def read_bench(folder: str) -> dict:
+    path = os.path.join(folder, "bench.json")
+    if not os.path.isfile(path):
+        raise InputError(f"{path}: missing (run without --skip-run, or give the RUNS the benchmarks wrote)")
+    try:
+        with open(path, encoding="utf-8") as f:
+            doc = json.load(f)
+    except (OSError, UnicodeDecodeError, ValueError) as e:
+        raise InputError(f"{path}: not readable as a bench result ({e})") from None
+    if not isinstance(doc, dict) or doc.get("format") != "brdfkit-bench" or "records" not in doc:
+        raise InputError(f"{path}: not a brdfkit bench result")
+    return doc
+
+
+def builtin_entry(path):
+    """The manifest entry whose hypernetwork or learnt prior is ``path`` (or ``None``)."""
+    from brdfkit.model.builtin import read_manifest
+
+    if not path:
+        return None
+    man = read_manifest()
+    for m in man.models:
+        files = [m.path] + ([os.path.join(man.folder, m.prior)] if m.prior else [])
+        if os.path.abspath(path) in map(os.path.abspath, files):
+            return m
+    return None
+
+
+def training_materials(path):
+    """The training materials a model file's header names (a learnt prior, a PCA basis,
+    a hypernetwork), or ``None``; the header only, no tensor is read."""
+    meta = _header(path)
+    try:
+        names = json.loads(meta["materials"]) if "materials" in meta else \
+            json.loads(meta.get("meta", "{}")).get("materials")
+    except Exception:  # unreadable or another format: the page says "unknown"
+        return None
+    return set(names) if isinstance(names, list) else None
+
+
+def same_materials_line(sparse: dict) -> str:
+    """Whether the learnt prior and the IPCA basis of the sparse run were fitted on the
+    same materials, and none of the test materials, from their files' headers."""
+    cfg = sparse["config"]
+    prior, ipca = (training_materials(p) if p and os.path.isfile(p) else None
+                   for p in ((cfg.get("models") or {}).get("prior"), cfg.get("ipca")))
+    if prior is None or ipca is None:
+        return "Training materials of the learnt prior and the IPCA basis: unknown (files not readable here)."
+    test = set(sparse["materials"]["sparse"])
+    return (f"Training materials (from the model files): the learnt prior {len(prior)}, the IPCA basis "
+            f"{len(ipca)}; the same set: {'yes' if prior == ipca else 'no'}; test materials among them: "
+            f"{len(test & (prior | ipca))}.")
+
+
+def _header(path) -> dict:
+    from safetensors import safe_open
+
+    try:
+        with safe_open(path, "np") as f:
+            return f.metadata() or {}
+    except Exception:  # unreadable or another format: the page says "n/a"
+        return {}
+
+
+def _trained(path, prior: bool = False) -> str:
+    """Which model a file is and how long it trained: a hypernetwork's figures from the
+    manifest, a learnt prior's from its own header (it trains separately)."""
+    m = builtin_entry(path)
+    if m is None:
+        return f"model file `{os.path.basename(path or '?')}` (not a built-in)"
+    steps, secs = m.steps, m.train_seconds
+    if prior:
+        meta = _header(path)
+        try:
+            steps, secs = int(meta["steps"]), float(meta["wall_time_s"])
+        except (KeyError, ValueError):
+            steps = secs = None
+    took = f"{steps:,} steps in {secs / 60:.0f} min" if steps and secs else "n/a"
+    return f"built-in `{m.name}`, trained on {m.materials_list or m.materials}: CPU, {took}"
+
+
+def differs_table(sparse: dict, comp: dict) -> list[str]:
+    cfg, env, ccfg = sparse["config"], sparse["environment"], comp["config"]
+    seeds = sorted({r.get("seed") for r in sparse["records"] if r["kind"] == "sparse"})
+    ipca = [r["method"] for r in comp["records"] if r["kind"] == "compression" and r["method"].startswith("ipca")]
+    rows = [
+        ("data", "the measured MERL tables (with measurement noise)",
+         "**NBRDF proxies**: the published NBRDF networks (Sztrajman et al. 2021) evaluated on the MERL grid "
+         "(`python ../shared/tools/nbrdf_to_merl.py merl|rgl DIR`, `docs/data.md`); smooth, no noise, "
+         "slightly softened specular peaks"),
+        ("split", "80 MERL train / 20 test", "the same 20 test materials (`merl-test.txt`); the hypernetwork, "
+         "the learnt prior, its basis and the IPCA baseline all fitted on the other 80"),
+        ("hypernetwork (sparse)", "GPU, to convergence", _trained(cfg.get("model"))),
+        ("learnt prior (`prior`)", "none: brdfkit's own method",
+         _trained((cfg.get("models") or {}).get("prior"), prior=True) + "; **not the paper's architecture** "
+         "([generalisation.md](generalisation.md), [models.md](models.md))"),
+        ("compression models", "7-D and 40-D trained for compression on MERL (and a MERL + RGL variant)",
+         "; ".join(_trained(p) for p in ccfg.get("compression_models") or ()) or "none"),
+        ("IPCA in compression", "protocol not stated",
+         (ipca[0] if ipca else "none") + ", fitted on all the compressed tables"),
+        ("scene for PSNR / Delta E / SSIM", "the paper's renders",
+         f"our reference scene ([render.md](render.md)): a sphere under a procedural HDR environment, "
+         f"deterministic quadrature renderer, **{cfg['resolution']} x {cfg['resolution']} pixels**, whole image"),
+        ("draws", "not stated", f"{page.plural(len(seeds), 'draw')} of N samples per material (seeds "
+         f"{', '.join(map(str, seeds))}), uniform over the Rusinkiewicz angles, the same draw for every method"),
+        ("NBRDF baseline", "fitted to measured samples", "fitted to samples of tables **made by NBRDF networks "
+         "of the same architecture**: the proxies lie in the baseline's own function class, which favours it"),
+        ("timing", "GPU", f"CPU ({env.get('cpus')} cores, {env.get('machine')}), {env.get('threads')} torch "
+         f"thread(s) per process, {cfg.get('jobs')} process(es), on a machine shared with other work: wall "
+         f"times are inflated; CPU times are given beside them"),
+    ]
+    return ["| | paper | here |", "| --- | --- | --- |"] + [f"| {a} | {b} | {c} |" for a, b, c in rows]
+
+
+def compose(sparse: dict, comp: dict, proxies: str, cmds: dict, one: str, figures: set) -> str:
+    dates = sorted({d["started"][:10] for d in (sparse, comp)})
+    check = page.done_when(sparse)
+    lines = ["# Results: the paper's experiments on the NBRDF proxies", "",
+             f"Generated by `{one}` ([How to regenerate](#how-to-regenerate-every-number)) from the two "
+             f"`bench.json` files it names; do not edit by hand. Measured with `brdfkit bench` "
+             f"([bench.md](bench.md)) on {' and '.join(dates)}. **Read the caveats first**: these are not the "
+             f"paper's conditions. The built-in models were trained on a CPU for minutes, not on a GPU to "
+             f"convergence, the tables are proxies, and the scene is ours. The raw records (every material, N, "
+             f"draw and method) are in the `bench.json` files.", "",
+             "## What differs from the paper (Gokbudak et al. 2024)", "", *differs_table(sparse, comp), "",
+             "## Issue 12's done-when check", "",
+             "With `merl80-l40` and IPCA fitted on the same 80 materials: does the default (`prior`) have a "
+             "lower mean BRDF log RMSE than IPCA at N = 40, 400 and 4000 (draws 0, 1, 2), and a higher mean "
+             "PSNR? From the records (means over the material and draw pairs both methods finished):", "",
+             *[f"* {line}" for line in page.done_lines(check)], "", same_materials_line(sparse), "",
+             "## Methods", "", *[f"* {page.METHOD_TEXT[m]}" for m in page.methods_of(sparse)
+                                 if m in page.METHOD_TEXT], "",
+             *page.sparse_section(sparse)]
+    if "bench-error-vs-cpu-time.png" in figures:
+        lines += ["![error against CPU time](images/bench-error-vs-cpu-time.png)", "",
+                  "Error against CPU time per reconstruction (one thread; each method a curve through its N, "
+                  "error bars = spread over draws). The same against wall time: "
+                  "[bench-error-vs-time.png](images/bench-error-vs-time.png); against N: "
+                  "[bench-error-vs-n.png](images/bench-error-vs-n.png).", ""]
+    hyp = builtin_entry(sparse["config"].get("model"))
+    lines += [*page.sparse_findings(sparse),
+              *page.paper_section(sparse, hyp.name if hyp else os.path.basename(sparse["config"].get("model") or "?")),
+              *page.compression_section(comp, proxies, figure="bench-compression.png" in figures),
+              *regenerate(sparse, comp, cmds, one, proxies)]
+    return "\n".join(lines).rstrip() + "\n"
+
+
+def regenerate(sparse, comp, cmds, one, proxies) -> list[str]:
+    from brdfkit.model.builtin import read_manifest
+
+    lines = ["## How to regenerate every number", "",
+             "From the repository root (`../shared` beside it), with the proxies made first (`docs/data.md`):",
+             "", "```sh", f"python ../shared/tools/nbrdf_to_merl.py merl {os.path.join(proxies, 'merl')}",
+             f"python ../shared/tools/nbrdf_to_merl.py rgl {os.path.join(proxies, 'rgl')}", one, "```", "",
+             "The last line runs, printing each (a fit only when its output is missing):", "", "```sh",
+             shlex.join(cmds["fit80"]), shlex.join(cmds["sparse"]),
+             f"# {cmds['all151']}: links to every {proxies}/merl and {proxies}/rgl table (no name in both)",
+             shlex.join(cmds["fit151"]), shlex.join(cmds["compression"]), "```", ""]
+    for key, doc in (("sparse", sparse), ("compression", comp)):
+        recorded = doc["config"].get("command") or ""
+        if recorded and recorded != shlex.join(cmds[key]):
+            lines += [f"The {key} `bench.json` records another command (these figures are that run's):", "",
+                      "```sh", recorded, "```", ""]
+    used = {m.name: m for m in read_manifest().models}
+    names = [n for n in ("merl80-l40", "merl-rgl-l40", "merl-rgl-l7") if n in used and used[n].command]
+    if names:
+        lines += ["The built-in models were trained by (manifest, [models.md](models.md)):", "", "```sh"]
+        lines += [f"# {n}\n" + used[n].command.replace("; ", "\n") for n in names] + ["```", ""]
+    lines += ["The figures `images/bench-*.png` are the runs' `error_vs_cpu_time.png`, `error_vs_time.png`, "
+              "`error_vs_n.png` and `compression.png`, copied.", ""]
+    return lines
+
+
+def copy_figures(runs_dirs: dict, images: str) -> set:
+    os.makedirs(images, exist_ok=True)
+    copied = set()
+    for kind, src, dst in FIGURES:
+        path = os.path.join(runs_dirs[kind], src)
+        if os.path.isfile(path):
+            with atomic_path(os.path.join(images, dst)) as tmp:
+                shutil.copyfile(path, tmp)
+            copied.add(dst)
+    return copied
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(prog="results.py", description=__doc__.split("\n\n")[0])
+    ap.add_argument("--proxies", required=True, help="folder with merl/ and rgl/ proxy tables")
+    ap.add_argument("--runs", required=True, help="folder for the bases, bench outputs and render cache")
+    ap.add_argument("--skip-run", action="store_true", help="only read RUNS/bench-*/bench.json and write the page")
+    ap.add_argument("--jobs", type=int, default=2, help="bench worker processes (default 2)")
+    ap.add_argument("--test-list", default="../shared/data/merl-test.txt", help="the 20 test materials")
+    ap.add_argument("--out", default=os.path.join("docs", "results.md"),
+                    help="the page (figures go into images/ beside it); default docs/results.md")
+    args = ap.parse_args(argv)
+    cmds = plan(args.proxies, args.runs, args.test_list, args.jobs)
+    one = shlex.join(["python", "benchmarks/results.py", "--proxies", args.proxies, "--runs", args.runs,
+                      "--jobs", str(args.jobs)])
+    dirs = {"sparse": os.path.join(args.runs, "bench-sparse"),
+            "compression": os.path.join(args.runs, "bench-compression")}
+    try:
+        if args.jobs < 1:
+            raise InputError(f"--jobs must be at least 1, got {args.jobs}")
+        if not args.skip_run:
+            for p in (os.path.join(args.proxies, "merl"), os.path.join(args.proxies, "rgl")):
+                if not os.path.isdir(p):
+                    raise InputError(f"{p}: not a folder (PROXIES must hold merl/ and rgl/)")
+            if not os.path.isfile(args.test_list):
+                raise InputError(f"{args.test_list}: no such file (the test materials' list)")
+            os.makedirs(args.runs, exist_ok=True)
+            if not os.path.exists(cmds["ipca80"]):
+                run(cmds["fit80"])
+            run(cmds["sparse"])
+            print(f"# {cmds['all151']}: {link_all(args.proxies, cmds['all151'])} links", flush=True)
+            if not os.path.exists(cmds["ipca151"]):
+                run(cmds["fit151"])
+            run(cmds["compression"])
+        sparse, comp = read_bench(dirs["sparse"]), read_bench(dirs["compression"])
+        out_dir = os.path.dirname(os.path.abspath(args.out))
+        if not os.path.isdir(out_dir):
+            raise InputError(f"{args.out}: folder {out_dir} does not exist")
+        figures = copy_figures(dirs, os.path.join(out_dir, "images"))
+        text = compose(sparse, comp, args.proxies, cmds, one, figures)
+        with atomic_open(args.out, "w", encoding="utf-8") as f:
+            f.write(text)
+    except InputError as e:
+        print(f"results.py: error: {e}", file=sys.stderr)
+        return 2
+    print(f"wrote {args.out} and {len(figures)} figure(s)")
+    print("Issue 12 done-when check (prior against ipca, same 80 training materials):")
+    for line in page.done_lines(page.done_when(sparse)) + [same_materials_line(sparse)]:
+        print("  " + line)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,371 @@
+"""The page ``docs/results.md``, composed from two ``brdfkit bench`` results.
+
+Everything that depends on a number is computed here from the records of the sparse
+and compression ``bench.json`` (means and spreads by :func:`brdfkit.bench.summarise`,
+the function ``bench.md`` uses); fixed prose is kept to the caveats and the method
+descriptions. The paper's figures are those of Gokbudak et al. 2024 (Table 1 and the
+compression table); FreNBRDF's from ``../shared/anchors.md``. Used by
+``benchmarks/results.py``; not part of the library.
+"""
+
+from __future__ import annotations
+
+import os
+
+from brdfkit.bench import summarise
+from brdfkit.bench.summary import mean
+
+METHOD_ORDER = ("prior", "ipca", "nbrdf", "hypernet")
+DONE_N = (40, 400, 4000)
+DONE_SEEDS = (0, 1, 2)
+
+PAPER_SPARSE = {40: (29.58, 3.19), 160: (31.34, 2.68), 400: (32.74, 2.27), 2000: (34.53, 2.26), 4000: (33.17, 2.14)}
+"""The paper's hypernetwork on MERL: ``{N: (PSNR dB, Delta E 2000)}``."""
+PAPER_SSIM = (0.968, 0.979)
+PAPER_COMPRESSION = {("hypernet", 7): 47.49, ("hypernet", 40): 47.68, ("ipca", None): 29.89}
+PAPER_NPS = 46.13
+
+METHOD_TEXT = {
+    "prior": "**prior**: `brdfkit sparse`'s default as shipped, the learnt prior of the built-in "
+             "`merl80-l40`: the 8-component PCA basis fitted to the samples in closed form around a "
+             "prior mean of its coefficients that a set encoder predicts. Not the paper's architecture "
+             "([generalisation.md](generalisation.md)).",
+    "ipca": "**ipca**: the PCA baseline (Nielsen et al. 2015), a basis fitted on the same 80 training "
+            "materials, ridge fit to the samples ([baselines.md](baselines.md)).",
+    "nbrdf": "**nbrdf**: a 6-21-21-3 NBRDF network (Sztrajman et al. 2021) fitted to the samples of each "
+             "material from scratch ([baselines.md](baselines.md)).",
+    "hypernet": "**hypernet**: the paper's method, the encoder / decoder of the built-in `merl80-l40` "
+                "(set encoder of the samples, hypernetwork decoder of a neural BRDF).",
+}
+_HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
+
+
+def plural(k: int, word: str) -> str:
+    return f"{k} {word}" + ("" if k == 1 else "s")
+
+
+def fmt(x, digits):
+    return "n/a" if x is None else f"{x:.{digits}f}"
+
+
+def cell(row, metric, digits, spread="_sd_seeds"):
+    """``mean ± spread`` of a summary row (``n/a`` when missing)."""
+    if row is None or row.get(metric) is None:
+        return "n/a"
+    s = row.get(metric + spread)
+    return fmt(row[metric], digits) + ("" if s is None else f" ± {s:.{digits}f}")
+
+
+def ok_records(result, kind):
+    return [r for r in result["records"] if r["kind"] == kind and "error" not in r]
+
+
+def methods_of(result) -> list[str]:
+    got = list(dict.fromkeys(r["method"] for r in result["records"] if r["kind"] == "sparse"))
+    return [m for m in METHOD_ORDER if m in got] + [m for m in got if m not in METHOD_ORDER]
+
+
+def per_material(records, metric) -> dict:
+    """``{(method, N, material): mean over draws}`` of ``metric``."""
+    cells: dict = {}
+    for r in records:
+        cells.setdefault((r["method"], r["n"], r["material"]), []).append(r.get(metric))
+    return {k: mean(v) for k, v in cells.items()}
+
+
+def wins(pm, a, b, n, metric):
+    """Materials where method ``a`` is better than ``b`` at ``N``, and those compared."""
+    mats = sorted(m for (meth, k, m), v in pm.items()
+                  if meth == a and k == n and v is not None and pm.get((b, n, m)) is not None)
+    higher = _HIGHER[metric]
+    won = [m for m in mats if (pm[(a, n, m)] > pm[(b, n, m)]) == higher and pm[(a, n, m)] != pm[(b, n, m)]]
+    return won, mats
+
+
+def win_text(won, mats) -> str:
+    k, t = len(won), len(mats)
+    if not t:
+        return "n/a"
+    if 0 < k <= 4 and k < t:
+        return f"{k} / {t} ({', '.join(won)})"
+    if 0 < t - k <= 4 and k > 0:
+        return f"{k} / {t} (all but {', '.join(m for m in mats if m not in won)})"
+    return f"{k} / {t}"
+
+
+def done_when(sparse) -> dict:
+    """Issue 12's check: does ``prior`` have a lower mean BRDF log RMSE and a higher mean
+    PSNR than ``ipca`` at each N of :data:`DONE_N`, over draws :data:`DONE_SEEDS`? Means
+    over the (material, draw) pairs both methods finished."""
+    ok = {(r["method"], r["n"], r["material"], r.get("seed")): r for r in ok_records(sparse, "sparse")
+          if r.get("seed") in DONE_SEEDS}
+    rows, verdicts = [], []
+    for n in DONE_N:
+        pairs = [(mat, s) for (meth, k, mat, s) in ok if meth == "prior" and k == n and ("ipca", n, mat, s) in ok]
+        if not pairs:
+            rows.append({"n": n, "measured": False})
+            verdicts.append(None)
+            continue
+        summ = {r["method"]: r for r in summarise([ok[(m, n, mat, s)] for m in ("prior", "ipca")
+                                                   for mat, s in pairs])["sparse"]}
+        p, i = summ["prior"], summ["ipca"]
+        row = {"n": n, "measured": True, "materials": len({m for m, _ in pairs}),
+               "seeds": sorted({s for _, s in pairs}), "prior_rmse": p["log_rmse"], "ipca_rmse": i["log_rmse"],
+               "prior_psnr": p["psnr"], "ipca_psnr": i["psnr"]}
+        row["lower"] = row["prior_rmse"] < row["ipca_rmse"]
+        row["higher"] = row["prior_psnr"] > row["ipca_psnr"]
+        rows.append(row)
+        verdicts += [row["lower"], row["higher"]]
+    complete = all(r["measured"] and r["seeds"] == list(DONE_SEEDS) for r in rows)
+    if any(v is False for v in verdicts):
+        verdict = "no"
+    elif complete:
+        verdict = "yes"
+    else:
+        verdict = "not established (the run lacks some of N = 40, 400, 4000 or draws 0, 1, 2)"
+    return {"rows": rows, "verdict": verdict, "complete": complete}
+
+
+def done_lines(check) -> list[str]:
+    """The check as plain lines (printed by the script and put on the page)."""
+    yn = {True: "yes", False: "no"}
+    out = []
+    for r in check["rows"]:
+        if not r["measured"]:
+            out.append(f"N = {r['n']}: not measured")
+            continue
+        draws = ", ".join(map(str, r["seeds"]))
+        out.append(f"N = {r['n']}: prior log RMSE lower than ipca: {yn[r['lower']]} "
+                   f"({r['prior_rmse']:.4f} vs {r['ipca_rmse']:.4f}); PSNR higher: {yn[r['higher']]} "
+                   f"({r['prior_psnr']:.2f} vs {r['ipca_psnr']:.2f} dB); {plural(r['materials'], 'material')}, "
+                   f"draws {draws}")
+    out.append(f"Done when met: {check['verdict']}")
+    return out
+
+
+def _listed(path) -> list[str]:
+    """The names of a test list (empty when it cannot be read here)."""
+    from brdfkit.materials import read_exclude_list
+
+    try:
+        return list(read_exclude_list(path)) if path and os.path.isfile(path) else []
+    except Exception:  # a list that does not parse: coverage is then not stated
+        return []
+
+
+def _ns(records):
+    return sorted({r["n"] for r in records})
+
+
+def _n_list(ns) -> str:
+    return ", ".join(map(str, ns)) if ns else "none"
+
+
+def sparse_section(sparse) -> list[str]:
+    recs = ok_records(sparse, "sparse")
+    methods, ns = methods_of(sparse), _ns(recs)
+    rows = {(r["method"], r["n"]): r for r in summarise(recs)["sparse"]}
+    cfg = sparse["config"]
+    res = cfg["resolution"]
+    seeds = sorted({r.get("seed") for r in recs})
+    failed = [r for r in sparse["records"] if r["kind"] == "sparse" and "error" in r]
+    mats = sparse["materials"]["sparse"]
+    listed = _listed(cfg.get("test_list"))
+    missing = sorted(set(listed) - set(mats))
+    coverage = (f"**Coverage: {len(mats)} of the {len(listed)} test materials** of "
+                f"`{os.path.basename(cfg['test_list'])}` (missing: {', '.join(missing)}). " if missing else "")
+    by_method = {m: sum(1 for r in failed if r["method"] == m) for m in methods}
+    lines = ["## Sparse reconstruction (the paper's Table 1 setting)", "",
+             coverage + f"{plural(len(mats), 'test material')}, {plural(len(seeds), 'draw')} per (material, N) "
+             f"(seeds {', '.join(map(str, seeds))}), the same samples for every method. `±` is the standard "
+             f"deviation over the draws of the mean over materials (per-material figures are in `bench.json`). "
+             + (f"**{plural(len(failed), 'reconstruction')} failed** ("
+                + ", ".join(f"{m} {k}" for m, k in by_method.items() if k)
+                + "), left out of the means (`bench.md` lists them)." if failed else "No reconstruction failed.")
+             + ("" if sparse.get("complete") else " **The run did not finish**: these are the materials it did."),
+             ""]
+    if not recs:
+        return lines + ["No sparse record.", ""]
+    for metric, digits, title in (("psnr", 2, f"PSNR (dB), reference scene {res} x {res}"),
+                                  ("delta_e", 2, f"Delta E 2000, reference scene {res} x {res}"),
+                                  ("ssim", 3, f"SSIM, reference scene {res} x {res}"),
+                                  ("log_rmse", 4, "BRDF log RMSE (cosine-weighted, lower is better)")):
+        paper = metric in ("psnr", "delta_e", "ssim")
+        lines += [f"#### {title}", "",
+                  "| N |" + (" paper hypernet |" if paper else "") + "".join(f" {m} |" for m in methods),
+                  "| ---: |" + (" ---: |" if paper else "") + " ---: |" * len(methods)]
+        for n in ns:
+            if metric == "ssim":
+                ref = f" {PAPER_SSIM[0]:.3f} ... {PAPER_SSIM[1]:.3f} |"
+            elif paper:
+                got = PAPER_SPARSE.get(n)
+                ref = f" {got[0 if metric == 'psnr' else 1]:.2f} |" if got else " - |"
+            else:
+                ref = ""
+            lines.append(f"| {n} |{ref}" + "".join(f" {cell(rows.get((m, n)), metric, digits)} |" for m in methods))
+        lines.append("")
+    lines += ["#### Run time per reconstruction (samples in, dense table out; one torch thread)", "",
+              "| N |" + "".join(f" {m} CPU s |" for m in methods) + "".join(f" {m} wall s |" for m in methods),
+              "| ---: |" + " ---: |" * (2 * len(methods))]
+    for n in ns:
+        lines.append(f"| {n} |" + "".join(f" {fmt((rows.get((m, n)) or {}).get('cpu_s'), 2)} |" for m in methods)
+                     + "".join(f" {fmt((rows.get((m, n)) or {}).get('time_s'), 2)} |" for m in methods))
+    lines.append("")
+    if "prior" in methods and len(methods) > 1:
+        others = [m for m in methods if m != "prior"]
+        pm = {metric: per_material(recs, metric) for metric in ("psnr", "log_rmse")}
+        lines += ["#### The learnt prior against each other method, per material (mean over the draws)", "",
+                  "| N |" + "".join(f" prior PSNR higher than {m} |" for m in others)
+                  + "".join(f" prior log RMSE lower than {m} |" for m in others),
+                  "| ---: |" + " ---: |" * (2 * len(others))]
+        for n in ns:
+            lines.append(f"| {n} |" + "".join(f" {win_text(*wins(pm['psnr'], 'prior', m, n, 'psnr'))} |"
+                                              for m in others)
+                         + "".join(f" {win_text(*wins(pm['log_rmse'], 'prior', m, n, 'log_rmse'))} |"
+                                   for m in others))
+        lines.append("")
+    return lines
+
+
+def sparse_findings(sparse) -> list[str]:
+    """Generated bullets: every figure in them comes from the records."""
+    recs = ok_records(sparse, "sparse")
+    methods, ns = methods_of(sparse), _ns(recs)
+    if not recs:
+        return []
+    rows = {(r["method"], r["n"]): r for r in summarise(recs)["sparse"]}
+    get = lambda m, n, k: (rows.get((m, n)) or {}).get(k)  # noqa: E731
+    out = ["### What the numbers say", ""]
+    best = []
+    for n in ns:
+        ranked = {k: [m for m in methods if get(m, n, k) is not None] for k in ("psnr", "log_rmse")}
+        bp = max(ranked["psnr"], key=lambda m: get(m, n, "psnr"), default=None)
+        br = min(ranked["log_rmse"], key=lambda m: get(m, n, "log_rmse"), default=None)
+        best.append(f"N = {n}: {bp} / {br}")
+    out.append("* Best mean PSNR / best mean BRDF log RMSE: " + "; ".join(best) + ".")
+    if "prior" in methods:
+        pm = {metric: per_material(recs, metric) for metric in ("psnr", "log_rmse")}
+        for m in methods:
+            if m == "prior":
+                continue
+            hi = [n for n in ns if None not in (get("prior", n, "psnr"), get(m, n, "psnr"))
+                  and get("prior", n, "psnr") > get(m, n, "psnr")]
+            lo = [n for n in ns if None not in (get("prior", n, "log_rmse"), get(m, n, "log_rmse"))
+                  and get("prior", n, "log_rmse") < get(m, n, "log_rmse")]
+            per = [f"{len(wins(pm['log_rmse'], 'prior', m, n, 'log_rmse')[0])}/"
+                   f"{len(wins(pm['log_rmse'], 'prior', m, n, 'log_rmse')[1])}" for n in ns]
+            out.append(f"* prior against {m}: higher mean PSNR at N = {_n_list(hi)} (of {len(ns)} N), lower mean "
+                       f"log RMSE at N = {_n_list(lo)}; lower log RMSE per material at N = {_n_list(ns)}: "
+                       f"{', '.join(per)}.")
+    for m in methods:
+        first, last = ns[0], ns[-1]
+        out.append(f"* {m}: log RMSE {fmt(get(m, first, 'log_rmse'), 4)} (N = {first}) to "
+                   f"{fmt(get(m, last, 'log_rmse'), 4)} (N = {last}), PSNR {fmt(get(m, first, 'psnr'), 2)} to "
+                   f"{fmt(get(m, last, 'psnr'), 2)} dB; CPU time {_range([get(m, n, 'cpu_s') for n in ns], 2)} s "
+                   f"per reconstruction.")
+    out.append("")
+    return out
+
+
+def _range(values, digits) -> str:
+    v = [x for x in values if x is not None]
+    if not v:
+        return "n/a"
+    lo, hi = min(v), max(v)
+    return fmt(lo, digits) if fmt(lo, digits) == fmt(hi, digits) else f"{fmt(lo, digits)}-{fmt(hi, digits)}"
+
+
+def paper_section(sparse, model_name: str) -> list[str]:
+    recs = ok_records(sparse, "sparse")
+    rows = {(r["method"], r["n"]): r for r in summarise(recs)["sparse"]}
+    diffs = []
+    for n, (psnr, de) in PAPER_SPARSE.items():
+        row = rows.get(("hypernet", n))
+        if row and row.get("psnr") is not None:
+            diffs.append(f"N = {n}: {row['psnr']:.2f} dB ({row['psnr'] - psnr:+.2f} dB), "
+                         f"Delta E {fmt(row.get('delta_e'), 2)} ({(row.get('delta_e') or 0) - de:+.2f})")
+    ssim = [r.get("ssim") for (m, _), r in rows.items() if m == "hypernet"]
+    lines = ["### Against the paper's figures", "",
+             "The paper reports, for its hypernetwork on MERL, PSNR " + " / ".join(f"{v[0]:.2f}" for v in
+                                                                                    PAPER_SPARSE.values())
+             + " dB and Delta E " + " / ".join(f"{v[1]:.2f}" for v in PAPER_SPARSE.values())
+             + " at N = " + " / ".join(map(str, PAPER_SPARSE)) + f", SSIM {PAPER_SSIM[0]} ... {PAPER_SSIM[1]}. "
+             "FreNBRDF (Zhou, Hu, Oztireli 2025) publish, for MERL reconstruction, HyperBRDF 26.3 dB against "
+             "NBRDF 29.2 dB PSNR (SSIM 0.926 against 0.950).", ""]
+    if diffs:
+        lines.append(f"* What differs, generated: our hypernetwork (`{model_name}`) against the paper's: "
+                     + "; ".join(diffs) + f"; SSIM {_range(ssim, 3)}.")
+    lines += ["* The scene, the resolution, the data (proxies) and the training budget differ (table at the "
+              "top), so equal figures would be a coincidence and unequal ones do not refute the paper; the "
+              "comparison that holds is between the methods of this page, which saw the same samples and "
+              "were scored in the same scene.", ""]
+    return lines
+
+
+def family_of(name: str, proxies: str) -> str:
+    """``MERL`` / ``RGL`` by the proxies folder that holds ``NAME.binary`` (else ``other``)."""
+    for sub, label in (("merl", "MERL"), ("rgl", "RGL")):
+        if os.path.exists(os.path.join(proxies, sub, name + ".binary")):
+            return label
+    return "other"
+
+
+def _paper_comp(label: str, latent) -> str:
+    kind = label.split()[0]
+    got = PAPER_COMPRESSION.get((kind, latent if kind == "hypernet" else None))
+    return "-" if got is None else f"{got:.2f}"
+
+
+def compression_section(comp, proxies, figure=True) -> list[str]:
+    recs = ok_records(comp, "compression")
+    failed = [r for r in comp["records"] if r["kind"] == "compression" and "error" in r]
+    mats = comp["materials"]["compression"]
+    fam = {m: family_of(m, proxies) for m in mats}
+    counts = {f: sum(1 for v in fam.values() if v == f) for f in ("MERL", "RGL", "other")}
+    lines = ["## Compression (the paper's compression table)", "",
+             f"{len(mats)} materials ({counts['MERL']} MERL, {counts['RGL']} RGL"
+             + (f", {counts['other']} neither" if counts["other"] else "") + "), each table encoded whole and "
+             "decoded (IPCA: least-squares projection onto its components, then decode). `±` is the standard "
+             "deviation over materials; time = encode + decode. "
+             + (f"**{len(failed)} failed** (left out)." if failed else "No reconstruction failed.")
+             + ("" if comp.get("complete") else " **The run did not finish.**"),
+             f"The paper: 7-D {PAPER_COMPRESSION[('hypernet', 7)]} dB, 40-D {PAPER_COMPRESSION[('hypernet', 40)]} "
+             f"dB, NPs {PAPER_NPS} dB, IPCA {PAPER_COMPRESSION[('ipca', None)]} dB (PSNR, MERL).", ""]
+    if not recs:
+        return lines + ["No compression record.", ""]
+    lines += ["| model | materials | n | PSNR (dB) | paper PSNR | Delta E 2000 | SSIM | BRDF log RMSE | CPU s "
+              "| wall s |",
+              "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
+    groups = [("all", recs)] + [(f, [r for r in recs if fam.get(r["material"]) == f])
+                                for f in ("MERL", "RGL", "other") if counts[f]]
+    table = {}
+    for gname, grecs in groups:
+        for row in summarise(grecs)["compression"]:
+            table[(row["method"], gname)] = row
+    labels = list(dict.fromkeys(r["method"] for r in recs))
+    paper_row = "MERL" if counts["MERL"] else "all"  # the paper's figures are on MERL
+    latent = {r["method"]: r.get("latent") for r in recs}
+    for label in labels:
+        for gname, _ in groups:
+            row = table.get((label, gname))
+            if row is None:
+                continue
+            lines.append(f"| {label} | {gname} | {row['materials']} | {cell(row, 'psnr', 2, '_sd_materials')} | "
+                         f"{_paper_comp(label, latent[label]) if gname == paper_row else '-'} | "
+                         f"{cell(row, 'delta_e', 2, '_sd_materials')} | {cell(row, 'ssim', 4, '_sd_materials')} | "
+                         f"{cell(row, 'log_rmse', 4, '_sd_materials')} | {fmt(row['cpu_s'], 2)} | "
+                         f"{fmt(row['time_s'], 2)} |")
+    lines.append("")
+    if figure:
+        lines += ["![compression per material](images/bench-compression.png)", ""]
+    for label in labels:
+        trained = sum(1 for r in recs if r["method"] == label and r.get("trained_on"))
+        total = sum(1 for r in recs if r["method"] == label)
+        row, paper = table[(label, "all")], _paper_comp(label, latent[label])
+        diff = "" if paper == "-" else f" ({row['psnr'] - float(paper):+.2f} dB against the paper's {paper} dB)"
+        lines.append(f"* {label}: {fmt(row['psnr'], 2)} dB on all {row['materials']}{diff}; "
+                     + "; ".join(f"{g} {fmt(table[(label, g)]['psnr'], 2)} dB" for g, _ in groups[1:]
+                                 if (label, g) in table)
+                     + f"; {trained} of its {total} materials were in its training set.")
+    lines.append("")
+    return lines
