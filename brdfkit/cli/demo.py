@@ -1,5 +1,7 @@
-"""``brdfkit demo``: the whole job on built-in synthetic data, no download
-(:func:`brdfkit.demo.run_demo`); prints its errors, times and files."""
+"""``brdfkit demo``: real MERL test materials through the built-in models
+(:func:`brdfkit.demo_real.run_real_demo`); ``--train``: train and try a small model on
+built-in synthetic data (:func:`brdfkit.demo.run_demo`). Prints the errors, times and
+files."""
 
 from __future__ import annotations
 
@@ -7,38 +9,139 @@ import os
 
 import click
 
+from ..demo_real import SHEET_RESOLUTION
 from .common import parse_option
+
+# Options of one mode only (parameter name: flag): a training one selects --train.
+_TRAIN_ONLY = {"minutes": "--minutes", "steps": "--steps", "n_materials": "--materials",
+               "holdout": "--holdout", "options": "-O"}
+_REAL_ONLY = {"resolution": "--resolution", "only": "--only"}
 
 
 def _fmt_bytes(n: int) -> str:
     return f"{n / 1e6:.1f} MB" if n >= 1e5 else f"{n / 1e3:.1f} kB"
 
 
+def _mode(train: bool) -> bool:
+    """Whether to run the training demo: ``--train``, or an option only it takes (so
+    that command lines from before the real-material demo keep working); an option of
+    the real-material demo with it is refused."""
+    from click.core import ParameterSource
+
+    from ..errors import InputError
+
+    ctx = click.get_current_context()
+
+    def given(names):
+        return [flag for name, flag in names.items()
+                if ctx.get_parameter_source(name) not in (ParameterSource.DEFAULT, None)]
+
+    train = train or bool(given(_TRAIN_ONLY))
+    if train and given(_REAL_ONLY):
+        raise InputError(f"{', '.join(given(_REAL_ONLY))}: option(s) of the real-material demo, but "
+                         f"{', '.join(given(_TRAIN_ONLY)) or '--train'} selects the training demo (--train)")
+    return train
+
+
+def _times_table(times):
+    from rich.table import Table
+
+    tt = Table(title="Times")
+    tt.add_column("step")
+    tt.add_column("seconds", justify="right")
+    for what, sec in times[:-1]:
+        tt.add_row(what, f"{sec:.2f}")
+    tt.add_row(f"[bold]{times[-1][0]}[/]", f"[bold]{times[-1][1]:.1f}[/]")
+    return tt
+
+
+def _error_table(title, columns, errors):
+    from rich.table import Table
+
+    tab = Table(title=title)
+    # Names whole (the number columns' headers wrap instead).
+    tab.add_column("material", no_wrap=True, min_width=max(len(n) for n, _ in errors))
+    for c in columns:
+        tab.add_column(c, justify="right")
+    for name, row in errors:
+        tab.add_row(name, *(f"{v:.3f}" for v in row))
+    means = [sum(r[k] for _, r in errors) / len(errors) for k in range(len(columns))]
+    tab.add_row("[bold]mean[/]", *(f"[bold]{v:.3f}[/]" for v in means))
+    return tab
+
+
 @click.command("demo")
+@click.option("--train", is_flag=True,
+              help="The synthetic training demo instead: write a synthetic library, train a small model "
+                   "(about 3 minutes), try it.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="brdfkit-demo",
-              show_default=True, help="Folder for the materials, model, embeddings and tables.")
-@click.option("--minutes", type=float, default=3.0, show_default=True,
-              help="Training budget (wall clock, reading the data included).")
-@click.option("--steps", type=click.IntRange(min=1), default=None,
-              help="Also stop training after this many steps.")
-@click.option("--materials", "n_materials", type=click.IntRange(min=3), default=20, show_default=True,
-              help="Size of the synthetic library (the first 4 are the stiff cases).")
-@click.option("--holdout", type=click.IntRange(min=1), default=4, show_default=True,
-              help="Materials held out of training and reconstructed.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Library, training and sampling seed.")
+              show_default=True, help="Folder for everything the demo writes.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Sampling seed (--train: library and training too).")
 @click.option("--device", default="auto", show_default=True, help="auto, cpu or cuda.")
 @click.option("--render/--no-render", "do_render", default=True, show_default=True,
-              help="Rendered PSNR of one reconstruction too.")
+              help="Render one material: the comparison sheet (--train: the rendered PSNR).")
+@click.option("--resolution", type=click.IntRange(min=8, max=1024), default=SHEET_RESOLUTION,
+              show_default=True, help="Render size of the comparison sheet, pixels.")
+@click.option("--only", default=None, hidden=True, metavar="NAME,...",
+              help="Run these of the shipped materials only (tests).")
+@click.option("--minutes", type=float, default=3.0, show_default=True,
+              help="Implies --train: training budget (wall clock, reading the data included).")
+@click.option("--steps", type=click.IntRange(min=1), default=None,
+              help="Implies --train: also stop training after this many steps.")
+@click.option("--materials", "n_materials", type=click.IntRange(min=3), default=20, show_default=True,
+              help="Implies --train: size of the synthetic library (the first 4 are the stiff cases).")
+@click.option("--holdout", type=click.IntRange(min=1), default=4, show_default=True,
+              help="Implies --train: materials held out of training and reconstructed.")
 @click.option("-O", "--option", "options", multiple=True, metavar="KEY=VALUE",
-              help="Advanced training option (see docs/training.md).")
-def command(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options):
-    """Train and try a hypernetwork BRDF model on built-in synthetic materials.
+              help="Implies --train: advanced training option (see docs/training.md).")
+def command(train, out_dir, seed, device, do_render, resolution, only, minutes, steps, n_materials, holdout,
+            options):
+    """Try brdfkit on real materials with the built-in models (no download).
 
-    Needs no download and no data: writes a synthetic library into OUT, holds some
-    materials out, trains a small model (about 3 minutes), reconstructs the held-out
-    materials from 40 and 400 samples, compresses them, blends two of them, and prints
-    the errors and times. Takes about 5 minutes on 2 CPU cores.
+    Four MERL materials the benchmark model never saw (shipped as their published NBRDF
+    fits) are reconstructed from 40 and 400 samples (learnt prior, and IPCA beside it),
+    compressed by the hypernetworks (40 and 7 numbers) and blended; prints the errors and
+    times, and writes the tables, embeddings, a comparison sheet and a plot into OUT.
+    About a minute on 2 CPU cores. With --train: trains a small model on synthetic
+    materials instead (about 5 minutes). See docs/demo.md.
     """
+    if _mode(train):
+        _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options)
+        return
+    from rich.console import Console
+
+    from ..demo_real import COMPRESSION_MODELS, SPARSE_MODEL, run_real_demo
+
+    res = run_real_demo(out_dir, only=[s.strip() for s in only.split(",") if s.strip()] if only else None,
+                        seed=seed, device=device, render=do_render, resolution=resolution)
+    report = Console()
+    report.print(_error_table("MERL test materials: BRDF log RMSE (lower is better)", res.columns, res.errors))
+    report.print(f"{res.sparse_method} N, ipca N: reconstructed from N samples by brdfkit sparse's default "
+                 f"method on {SPARSE_MODEL} ({res.sparse_method}) and by IPCA on its PCA basis; {SPARSE_MODEL} "
+                 f"never saw these materials. full K-D: the full table encoded into K numbers by a hypernetwork "
+                 f"and decoded ({' and '.join(COMPRESSION_MODELS)}; the 7-D one was trained on these materials "
+                 f"too). "
+                 f"brdf_log_rmse as in brdfkit.metrics.")
+    report.print(_times_table(res.times))
+    report.print(f"Files in {res.out_dir}:")
+    folders = {}
+    for p in res.files:
+        rel = os.path.relpath(p, res.out_dir)
+        if os.sep in rel:
+            folders.setdefault(rel.split(os.sep)[0], []).append(p)
+        else:
+            report.print(f"  {rel}  ({_fmt_bytes(os.path.getsize(p))})")
+    for folder, paths in folders.items():
+        size = sum(os.path.getsize(p) for p in paths)
+        report.print(f"  {folder}/  ({len(paths)} file{'s' * (len(paths) > 1)}, {_fmt_bytes(size)})")
+    name = res.sheet_material
+    samples = os.path.relpath(os.path.join(res.out_dir, "samples", f"{name}-40.csv"))
+    report.print(f"Next: brdfkit sparse {samples} -m {SPARSE_MODEL} -o r.binary && "
+                 f"brdfkit compare {os.path.relpath(os.path.join(res.out_dir, 'materials', name + '.binary'))} "
+                 f"r.binary --sheet r.png", soft_wrap=True)
+
+
+def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options):
     from rich.console import Console
     from rich.table import Table
 
@@ -47,15 +150,8 @@ def command(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rend
     res = run_demo(out_dir, minutes=minutes, steps=steps, n_materials=n_materials, holdout=holdout, seed=seed,
                    device=device, render=do_render, options=dict(parse_option(o) for o in options))
     report = Console()
-    tab = Table(title=f"Held-out materials: BRDF log RMSE (lower is better), latent {res.latent_dim}")
-    tab.add_column("material")
-    for c in res.columns:
-        tab.add_column(c, justify="right")
-    for name, row in res.errors:
-        tab.add_row(name, *(f"{v:.3f}" for v in row))
-    means = [sum(r[k] for _, r in res.errors) / len(res.errors) for k in range(len(res.columns))]
-    tab.add_row("[bold]mean[/]", *(f"[bold]{v:.3f}[/]" for v in means))
-    report.print(tab)
+    report.print(_error_table(f"Held-out materials: BRDF log RMSE (lower is better), latent {res.latent_dim}",
+                              res.columns, res.errors))
     report.print("median reference: the training materials' per-cell median, used as the prediction "
                  "(what the model must beat); brdf_log_rmse as in brdfkit.metrics.")
     if res.psnr:
@@ -69,13 +165,7 @@ def command(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rend
         report.print(pt)
         report.print(f"Renders of both (PNG to look at, EXR linear): {os.path.join(res.out_dir, 'renders')}",
                      soft_wrap=True)
-    tt = Table(title="Times")
-    tt.add_column("step")
-    tt.add_column("seconds", justify="right")
-    for what, sec in res.times[:-1]:
-        tt.add_row(what, f"{sec:.2f}")
-    tt.add_row(f"[bold]{res.times[-1][0]}[/]", f"[bold]{res.times[-1][1]:.1f}[/]")
-    report.print(tt)
+    report.print(_times_table(res.times))
 
     report.print(f"Files in {res.out_dir}:")
     for p in res.files:

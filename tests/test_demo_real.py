@@ -1,0 +1,211 @@
+"""``brdfkit demo`` on the shipped real materials (``brdfkit.demo_real``) and their NBRDF
+decode (``brdfkit.nbrdf_tables``).
+
+The built-in folder is a temporary one (``$BRDFKIT_BUILTIN_MODELS``) holding untrained
+tiny models under the names the demo asks for: ``merl80-l40`` (a hypernetwork and a
+learnt prior over a 3-component basis of two synthetic tables, the basis in a shared file)
+and ``merl-rgl-l7`` (a hypernetwork). The tests check the plumbing and the files, not
+how well untrained models do.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from brdfkit.cli import main
+from brdfkit.embedding import read_embedding
+from brdfkit.merl import read_merl
+from brdfkit.model import builtin
+from brdfkit.nbrdf_tables import DEMO_WEIGHTS, LAYERS, load_nbrdf_weights, nbrdf_table
+
+from conftest import brdfkit_command, quiet_env
+from helpers_model import make_model, material_table
+
+SHARED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "..", "shared")
+TOOL = os.path.join(SHARED, "tools", "nbrdf_to_merl.py")
+SHIPPED = ["blue-metallic-paint", "teflon", "chrome-steel", "violet-rubber"]
+
+
+@pytest.fixture(scope="module")
+def shelf(tmp_path_factory):
+    """A built-in folder with tiny untrained ``merl80-l40`` (and learnt prior) and
+    ``merl-rgl-l7``."""
+    import torch
+
+    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.methods.prior_file import save_prior
+    from brdfkit.methods.prior_model import PriorConfig, PriorModel, prior_net
+
+    src = tmp_path_factory.mktemp("trained")
+    folder = tmp_path_factory.mktemp("builtin")
+    entries = []
+    for name, seed in (("merl80-l40", 0), ("merl-rgl-l7", 1)):
+        make_model(src / f"{name}.safetensors", seed=seed)
+        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+                           reference_file="tiny.reference.safetensors")
+        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command="brdfkit fit (tiny)",
+                                              validation={40: 0.3}))
+    basis = fit_ipca([material_table(0), material_table(1)], n_components=3, names=["stiff-white", "ggx"])
+    cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
+    torch.manual_seed(0)
+    fp = save_prior(folder / "merl80-l40.prior.safetensors",
+                    PriorModel(basis, prior_net(cfg), cfg, {"materials": ["stiff-white", "ggx"]}),
+                    basis_file="tiny.basis.safetensors")
+    entries[0].update(prior="merl80-l40.prior.safetensors", prior_fingerprint=fp)
+    builtin.write_manifest(folder, entries, default="merl80-l40")
+    return folder
+
+
+def _run(args, env_folder=None, timeout=300):
+    env = quiet_env()
+    if env_folder is not None:
+        env[builtin.BUILTIN_ENV] = str(env_folder)
+    return subprocess.run([*brdfkit_command(), "demo", *map(str, args)], capture_output=True, text=True,
+                          timeout=timeout, env=env)
+
+
+# --- the shipped NBRDF networks ---------------------------------------------------------------
+
+def test_shipped_weights_are_four_test_materials():
+    nets = load_nbrdf_weights()
+    assert list(nets) == SHIPPED
+    for net in nets.values():
+        assert {k: v.shape for k, v in net.items()} == LAYERS
+        assert all(v.dtype == np.float32 for v in net.values())
+    test_list = os.path.join(SHARED, "data", "merl-test.txt")
+    if os.path.exists(test_list):
+        with open(test_list, encoding="utf-8") as f:
+            assert set(SHIPPED) <= set(f.read().split())
+
+
+def test_weights_file_is_refused_in_one_line_when_bad(tmp_path):
+    from brdfkit.errors import FormatError
+
+    np.savez(tmp_path / "short.npz", names=np.array(["a"]), w1=np.zeros((1, 6, 21), np.float32))
+    with pytest.raises(FormatError, match="no b1"):
+        load_nbrdf_weights(tmp_path / "short.npz")
+    arrays = {k: np.zeros((1, *s), np.float32) for k, s in LAYERS.items()}
+    np.savez(tmp_path / "shape.npz", names=np.array(["a"]), **{**arrays, "w2": np.zeros((1, 21, 20), np.float32)})
+    with pytest.raises(FormatError, match="'w2'"):
+        load_nbrdf_weights(tmp_path / "shape.npz")
+    np.savez(tmp_path / "pickled.npz", names=np.array([{"a": 1}], dtype=object), **arrays)
+    with pytest.raises(FormatError):  # an object array needs pickle: never loaded
+        load_nbrdf_weights(tmp_path / "pickled.npz")
+
+
+def test_decode_is_physical_and_below_the_horizon_nan():
+    from brdfkit.geometry import valid_mask
+
+    table = nbrdf_table(load_nbrdf_weights()["teflon"], device="cpu")
+    assert table.shape == (90, 90, 180, 3) and table.dtype == np.float64
+    valid = valid_mask()
+    assert np.isnan(table[~valid]).all() and np.isfinite(table[valid]).all()
+    assert (table[valid] >= 0).all()
+    # Teflon is a bright, nearly white diffuser: about 0.2 / sr at normal incidence.
+    assert 0.05 < table[0, 0, 0].min() and table[0, 0, 0].max() < 1.0
+
+
+@pytest.mark.proxy
+@pytest.mark.skipif(not (os.path.exists(TOOL) and os.path.exists(os.path.join(SHARED, "data", "nbrdf", "merl.npz"))),
+                    reason="../shared/tools/nbrdf_to_merl.py and its data are not present")
+def test_decode_matches_the_reference_tool(tmp_path):
+    """The shared tool's .binary (from the published merl.npz) and the shipped networks'
+    decode agree on every cell: the same weights and the same evaluation, up to float32
+    rounding (amplified near 0 by exp(x) - 1)."""
+    name = "chrome-steel"  # the mirror-like one: largest values, most cells clipped to 0
+    proc = subprocess.run([sys.executable, TOOL, "merl", str(tmp_path), name], capture_output=True, text=True,
+                          timeout=120, env=quiet_env())
+    assert proc.returncode == 0, proc.stderr
+    want = read_merl(tmp_path / f"{name}.binary")
+    got = nbrdf_table(load_nbrdf_weights()[name], device="cpu")
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got, want, rtol=5e-4, atol=1e-5)
+    cells = [(0, 0, 0), (1, 40, 90), (30, 20, 45), (89, 10, 179)]
+    for c in cells:
+        np.testing.assert_allclose(got[c], want[c], rtol=5e-4, atol=1e-5)
+
+
+def test_demo_weights_file_is_package_data():
+    """pyproject ships brdfkit/data/*.npz (and the licence beside it) in the wheel."""
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    with open(os.path.join(root, "pyproject.toml"), encoding="utf-8") as f:
+        text = f.read()
+    assert '"data/*.npz"' in text and '"data/*.md"' in text
+    assert os.path.dirname(DEMO_WEIGHTS).endswith(os.path.join("brdfkit", "data"))
+    assert os.path.exists(os.path.join(os.path.dirname(DEMO_WEIGHTS), "README.md"))
+
+
+# --- brdfkit demo ---------------------------------------------------------------------------
+
+def test_real_demo_end_to_end(shelf, tmp_path):
+    out = tmp_path / "demo"
+    proc = _run(["--out", out, "--only", "violet-rubber,teflon", "--resolution", "12"], shelf)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    report = proc.stdout
+    assert "MERL test materials: BRDF log RMSE" in report and "Times" in report and "whole demo" in report
+    for name in ("violet-rubber", "teflon"):
+        row = re.search(rf"{name}\s*[│|]((?:\s*[\d.]+\s*[│|]?)+)", report)
+        assert row, report
+        values = [float(v) for v in re.findall(r"[\d.]+", row.group(1))]
+        assert len(values) == 6 and all(np.isfinite(values))
+    assert re.search(r"mean\s*[│|]", report)
+    assert f"writing everything into {out}" in proc.stderr.replace("\n", "")
+
+    # The tables: the material, the four sparse reconstructions, two compressions, a blend.
+    ref = read_merl(out / "materials" / "violet-rubber.binary")
+    np.testing.assert_allclose(ref, nbrdf_table(load_nbrdf_weights()["violet-rubber"], device="cpu"),
+                               rtol=1e-12, equal_nan=True)
+    for stem in ("prior-40", "prior-400", "ipca-40", "ipca-400"):
+        assert np.isfinite(read_merl(out / "reconstructed" / f"violet-rubber-{stem}.binary")).any()
+    fingerprints = {m.name: m.fingerprint for m in builtin.read_manifest(shelf).models}
+    for m in ("merl80-l40", "merl-rgl-l7"):
+        emb = read_embedding(out / "embeddings" / f"teflon-{m}.emb")
+        assert emb.model_fingerprint == fingerprints[m]
+        assert (out / "decoded" / f"teflon-{m}.binary").is_file()
+    assert (out / "decoded" / "violet-rubber+teflon-t0.5-merl80-l40.binary").is_file()
+    assert (out / "embeddings" / "violet-rubber+teflon-t0.5-merl80-l40.emb").is_file()
+    assert len((out / "samples" / "teflon-40.csv").read_text().splitlines()) > 40
+    # The sheet and the plot, of the first material.
+    for png in ("sheet-violet-rubber.png", "plot-violet-rubber.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert not [n for n in os.listdir(out) if n.startswith(".brdfkit-tmp-")]
+
+
+def test_real_demo_in_process_without_render(shelf, monkeypatch, tmp_path):
+    from brdfkit.demo_real import run_real_demo
+
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
+    res = run_real_demo(tmp_path / "d", only=["chrome-steel"], render=False, device="cpu")
+    assert res.materials == ["chrome-steel"] and res.sparse_method == "prior" and res.sheet is None
+    # (both tiny hypernetworks have latent size 7; the shipped ones 40 and 7)
+    assert res.columns == ["prior 40", "prior 400", "ipca 40", "ipca 400", "full 7-D", "full 7-D"]
+    assert len(res.errors) == 1 and len(res.errors[0][1]) == 6
+    assert res.times[-1][0] == "whole demo" and all(t >= 0 for _, t in res.times)
+    assert all(os.path.isfile(p) for p in res.files)
+    assert not any("+" in os.path.basename(p) for p in res.files)  # one material: no blend
+
+
+def test_no_builtin_models_is_one_line_pointing_at_train(tmp_path):
+    proc = _run(["--out", tmp_path / "d"])  # the empty folder of conftest's no_model_env
+    assert proc.returncode == 2
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: "), proc.stderr
+    assert "brdfkit demo --train" in lines[0] and "no built-in model is installed" in lines[0]
+    assert proc.stdout == "" and not (tmp_path / "d").exists()
+
+
+def test_bad_options_are_one_line(shelf, monkeypatch, capsys, tmp_path):
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
+    for args, words in ((["--only", "pink-felt"], "unknown demo material"),
+                        (["--train", "--resolution", "32"], "--resolution"),
+                        (["--steps", "3", "--only", "teflon"], "--only")):
+        with pytest.raises(SystemExit) as e:
+            main(["demo", "--out", str(tmp_path / "d"), *args])
+        err = capsys.readouterr().err
+        assert e.value.code == 2 and words in err and len(err.strip().splitlines()) == 1, err
