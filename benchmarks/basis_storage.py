@@ -29,7 +29,19 @@ def main():
     ap.add_argument("--proxies", required=True)
     ap.add_argument("--n", type=int, nargs="+", default=[40, 400, 4000])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--render", type=int, default=0, metavar="PX",
+                    help="also the mean PSNR of the IPCA fits in the reference scene at PX pixels")
     args = ap.parse_args()
+    if args.render:
+        from brdfkit.metrics import psnr
+        from brdfkit.render.brdf import TableBRDF
+        from brdfkit.render.envmap import reference_envmap
+        from brdfkit.render.quadrature import render
+        from brdfkit.render.scene import Scene
+        scene, env = Scene(resolution=args.render), reference_envmap()
+
+        def img(t):
+            return render(TableBRDF(t, device="cpu"), scene, env=env)[0]
     lib = load_library(args.proxies)
     val = validation_materials()
     train = [n for n in lib.names if n not in val and not n.startswith("rgl:")]
@@ -44,16 +56,21 @@ def main():
         print(f"{'storage':22s} {'MB':>6s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  projection")
         for label, (model, size) in variants.items():
             errs = {n: [] for n in args.n}
+            psnrs = {n: [] for n in args.n}
             proj = []
             for name in val:
                 table = lib.table(name)
+                ref_img = img(table) if args.render else None
                 for n in args.n:
                     for seed in args.seeds:
                         pred = model.reconstruct(draw_samples(table, n, seed=seed))
                         errs[n].append(lib.log_rmse(name, pred.reshape(N_CELLS, 3)[lib.cells]))
+                        if args.render:
+                            psnrs[n].append(float(psnr(img(pred), ref_img)))
                 proj.append(lib.log_rmse(name, model.decode(model.project(table)).reshape(N_CELLS, 3)[lib.cells]))
             print(f"{label:22s} {size / 1e6:6.2f} " + " ".join(f"{np.mean(errs[n]):7.4f}" for n in args.n)
-                  + f"  {np.mean(proj):.4f}", flush=True)
+                  + f"  {np.mean(proj):.4f}" + ("  PSNR " + " ".join(f"{np.mean(psnrs[n]):.2f}" for n in args.n)
+                                                 if args.render else ""), flush=True)
 
 
 if __name__ == "__main__":

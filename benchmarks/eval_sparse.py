@@ -29,6 +29,10 @@ def main():
     ap.add_argument("--n", type=int, nargs="+", default=[40, 400, 4000])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--json", default=None, help="also write the per-material records here")
+    ap.add_argument("--render", type=int, default=0, metavar="PX",
+                    help="also render each reconstruction in the reference scene at PX pixels and report PSNR")
+    ap.add_argument("--s2", type=float, default=None, help="override the learnt prior's metric noise variance")
+    ap.add_argument("--lam", type=float, default=None, help="override the learnt prior's IPCA noise variance")
     args = ap.parse_args()
 
     from brdfkit.materials import read_exclude_list
@@ -38,6 +42,24 @@ def main():
     from brdfkit.samples import draw_samples
 
     prior = get_method("prior").load(args.prior)
+    if args.s2 is not None or args.lam is not None:
+        import dataclasses
+        prior.cfg = dataclasses.replace(prior.cfg, **{k: v for k, v in (("s2", args.s2), ("lam", args.lam))
+                                                      if v is not None})
+    psnr_of = None
+    if args.render:
+        from brdfkit.metrics import psnr
+        from brdfkit.render.brdf import TableBRDF
+        from brdfkit.render.envmap import reference_envmap
+        from brdfkit.render.quadrature import render
+        from brdfkit.render.scene import Scene
+        scene, env = Scene(resolution=args.render), reference_envmap()
+
+        def img(t):
+            return render(TableBRDF(t, device="cpu"), scene, env=env)[0]
+
+        def psnr_of(pred, ref_img):
+            return float(psnr(img(pred), ref_img))
     names = read_exclude_list(args.list)
     variants = {"prior": lambda s: prior.reconstruct(s),
                 "basis fit": lambda s: prior.reconstruct(s, use_prior=False),
@@ -48,10 +70,12 @@ def main():
         hyper = load_builtin(args.hypernet, device="cpu")
         variants["hypernet"] = lambda s: api.sparse(hyper, s)[0]
     errs = {k: {n: [] for n in args.n} for k in variants}
+    psnrs = {k: {n: [] for n in args.n} for k in variants}
     secs = {k: [] for k in variants}
     records = []
     for name in names:
         table = read_merl(os.path.join(args.data, name + ".binary"))
+        ref_img = img(table) if psnr_of else None
         for n in args.n:
             for seed in args.seeds:
                 s = draw_samples(table, n, seed=seed)
@@ -61,11 +85,19 @@ def main():
                     secs[k].append(time.process_time() - t)
                     e = float(brdf_log_rmse(pred, table))
                     errs[k][n].append(e)
-                    records.append({"material": name, "n": n, "seed": seed, "method": k, "log_rmse": e})
+                    rec = {"material": name, "n": n, "seed": seed, "method": k, "log_rmse": e}
+                    if psnr_of:
+                        rec["psnr"] = psnr_of(pred, ref_img)
+                        psnrs[k][n].append(rec["psnr"])
+                    records.append(rec)
     print(f"{len(names)} materials, draws {args.seeds}; mean BRDF log RMSE")
     print(f"{'method':10s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  CPU s/recon")
     for k in variants:
         print(f"{k:10s} " + " ".join(f"{np.mean(errs[k][n]):7.4f}" for n in args.n) + f"  {np.mean(secs[k]):.3f}")
+    if psnr_of:
+        print(f"mean PSNR (dB), reference scene at {args.render} px")
+        for k in variants:
+            print(f"{k:10s} " + " ".join(f"{np.mean(psnrs[k][n]):7.2f}" for n in args.n))
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"materials": names, "records": records}, f)
