@@ -1,0 +1,88 @@
+"""The built-in models as shipped in the package (issue 12's "done when"): listed, intact,
+and answering `brdfkit sparse`, `encode`, `decode` and the `ipca` baseline with no `-m`.
+
+Every other test points ``$BRDFKIT_BUILTIN_MODELS`` at an empty folder (conftest); these
+read the package's own folder.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+
+import numpy as np
+import pytest
+
+from brdfkit.model.builtin import models_folder, read_manifest
+
+NAMES = ("merl-rgl-l40", "merl80-l40", "merl-rgl-l7")
+
+
+@pytest.fixture
+def shipped(monkeypatch):
+    monkeypatch.delenv("BRDFKIT_BUILTIN_MODELS", raising=False)
+    man = read_manifest(models_folder())
+    if not man.installed():
+        pytest.skip("no built-in model files in this checkout (brdfkit/models)")
+    return man
+
+
+def _run(*args, cwd):
+    env = {k: v for k, v in os.environ.items() if k not in ("BRDFKIT_BUILTIN_MODELS", "BRDFKIT_MODEL")}
+    env["OMP_NUM_THREADS"] = "1"
+    from conftest import brdfkit_command
+
+    return subprocess.run([*brdfkit_command(), *args], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+
+
+def test_the_three_models_are_listed_installed_and_intact(shipped, tmp_path):
+    assert [m.name for m in shipped.installed()] == list(NAMES)
+    assert shipped.default == "merl-rgl-l40"
+    r = _run("models", "--json", "--check", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    entries = doc["models"] if isinstance(doc, dict) else doc
+    by_name = {e["name"]: e for e in entries}
+    assert {by_name[n]["latent_dim"] for n in NAMES} == {40, 7}
+    assert by_name["merl80-l40"]["prior"] and by_name["merl-rgl-l40"]["prior"]
+    # The benchmark's model never saw a test material.
+    from brdfkit.model.builtin import load_builtin
+    test = set(open(os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "merl-test.txt")).read().split()) \
+        if os.path.exists(os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "merl-test.txt")) else set()
+    mats = set(load_builtin("merl80-l40", device="cpu").meta.get("materials") or ())
+    assert len(mats) == 80 and not (mats & test)
+
+
+def test_the_package_is_within_its_size_budget(shipped):
+    folder = models_folder()
+    total = sum(os.path.getsize(os.path.join(folder, f)) for f in os.listdir(folder))
+    assert total <= 30e6, f"built-in models take {total / 1e6:.1f} MB, over the 30 MB budget"
+
+
+def test_sparse_encode_decode_without_m(shipped, tmp_path):
+    from brdfkit.merl import write_merl
+    from brdfkit.samples import draw_samples, write_samples
+    from brdfkit.synthetic import library, table
+
+    ref = table(library(6, seed=3, stiff=False)[5])
+    write_merl(tmp_path / "ref.binary", ref)
+    write_samples(tmp_path / "s.csv", draw_samples(ref, 400, seed=0))
+    r = _run("sparse", "s.csv", "-o", "out.binary", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "prior" in r.stderr and "merl-rgl-l40" in r.stderr
+    r = _run("sparse", "s.csv", "-m", "merl80-l40", "--method", "ipca", "-o", "ipca.binary", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    r = _run("encode", "ref.binary", "-o", "emb", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    embs = [f for f in os.listdir(tmp_path / "emb") if f.endswith(".emb")]
+    assert len(embs) == 1
+    r = _run("decode", os.path.join("emb", embs[0]), "-o", "dec.binary", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    from brdfkit.merl import read_merl
+    from brdfkit.metrics import brdf_log_rmse
+    out = read_merl(tmp_path / "out.binary")
+    assert np.isfinite(out[np.isfinite(ref)]).all()
+    # The learnt prior from 400 samples is a useful reconstruction of an unseen material.
+    assert brdf_log_rmse(out, ref) < 0.5
