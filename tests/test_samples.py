@@ -282,9 +282,9 @@ def test_bad_csv_through_cli(tmp_path, name):
     path = tmp_path / f"{name}.csv"
     path.write_text(content)
     env = {k: v for k, v in os.environ.items() if k != "BRDFKIT_MODEL"}
-    res = run_brdfkit(["sparse", path, "-o", tmp_path / "out.binary"], env=env)
-    if "no model given" in res.stderr:
-        pytest.skip("`brdfkit sparse` now asks for the model before reading the samples")
+    # nbrdf needs no model, so the samples are the first thing read (no built-in is
+    # installed in the tests, and the other methods ask for a model first).
+    res = run_brdfkit(["sparse", path, "--method", "nbrdf", "-o", tmp_path / "out.binary"], env=env)
     assert res.returncode == 2 and "Traceback" not in res.stderr
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and f"{path}: line {line}: " in lines[0]
