@@ -37,8 +37,8 @@ COMPRESSION_MODELS = ("merl80-l40", "merl-rgl-l7")
 """The built-in hypernetworks that compress the full tables; the first interpolates."""
 SAMPLE_COUNTS = (40, 400)
 SHEET_RESOLUTION = 64
-"""Render size of the comparison sheet, pixels: six quadrature renders of 64 px take
-about 6 s on one core, of 128 px four times that (``docs/demo.md``)."""
+"""Render size of the comparison sheet, pixels: its six quadrature renders of 64 px took
+6.2 s on the project's idle 2-core machine (``docs/demo.md``)."""
 
 
 def demo_materials() -> list[str]:

@@ -102,7 +102,7 @@ def command(train, out_dir, seed, device, do_render, resolution, only, minutes, 
     fits) are reconstructed from 40 and 400 samples (learnt prior, and IPCA beside it),
     compressed by the hypernetworks (40 and 7 numbers) and blended; prints the errors and
     times, and writes the tables, embeddings, a comparison sheet and a plot into OUT.
-    About a minute on 2 CPU cores. With --train: trains a small model on synthetic
+    About 30 s on 2 idle CPU cores. With --train: trains a small model on synthetic
     materials instead (about 5 minutes). See docs/demo.md.
     """
     if _mode(train):
