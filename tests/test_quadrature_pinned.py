@@ -145,3 +145,43 @@ def test_share_terms_match_half_share():
     lo, hi = math.log(q.light_handover[0]), math.log(q.light_handover[1])
     x = ((torch.log(th) - lo) / (hi - lo)).clamp(0, 1)
     np.testing.assert_allclose(sy, x * x * (3 - 2 * x), atol=1e-15)
+
+
+def _half_share_table_v1(q, n_o=129, n_t=300, n_p=180):
+    """The per-``cos theta_o`` loop over :func:`half_share` that
+    ``nodes._half_share_table`` was until its vectorisation (frozen)."""
+    from brdfkit.render.nodes import half_share
+
+    cos_o = np.linspace(0.0, 1.0, n_o)
+    th = (np.arange(n_t) + 0.5) / n_t * q.half_extent
+    ph = (np.arange(n_p) + 0.5) / n_p * np.pi
+    st, ct = np.sin(th)[:, None], np.cos(th)[:, None]
+    hx, hz = st * np.cos(ph), np.broadcast_to(ct, (n_t, n_p))
+    thb = np.broadcast_to(th[:, None], (n_t, n_p))
+    out = np.empty(n_o)
+    for i, c in enumerate(cos_o):
+        so = math.sqrt(max(0.0, 1 - c * c))
+        woh = hx * so + hz * c
+        wi_z = 2 * woh * hz - c
+        share = half_share(q, thb, woh, wi_z)
+        f = np.where((woh > 0) & (wi_z > 0), wi_z * 4 * woh * share, 0.0) * st / np.pi
+        out[i] = 2 * f.sum() * (q.half_extent / n_t) * (np.pi / n_p)
+    return cos_o, out
+
+
+@pytest.mark.parametrize("settings", [{}, {"share_power": 2.0, "half_extent": 1.2, "cosine_grid": 6}],
+                         ids=["reference", "other"])
+def test_half_share_table_matches_the_loop(settings):
+    import dataclasses
+
+    from brdfkit.render import nodes
+    from brdfkit.render.scene import REFERENCE
+
+    q = dataclasses.replace(REFERENCE.quadrature, **settings)
+    nodes._SHARE_TABLES.clear()
+    cos_o, got = nodes._half_share_table(q, n_o=33)
+    want_cos, want = _half_share_table_v1(q, n_o=33)
+    np.testing.assert_array_equal(cos_o, want_cos)
+    assert want.min() >= 0 and want.max() > 0.1
+    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
+    assert nodes._half_share_table(q, n_o=33)[1] is got  # once per process

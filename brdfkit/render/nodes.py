@@ -134,29 +134,63 @@ def half_share(q: Quadrature, theta_h, wo_dot_h, cos_i):
 
 
 _SHARE_TABLES: dict = {}
+# cos(theta_o) values per step of _half_share_table: (2, 300, 180) float64 temporaries,
+# 0.9 MB each (larger steps measured slower: the temporaries leave the cache).
+_SHARE_CHUNK = 2
 
 
 def _half_share_table(q: Quadrature, n_o: int = 129, n_t: int = 300, n_p: int = 180):
     """``I_B(cos theta_o) = integral of s_B0(wi, wo) cos(theta_i) / pi dwi`` (:func:`half_share`) over the upper
     hemisphere at ``n_o`` values of ``cos theta_o`` (error about 1e-5), by a fine midpoint
     rule in half-vector space (``dwi = 4 wo.h dh``; ``wo`` in the ``xz`` plane, so
-    ``phi_h`` in ``[0, pi]`` counts twice); computed once per setting and process."""
+    ``phi_h`` in ``[0, pi]`` counts twice); computed once per setting and process.
+
+    :func:`half_share` with its ``theta_h``-only factors (ring density, cut) computed once
+    per ``(theta_h, phi_h)`` node instead of once per ``cos theta_o``, and
+    ``_SHARE_CHUNK`` values of ``cos theta_o`` at a time, in place: 0.40 -> 0.04 s a
+    process, the same table to 1e-15 relative (``tests/test_quadrature_pinned.py`` keeps the
+    per-``cos theta_o`` loop it replaced).
+    """
     key = (q, n_o, n_t, n_p)
     if key not in _SHARE_TABLES:
+        k, p = q.half_rings, q.half_power
         cos_o = np.linspace(0.0, 1.0, n_o)
         th = (np.arange(n_t) + 0.5) / n_t * q.half_extent
         ph = (np.arange(n_p) + 0.5) / n_p * np.pi
         st, ct = np.sin(th)[:, None], np.cos(th)[:, None]
         hx, hz = st * np.cos(ph), np.broadcast_to(ct, (n_t, n_p))
-        thb = np.broadcast_to(th[:, None], (n_t, n_p))
+        # half_share's d_C / d_B = d_c max(cos_i, 1/4) (wo.h) / a(theta_h), cut(theta_h).
+        thc = np.clip(th, 1e-12, None)
+        u = k * (thc / (math.pi / 2)) ** (1.0 / p)
+        dth_du = (math.pi / 2) * p * u ** (p - 1) / k ** p
+        m = np.maximum(q.half_phi * np.sqrt(np.sin(thc)), q.half_phi_min)
+        a = (m / (2 * math.pi * np.sin(thc) * dth_du * 4))[:, None]
+        x = np.clip(thc / q.half_extent, 0.0, 1.0)
+        cut = (1.0 - x * x * (3.0 - 2.0 * x))[:, None]
+        # f = cos_i 4 (wo.h) s_B0 sin(theta_h) / pi = cos_i (wo.h) lead / (1 + ratio).
+        lead = np.ascontiguousarray(np.broadcast_to(4 * cut * st / np.pi, (n_t, n_p)))
+        d_c_a = np.ascontiguousarray(np.broadcast_to(q.cosine_grid ** 2 / math.pi / a, (n_t, n_p)))
+        hz2 = 2 * hz
         out = np.empty(n_o)
-        for i, c in enumerate(cos_o):
-            so = math.sqrt(max(0.0, 1 - c * c))
-            woh = hx * so + hz * c
-            wi_z = 2 * woh * hz - c
-            share = half_share(q, thb, woh, wi_z)
-            f = np.where((woh > 0) & (wi_z > 0), wi_z * 4 * woh * share, 0.0) * st / np.pi
-            out[i] = 2 * f.sum() * (q.half_extent / n_t) * (np.pi / n_p)
+        for s in range(0, n_o, _SHARE_CHUNK):
+            c = cos_o[s:s + _SHARE_CHUNK, None, None]
+            woh = hx * np.sqrt(np.clip(1 - c * c, 0.0, None))
+            woh += hz * c
+            wi_z = woh * hz2
+            wi_z -= c
+            keep = woh > 0
+            keep &= wi_z > 0
+            ratio = np.clip(wi_z, 0.25, None)
+            ratio *= np.clip(woh, 1e-12, None)
+            ratio *= d_c_a
+            if q.share_power != 1:
+                ratio **= q.share_power
+            ratio += 1.0
+            f = wi_z * woh
+            f *= lead
+            f /= ratio
+            f *= keep  # finite everywhere: 0 outside the hemisphere
+            out[s:s + _SHARE_CHUNK] = 2 * f.reshape(len(c), -1).sum(1) * (q.half_extent / n_t) * (np.pi / n_p)
         _SHARE_TABLES[key] = (cos_o, out)
     return _SHARE_TABLES[key]
 
