@@ -382,8 +382,25 @@ def test_extreme_input_gives_a_table_or_one_line(fresh, noisy, tables):
             if model is noisy and use_prior:
                 vals = _on_basis(model.basis.decode(c), model.basis)
                 assert np.isfinite(vals).all() and (vals >= 0).all(), name
-    # Only infinite values are refused (NaN values count as black, as sample_rows says).
-    assert set(name for name, _ in refused) <= {"inf"}, refused
+    # Infinite values are refused; NaN values are unmeasured samples, left out of the fit
+    # (all NaN: nothing to fit).
+    assert set(name for name, _ in refused) <= {"inf", "all_nan"}, refused
+    assert all("non-NaN" in refused[k] for k in refused if k[0] == "all_nan")
+    assert ("all_nan", True) in refused
+
+
+def test_nan_samples_are_left_out_not_black(noisy, tables):
+    """A NaN value says nothing: the fit equals the fit of the other samples, for the
+    learnt prior and for IPCA's ridge fit with the same basis."""
+    s = draw_samples(tables[3], 300, seed=3)
+    holed = draw_samples(tables[3], 300, seed=3)
+    holed.rgb[::3, 1] = np.nan
+    kept = np.ones(len(s), bool)
+    kept[::3] = False
+    sub = SampleSet(s.theta_h[kept], s.theta_d[kept], s.phi_d[kept], s.rgb[kept], "x")
+    np.testing.assert_allclose(noisy.coefficients(holed), noisy.coefficients(sub), rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(noisy.basis.coefficients(holed), noisy.basis.coefficients(sub), rtol=1e-9)
+    assert np.isfinite(noisy.basis.coefficients(holed)).all()
 
 
 def test_samples_below_the_horizon_or_none(fresh):

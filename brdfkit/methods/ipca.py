@@ -187,11 +187,14 @@ class IpcaModel:
         at = lookup_trilinear(self._table().reshape(GRID_SHAPE + (-1,)),
                               samples.theta_h, samples.theta_d, samples.phi_d)
         w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
-        # Samples no basis cell reaches, or with no weight (on the horizon), say nothing.
-        use = np.isfinite(at).all(axis=1) & (w > 0)
+        # Samples no basis cell reaches, with no weight (on the horizon), or unmeasured
+        # (NaN, MERL's convention) say nothing.
+        nan = np.isnan(np.asarray(samples.rgb)).any(axis=1)
+        use = np.isfinite(at).all(axis=1) & (w > 0) & ~nan
         if not use.any():
-            raise InputError(f"{samples.source or 'samples'}: no sample lies on a cell the PCA "
-                             f"basis covers")
+            what = ("no sample has a measured (non-NaN) value" if nan.all()
+                    else "no sample lies on a cell the PCA basis covers")
+            raise InputError(f"{samples.source or 'samples'}: {what}")
         at, w = at[use], w[use]
         ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
         x = np.clip(np.asarray(samples.rgb, np.float64)[use], 0.0, None) * w[:, None]

@@ -138,7 +138,7 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None):
 
 
 def sample_rows(basis: IpcaModel, samples):
-    """The samples a basis cell covers with a non-zero cosine weight, as float64 arrays:
+    """The measured (non-NaN) samples a basis cell covers with a non-zero cosine weight, as float64 arrays:
     ``(ok, tab (S, K + 2), w, cos_i, rho, hd (S, 6))``, ``ok`` the mask over the
     samples. The basis is read trilinearly at each sample's angles (exactly at a cell's
     own angles), as :meth:`IpcaModel.coefficients` reads it."""
@@ -147,9 +147,11 @@ def sample_rows(basis: IpcaModel, samples):
     tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
                            samples.phi_d).astype(np.float64)
     w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
-    ok = np.isfinite(tab).all(1) & (w > 0)
+    rgb = np.asarray(samples.rgb, np.float64)
+    # A NaN value is an unmeasured sample (MERL's convention), not a black one: it says nothing.
+    ok = np.isfinite(tab).all(1) & (w > 0) & ~np.isnan(rgb).any(1)
     cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
-    rho = np.clip(np.nan_to_num(np.asarray(samples.rgb, np.float64)[ok], nan=0.0), 0, None)
+    rho = np.clip(rgb[ok], 0, None)
     return ok, tab[ok], w[ok], cos, rho, samples.hd()[ok]
 
 
@@ -187,8 +189,9 @@ class PriorModel:
             raise InputError(f"{samples.source or 'samples'}: no samples to fit")
         ok, tab, w, cos, rho, hd = sample_rows(self.basis, samples)
         if not ok.any():
-            raise InputError(f"{samples.source or 'samples'}: no sample lies on a cell the basis covers "
-                             f"above the horizon")
+            what = ("no sample has a measured (non-NaN) value" if np.isnan(np.asarray(samples.rgb)).any(1).all()
+                    else "no sample lies on a cell the basis covers above the horizon")
+            raise InputError(f"{samples.source or 'samples'}: {what}")
         T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
         sig = torch.from_numpy(self.basis.sigma.astype(np.float32))[None]
         args = (T(tab), T(rho), T(w), T(cos), sig, self.cfg.s2, self.cfg.lam)
