@@ -6,11 +6,16 @@ containers and never runs pickled code. It holds:
 
 * ``format = "brdfkit-checkpoint"``, ``version``;
 * ``step`` (steps done), ``elapsed`` (training seconds so far, over all runs),
-  ``skipped`` (steps skipped for a non-finite loss), ``loss_ema``;
+  ``skipped`` (steps skipped for a non-finite loss), ``loss_ema``, ``resumed_from``
+  (the step each earlier ``--resume`` started from, oldest first; recorded in the
+  model's ``meta.resumed_from_steps``);
 * ``net`` (the model's ``state_dict``) and ``optimizer`` (Adam's ``state_dict``);
 * the identity of the run, checked on resume: ``config`` (HyperConfig JSON), ``options``
   (the sampling and optimiser settings, JSON), ``materials``, ``data_digest``, ``seed``,
-  ``world_size``.
+  ``world_size``, ``reference_from`` (the weights fingerprint of the model whose
+  reference table the run trains against, ``fit(reference=...)``; ``None``: the median
+  of the training materials; absent in checkpoints from before that option, read as
+  ``None``; :meth:`brdfkit.trainset.GivenReference.check_resumable`).
 
 There is no random-generator state to save: the batch sampler re-seeds from
 ``(seed, rank, step)`` at every step (:class:`brdfkit.trainset.BatchSampler`), so the

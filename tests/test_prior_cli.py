@@ -173,6 +173,7 @@ def test_sparse_usage_errors(installed, capsys, tmp_path):
         line = _one_error_line(err)
         assert code == 2 and all(w in line for w in words), line
     for argv, words in ((["-m", "tiny-h", "--method", "prior"], ("'tiny-h' has no learnt prior",)),
+                        (["-m", "tiny-h", "--method", "ipca"], ("'tiny-h' ships no PCA basis", "with one: tiny-p")),
                         (["-m", "nope"], ("unknown model 'nope'", "tiny-p, tiny-h"))):
         code, _, err = _cli(capsys, ["sparse", s, *argv, "-o", out])
         line = _one_error_line(err)

@@ -111,8 +111,23 @@ def test_models_on_other_materials_share_one_reference_file(lib, tmp_path, monke
     assert a.rho_ref.tobytes() == b.rho_ref.tobytes()
     # Without the option the reference is the median of 3 materials, and cannot be shared.
     tiny_fit(lib, tmp_path / "own.safetensors")
-    with pytest.raises(ValueError, match="another reference table"):
+    with pytest.raises(ValueError, match="another reference table") as e:
         builtin.pack_model(tmp_path / "own.safetensors", shelf / "own.safetensors", reference_file="ref.safetensors")
+    assert "-O reference=MODEL" in str(e.value) and "same materials" not in str(e.value)
+
+
+def test_checkpoint_keys_are_documented(lib, source, tmp_path):
+    """Every key a training checkpoint holds is listed in brdfkit.checkpoint's docstring."""
+    import re
+
+    from brdfkit import checkpoint
+
+    out = tmp_path / "m.safetensors"
+    tiny_fit(lib, out, reference=str(source[0]))
+    state = checkpoint.load_checkpoint(checkpoint.checkpoint_path(out))
+    assert state["reference_from"] == source[1]
+    documented = set(re.findall(r"``(\w+)", checkpoint.__doc__))
+    assert set(state) <= documented, sorted(set(state) - documented)
 
 
 def test_bad_reference_is_one_line_exit_2(lib, source, tmp_path, capsys):

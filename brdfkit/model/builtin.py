@@ -242,9 +242,23 @@ def resolve_prior(spec: str | os.PathLike) -> str:
 
 def resolve_basis(spec: str | os.PathLike) -> str:
     """The PCA basis file a ``-m`` value names: a path as it is, else the basis file of
-    the installed built-in of that name (the one its learnt prior is fitted with)."""
+    the installed built-in of that name (the one its learnt prior is fitted with).
+
+    Raises
+    ------
+    InputError
+        An unknown name, or a built-in that ships no basis (no learnt prior), the message
+        naming the built-ins that do.
+    """
     if is_path_spec(spec):
         return os.fspath(spec)
+    installed = builtin_models()
+    entry = next((m for m in installed if m.name == spec), None)
+    if entry is not None and entry.prior is None:
+        # A built-in's basis comes with its learnt prior: one without ships none.
+        having = ", ".join(m.name for m in installed if m.prior) or "none installed"
+        raise InputError(f"built-in model {entry.name!r} ships no PCA basis (method ipca takes the basis of a "
+                         f"built-in's learnt prior; built-ins with one: {having})")
     prior = _builtin_part(spec, "prior")
     from ..tensorfile import open_safetensors
 

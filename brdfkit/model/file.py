@@ -109,7 +109,10 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
     reference_file
         A bare file name: keep the reference in this shared file beside ``path`` instead
         (implies ``compact``). Written when absent; when present it must hold the same
-        reference (models trained on the same materials share one).
+        reference, stored at the same precision: models share one when they were trained
+        against the same reference table, whatever their materials (the median of the
+        same materials, or one model's table given to the others, ``brdfkit fit -O
+        reference=MODEL``, ``docs/training.md``).
 
     Returns
     -------
@@ -171,8 +174,9 @@ def _share_reference(path, name: str, mask, values, digest: str, materials) -> N
     shared = os.path.join(os.path.dirname(os.path.abspath(os.fspath(path))), name)
     if os.path.exists(shared):
         if storage.read_shared_reference(shared)[2] != digest:
-            raise ValueError(f"{shared} holds another reference table (models sharing one must be "
-                             "trained on the same materials, and saved with the same precision)")
+            raise ValueError(f"{shared} holds another reference table (models sharing one must be trained "
+                             "against the same reference, e.g. with `brdfkit fit -O reference=MODEL`, "
+                             "and saved with the same precision)")
         return
     storage.write_shared_reference(shared, mask, values, [str(m) for m in materials])
 
