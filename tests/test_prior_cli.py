@@ -229,6 +229,33 @@ def test_load_model_takes_a_builtin_name(installed):
 
 # --- brdfkit bench ------------------------------------------------------------------------------
 
+def test_bench_default_methods_lead_with_a_builtins_prior(installed, capsys, tmp_path):
+    """With no --methods, a built-in -m that has a learnt prior adds the method 'prior'
+    (its prior, as `sparse --method auto` picks it) before hypernet, ipca, nbrdf."""
+    from brdfkit.bench import DEFAULT_METHODS, BenchConfig
+
+    folder, inputs = installed
+    r = BenchConfig(output="o", data=str(inputs), model="tiny-p", ipca="tiny-p").resolved()
+    assert r.methods == ("prior", *DEFAULT_METHODS) and r.models == {"prior": str(folder / PRIOR)}
+    for cfg in (BenchConfig(output="o", model="tiny-h"), BenchConfig(output="o", model=str(folder / "tiny-p.safetensors")),
+                BenchConfig(output="o")):
+        assert cfg.resolved().methods == DEFAULT_METHODS and cfg.resolved().models == {}
+    assert BenchConfig(output="o", model="tiny-p", methods=("ipca",)).resolved().methods == ("ipca",)
+    given = BenchConfig(output="o", model="tiny-h", models={"prior": "tiny-p"}).resolved()
+    assert given.methods == ("prior", *DEFAULT_METHODS) and given.models == {"prior": str(folder / PRIOR)}
+
+    out = tmp_path / "out"
+    code, _, err = _cli(capsys, ["bench", "--data", inputs, "-m", "tiny-p", "--ipca", "tiny-p", "--n", "40",
+                                 "--seeds", "1", "--nbrdf-steps", "2", "--resolution", "8", "--threads", "1",
+                                 "-q", "-o", out])
+    assert code == 0, err
+    result = json.loads((out / "bench.json").read_text())
+    assert result["config"]["methods"] == ["prior", "hypernet", "ipca", "nbrdf"]
+    assert result["config"]["models"] == {"prior": str(folder / PRIOR)}
+    assert sorted(r["method"] for r in result["records"]) == ["hypernet", "ipca", "nbrdf", "prior"]
+    assert all("error" not in r for r in result["records"]), result["records"]
+
+
 def test_bench_takes_builtin_names(installed, capsys, tmp_path):
     from brdfkit.bench import BenchConfig
     from brdfkit.errors import InputError

@@ -6,8 +6,9 @@ What is measured (Gokbudak et al. 2024, Sec. 4, on whatever tables are given)
 and every seed ``s = 0 .. K-1``, ``N`` samples are drawn from the material's table
 (:func:`brdfkit.samples.draw_samples`, uniform over the Rusinkiewicz angles, the seed
 derived from ``(s, N, material name)`` so all methods see the *same* draw), and every
-method of :mod:`brdfkit.methods` reconstructs a dense table from them. Each
-reconstruction is scored:
+method (by default :func:`default_methods`: the learnt prior of a built-in ``-m``, the
+hypernetwork, IPCA, NBRDF) reconstructs a dense table from them. Each reconstruction is
+scored:
 
 * ``time_s``: wall time of ``Method.reconstruct`` alone (samples in, dense
   ``(90, 90, 180, 3)`` table out: encode + dense decode for the hypernetwork, ridge fit +
@@ -43,10 +44,10 @@ scoring), :mod:`.runner` (:func:`run_bench`, :func:`merge_results`), :mod:`.summ
 :mod:`.report` (``bench.md`` and the plots).
 """
 
-from .config import DEFAULT_METHODS, DEFAULT_N, DEFAULT_RESOLUTION, METRICS, BenchConfig, sample_seed
+from .config import DEFAULT_METHODS, DEFAULT_N, DEFAULT_RESOLUTION, METRICS, BenchConfig, default_methods, sample_seed
 from .report import write_markdown, write_plots
 from .runner import merge_results, run_bench
 from .summary import summarise
 
 __all__ = ["BenchConfig", "run_bench", "merge_results", "summarise", "write_markdown", "write_plots",
-           "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed"]
+           "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed", "default_methods"]

@@ -11,10 +11,12 @@ import numpy as np
 from ..atomic import check_input_file
 from ..errors import InputError
 
-__all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed"]
+__all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed",
+           "default_methods"]
 
 DEFAULT_N = (40, 160, 400, 2000, 4000)
 DEFAULT_METHODS = ("hypernet", "ipca", "nbrdf")
+"""The methods run when none are named and no learnt prior is at hand (:func:`default_methods`)."""
 DEFAULT_RESOLUTION = 128
 """Render size for the image metrics: 128 x 128 keeps a reference-scene render near a
 second of CPU time per reconstruction (the scene's own 256 takes four times as long)."""
@@ -48,7 +50,9 @@ class BenchConfig:
     n, seeds, first_seed, methods
         Sample counts, number of draws per (material, N) (seeds ``first_seed ..
         first_seed + seeds - 1``; a later run with other seeds can be merged, see
-        :func:`merge_results`), methods.
+        :func:`merge_results`), methods (``None``: :func:`default_methods`, the learnt
+        prior first when ``model`` names a built-in that has one; :meth:`resolved`
+        fills them in).
     compression_models, compression_data
         Hypernetwork models to test on encode -> decode of every table in
         ``compression_data`` (plus the PCA basis, when ``ipca`` is given).
@@ -79,7 +83,7 @@ class BenchConfig:
     n: tuple = DEFAULT_N
     seeds: int = 3
     first_seed: int = 0
-    methods: tuple = DEFAULT_METHODS
+    methods: tuple | None = None
     compression_models: tuple = ()
     compression_data: str | None = None
     resolution: int = DEFAULT_RESOLUTION
@@ -100,7 +104,8 @@ class BenchConfig:
         return self.models.get(method) or (getattr(self, option) if option else None)
 
     def resolved(self) -> "BenchConfig":
-        """This configuration with the built-in names among its model files replaced by
+        """This configuration with its default methods filled in
+        (:meth:`with_default_methods`) and the built-in names among its model files replaced by
         the files (:func:`brdfkit.methods.model_spec.resolve_for`: each method's part of
         the built-in, checked against the manifest); paths stay as given. :func:`run_bench`
         runs and records the resolved one.
@@ -113,11 +118,22 @@ class BenchConfig:
         from ..methods import METHODS
         from ..methods.model_spec import resolve_for
 
+        cfg = self.with_default_methods()
         fields = {m.bench_option: name for name, m in METHODS.items() if m.bench_option}
         return dataclasses.replace(
-            self, **{f: resolve_for(name, getattr(self, f)) for f, name in fields.items() if getattr(self, f)},
-            models={m: resolve_for(m, p) if p else p for m, p in self.models.items()},
-            compression_models=tuple(resolve_for("hypernet", p) for p in self.compression_models))
+            cfg, **{f: resolve_for(name, getattr(cfg, f)) for f, name in fields.items() if getattr(cfg, f)},
+            models={m: resolve_for(m, p) if p else p for m, p in cfg.models.items()},
+            compression_models=tuple(resolve_for("hypernet", p) for p in cfg.compression_models))
+
+    def with_default_methods(self) -> "BenchConfig":
+        """This configuration with ``methods=None`` replaced by :func:`default_methods`
+        (and, when that adds the learnt prior, ``models["prior"]`` the built-in's name);
+        itself when methods are given."""
+        if self.methods is not None:
+            return self
+        methods, prior = default_methods(self.model, self.models.get("prior"))
+        models = {**self.models, "prior": prior} if prior else self.models
+        return dataclasses.replace(self, methods=methods, models=models)
 
     def compressors(self) -> list:
         """``(method, model file)`` of the compression benchmark: the hypernetwork models
@@ -145,6 +161,8 @@ class BenchConfig:
         """:class:`InputError` for a configuration that cannot run."""
         from ..methods import get_method
 
+        if self.methods is None:
+            return self.with_default_methods().validate()
         if self.data is None and not self.compression_models:
             raise InputError("nothing to run: give --data (sparse benchmark) and/or "
                              "--compression-models with --compression-data")
@@ -188,6 +206,36 @@ class BenchConfig:
             if d is not None and not os.path.isdir(d):
                 raise InputError(f"{d}: not a folder of MERL tables")
 
+
+
+def default_methods(model: str | None, prior: str | None = None) -> tuple[tuple, str | None]:
+    """The methods ``brdfkit bench`` runs when ``--methods`` is not given, and the
+    learnt prior they use.
+
+    The learnt prior is ``brdfkit sparse``'s default method
+    (:func:`brdfkit.methods.model_spec.choose`, ``--method auto``), so it leads the list
+    whenever there is one to run: ``prior`` (``--model-file prior=...``) when given, else
+    that of the built-in ``model`` names (``-m merl80-l40``) when ``choose`` picks it.
+    A model *file* given as ``-m`` is the hypernetwork's and adds nothing.
+
+    Returns
+    -------
+    tuple
+        ``(methods, prior)``: ``("prior",) + DEFAULT_METHODS`` and the prior's model
+        file or built-in name, or :data:`DEFAULT_METHODS` and ``None``.
+
+    Raises
+    ------
+    InputError
+        ``model`` is neither a file nor an installed built-in.
+    """
+    if not prior and model:
+        from ..methods.model_spec import AUTO, choose
+        from ..model.builtin import is_path_spec
+
+        if not is_path_spec(model) and choose(AUTO, model).method == "prior":
+            prior = model
+    return (("prior",) + DEFAULT_METHODS, prior) if prior else (DEFAULT_METHODS, None)
 
 
 def sample_seed(seed: int, n: int, name: str) -> int:

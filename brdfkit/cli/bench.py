@@ -28,7 +28,8 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--test-list", type=click.Path(dir_okay=False), default=None,
               help="Test material names, one a line (e.g. merl-test.txt, the paper's 20 test materials: docs/data.md); default: all of --data.")
 @click.option("-m", "--model", type=click.Path(dir_okay=False), default=None, metavar="NAME|FILE",
-              help="Hypernetwork model (.safetensors, or a built-in name) for the method 'hypernet'.")
+              help="Hypernetwork model (.safetensors, or a built-in name) for the method 'hypernet'; a built-in "
+                   "with a learnt prior gives the method 'prior' its model too.")
 @click.option("--ipca", type=click.Path(dir_okay=False), default=None, metavar="NAME|FILE",
               help="PCA basis (.safetensors from `brdfkit fit --method ipca`, or a built-in name: its basis) "
                    "for 'ipca' and the compression reference.")
@@ -41,8 +42,10 @@ def _str_list(value: str | None) -> tuple:
               help="Draws of samples per material and N (mean and spread over them).")
 @click.option("--first-seed", type=int, default=0, show_default=True,
               help="First seed (seeds FIRST .. FIRST+K-1): more draws later, then --merge.")
-@click.option("--methods", default="hypernet,ipca,nbrdf", show_default=True,
-              help="Reconstruction methods, comma-separated.")
+@click.option("--methods", default=None,
+              help="Reconstruction methods, comma-separated [default: hypernet,ipca,nbrdf, led by prior "
+                   "when -m names a built-in with a learnt prior (as `sparse --method auto` picks) or "
+                   "--model-file prior= is given].")
 @click.option("--compression-models", default=None,
               help="Hypernetwork models (files or built-in names) to test on encode -> decode, comma-separated "
                    "(e.g. merl-rgl-l7,m40.safetensors).")
@@ -109,7 +112,7 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
             raise InputError(f"--model-file {item!r}: expected METHOD=FILE")
         models[name.strip()] = path
     cfg = BenchConfig(output=output, data=data, test_list=test_list, model=model, ipca=ipca, models=models,
-                      n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed, methods=_str_list(methods),
+                      n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed, methods=None if methods is None else _str_list(methods),
                       compression_models=_str_list(compression_models), compression_data=compression_data,
                       resolution=resolution, jobs=jobs, threads=threads, device=device,
                       options=options,
