@@ -36,7 +36,7 @@ import numpy as np
 
 from .geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H
 
-__all__ = ["TrilinearTable", "lookup_prepared"]
+__all__ = ["TrilinearTable", "lookup_prepared", "lookup_prepared_many"]
 
 
 class TrilinearTable:
@@ -98,28 +98,49 @@ def lookup_prepared(lut: TrilinearTable, u_h, u_d, u_p, fill):
     Returns ``(..., C)`` of the promoted type of the table and the coordinates, a tensor
     (channel-major in memory for 1-D coordinates) or a NumPy array for a NumPy table.
     """
+    return lookup_prepared_many([lut], u_h, u_d, u_p, fill)[0]
+
+
+def lookup_prepared_many(luts, u_h, u_d, u_p, fill):
+    """:func:`lookup_prepared` of several prepared tables at the same coordinates: the
+    corners' rows and weights are computed once per block and each table gathers and
+    sums its own, so each result is its :func:`lookup_prepared`, to the bit (the same
+    operations on the same numbers). The tables must share their kind (NumPy or torch),
+    dtype and device; their channels may differ.
+
+    Why not one table with both tables' rows side by side (32-byte rows, one cache miss
+    a corner for both): PyTorch's CPU gather moves at most 16 bytes an element, so such
+    rows take two elements a corner, and on the project machine (issue 14) that measured
+    no faster than two tables, while sharing the corner computation saves its share.
+    """
     import torch
 
+    lut = luts[0]
+    for other in luts[1:]:
+        if (other.numpy, other.rows.dtype, other.rows.device) != (lut.numpy, lut.rows.dtype, lut.rows.device):
+            raise ValueError("tables looked up together must share kind, dtype and device")
     if lut.numpy:
         u = torch.from_numpy(np.stack(np.broadcast_arrays(u_h, u_d, u_p)))
     else:
         u = torch.stack(torch.broadcast_tensors(u_h, u_d, u_p))
     shape, n = u.shape[1:], u[0].numel()
     u = u.view(3, n)
-    out = u.new_empty((lut.channels, n), dtype=torch.promote_types(lut.rows.dtype, u.dtype))
+    outs = [u.new_empty((t.channels, n), dtype=torch.promote_types(t.rows.dtype, u.dtype)) for t in luts]
     for s in range(0, n, lut.block):
-        _lookup_block(lut, u[:, s:s + lut.block] if n > lut.block else u, fill,
-                      out[:, s:s + lut.block] if n > lut.block else out)
-    out = out.T.reshape(shape + (lut.channels,))
-    return out.numpy() if lut.numpy else out
+        corner, w = _corners(lut, u[:, s:s + lut.block] if n > lut.block else u)
+        for t, out in zip(luts, outs):
+            _combine(t, corner, w, fill, out[:, s:s + lut.block] if n > lut.block else out)
+    outs = [out.T.reshape(shape + (t.channels,)) for t, out in zip(luts, outs)]
+    return [out.numpy() for out in outs] if lut.numpy else outs
 
 
-def _lookup_block(lut, u, fill, out):
-    """Lookup at grid coordinates ``u`` ``(3, m)`` into ``out`` ``(C, m)``, in few operations
-    (each costs a few microseconds of dispatch on a CPU, whatever its size)."""
+def _corners(lut, u):
+    """Row numbers ``(8 m,)`` and weights ``(8, m)`` of the corners of grid coordinates
+    ``u`` ``(3, m)``, in few operations (each costs a few microseconds of dispatch on a
+    CPU, whatever its size)."""
     import torch
 
-    m, c, rows = u.shape[1], lut.channels, lut.rows
+    m = u.shape[1]
     f = torch.floor(u)
     # Weights -frac + 1 (the plain lookup's 1 - frac) and frac + 0, frac = u - floor(u)
     # (its u - i0); NaN (whose weight makes the result NaN, as in the plain lookup) made
@@ -132,7 +153,15 @@ def _lookup_block(lut, u, fill, out):
     # its weight (w_h w_d) w_phi.
     corner = ih.view(2, 1, 1, m) + id_.view(1, 2, 1, m) + ip.view(1, 1, 2, m)
     w = (wh.view(2, 1, 1, m) * wd.view(1, 2, 1, m) * wp.view(1, 1, 2, m)).view(8, m)
-    g = lut._elements.index_select(0, corner.view(-1))
+    return corner.view(-1), w
+
+
+def _combine(lut, corner, w, fill, out):
+    """Gather the corners' rows of ``lut`` and interpolate into ``out`` ``(C, m)``."""
+    import torch
+
+    m, c, rows = w.shape[1], lut.channels, lut.rows
+    g = lut._elements.index_select(0, corner)
     t = g.view(lut._int).view(8, m, -1).permute(2, 0, 1).contiguous().view(rows.dtype)
     t = t.mul_(w) if t.dtype == w.dtype else t * w
     t = t.unbind(1)

@@ -218,3 +218,58 @@ def test_prepared_table_with_infinite_values():
     th, td, pd = _angles(20000, 11)
     for fill in (float("nan"), 0.0):
         _same(g.lookup_trilinear(lut, th, td, pd, fill=fill), reference_lookup(table, th, td, pd, fill=fill))
+
+
+@pytest.mark.parametrize("block", [977, 1 << 14])
+def test_tables_looked_up_together_are_each_alone(block):
+    """``trilinear.lookup_prepared_many`` (a pass rendering two tables): each table's
+    result is its own lookup's, NaN semantics included, whatever the other tables hold
+    (MERL's unmeasured region, holes, per-channel NaN, one channel all NaN, infinities)."""
+    from brdfkit.trilinear import lookup_prepared_many
+
+    ts = _tables(12)
+    inf = ts["holes"].copy()
+    inf[inf > 0.9] = np.inf
+    tables = [ts["merl"], ts["holes"], ts["per_channel"], ts["all_nan"], inf]
+    th, td, pd = _angles(20000, 13)
+    for kind in ("numpy", "torch"):
+        tabs = tables if kind == "numpy" else [torch.as_tensor(t, dtype=torch.float32) for t in tables]
+        angles = (th, td, pd) if kind == "numpy" else tuple(torch.as_tensor(a, dtype=torch.float32)
+                                                            for a in (th, td, pd))
+        luts = [g.TrilinearTable(t) for t in tabs]
+        for lut in luts:
+            lut.block = block
+        with np.errstate(invalid="ignore"):
+            for fill in (float("nan"), 0.0):
+                got = lookup_prepared_many(luts, *g.fractional_indices(*angles), fill)
+                assert len(got) == len(tabs)
+                for t, lut, x in zip(tabs, luts, got):
+                    _same(np.asarray(x), np.asarray(g.lookup_trilinear(lut, *angles, fill=fill)))
+                    _same(np.asarray(x), np.asarray(reference_lookup(t, *angles, fill=fill)))
+    with pytest.raises(ValueError, match="share"):
+        lookup_prepared_many([g.TrilinearTable(tables[0]), g.TrilinearTable(torch.as_tensor(tables[1]))],
+                             *g.fractional_indices(th, td, pd), 0.0)
+
+
+@pytest.mark.parametrize("prepare_after", [0, 1 << 40])
+def test_table_stack_brdf_is_each_table_alone(prepare_after):
+    """:class:`TableStackBRDF`: the member tables' ``eval_dirs`` side by side, to the bit,
+    prepared or not."""
+    from brdfkit.render.brdf import TableBRDF, TableStackBRDF
+
+    ts = _tables(14)
+    alone = [TableBRDF(ts[k], name=k, device="cpu") for k in ("merl", "holes")]
+    together = [TableBRDF(ts[k], name=k, device="cpu") for k in ("merl", "holes")]
+    for b in alone + together:
+        b.PREPARE_AFTER = prepare_after
+    stack = TableStackBRDF(together)
+    assert stack.members == 2 and stack.name == "merl + holes"
+    rng = np.random.default_rng(15)
+    wi = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
+    wo = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
+    wi, wo = wi / wi.norm(dim=1, keepdim=True), wo / wo.norm(dim=1, keepdim=True)
+    got = stack.eval_dirs(wi, wo)
+    assert got.shape == (5000, 6) and got.T.is_contiguous()
+    _same(got[:, :3].numpy(), alone[0].eval_dirs(wi, wo).numpy())
+    _same(got[:, 3:].numpy(), alone[1].eval_dirs(wi, wo).numpy())
+    assert all((b._lut is not None) == (prepare_after == 0) for b in together)

@@ -131,3 +131,45 @@ def test_each_table_is_read_once_for_a_pair(tmp_path, monkeypatch):
     r = compare_files(FileLoader(resolution=RES, progress=False), str(a), str(b))
     assert sorted(reads) == sorted([str(a), str(b)])
     assert np.isfinite(r["brdf_log_rmse"]) and r["brdf_log_rmse"] > 0
+
+
+def test_two_tables_stacked_in_one_pass_equal_separate_renders(monkeypatch):
+    """Tables rendered together are looked up together (``TableStackBRDF``: angles and
+    corners once, through the prepared tables here), a neural BRDF between them apart;
+    each image is its separate render to the bit, NaN semantics included (one table
+    unmeasured outside MERL's region and in holes, where its corners are skipped or 0)."""
+    from brdfkit.render import brdf as brdf_mod
+    from brdfkit.render.brdf import TableStackBRDF, stack_tables
+
+    from helpers_foundation import measured_mask
+
+    monkeypatch.setattr(TableBRDF, "PREPARE_AFTER", 0)
+    holes = np.array(material_table(1), dtype=np.float64)
+    holes[~measured_mask()] = np.nan
+    holes[np.random.default_rng(0).random(holes.shape[:3]) < 0.2] = np.nan
+    holes[30:40, 10:20] = np.nan
+    made = []
+    real = brdf_mod.TableStackBRDF
+    monkeypatch.setattr(brdf_mod, "TableStackBRDF", lambda b: made.append(real(b)) or made[-1])
+    scene = Scene(resolution=32)
+    brdfs = [TableBRDF(material_table(0), "white", device="cpu"), _Scaled(0.5, material_table(1)),
+             TableBRDF(holes, "holes", device="cpu")]
+    passes = stack_tables(brdfs)
+    assert [idx for _, idx in passes] == [[0, 2], [1]] and isinstance(passes[0][0], TableStackBRDF)
+    made.clear()
+    together = quadrature.render_many(brdfs, scene)
+    assert len(made) == 1 and all(b._lut is not None for b in made[0].brdfs)
+    for brdf, (img, _) in zip(brdfs, together):
+        alone, _ = quadrature.render(brdf, scene)
+        _same(img, alone)
+    assert not np.array_equal(together[0][0], together[2][0])
+
+
+class _Scaled:
+    """A BRDF that is not a table (renders alone in a pass)."""
+
+    def __init__(self, k, table):
+        self.inner, self.k, self.name, self.device = TableBRDF(table, device="cpu"), k, "scaled", "cpu"
+
+    def eval_dirs(self, wi, wo):
+        return self.inner.eval_dirs(wi, wo) * self.k

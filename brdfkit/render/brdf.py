@@ -23,7 +23,7 @@ from ..device import resolve_device
 from ..errors import InputError
 from ..geometry import TABLE_SHAPE
 
-__all__ = ["TableBRDF", "load_brdf", "brdf_kind"]
+__all__ = ["TableBRDF", "TableStackBRDF", "stack_tables", "load_brdf", "brdf_kind"]
 
 
 class TableBRDF:
@@ -58,23 +58,99 @@ class TableBRDF:
         self._lut = None  # geometry.TrilinearTable of _t, built after PREPARE_AFTER pairs
         self._pairs = 0
 
-    def eval_dirs(self, wi, wo):
-        """BRDF ``(N, 3)`` float32 at local direction pairs ``wi, wo`` (torch ``(N, 3)``)."""
-        import torch
+    def _lookup_table(self, pairs: int):
+        """The table to look up after ``pairs`` more pairs: the prepared one once asked for
+        :attr:`PREPARE_AFTER` in all, else the plain float32 table."""
+        from ..geometry import TrilinearTable
 
-        from ..geometry import TrilinearTable, half_diff_from_io, lookup_trilinear
-
-        self._pairs += wi.numel() // 3
+        self._pairs += pairs
         if self._lut is None and self._pairs >= self.PREPARE_AFTER:
             self._lut = TrilinearTable(self._t)
-        wi_ = wi.to(self.device, torch.float32).reshape(-1, 3)
-        wo_ = wo.to(self.device, torch.float32).reshape(-1, 3)
-        th, _, td, pd = half_diff_from_io(wi_, wo_)
-        rho = lookup_trilinear(self._t if self._lut is None else self._lut, th, td, pd, fill=0.0)
-        above = (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
+        return self._t if self._lut is None else self._lut
+
+    def eval_dirs(self, wi, wo):
+        """BRDF ``(N, 3)`` float32 at local direction pairs ``wi, wo`` (torch ``(N, 3)``)."""
+        from ..geometry import lookup_trilinear
+
+        th, td, pd, above = _pair_angles(wi, wo, self.device)
+        rho = lookup_trilinear(self._lookup_table(th.shape[0]), th, td, pd, fill=0.0)
         # In place on the (3, N) rows: the prepared lookup's (N, 3) is channel-major in
         # memory, and so is what comes back (the quadrature reads it per channel).
         return rho.T.masked_fill_(~above, 0.0).T.to(wi.device)
+
+
+def _pair_angles(wi, wo, device):
+    """``(theta_h, theta_d, phi_d, above)`` of direction pairs, float32 on ``device``."""
+    import torch
+
+    from ..geometry import half_diff_from_io
+
+    wi_ = wi.to(device, torch.float32).reshape(-1, 3)
+    wo_ = wo.to(device, torch.float32).reshape(-1, 3)
+    th, _, td, pd = half_diff_from_io(wi_, wo_)
+    return th, td, pd, (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
+
+
+class TableStackBRDF:
+    """Several :class:`TableBRDF` evaluated together at the same direction pairs (a
+    quadrature pass rendering two tables: ``brdfkit metrics`` of a pair).
+
+    The pairs' angles, and once both tables are prepared the corners' rows and weights
+    (:func:`brdfkit.trilinear.lookup_prepared_many`), are computed once for all members;
+    each member's values are those of its own ``eval_dirs``, to the bit.
+
+    Parameters
+    ----------
+    brdfs
+        :class:`TableBRDF` on one device.
+
+    Attributes
+    ----------
+    members
+        Number of tables: ``eval_dirs`` returns ``(N, 3 members)``.
+    """
+
+    def __init__(self, brdfs):
+        self.brdfs = list(brdfs)
+        if not self.brdfs or any(not isinstance(b, TableBRDF) for b in self.brdfs):
+            raise TypeError("TableStackBRDF takes TableBRDF members")
+        if len({str(b.device) for b in self.brdfs}) != 1:
+            raise ValueError("the tables of a TableStackBRDF must share a device")
+        self.members = len(self.brdfs)
+        self.device = self.brdfs[0].device
+        self.name = " + ".join(b.name for b in self.brdfs)
+
+    def eval_dirs(self, wi, wo):
+        """float32 ``(N, 3 members)`` at local direction pairs ``wi, wo`` (torch
+        ``(N, 3)``): member ``j`` in columns ``3 j .. 3 j + 2``, channel-major in memory."""
+        import torch
+
+        from ..geometry import fractional_indices, lookup_trilinear
+        from ..trilinear import TrilinearTable, lookup_prepared_many
+
+        th, td, pd, above = _pair_angles(wi, wo, self.device)
+        tables = [b._lookup_table(th.shape[0]) for b in self.brdfs]
+        if all(isinstance(t, TrilinearTable) for t in tables):
+            rhos = lookup_prepared_many(tables, *fractional_indices(th, td, pd), 0.0)
+        else:
+            rhos = [lookup_trilinear(t, th, td, pd, fill=0.0) for t in tables]
+        return torch.cat([r.T for r in rhos]).masked_fill_(~above, 0.0).T.to(wi.device)
+
+
+def stack_tables(brdfs) -> list:
+    """How a pass evaluates ``brdfs``: ``[(evaluator, indices)]``, the :class:`TableBRDF`
+    among them (two or more on one device) as one :class:`TableStackBRDF` whose members
+    are ``brdfs[i]`` for ``i`` in ``indices`` (in order), every other BRDF alone."""
+    out, stacks = [], {}
+    for i, b in enumerate(brdfs):
+        if type(b) is TableBRDF:
+            if str(b.device) not in stacks:
+                stacks[str(b.device)] = []
+                out.append(stacks[str(b.device)])
+            stacks[str(b.device)].append(i)
+        else:
+            out.append([i])
+    return [(TableStackBRDF([brdfs[i] for i in idx]) if len(idx) > 1 else brdfs[idx[0]], idx) for idx in out]
 
 
 def brdf_kind(path) -> str:

@@ -152,6 +152,8 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
 
     import torch
 
+    from .brdf import stack_tables
+
     q = q or REFERENCE.quadrature
     devs = [getattr(b, "device", None) or torch.device("cpu") for b in brdfs]
     if len({str(torch.device(d)) for d in devs}) != 1:
@@ -169,7 +171,9 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
         block = max(1, BLOCK_PAIRS // (tq.n_c + tq.n_b + tq.n_a))
         blocks, kept_bytes = [], 0
     total = normals.shape[0]
-    outs = [torch.zeros(3, total, dtype=torch.float64, device=dev) for _ in brdfs]
+    # Tables on one device are looked up together (the pairs' angles and corners once).
+    passes = stack_tables(brdfs)
+    outs = [torch.zeros(3 * len(idx), total, dtype=torch.float64, device=dev) for _, idx in passes]
     evaluations, smin, smax = 0, math.inf, -math.inf
     with torch.no_grad():
         for b, s in enumerate(range(0, total, block) if cached is None else (c[0] for c in cached)):
@@ -186,9 +190,9 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
                 s, p, pix, wi, wo, rw, lo, hi = cached[b]
             smin, smax = min(smin, lo), max(smax, hi)
             evaluations += wi.shape[0]
-            for brdf, out in zip(brdfs, outs):
-                contrib = brdf.eval_dirs(wi, wo).T * rw
-                for ch in range(3):
+            for (brdf, idx), out in zip(passes, outs):
+                contrib = (brdf.eval_dirs(wi, wo).T.view(len(idx), 3, -1) * rw).view(3 * len(idx), -1)
+                for ch in range(3 * len(idx)):
                     out[ch, s:s + p].index_add_(0, pix, contrib[ch].double())
             if progress is not None:
                 progress(s + p, total)
@@ -197,7 +201,11 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
     if stats is not None:
         stats.evaluations = evaluations
         stats.scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
-    return [out.T.float().cpu().numpy() for out in outs]
+    images = [None] * len(brdfs)
+    for (_, idx), out in zip(passes, outs):
+        for j, i in enumerate(idx):
+            images[i] = out[3 * j:3 * j + 3].T.float().cpu().numpy()
+    return images
 
 
 def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: RenderStats | None = None):
@@ -230,8 +238,10 @@ def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: Rende
 def render_many(brdfs, scene: Scene = REFERENCE, env=None, progress=None, stats: RenderStats | None = None):
     """Render the reference scene with each of ``brdfs`` in one pass (``brdfkit metrics``
     of two tables): the quadrature's nodes, shares and weights are computed once and every
-    BRDF is evaluated at the same direction pairs, so each image equals :func:`render` of
-    that BRDF alone, to the bit.
+    BRDF is evaluated at the same direction pairs, the tables among them together
+    (:class:`~brdfkit.render.brdf.TableStackBRDF`: the pairs' angles and the lookup's
+    corners once for all), so each image equals :func:`render` of that BRDF alone, to
+    the bit.
 
     Parameters
     ----------
