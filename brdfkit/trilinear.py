@@ -72,7 +72,10 @@ class TrilinearTable:
         rows[:, :N_PHI_D, :c] = torch.where(nan, 0.0, flat).reshape(-1, N_PHI_D, c)
         rows[:, :N_PHI_D, c:c + self.flags] = measured.reshape(-1, N_PHI_D, self.flags)
         rows[:, N_PHI_D] = rows[:, 0]
-        self.finite = bool(torch.isfinite(rows).all())
+        # No NaN is left in the rows (unmeasured values are 0), so finite is no infinity:
+        # one reduction instead of isfinite's four passes (a third of the build).
+        lo, hi = torch.aminmax(rows)
+        self.finite = bool(lo > -torch.inf) and bool(hi < torch.inf)
         self.rows = rows.reshape(-1, width)
         view = self.rows.view(torch.int64 if width * size == 8 else torch.complex128)
         self._elements = view.reshape(-1) if view.shape[1] == 1 else view

@@ -273,3 +273,15 @@ def test_table_stack_brdf_is_each_table_alone(prepare_after):
     _same(got[:, :3].numpy(), alone[0].eval_dirs(wi, wo).numpy())
     _same(got[:, 3:].numpy(), alone[1].eval_dirs(wi, wo).numpy())
     assert all((b._lut is not None) == (prepare_after == 0) for b in together)
+
+
+def test_finite_flag_sees_either_infinity_and_not_nan():
+    """``TrilinearTable.finite`` (which fill path it takes): False with +inf or -inf
+    anywhere, True for a table whose only non-finite values are NaN (not measured)."""
+    table = _tables(16)["holes"]
+    assert np.isnan(table).any() and g.TrilinearTable(table).finite
+    for bad in (np.inf, -np.inf):
+        t = table.copy()
+        t[3, 4, 5, 2] = bad
+        assert not g.TrilinearTable(t).finite
+        assert not g.TrilinearTable(torch.as_tensor(t, dtype=torch.float32)).finite
