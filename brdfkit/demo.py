@@ -7,24 +7,40 @@ holds a few materials out, trains a small budget of the hypernetwork
 it), and an interpolation of two embeddings. :func:`run_demo` returns the errors
 (:func:`brdfkit.metrics.brdf_log_rmse`, and the rendered PSNR of one reconstruction), the
 times and the files written; ``brdfkit demo`` prints them.
+
+Dense tables are 35 MB each (the library alone 700 MB), so unless ``keep_tables`` they
+live in a temporary folder inside the output folder (:func:`scratch_folder`), removed at
+the end, on error and on Ctrl-C too.
 """
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
 import os
+import tempfile
 import time
 
 from .errors import InputError
 
 __all__ = ["SAMPLE_COUNTS", "RENDER_RESOLUTION", "DemoResult", "choose_holdout", "write_demo_library",
-           "render_psnr", "run_demo"]
+           "render_psnr", "scratch_folder", "run_demo"]
 
 SAMPLE_COUNTS = (40, 400)
 RENDER_RESOLUTION = 128
 LIBRARY_MANIFEST = "library.json"
+
+
+def scratch_folder(out_dir: str, keep_tables: bool):
+    """Context manager: ``None`` with ``keep_tables``, else a temporary folder inside
+    ``out_dir`` (``.brdfkit-tmp-demo-*``: the same file system as the outputs, not a
+    possibly small ``/tmp``) for the dense tables a demo needs on disk but does not keep,
+    removed on leaving, by an exception or Ctrl-C too (not by SIGKILL)."""
+    if keep_tables:
+        return contextlib.nullcontext(None)
+    return tempfile.TemporaryDirectory(prefix=".brdfkit-tmp-demo-", dir=out_dir)
 
 
 def choose_holdout(names: list[str], k: int) -> list[str]:
@@ -103,7 +119,8 @@ class DemoResult:
     out_dir, model_path
         The demo's folder and its model file.
     materials
-        Paths of the synthetic library.
+        Paths of the synthetic library (in ``OUT/materials`` with ``keep_tables``, else
+        in the temporary folder, removed by the time this is returned).
     held
         Names of the held-out materials.
     latent_dim
@@ -118,7 +135,10 @@ class DemoResult:
     times
         ``[(step, seconds)]``, the last the whole demo.
     files
-        Every file written besides the library (model, checkpoint, embeddings, tables).
+        Every file written and kept besides the library (model, checkpoint, embeddings,
+        renders; the decoded tables with ``keep_tables``).
+    keep_tables
+        Whether the dense tables were kept.
     """
 
     out_dir: str
@@ -131,11 +151,12 @@ class DemoResult:
     psnr: list
     times: list
     files: list
+    keep_tables: bool = True
 
 
 def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int | None = None,
              n_materials: int = 20, holdout: int = 4, seed: int = 0, device="auto", render: bool = True,
-             options: dict | None = None) -> DemoResult:
+             options: dict | None = None, keep_tables: bool = False) -> DemoResult:
     """Run the demo (see the module doc), reporting progress on stderr.
 
     Parameters
@@ -154,7 +175,24 @@ def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int 
         Also the rendered PSNR of one reconstruction.
     options
         Advanced training options (:func:`brdfkit.training.fit`).
+    keep_tables
+        Keep the dense tables (the library in ``OUT/materials``, reused by a later run
+        with the same size and seed, and the decoded tables in ``OUT/decoded``: 35 MB
+        each); ``False``: the library lives in a temporary folder removed at the end and
+        decoded tables stay in memory.
     """
+    if not (minutes > 0 and math.isfinite(minutes)):
+        raise InputError(f"--minutes must be a positive number, got {minutes}")
+    if holdout >= n_materials:
+        raise InputError(f"--holdout {holdout} leaves nothing to train on among {n_materials} materials")
+    out_dir = os.path.abspath(out_dir)
+    os.makedirs(out_dir, exist_ok=True)
+    with scratch_folder(out_dir, keep_tables) as scratch:
+        return _run(out_dir, scratch, minutes, steps, n_materials, holdout, seed, device, render, options)
+
+
+def _run(out_dir, scratch, minutes, steps, n_materials, holdout, seed, device, render, options) -> DemoResult:
+    """:func:`run_demo` in ``out_dir``, its dense tables in ``scratch`` (``None``: kept)."""
     import numpy as np
     import torch
 
@@ -166,18 +204,15 @@ def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int 
     from .samples import draw_samples
     from .training import fit
 
-    if not (minutes > 0 and math.isfinite(minutes)):
-        raise InputError(f"--minutes must be a positive number, got {minutes}")
-    if holdout >= n_materials:
-        raise InputError(f"--holdout {holdout} leaves nothing to train on among {n_materials} materials")
     err = console()
     t_all = time.monotonic()
-    out_dir = os.path.abspath(out_dir)
-    mat_dir, emb_dir, dec_dir, ren_dir = (os.path.join(out_dir, d)
-                                          for d in ("materials", "embeddings", "decoded", "renders"))
-    for d in (out_dir, emb_dir, dec_dir) + ((ren_dir,) if render else ()):
+    mat_dir = os.path.join(scratch or out_dir, "materials")
+    emb_dir, dec_dir, ren_dir = (os.path.join(out_dir, d) for d in ("embeddings", "decoded", "renders"))
+    for d in (emb_dir,) + ((dec_dir,) if scratch is None else ()) + ((ren_dir,) if render else ()):
         os.makedirs(d, exist_ok=True)
-    err.print(f"[bold]brdfkit demo[/]: writing everything into {out_dir}")
+    err.print(f"[bold]brdfkit demo[/]: writing into {out_dir}"
+              + ("" if scratch is None else " (the dense tables: in memory and a temporary folder there, removed "
+                                            "at the end; --keep-tables keeps them)"))
     # brdfkit.cli.main already sized the pool to the idle cores (brdfkit.threads).
     err.print(f"using {torch.get_num_threads()} torch thread(s) (set OMP_NUM_THREADS to choose)")
     times, written = [], []
@@ -228,9 +263,11 @@ def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int 
         decoded = api.decode(model, emb)
         t_decode.append(time.monotonic() - t)
         row.append(brdf_log_rmse(decoded, table))
-        written += [os.path.join(emb_dir, f"{name}.emb"), os.path.join(dec_dir, f"{name}.binary")]
-        write_embedding(written[-2], emb)
-        write_merl(written[-1], decoded)
+        written.append(os.path.join(emb_dir, f"{name}.emb"))
+        write_embedding(written[-1], emb)
+        if scratch is None:
+            written.append(os.path.join(dec_dir, f"{name}.binary"))
+            write_merl(written[-1], decoded)
         full_emb[name] = emb
         rows.append((name, row))
 
@@ -243,9 +280,11 @@ def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int 
     mixed = api.decode(model, mix)
     t_interp = time.monotonic() - t
     mix_name = f"{a}+{b}-t0.5"
-    written += [os.path.join(emb_dir, mix_name + ".emb"), os.path.join(dec_dir, mix_name + ".binary")]
-    write_embedding(written[-2], mix)
-    write_merl(written[-1], mixed)
+    written.append(os.path.join(emb_dir, mix_name + ".emb"))
+    write_embedding(written[-1], mix)
+    if scratch is None:
+        written.append(os.path.join(dec_dir, mix_name + ".binary"))
+        write_merl(written[-1], mixed)
 
     for n in SAMPLE_COUNTS:
         times.append((f"sparse reconstruction, {n} samples (mean per material)", float(np.mean(t_sparse[n]))))
@@ -255,4 +294,4 @@ def run_demo(out_dir: str = "brdfkit-demo", *, minutes: float = 3.0, steps: int 
     times.append(("whole demo", time.monotonic() - t_all))
     columns = ["median reference", *(f"{n} samples" for n in SAMPLE_COUNTS), "full table (compressed)"]
     return DemoResult(out_dir, model_path, paths, held, model.cfg.latent_dim, rows, columns, psnr_rows, times,
-                      [model_path, model_path + ".ckpt"] + sorted(written))
+                      [model_path, model_path + ".ckpt"] + sorted(written), scratch is None)

@@ -17,12 +17,17 @@ the built-in models (``docs/models.md``), none of which needs training here:
   of one material against its reconstructions.
 
 :func:`run_real_demo` returns what it measured and wrote; ``brdfkit demo`` prints it.
+It writes what one looks at: the sheet, the plot, the samples, the embeddings and the
+errors (``errors.json``). The 29 dense tables (35 MB each, 1 GB) stay in memory, the
+six the sheet renders in a temporary folder removed at the end
+(:func:`brdfkit.demo.scratch_folder`), unless ``keep_tables``.
 ``brdfkit demo --train`` is the synthetic training demo (:mod:`brdfkit.demo`).
 """
 
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import time
 
@@ -85,7 +90,8 @@ class RealDemoResult:
     times
         ``[(step, seconds)]``, the last the whole demo.
     files
-        Every file written (tables, samples, embeddings, sheet, plot), sorted.
+        Every file written and kept (samples, embeddings, ``errors.json``, sheet, plot;
+        the tables with ``keep_tables``), sorted.
     sheet, plot
         The comparison sheet and the plot (``None``: not made).
     sheet_material
@@ -105,6 +111,8 @@ class RealDemoResult:
     plot: str | None
     sheet_material: str
     resolution: int
+    keep_tables: bool = True
+    """Whether the dense tables were written into the output folder."""
 
 
 class _Clock:
@@ -144,13 +152,13 @@ def _pick(only) -> list[str]:
 
 
 def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, device="auto", render: bool = True,
-                  resolution: int = SHEET_RESOLUTION) -> RealDemoResult:
+                  resolution: int = SHEET_RESOLUTION, keep_tables: bool = False) -> RealDemoResult:
     """Run the demo (see the module doc), reporting progress on stderr.
 
     Parameters
     ----------
     out_dir
-        Folder for the tables, samples, embeddings, sheet and plot.
+        Folder for the samples, embeddings, errors, sheet and plot (and tables).
     only
         Names of the materials to run (default all four; :func:`demo_materials`).
     seed
@@ -161,6 +169,10 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
         Also the comparison sheet (quadrature renders; the plot is made either way).
     resolution
         Render size of the sheet, pixels.
+    keep_tables
+        Also write the dense tables: the materials (``materials/``), the sparse
+        reconstructions (``reconstructed/``), the compressions and the blend
+        (``decoded/``), 35 MB each.
 
     Raises
     ------
@@ -168,10 +180,25 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
         The built-in models are not installed (:func:`check_models`), an unknown
         material, a bad resolution.
     """
-    import numpy as np
+    from .demo import scratch_folder
+
+    check_models()
+    names = _pick(only)
+    if not 8 <= resolution <= 1024:
+        raise InputError(f"--resolution must be between 8 and 1024 pixels, got {resolution}")
+    out_dir = os.path.abspath(out_dir)
+    os.makedirs(out_dir, exist_ok=True)
+    with scratch_folder(out_dir, keep_tables) as scratch:
+        return _run(out_dir, scratch, names, seed, device, render, resolution)
+
+
+def _run(out_dir, scratch, names, seed, device, render, resolution) -> RealDemoResult:
+    """:func:`run_real_demo` in ``out_dir``; ``scratch``: the temporary folder of the
+    sheet's tables (``None``: every table is kept in the output folder)."""
     import torch
 
     from . import api
+    from .atomic import atomic_open
     from .console import console
     from .embedding import write_embedding
     from .merl import write_merl
@@ -182,27 +209,32 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
     from .plot import plot_brdfs
     from .samples import draw_samples, write_samples
 
-    check_models()
-    names = _pick(only)
-    if not 8 <= resolution <= 1024:
-        raise InputError(f"--resolution must be between 8 and 1024 pixels, got {resolution}")
     err = console()
     clock = _Clock()
     t_all = time.monotonic()
-    out_dir = os.path.abspath(out_dir)
-    dirs = {d: os.path.join(out_dir, d) for d in ("materials", "samples", "reconstructed", "embeddings", "decoded")}
-    for d in (out_dir, *dirs.values()):
+    kept = ("materials", "reconstructed", "decoded") if scratch is None else ()
+    dirs = {d: os.path.join(out_dir, d) for d in ("samples", "embeddings", *kept)}
+    for d in dirs.values():
         os.makedirs(d, exist_ok=True)
     err.print(f"[bold]brdfkit demo[/]: {len(names)} MERL test material(s) with the built-in models; "
-              f"writing everything into {out_dir}")
+              f"writing into {out_dir}"
+              + ("" if scratch is None else " (the dense tables stay in memory; --keep-tables writes them)"))
     err.print(f"using {torch.get_num_threads()} torch thread(s) (set OMP_NUM_THREADS to choose)")
-    written = []
+    written, n_tables = [], [0]
 
-    def write_table(folder, stem, table):
-        path = os.path.join(dirs[folder], stem + ".binary")
+    def write_table(folder, stem, table, sheet=False):
+        """The table's file: in ``OUT/folder`` when tables are kept, else in the scratch
+        folder when the sheet renders it (its file stem is the sheet's label), else none."""
+        if scratch is None:
+            path = os.path.join(dirs[folder], stem + ".binary")
+            written.append(path)
+        elif sheet:
+            path = os.path.join(scratch, stem + ".binary")
+        else:
+            return None
         with clock("write tables"):
             write_merl(path, table)
-        written.append(path)
+        n_tables[0] += 1
         return path
 
     with clock("load models"):
@@ -220,6 +252,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
     # both sample counts, IPCA from the larger, and both compressions.
     shown_keys = (f"{choice.method} {SAMPLE_COUNTS[0]}", f"{choice.method} {SAMPLE_COUNTS[-1]}",
                   f"ipca {SAMPLE_COUNTS[-1]}")
+    sheet_keys = ("reference", *shown_keys, *COMPRESSION_MODELS) if render else ()
 
     rows, embs, shown, sheet_inputs = [], {}, {}, {}
     for name in names:
@@ -227,7 +260,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
         with clock("decode NBRDF tables"):
             ref = nbrdf_table(weights[name], device=device)
         first = name == names[0]
-        files = {"reference": write_table("materials", name, ref)}
+        files = {"reference": write_table("materials", name, ref, first and "reference" in sheet_keys)}
         found = {}
         for n in SAMPLE_COUNTS:
             samples = draw_samples(ref, n, seed=seed, source=f"{name}-{n}")
@@ -239,7 +272,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
                 key = f"{label} {n}"
                 with clock("score"):
                     found[key] = brdf_log_rmse(pred, ref)
-                files[key] = write_table("reconstructed", f"{name}-{label}-{n}", pred)
+                files[key] = write_table("reconstructed", f"{name}-{label}-{n}", pred, first and key in sheet_keys)
                 if emb is not None:  # a hypernetwork default makes one
                     written.append(os.path.join(dirs["embeddings"], f"{name}-{label}-{n}.emb"))
                     write_embedding(written[-1], emb)
@@ -255,7 +288,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
                 row.append(brdf_log_rmse(dec, ref))
             written.append(os.path.join(dirs["embeddings"], f"{name}-{m}.emb"))
             write_embedding(written[-1], emb)
-            files[m] = write_table("decoded", f"{name}-{m}", dec)
+            files[m] = write_table("decoded", f"{name}-{m}", dec, first and m in sheet_keys)
             embs[(name, m)] = emb
             if first:
                 shown[f"hypernet {m}"] = dec
@@ -305,11 +338,18 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
         times.append(("interpolate two embeddings + decode", clock.total("interpolate")))
     times.append((f"score the results (brdf_log_rmse, {len(clock.spent.get('score', ()))})",
                   clock.total("score")))
-    times.append((f"write the MERL tables ({sum(p.endswith('.binary') for p in written)})",
-                   clock.total("write tables")))
+    where = "" if scratch is None else " the sheet renders, to a temporary folder"
+    times.append((f"write the MERL tables{where} ({n_tables[0]})", clock.total("write tables")))
     times.append(("plot", clock.total("plot")))
     if render:
         times.append((f"comparison sheet ({len(preds) + 1} renders, {resolution} px)", clock.total("sheet")))
+    errors_path = os.path.join(out_dir, "errors.json")
+    doc = {"format": "brdfkit-demo-errors", "metric": "brdf_log_rmse", "sparse_model": SPARSE_MODEL,
+           "sparse_method": choice.method, "compression_models": list(COMPRESSION_MODELS), "seed": seed,
+           "columns": columns, "errors": {n: dict(zip(columns, map(float, row))) for n, row in rows}}
+    with atomic_open(errors_path, "w", encoding="utf-8") as f:
+        json.dump(doc, f, indent=1)
+    written.append(errors_path)
     times.append(("whole demo", time.monotonic() - t_all))
     return RealDemoResult(out_dir, names, choice.method, columns, rows, times, sorted(written), sheet_path,
-                          plot_path, name, resolution)
+                          plot_path, name, resolution, scratch is None)

@@ -47,7 +47,11 @@ def test_demo_runs_end_to_end(tmp_path):
     mean = re.search(r"mean\s*[│|]\s*([\d.]+)\s*[│|]\s*([\d.]+)\s*[│|]\s*([\d.]+)\s*[│|]\s*([\d.]+)", report)
     assert mean, report
     assert all(np.isfinite(float(v)) for v in mean.groups())
-    assert f"writing everything into {out}" in proc.stderr.replace("\n", "")
+    assert f"writing into {out}" in proc.stderr.replace("\n", "")
+    # No dense table kept by default: the library and the decoded tables lived in a
+    # temporary folder and in memory.
+    assert "were not kept" in report and not (out / "materials").exists() and not (out / "decoded").exists()
+    assert not [n for n in os.listdir(out) if n.startswith(".")]
 
     model = load_model(out / "model.safetensors", "cpu")
     held = model.meta["excluded"]
@@ -60,11 +64,26 @@ def test_demo_runs_end_to_end(tmp_path):
     for f in (f"{name}.emb", f"{name}-40samples.emb", f"{name}-400samples.emb"):
         emb = read_embedding(out / "embeddings" / f)
         assert emb.model_fingerprint == model.fingerprint
-    decoded = read_merl(out / "decoded" / f"{name}.binary")
-    assert np.isfinite(decoded).any()
-    mixes = [f for f in os.listdir(out / "decoded") if "+" in f]
+    mixes = [f for f in os.listdir(out / "embeddings") if "+" in f]
     assert len(mixes) == 1
-    # A second run reuses the library (same count and seed) instead of regenerating it.
+    # A kept library (--keep-tables) is reused by the next run with the same count and seed.
+    write_demo_library(str(out / "materials"), 4, 0, Console(stderr=True))
     mtime = os.path.getmtime(out / "materials" / f"{name}.binary")
     paths = write_demo_library(str(out / "materials"), 4, 0, Console(stderr=True))
     assert len(paths) == 4 and os.path.getmtime(out / "materials" / f"{name}.binary") == mtime
+
+
+def test_demo_keep_tables_writes_library_and_decoded(tmp_path):
+    from brdfkit.demo import run_demo
+
+    from conftest import TINY
+
+    out = tmp_path / "demo"
+    res = run_demo(str(out), steps=2, n_materials=3, holdout=1, render=False, device="cpu", keep_tables=True,
+                   options={**TINY, "latent_dim": 4})
+    assert res.keep_tables and sorted(os.listdir(out / "materials")) == sorted(
+        [os.path.basename(p) for p in res.materials] + ["library.json"])
+    decoded = read_merl(out / "decoded" / f"{res.held[0]}.binary")
+    assert np.isfinite(decoded).any()
+    assert len([f for f in os.listdir(out / "decoded") if "+" in f]) == 1
+    assert all(os.path.isfile(p) for p in res.files)

@@ -145,7 +145,7 @@ def test_demo_weights_file_is_package_data():
 
 def test_real_demo_end_to_end(shelf, tmp_path):
     out = tmp_path / "demo"
-    proc = _run(["--out", out, "--only", "violet-rubber,teflon", "--resolution", "12"], shelf)
+    proc = _run(["--out", out, "--only", "violet-rubber,teflon", "--resolution", "12", "--keep-tables"], shelf)
     assert proc.returncode == 0, proc.stderr[-3000:]
     report = proc.stdout
     assert "MERL test materials: BRDF log RMSE" in report and "Times" in report and "whole demo" in report
@@ -155,7 +155,8 @@ def test_real_demo_end_to_end(shelf, tmp_path):
         values = [float(v) for v in re.findall(r"[\d.]+", row.group(1))]
         assert len(values) == 6 and all(np.isfinite(values))
     assert re.search(r"mean\s*[│|]", report)
-    assert f"writing everything into {out}" in proc.stderr.replace("\n", "")
+    assert f"writing into {out}" in proc.stderr.replace("\n", "")
+    assert "materials/  (2 files, 70.0 MB)" in report and "not kept" not in report
 
     # The tables: the material, the four sparse reconstructions, two compressions, a blend.
     ref = read_merl(out / "materials" / "violet-rubber.binary")
@@ -178,6 +179,8 @@ def test_real_demo_end_to_end(shelf, tmp_path):
 
 
 def test_real_demo_in_process_without_render(shelf, monkeypatch, tmp_path):
+    import json
+
     from brdfkit.demo_real import run_real_demo
 
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
@@ -189,6 +192,45 @@ def test_real_demo_in_process_without_render(shelf, monkeypatch, tmp_path):
     assert res.times[-1][0] == "whole demo" and all(t >= 0 for _, t in res.times)
     assert all(os.path.isfile(p) for p in res.files)
     assert not any("+" in os.path.basename(p) for p in res.files)  # one material: no blend
+    # By default no dense table is written: no sheet, so not even a temporary one.
+    assert not res.keep_tables and not [p for p in res.files if p.endswith(".binary")]
+    assert sorted(os.listdir(tmp_path / "d")) == ["embeddings", "errors.json", "plot-chrome-steel.png", "samples"]
+    doc = json.loads((tmp_path / "d" / "errors.json").read_text())
+    assert doc["columns"] == res.columns and doc["errors"]["chrome-steel"]["ipca 40"] == res.errors[0][1][2]
+    assert ("write the MERL tables the sheet renders, to a temporary folder (0)", 0.0) in res.times
+
+
+def test_real_demo_sheet_tables_are_temporary(shelf, monkeypatch, tmp_path):
+    """Without --keep-tables the sheet's six tables go to a temporary folder in OUT that
+    is removed at the end, and on Ctrl-C during the sheet too."""
+    import brdfkit.sheet
+    from brdfkit.demo_real import run_real_demo
+
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
+    seen = []
+
+    def interrupted_sheet(ref, preds, output, **kw):
+        seen.extend([ref, *preds])
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(brdfkit.sheet, "comparison_sheet", interrupted_sheet)
+    with pytest.raises(KeyboardInterrupt):
+        run_real_demo(tmp_path / "d", only=["teflon"], device="cpu")
+    assert [os.path.basename(p) for p in seen] == [
+        "teflon.binary", "teflon-prior-40.binary", "teflon-prior-400.binary", "teflon-ipca-400.binary",
+        "teflon-merl80-l40.binary", "teflon-merl-rgl-l7.binary"]
+    assert all(os.path.basename(os.path.dirname(p)).startswith(".brdfkit-tmp-demo-") for p in seen)
+    assert not any(os.path.exists(p) for p in seen)
+    assert not [n for n in os.listdir(tmp_path / "d") if n.startswith(".")]
+
+    monkeypatch.undo()
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
+    out = tmp_path / "e"
+    proc = _run(["--out", out, "--only", "teflon", "--resolution", "8"], shelf)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples", "sheet-teflon.png"]
+    assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", proc.stdout)
+    assert "dense tables stay in memory" in re.sub(r"\s+", " ", proc.stderr)
 
 
 def test_no_builtin_models_is_one_line_pointing_at_train(tmp_path):

@@ -82,6 +82,10 @@ def _error_table(title, columns, errors):
               help="Render one material: the comparison sheet (--train: the rendered PSNR).")
 @click.option("--resolution", type=click.IntRange(min=8, max=1024), default=SHEET_RESOLUTION,
               show_default=True, help="Render size of the comparison sheet, pixels.")
+@click.option("--keep-tables/--no-keep-tables", default=False, show_default=True,
+              help="Also write the dense MERL tables (35 MB each: 29 of them, 1 GB; --train: the 700 MB "
+                   "library and the decoded tables); without it they stay in memory or in a temporary "
+                   "folder in OUT that is removed at the end.")
 @click.option("--only", default=None, hidden=True, metavar="NAME,...",
               help="Run these of the shipped materials only (tests).")
 @click.option("--minutes", type=float, default=3.0, show_default=True,
@@ -94,26 +98,27 @@ def _error_table(title, columns, errors):
               help="Implies --train: materials held out of training and reconstructed.")
 @click.option("-O", "--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Implies --train: advanced training option (see docs/training.md).")
-def command(train, out_dir, seed, device, do_render, resolution, only, minutes, steps, n_materials, holdout,
-            options):
+def command(train, out_dir, seed, device, do_render, resolution, keep_tables, only, minutes, steps, n_materials,
+            holdout, options):
     """Try brdfkit on real materials with the built-in models (no download).
 
     Four MERL materials the benchmark model never saw (shipped as their published NBRDF
     fits) are reconstructed from 40 and 400 samples (learnt prior, and IPCA beside it),
     compressed by the hypernetworks (40 and 7 numbers) and blended; prints the errors and
-    times, and writes the tables, embeddings, a comparison sheet and a plot into OUT.
+    times, and writes the samples, embeddings, errors, a comparison sheet and a plot into
+    OUT (--keep-tables: the dense tables too, 1 GB).
     About 30 s on 2 idle CPU cores. With --train: trains a small model on synthetic
     materials instead (about 5 minutes). See docs/demo.md.
     """
     if _mode(train):
-        _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options)
+        _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options, keep_tables)
         return
     from rich.console import Console
 
     from ..demo_real import COMPRESSION_MODELS, SPARSE_MODEL, run_real_demo
 
     res = run_real_demo(out_dir, only=[s.strip() for s in only.split(",") if s.strip()] if only else None,
-                        seed=seed, device=device, render=do_render, resolution=resolution)
+                        seed=seed, device=device, render=do_render, resolution=resolution, keep_tables=keep_tables)
     report = Console()
     report.print(_error_table("MERL test materials: BRDF log RMSE (lower is better)", res.columns, res.errors))
     report.print(f"{res.sparse_method} N, ipca N: reconstructed from N samples by brdfkit sparse's default "
@@ -136,19 +141,27 @@ def command(train, out_dir, seed, device, do_render, resolution, only, minutes, 
         report.print(f"  {folder}/  ({len(paths)} file{'s' * (len(paths) > 1)}, {_fmt_bytes(size)})")
     name = res.sheet_material
     samples = os.path.relpath(os.path.join(res.out_dir, "samples", f"{name}-40.csv"))
+    if res.keep_tables:
+        report.print(f"Next: brdfkit sparse {samples} -m {SPARSE_MODEL} -o r.binary && "
+                     f"brdfkit compare {os.path.relpath(os.path.join(res.out_dir, 'materials', name + '.binary'))} "
+                     f"r.binary --sheet r.png", soft_wrap=True)
+        return
+    report.print("The dense MERL tables (materials, reconstructions, compressions: 35 MB each) were not "
+                 "kept; --keep-tables writes them into materials/, reconstructed/ and decoded/.", soft_wrap=True)
+    emb = os.path.relpath(os.path.join(res.out_dir, "embeddings", f"{name}-{COMPRESSION_MODELS[0]}.emb"))
     report.print(f"Next: brdfkit sparse {samples} -m {SPARSE_MODEL} -o r.binary && "
-                 f"brdfkit compare {os.path.relpath(os.path.join(res.out_dir, 'materials', name + '.binary'))} "
-                 f"r.binary --sheet r.png", soft_wrap=True)
+                 f"brdfkit plot r.binary {emb} -m {COMPRESSION_MODELS[0]} -o r.png", soft_wrap=True)
 
 
-def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options):
+def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options, keep_tables):
     from rich.console import Console
     from rich.table import Table
 
     from ..demo import RENDER_RESOLUTION, SAMPLE_COUNTS, run_demo
 
     res = run_demo(out_dir, minutes=minutes, steps=steps, n_materials=n_materials, holdout=holdout, seed=seed,
-                   device=device, render=do_render, options=dict(parse_option(o) for o in options))
+                   device=device, render=do_render, options=dict(parse_option(o) for o in options),
+                   keep_tables=keep_tables)
     report = Console()
     report.print(_error_table(f"Held-out materials: BRDF log RMSE (lower is better), latent {res.latent_dim}",
                               res.columns, res.errors))
@@ -170,7 +183,16 @@ def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rende
     report.print(f"Files in {res.out_dir}:")
     for p in res.files:
         report.print(f"  {os.path.relpath(p, res.out_dir)}  ({_fmt_bytes(os.path.getsize(p))})")
-    report.print(f"  materials/  ({len(res.materials)} synthetic MERL tables)")
-    mat = os.path.join(res.out_dir, "materials", res.held[0] + ".binary")
-    report.print(f"Next: brdfkit sample {os.path.relpath(mat)} -n 100 -o s.csv && "
-                 f"brdfkit sparse s.csv -m {os.path.relpath(res.model_path)} -o r.binary")
+    model = os.path.relpath(res.model_path)
+    if res.keep_tables:
+        report.print(f"  materials/  ({len(res.materials)} synthetic MERL tables)")
+        mat = os.path.join(res.out_dir, "materials", res.held[0] + ".binary")
+        report.print(f"Next: brdfkit sample {os.path.relpath(mat)} -n 100 -o s.csv && "
+                     f"brdfkit sparse s.csv -m {model} -o r.binary")
+        return
+    report.print(f"The dense MERL tables (the {len(res.materials)} synthetic materials, the decoded ones: 35 MB "
+                 f"each) were not kept; --keep-tables writes them into materials/ and decoded/.", soft_wrap=True)
+    embs = [os.path.relpath(os.path.join(res.out_dir, "embeddings", f"{res.held[0]}{s}.emb"))
+            for s in ("", f"-{SAMPLE_COUNTS[-1]}samples")]
+    report.print(f"Next: brdfkit plot {' '.join(embs)} -m {model} -o p.png && "
+                 f"brdfkit decode {embs[1]} -m {model} -o r.binary", soft_wrap=True)
