@@ -185,3 +185,24 @@ def test_half_share_table_matches_the_loop(settings):
     assert want.min() >= 0 and want.max() > 0.1
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
     assert nodes._half_share_table(q, n_o=33)[1] is got  # once per process
+
+
+def test_environment_lookup_grid_layout_is_bit_identical():
+    """``_EnvLookup`` hands ``grid_sample`` a strided ``(M, 2)`` view of a ``(2, M)``
+    grid (faster to read): the same radiance, to the bit, as the interleaved grid."""
+    from brdfkit.render.envmap import reference_envmap
+    from brdfkit.render.pairs import _EnvLookup
+
+    look = _EnvLookup(reference_envmap(), "cpu")
+    g = torch.Generator().manual_seed(0)
+    u = torch.cat([torch.rand(50000, generator=g), torch.tensor([0.0, 1.0, 0.5 / look.w, 1 - 1e-7])])
+    v = torch.cat([torch.rand(50000, generator=g), torch.tensor([0.0, 1.0, 0.5, 1e-7])])
+    w = look.w
+    x = (u - 0.5 / w) * w
+    x = x - torch.floor(x / w) * w
+    grid = torch.stack([x * (2.0 / w) - 1, v * 2 - 1], -1)[None, None]
+    want = torch.nn.functional.grid_sample(look.tex, grid, mode="bilinear", padding_mode="border",
+                                           align_corners=True)[0, :, 0]
+    got = look(u, v)
+    assert got.shape == (3, u.shape[0])
+    assert torch.equal(got, want)

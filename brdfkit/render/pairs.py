@@ -89,9 +89,13 @@ class _EnvLookup:
         x = (u - 0.5 / w) * w  # column j at u = (j + 0.5) / W
         x = x - torch.floor(x / w) * w
         # align_corners: -1 and 1 are the centres of the first and last columns (rows).
-        grid = torch.stack([x * (2.0 / w) - 1, v * 2 - 1], -1)[None, None]
-        return torch.nn.functional.grid_sample(self.tex, grid, mode="bilinear", padding_mode="border",
-                                               align_corners=True)[0, :, 0]
+        # The grid as the (M, 2) view of a (2, M) tensor: grid_sample reads it strided
+        # about twice as fast as it reads (and stack writes) an interleaved (M, 2) one.
+        grid = u.new_empty((2, u.shape[0]))
+        torch.sub(x.mul_(2.0 / w), 1, out=grid[0])
+        torch.sub(v * 2, 1, out=grid[1])
+        return torch.nn.functional.grid_sample(self.tex, grid.T[None, None], mode="bilinear",
+                                               padding_mode="border", align_corners=True)[0, :, 0]
 
 
 def _uv(x, y, z):
@@ -276,6 +280,9 @@ def block_pairs(tq: Techniques, normals, wo_world):
     idx = keep.reshape(-1).nonzero().squeeze(1)
     pix = torch.div(idx, weight.shape[1], rounding_mode="floor")
     # Column-major (M, 3) views: the BRDFs' per-component operations run on contiguous rows.
-    wi = torch.stack([d.reshape(-1).index_select(0, idx) for d in local]).T
+    wi = weight.new_empty((3, idx.shape[0]))
+    for i, d in enumerate(local):
+        torch.index_select(d.reshape(-1), 0, idx, out=wi[i])
+    wi = wi.T
     wo = wo.T.contiguous().index_select(1, pix).T
     return pix.int(), wi, wo, rw.reshape(3, -1).index_select(1, idx), (scale, mass > 1e-3)
