@@ -177,6 +177,10 @@ def _combine(lut, corner, w, fill, out):
     none = wsum == 0
     torch.div(val, wsum + none, out=out)
     if lut.finite:  # fill + 0 * out is fill
-        out.masked_fill_(none, fill)
+        # Where no corner is measured every corner's value is 0 and its weight finite and
+        # >= 0 (or NaN, and then wsum is NaN, not 0), so out is already +0: a fill of 0
+        # (the renderer's) needs no pass.
+        if fill != 0.0:
+            out.masked_fill_(none, fill)
     else:
         out.copy_(torch.where(none, fill + 0 * out, out))

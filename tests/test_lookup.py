@@ -93,6 +93,7 @@ def _same(a, b):
     assert a.shape == b.shape and a.dtype == b.dtype
     np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
     np.testing.assert_array_equal(a[~np.isnan(a)], b[~np.isnan(b)])
+    np.testing.assert_array_equal(np.signbit(a), np.signbit(b))  # -0.0 is not +0.0
 
 
 @pytest.mark.parametrize("kind", ["merl", "holes", "per_channel", "all_nan"])
