@@ -221,3 +221,27 @@ def test_methods_model_files_and_options_by_name(setup, tmp_path):
                             (dict(methods=("nbrdf",), options={"nbrdf": {"steps": 0}}), "steps must be")):
         with pytest.raises(InputError, match=message):
             BenchConfig(**base, **kwargs).validate()
+
+
+def test_renderer_digest_covers_every_module_a_reference_render_reads():
+    """A change to any module the quadrature render goes through must invalidate the
+    cached reference renders: the digest reads each of them."""
+    import builtins
+    import os
+
+    from brdfkit.bench.worker import renderer_digest
+
+    read = []
+    real_open = builtins.open
+
+    def spy(file, *a, **k):
+        read.append(os.path.basename(str(file)))
+        return real_open(file, *a, **k)
+
+    builtins.open = spy
+    try:
+        renderer_digest()
+    finally:
+        builtins.open = real_open
+    assert {"quadrature.py", "scene.py", "envmap.py", "brdf.py", "geometry.py", "trilinear.py", "nodes.py",
+            "pairs.py"} <= set(read)

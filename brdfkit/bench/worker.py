@@ -26,11 +26,11 @@ def _file_digest(path: str) -> str:
 def renderer_digest() -> str:
     """SHA-256 of the source of the modules a reference render depends on, so a changed
     renderer never reuses a cached render."""
-    from .. import geometry
-    from ..render import brdf, envmap, quadrature, scene
+    from .. import geometry, trilinear
+    from ..render import brdf, envmap, nodes, pairs, quadrature, scene
 
     h = hashlib.sha256()
-    for mod in (quadrature, scene, envmap, brdf, geometry):
+    for mod in (quadrature, scene, envmap, brdf, geometry, trilinear, nodes, pairs):
         with open(mod.__file__, "rb") as f:
             h.update(f.read())
     return h.hexdigest()
