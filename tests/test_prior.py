@@ -499,6 +499,8 @@ def _one_line(err):
     ({"lr": "fast"}, [], "lr = 'fast' is out of range"),
     ({"width": 0}, [], "width = 0 is out of range"),
     ({"lambda_w": -1}, [], "lambda_w = -1 is out of range"),
+    ({"weight": "bright"}, [], "weight = 'bright' is out of range"),
+    ({"s2": 0}, [], "s2 = 0 is out of range"),
     ({"no_such_key": 1}, [], "takes only .*not no_such_key"),
     ({}, ["--resume"], "takes only .*not resume"),
     ({"folds": 3}, [], "needs at least 6 training materials .*got 4"),
@@ -517,3 +519,43 @@ def test_cli_fit_prior_refuses_to_overwrite_an_input(data, capsys):
     code, err = _cli(capsys, _tiny_args(data, target))
     assert code == 2 and "mat-1.binary" in _one_line(err)
     assert target.read_bytes() == before
+
+
+@pytest.mark.parametrize("weight", ["metric", "energy"])
+def test_solve_is_the_weighted_ridge_of_its_docstring(weight):
+    """``solve`` against the normal equations written out in NumPy, for both likelihood
+    weights: ``q = g^2 / s2 + 1 / lam`` (metric) or ``g / s2 + 1 / lam`` (energy)."""
+    import torch
+
+    from brdfkit.methods.ipca import EPS
+    from brdfkit.methods.prior_model import solve
+
+    rng = np.random.default_rng(3)
+    s, k = 50, 3
+    tab = np.c_[rng.uniform(0.01, 0.5, s), rng.normal(0, 0.3, s), rng.normal(0, 1, (s, k))]
+    rho = rng.uniform(0, 3, (s, 3))
+    w, cos = rng.uniform(0.05, 1, s), rng.uniform(0.05, 1, s)
+    sigma, mu = np.array([2.0, 1.0, 0.5]), rng.normal(0, 1, (3, k))
+    s2, lam = 0.03, 0.1
+    T = lambda a: torch.from_numpy(np.asarray(a, np.float64))[None]  # noqa: E731
+    c, _ = solve(T(tab), T(rho), T(w), T(cos), T(sigma), s2, lam, mu=T(mu), weight=weight)
+    b = np.log((rho * w[:, None] + EPS) / (tab[:, :1] + EPS)) - tab[:, 1:2]
+    g = cos[:, None] * (rho + EPS / w[:, None]) / (1 + rho * cos[:, None])
+    q = (g if weight == "energy" else g ** 2) / s2 + 1 / lam
+    for ch in range(3):
+        a = tab[:, 2:]
+        want = np.linalg.solve(a.T @ (a * q[:, ch:ch + 1]) + np.diag(sigma ** -2),
+                               a.T @ (q[:, ch] * b[:, ch]) + mu[ch] / sigma ** 2)
+        np.testing.assert_allclose(c[0, ch].numpy(), want, rtol=1e-4, atol=1e-5)
+    other, _ = solve(T(tab), T(rho), T(w), T(cos), T(sigma), s2, lam, mu=T(mu),
+                     weight="metric" if weight == "energy" else "energy")
+    assert not np.allclose(other.numpy(), c.numpy(), atol=1e-3)
+
+
+def test_a_config_the_fit_cannot_use_is_refused():
+    from brdfkit.methods.prior_model import PriorConfig
+
+    for bad in ({"weight": "bright"}, {"s2": 0.0}, {"lam": -1.0}):
+        with pytest.raises(ValueError):
+            PriorConfig(**bad)
+    assert PriorConfig().weight == "metric"  # model files from before the option read as they were

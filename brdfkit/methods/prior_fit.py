@@ -41,7 +41,7 @@ from .prior_model import PriorConfig, PriorModel, prior_net, solve
 __all__ = ["fit_prior", "FIT_OPTIONS"]
 
 FIT_OPTIONS = ("latent_dim", "steps", "minutes", "seed", "device", "batch_materials", "components", "basis",
-               "folds", "mixup", "query_size", "lr", "lambda_w", "lambda_z", "ema", "width")
+               "folds", "mixup", "query_size", "lr", "lambda_w", "lambda_z", "ema", "width", "s2", "lam", "weight")
 
 
 def _storage(path: str) -> dict:
@@ -72,7 +72,8 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
               minutes: float | None = None, seed: int = 0, device=None, batch_materials: int = 8,
               components: int = DEFAULT_COMPONENTS, basis: str | None = None, folds: int = 5, mixup: float = 0.5,
               query_size: int = 4096, lr: float = 1e-3, lambda_w: float = 1e-3, lambda_z: float = 1e-3,
-              ema: float = 0.999, width: int = 128) -> str:
+              ema: float = 0.999, width: int = 128, s2: float = PriorConfig.s2, lam: float = PriorConfig.lam,
+              weight: str = PriorConfig.weight) -> str:
     """Train a learnt-prior model on MERL tables and save it to ``output``.
 
     Parameters
@@ -91,6 +92,9 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
         The recipe of the module docstring.
     latent_dim, width
         The set encoder's sizes (:class:`PriorConfig`).
+    s2, lam, weight
+        The closed-form fit's likelihood (:class:`PriorConfig`), in training and in the
+        saved model.
 
     Returns
     -------
@@ -124,7 +128,9 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
                            ("lambda_w", lambda_w, real(lambda_w) and lambda_w >= 0),
                            ("lambda_z", lambda_z, real(lambda_z) and lambda_z >= 0),
                            ("latent_dim", latent_dim, count(latent_dim)), ("width", width, count(width)),
-                           ("components", components, count(components))):
+                           ("components", components, count(components)),
+                           ("s2", s2, real(s2) and s2 > 0), ("lam", lam, real(lam) and lam > 0),
+                           ("weight", weight, weight in ("metric", "energy"))):
         if not ok:
             raise InputError(f"--method prior: option {key} = {value!r} is out of range")
     t0 = time.monotonic()
@@ -195,7 +201,8 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     mat_fold = torch.from_numpy(fold_of).to(dev)
     members = [torch.from_numpy(np.flatnonzero(fold_of == f)).to(dev) for f in range(folds)]
 
-    cfg = PriorConfig(n_components=K, latent_dim=latent_dim, width=width)
+    cfg = PriorConfig(n_components=K, latent_dim=latent_dim, width=width, s2=float(s2), lam=float(lam),
+                      weight=weight)
     net = prior_net(cfg).to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=lr)
     avg = torch.optim.swa_utils.AveragedModel(net, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(ema))
@@ -226,11 +233,11 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
                 rho.copy_(mixed.clamp(min=0))
         ctab, qtab, sig = fold_tab[folds_b[:, None], c_pos], fold_tab[folds_b[:, None], q_pos], fold_sig[folds_b]
         args = (ctab, crho, w_all[c_pos], cos_all[c_pos], sig, cfg.s2, cfg.lam)
-        c, b = solve(*args)
+        c, b = solve(*args, weight=weight)
         with torch.no_grad():
             resid = b - torch.einsum("bck,blk->bcl", ctab[..., 2:], c)
         mu, z, dc = net(hd_all[c_pos], resid, c, sig, n_ctx)
-        c, _ = solve(*args, mu=mu)
+        c, _ = solve(*args, mu=mu, weight=weight)
         ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
         mapped = mean + torch.einsum("bqk,blk->bql", comp, c)
         x = (torch.expm1(mapped.clamp(max=30)) * (ref + EPS) + ref) / w_all[q_pos][..., None]

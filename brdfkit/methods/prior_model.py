@@ -22,6 +22,11 @@ noise variance ``s2``) linearised around the observed values, plus IPCA's own li
 (noise variance ``lam``), and the Gaussian prior of the training coefficients
 (standard deviations ``sigma``) centred on ``mu``. ``benchmarks/study_pca.py`` measured this
 closed form within 0.002 of the iterative fit in the metric's space.
+
+With ``weight = "energy"`` the metric's term is ``g_s / s2`` instead: a residual counts
+in proportion to the sample's saturating energy ``rho cos_i / (1 + rho cos_i)`` rather
+than its square, so that the bright samples of a glossy lobe outweigh the diffuse body
+less (``benchmarks/study_likelihood.py`` ranks the choices by render PSNR).
 """
 
 from __future__ import annotations
@@ -53,6 +58,8 @@ class PriorConfig:
         The set encoder's output and hidden widths.
     s2, lam
         Noise variances of the metric's and of IPCA's likelihood in :func:`solve`.
+    weight
+        ``"metric"`` or ``"energy"``: the metric's term in :func:`solve`.
     """
 
     n_components: int = 8
@@ -60,6 +67,12 @@ class PriorConfig:
     width: int = 128
     s2: float = 1e-2
     lam: float = 0.1
+    weight: str = "metric"
+
+    def __post_init__(self):
+        # A model file's config arrives as JSON: refuse what the fit cannot use.
+        if self.weight not in ("metric", "energy") or not (self.s2 > 0 and self.lam > 0):
+            raise ValueError(f"invalid likelihood: weight {self.weight!r}, s2 {self.s2!r}, lam {self.lam!r}")
 
 
 def _mlp(*sizes):
@@ -101,7 +114,7 @@ def prior_net(cfg: PriorConfig):
     return PriorNet()
 
 
-def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None):
+def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str = "metric"):
     """The closed-form fit of the module docstring, batched (torch).
 
     Parameters
@@ -116,6 +129,8 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None):
         ``(B, K)`` the prior's standard deviations.
     mu
         ``(B, 3, K)`` prior mean, or ``None`` (zero).
+    weight
+        ``"metric"`` (``g^2``) or ``"energy"`` (``g``), as :class:`PriorConfig` says.
 
     Returns
     -------
@@ -128,7 +143,7 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None):
     ref, mean, comp = tab[..., 0:1], tab[..., 1:2], tab[..., 2:].double()
     b = torch.log((rho * w[..., None] + EPS) / (ref + EPS)) - mean
     g = cos[..., None] * (rho + EPS / w[..., None]) / (1 + rho * cos[..., None])
-    q = (g ** 2 / s2 + 1.0 / lam).double()
+    q = ((g if weight == "energy" else g ** 2) / s2 + 1.0 / lam).double()
     lhs = torch.einsum("bck,bcj,bcl->blkj", comp, comp, q)
     lhs = lhs + torch.diag_embed(1.0 / sigma.double() ** 2)[:, None]
     rhs = torch.einsum("bck,bcl->blk", comp, q * b.double())
@@ -196,11 +211,11 @@ class PriorModel:
         sig = torch.from_numpy(self.basis.sigma.astype(np.float32))[None]
         args = (T(tab), T(rho), T(w), T(cos), sig, self.cfg.s2, self.cfg.lam)
         with torch.no_grad():
-            c, b = solve(*args)
+            c, b = solve(*args, weight=self.cfg.weight)
             if use_prior:
                 resid = b - torch.einsum("bck,blk->bcl", T(tab)[..., 2:], c)
                 mu, _, _ = self.net(T(hd), resid, c, sig, int(ok.sum()))
-                c, _ = solve(*args, mu=mu)
+                c, _ = solve(*args, mu=mu, weight=self.cfg.weight)
         if not torch.isfinite(c).all():
             raise InputError(f"{samples.source or 'samples'}: the fit did not give finite coefficients")
         return c[0].double().numpy().T
