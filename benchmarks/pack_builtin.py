@@ -22,12 +22,12 @@ MODELS = [  # name, hypernetwork file, learnt-prior file, materials list, fit co
     ("merl-rgl-l40", "merl-rgl-l40.safetensors", "merl-rgl-prior.safetensors", "MERL + RGL (151)",
      "brdfkit fit PROXIES/merl PROXIES/rgl -O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
      "-o merl-rgl-l40.safetensors; brdfkit fit --method prior PROXIES/merl PROXIES/rgl "
-     "-O basis=merl80-basis.safetensors --minutes 8 --seed 0 -o merl-rgl-prior.safetensors"),
+     "-O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 --steps 3000 --seed 0 -o merl-rgl-prior.safetensors"),
     ("merl80-l40", "merl80-l40.safetensors", "merl80-prior.safetensors", "MERL less merl-test.txt (80)",
      "brdfkit fit PROXIES/merl --exclude-list merl-test.txt --minutes 14 --seed 0 -o merl80-l40.safetensors; "
      "brdfkit fit --method ipca PROXIES/merl --exclude-list merl-test.txt -O half=true -O phi_stride=2 "
      "-o merl80-basis.safetensors; brdfkit fit --method prior PROXIES/merl --exclude-list merl-test.txt "
-     "-O basis=merl80-basis.safetensors --minutes 8 --seed 0 -o merl80-prior.safetensors"),
+     "-O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 --steps 3000 --seed 0 -o merl80-prior.safetensors"),
     ("merl-rgl-l7", "merl-rgl-l7.safetensors", None, "MERL + RGL (151)",
      "brdfkit fit PROXIES/merl PROXIES/rgl --latent-dim 7 -O reference=merl80-l40.safetensors --minutes 14 "
      "--seed 0 -o merl-rgl-l7.safetensors"),
