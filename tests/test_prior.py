@@ -294,6 +294,62 @@ def test_a_changed_weight_is_refused_by_the_fingerprint(noisy, tmp_path):
     load_prior(path)
 
 
+def test_the_fingerprint_covers_the_likelihood_in_the_config(noisy, tmp_path):
+    """The config's likelihood changes what the model reconstructs: an edited config is a
+    damaged file. A file from before the likelihood options (no ``weight`` in its config,
+    a fingerprint of the weights and the basis alone) still loads."""
+    import hashlib
+
+    from brdfkit.methods.prior_file import _digest
+    from helpers_bad_input import rewrite_header
+
+    path = tmp_path / "prior.safetensors"
+    fp = save_prior(path, noisy)
+    good = path.read_bytes()
+
+    def edit_config(**change):
+        def edit(h):
+            cfg = json.loads(h["__metadata__"]["config"])
+            cfg.update(change)
+            h["__metadata__"]["config"] = json.dumps(cfg, sort_keys=True)
+        return edit
+
+    for change in ({"s2": 0.5}, {"weight": "energy" if noisy.cfg.weight == "metric" else "metric"}):
+        path.write_bytes(rewrite_header(good, edit_config(**change)))
+        with pytest.raises(FormatError, match="prior.safetensors: the weights or the config do not match"):
+            load_prior(path)
+    # The same model with another likelihood is another model.
+    other = dataclasses.replace(noisy, cfg=dataclasses.replace(noisy.cfg, s2=0.5))
+    assert save_prior(tmp_path / "other.safetensors", other) != fp
+
+    def legacy(h):
+        meta = h["__metadata__"]
+        cfg = json.loads(meta["config"])
+        del cfg["weight"]
+        meta["config"] = json.dumps(cfg, sort_keys=True)
+        net = {k: load_prior(path).net.state_dict()[k[4:]].numpy() for k in h if k.startswith("net.")}
+        basis = {k: v for k, v in _tensors(path).items() if k.startswith("basis.")}
+        meta["fingerprint"] = hashlib.sha256((_digest(net) + _digest(basis)).encode()).hexdigest()
+
+    path.write_bytes(good)
+    old = tmp_path / "old.safetensors"
+    old.write_bytes(rewrite_header(good, legacy))
+    back = load_prior(old)
+    assert back.cfg.weight == "metric"
+    np.testing.assert_array_equal(back.coefficients(draw_samples(_table_of(back), 200, seed=1)),
+                                  load_prior(path).coefficients(draw_samples(_table_of(back), 200, seed=1)))
+
+
+def _tensors(path):
+    from safetensors.numpy import load_file
+
+    return load_file(str(path))
+
+
+def _table_of(model):
+    return model.basis.decode(np.zeros((model.basis.n_components, 3)))
+
+
 def test_is_prior_file(noisy, basis, tmp_path):
     from helpers_model import make_model
 

@@ -5,7 +5,10 @@ One file holds the network's weights (``net.*``) and its basis, either inside
 basis file beside it (metadata ``basis_file``, a bare name, and ``basis_digest``, the
 sha256 of that file), so that the built-in models trained on one basis ship it once.
 Metadata ``config`` is the :class:`~brdfkit.methods.prior_model.PriorConfig` as JSON and
-``fingerprint`` the sha256 of the weights and the basis, checked on loading.
+``fingerprint`` the sha256 of the weights, the basis and that config (the likelihood in
+it changes what the model reconstructs), checked on loading. Files written before the
+config held a likelihood (no ``weight`` in it) carry the fingerprint of the weights and
+the basis alone, and are read as they were.
 """
 
 from __future__ import annotations
@@ -34,6 +37,13 @@ def _digest(tensors: dict) -> str:
         h.update(k.encode() + b"\0" + str(a.dtype).encode() + b"\0" + repr(a.shape).encode())
         h.update(a.tobytes())
     return h.hexdigest()
+
+
+def _fingerprint(net_digest: str, basis_digest: str, config: str) -> str:
+    """sha256 hex of the network, the basis and the config JSON; without ``weight`` in
+    the config (files from before the likelihood options) of the first two only."""
+    legacy = "weight" not in json.loads(config)
+    return hashlib.sha256((net_digest + basis_digest + ("" if legacy else "\0" + config)).encode()).hexdigest()
 
 
 def _file_digest(path: str) -> str:
@@ -88,7 +98,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
         tensors = net
         basis_digest = _file_digest(where)
         meta.update(basis_file=basis_file, basis_digest=basis_digest)
-    fingerprint = hashlib.sha256((_digest(net) + basis_digest).encode()).hexdigest()
+    fingerprint = _fingerprint(_digest(net), basis_digest, meta["config"])
     meta["fingerprint"] = fingerprint
     with atomic_path(path) as tmp:
         save_file(tensors, tmp, metadata=meta)
@@ -148,8 +158,9 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
         else:
             basis = read_ipca(f, path, prefix="basis.")
             basis_digest = _digest({k: f.get_tensor(k) for k in f.keys() if k.startswith("basis.")})
-    if hashlib.sha256((_digest(net_t) + basis_digest).encode()).hexdigest() != meta.get("fingerprint"):
-        raise FormatError(path, "the weights do not match the recorded fingerprint: the file is damaged")
+    if _fingerprint(_digest(net_t), basis_digest, meta["config"]) != meta.get("fingerprint"):
+        raise FormatError(path, "the weights or the config do not match the recorded fingerprint: "
+                                "the file is damaged")
     if basis.n_components != cfg.n_components:
         raise FormatError(path, f"the basis has {basis.n_components} components, the network expects "
                                 f"{cfg.n_components}")
