@@ -42,3 +42,20 @@ def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) ->
     ref = material_table(0) if rho_ref is None else rho_ref
     return save_model(path, HyperBRDF(cfg), ref, {"materials": ["stiff-white"], "steps": 0})
 
+
+
+def pack_tiny_builtins(src, folder, names, command=None, **entry) -> list:
+    """Tiny untrained hypernetworks packed as built-ins into ``folder`` (trained copies in
+    ``src``), sharing ``tiny.reference.safetensors``: one manifest entry each, for the
+    ``(name, seed)`` pairs ``names``; ``command`` (default ``brdfkit fit (NAME)``) and
+    ``entry`` (``validation=``, ``materials_list=`` ...) go into the entries."""
+    from brdfkit.model import builtin
+
+    entries = []
+    for name, seed in names:
+        make_model(src / f"{name}.safetensors", seed=seed)
+        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+                           reference_file="tiny.reference.safetensors")
+        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name,
+                                              command=command or f"brdfkit fit ({name})", **entry))
+    return entries

@@ -30,7 +30,7 @@ from brdfkit.model.network import HyperBRDF, HyperConfig
 from brdfkit.samples import draw_samples, write_samples
 
 from conftest import TINY_CONFIG
-from helpers_model import make_model, material_table
+from helpers_model import make_model, material_table, pack_tiny_builtins
 
 F16_EPS = 2.0 ** -11  # float16's relative rounding error
 
@@ -60,13 +60,8 @@ def shelf(tmp_path_factory):
     file, and a folder of inputs (a table, a sample set)."""
     src = tmp_path_factory.mktemp("trained")
     folder = tmp_path_factory.mktemp("builtin")
-    entries = []
-    for name, seed in (("tiny-a", 0), ("tiny-b", 1)):
-        make_model(src / f"{name}.safetensors", seed=seed)
-        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
-                           reference_file="tiny.reference.safetensors")
-        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command=f"brdfkit fit ({name})",
-                                              validation={40: 0.3, 400: 0.2}, materials_list="stiff"))
+    entries = pack_tiny_builtins(src, folder, (("tiny-a", 0), ("tiny-b", 1)), validation={40: 0.3, 400: 0.2},
+                                 materials_list="stiff")
     builtin.write_manifest(folder, entries, default="tiny-a")
     inputs = tmp_path_factory.mktemp("inputs")
     write_merl(inputs / "mat.binary", material_table(1))

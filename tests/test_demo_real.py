@@ -25,7 +25,7 @@ from brdfkit.model import builtin
 from brdfkit.nbrdf_tables import DEMO_WEIGHTS, LAYERS, load_nbrdf_weights, nbrdf_table
 
 from conftest import brdfkit_command, quiet_env
-from helpers_model import make_model, material_table
+from helpers_model import material_table, pack_tiny_builtins
 
 SHARED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "..", "shared")
 TOOL = os.path.join(SHARED, "tools", "nbrdf_to_merl.py")
@@ -44,13 +44,8 @@ def shelf(tmp_path_factory):
 
     src = tmp_path_factory.mktemp("trained")
     folder = tmp_path_factory.mktemp("builtin")
-    entries = []
-    for name, seed in (("merl80-l40", 0), ("merl-rgl-l7", 1)):
-        make_model(src / f"{name}.safetensors", seed=seed)
-        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
-                           reference_file="tiny.reference.safetensors")
-        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command="brdfkit fit (tiny)",
-                                              validation={40: 0.3}))
+    entries = pack_tiny_builtins(src, folder, (("merl80-l40", 0), ("merl-rgl-l7", 1)), command="brdfkit fit (tiny)",
+                                 validation={40: 0.3})
     basis = fit_ipca([material_table(0), material_table(1)], n_components=3, names=["stiff-white", "ggx"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
     torch.manual_seed(0)

@@ -112,7 +112,8 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
             raise InputError(f"--model-file {item!r}: expected METHOD=FILE")
         models[name.strip()] = path
     cfg = BenchConfig(output=output, data=data, test_list=test_list, model=model, ipca=ipca, models=models,
-                      n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed, methods=None if methods is None else _str_list(methods),
+                      n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed,
+                      methods=None if methods is None else _str_list(methods),
                       compression_models=_str_list(compression_models), compression_data=compression_data,
                       resolution=resolution, jobs=jobs, threads=threads, device=device,
                       options=options,
