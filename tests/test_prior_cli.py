@@ -25,7 +25,7 @@ from brdfkit.methods import get_method
 from brdfkit.model import builtin
 from brdfkit.samples import draw_samples, read_samples, write_samples
 
-from helpers_model import make_model, material_table
+from helpers_model import material_table, pack_tiny_builtins
 
 BASIS = "tiny.basis.safetensors"
 PRIOR = "tiny-p.prior.safetensors"
@@ -67,13 +67,7 @@ def shelf(tmp_path_factory):
     200-sample set ``s.csv`` of it."""
     src = tmp_path_factory.mktemp("trained")
     folder = tmp_path_factory.mktemp("builtin")
-    entries = []
-    for name, seed in (("tiny-p", 0), ("tiny-h", 1)):
-        make_model(src / f"{name}.safetensors", seed=seed)
-        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
-                           reference_file="tiny.reference.safetensors")
-        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command=f"brdfkit fit ({name})",
-                                              validation={40: 0.3}))
+    entries = pack_tiny_builtins(src, folder, (("tiny-p", 0), ("tiny-h", 1)), validation={40: 0.3})
     fp = _pack_prior(folder / PRIOR, [material_table(0), material_table(1)])
     entries[0].update(prior=PRIOR, prior_fingerprint=fp)
     builtin.write_manifest(folder, entries, default="tiny-p")
@@ -241,6 +235,10 @@ def test_bench_default_methods_lead_with_a_builtins_prior(installed, capsys, tmp
                 BenchConfig(output="o")):
         assert cfg.resolved().methods == DEFAULT_METHODS and cfg.resolved().models == {}
     assert BenchConfig(output="o", model="tiny-p", methods=("ipca",)).resolved().methods == ("ipca",)
+    # The built-in's basis is the default ipca's when --ipca is not given; a given one stays.
+    assert BenchConfig(output="o", model="tiny-p").resolved().ipca == str(folder / BASIS)
+    assert BenchConfig(output="o", model="tiny-p", ipca="x.safetensors").resolved().ipca == "x.safetensors"
+    assert BenchConfig(output="o", model="tiny-h").resolved().ipca is None
     given = BenchConfig(output="o", model="tiny-h", models={"prior": "tiny-p"}).resolved()
     assert given.methods == ("prior", *DEFAULT_METHODS) and given.models == {"prior": str(folder / PRIOR)}
 

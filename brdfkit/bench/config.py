@@ -127,13 +127,16 @@ class BenchConfig:
 
     def with_default_methods(self) -> "BenchConfig":
         """This configuration with ``methods=None`` replaced by :func:`default_methods`
-        (and, when that adds the learnt prior, ``models["prior"]`` the built-in's name);
-        itself when methods are given."""
+        (and, when that adds the learnt prior of the built-in ``-m``, ``models["prior"]``
+        and, unless given, ``ipca`` the built-in's name); itself when methods are given."""
         if self.methods is not None:
             return self
         methods, prior = default_methods(self.model, self.models.get("prior"))
         models = {**self.models, "prior": prior} if prior else self.models
-        return dataclasses.replace(self, methods=methods, models=models)
+        # A built-in -m with a learnt prior ships its PCA basis: the default ipca needs
+        # no --ipca then (the basis the prior is fitted with, as `--ipca NAME` takes it).
+        ipca = self.ipca or (self.model if prior and prior == self.model else None)
+        return dataclasses.replace(self, methods=methods, models=models, ipca=ipca)
 
     def compressors(self) -> list:
         """``(method, model file)`` of the compression benchmark: the hypernetwork models
