@@ -169,10 +169,16 @@ def test_sparse(files, tmp_path, capsys):
                               "-o", out, "--emb", emb])
     assert code == 0, err
     m = api.load_model(files / "model.safetensors", "cpu")
-    table, e = api.sparse(m, files / "samples.csv")
+    # With --emb the refinement stops at the latent, so that the embedding decodes to the table.
+    from brdfkit.methods import get_method
+    from brdfkit.samples import read_samples
+
+    table, e = get_method("hypernet").sparse(read_samples(files / "samples.csv"), m, refine_target="latent")
     np.testing.assert_allclose(read_merl(out), table, rtol=1e-12, equal_nan=True)
     np.testing.assert_array_equal(read_embedding(emb).latent, e.latent)
+    np.testing.assert_allclose(api.decode(m, read_embedding(emb)), table, rtol=1e-6, equal_nan=True)
     assert read_embedding(emb).sample_count == 300
+    assert "refined on the samples (latent)" in err
 
 
 def test_sparse_bad_method_and_overwrite(files, tmp_path, capsys):

@@ -26,7 +26,13 @@ def _model_from_env() -> bool:
 @click.option("--method", type=click.Choice([_AUTO] + sorted(METHODS)), default=_AUTO, show_default=True,
               help="Reconstruction method; auto: a built-in's learnt prior when it has one, else its "
                    "hypernetwork; a model file's own method.")
-def command(samples, model_path, output, emb_path, method):
+@click.option("--refine/--no-refine", default=None,
+              help="Method hypernet: refine the encoded material on its samples, early-stopped on "
+                   "held-out ones (docs/generalisation.md) [default: refine].")
+@click.option("--refine-target", type=click.Choice(["latent", "weights"]), default=None,
+              help="What --refine fits: the latent only, or then the hyponet's weights too "
+                   "[default: weights; latent with --emb, since refined weights have no embedding].")
+def command(samples, model_path, output, emb_path, method, refine, refine_target):
     """Reconstruct a dense MERL table from the sample set SAMPLES (.csv).
 
     Make a sample set with `brdfkit sample`; its format is in docs/formats.md.
@@ -48,16 +54,35 @@ def command(samples, model_path, output, emb_path, method):
     if emb_path and method != "hypernet":  # refused before the work (nbrdf's takes minutes)
         what = "the learnt prior (method prior)" if method == "prior" else f"method {method!r}"
         raise InputError(f"--emb: {what} makes no embedding; --method hypernet does")
+    given = {}
+    if refine is not None or refine_target:
+        if method != "hypernet":
+            raise InputError(f"--refine/--refine-target apply to --method hypernet; method {method!r} "
+                             f"{'already fits its samples in closed form' if method == 'prior' else 'has no encoder'}")
+        if refine is False and refine_target:
+            raise InputError("--refine-target needs --refine, not --no-refine")
+        if refine_target == "weights" and emb_path:
+            raise InputError("--emb: refined hyponet weights (--refine-target weights) have no embedding; "
+                             "drop --emb or use --refine-target latent")
+        given["refine"] = refine is not False
+        if refine_target:
+            given["refine_target"] = refine_target
+    if method == "hypernet" and emb_path and "refine_target" not in given:
+        given["refine_target"] = "latent"  # the embedding written must decode to the table written
     if model_path is None and method in ("hypernet", "prior"):
         require_model(None)  # nothing installed: the "no model given" error, with its advice
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
     data = read_samples(samples)
-    table, emb = METHODS[method].sparse(data, model_path)
+    table, emb = METHODS[method].sparse(data, model_path, **given)
     write_merl(output, table)
     if emb_path:
         write_embedding(emb_path, emb)
     extra = f" and {emb_path}" if emb_path else ""
     used = f"method {method}" + (f", model {choice.label}" if choice.label else "")
-    click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used})", err=True)
+    how = ""
+    if method == "hypernet":
+        options = METHODS[method].make_options(**given)
+        how = f"; refined on the samples ({options.refine_target})" if options.refine else "; not refined"
+    click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used}){how}", err=True)

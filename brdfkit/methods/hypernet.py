@@ -1,23 +1,51 @@
 """The hypernetwork of Gokbudak et al. 2024 as a reconstruction method: encode the
-samples with the set encoder, decode the hyponet on the whole grid
-(:func:`brdfkit.api.sparse`); its model file comes from :func:`brdfkit.training.fit`."""
+samples with the set encoder, optionally refine the result on the samples
+(:mod:`brdfkit.model.refine`), decode the hyponet on the whole grid; its model file
+comes from :func:`brdfkit.training.fit`."""
 
 from __future__ import annotations
 
+import dataclasses
 import os
 
 from .. import api
-from .method import Method
+from ..errors import InputError
+from .method import Method, MethodOptions
 
-__all__ = ["METHOD"]
+__all__ = ["METHOD", "HypernetOptions"]
 
 
 def _load(path, device):
     return api.load_model(path, device=device)
 
 
+@dataclasses.dataclass(frozen=True)
+class HypernetOptions(MethodOptions):
+    """``refine``: fit the encoded material to its own samples, early-stopped on held-out
+    ones (:func:`brdfkit.model.refine.refine`; off: the paper's one encoder pass);
+    ``refine_target``: ``latent`` or ``weights`` (the latent, then the hyponet's weights).
+    The defaults won at every N on the validation split (``docs/generalisation.md``)."""
+
+    refine: bool = True
+    refine_target: str = "weights"
+
+    def __post_init__(self):
+        if not isinstance(self.refine, bool):
+            raise InputError(f"hypernet option refine must be true or false, got {self.refine!r}")
+        if self.refine_target not in ("latent", "weights"):
+            raise InputError(f"hypernet option refine_target must be 'latent' or 'weights', "
+                             f"got {self.refine_target!r}")
+
+
 def _reconstruct(samples, model, options, *, seed, device):
-    return api.sparse(model, samples)
+    emb = api.encode(model, samples)
+    if not options.refine:
+        return api.decode(model, emb), emb
+    from ..model.refine import RefineConfig, refine
+
+    result = refine(model, samples, emb, config=RefineConfig(target=options.refine_target), seed=seed)
+    # The weights stage changes the hyponet, which no latent decodes to: no embedding then.
+    return result.brdf.to_table(), result.embedding if options.refine_target == "latent" else None
 
 
 def _fit(data, output, *, exclude=(), progress=True, **options):
@@ -37,6 +65,7 @@ def _describe(model, path):
 
 
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",
-                "hypernetwork model (.safetensors from `brdfkit fit` or `brdfkit demo`)", load_model=_load, reconstruct_fn=_reconstruct,
+                "hypernetwork model (.safetensors from `brdfkit fit` or `brdfkit demo`)", options=HypernetOptions,
+                load_model=_load, reconstruct_fn=_reconstruct,
                 fit_fn=_fit, fit_options=None, compress_fn=_compress, describe_fn=_describe,
                 bench_option="model")
