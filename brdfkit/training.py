@@ -55,6 +55,11 @@ class TrainOptions:
         Minutes between checkpoints.
     max_bad_steps
         Consecutive non-finite steps after which training stops with an error.
+    weight_decay
+        Decoupled weight decay (AdamW, Loshchilov & Hutter 2019); 0: plain Adam.
+    mixup
+        Probability that a batch slot mixes two training materials in mapped space
+        (:class:`brdfkit.trainset.BatchSampler`); 0: never.
     """
 
     batch_materials: int = 8
@@ -69,12 +74,18 @@ class TrainOptions:
     grad_clip: float = 1.0
     checkpoint_minutes: float = 2.0
     max_bad_steps: int = 25
+    weight_decay: float = 0.0
+    mixup: float = 0.0
 
     # Options that may change between a run and its resumption.
     RESUMABLE_CHANGES = ("checkpoint_minutes", "max_bad_steps")
+    # Options added later: left out of the identity at their defaults, so that older
+    # checkpoints still resume.
+    LATER_DEFAULTS = {"weight_decay": 0.0, "mixup": 0.0}
 
     def identity_json(self) -> str:
-        d = {k: v for k, v in dataclasses.asdict(self).items() if k not in self.RESUMABLE_CHANGES}
+        d = {k: v for k, v in dataclasses.asdict(self).items() if k not in self.RESUMABLE_CHANGES
+             and not (k in self.LATER_DEFAULTS and v == self.LATER_DEFAULTS[k])}
         return json.dumps(d, sort_keys=True)
 
 
@@ -113,8 +124,10 @@ def _parse_advanced(latent_dim, advanced: dict):
         v = getattr(opts, key)
         if not (v > 0 and math.isfinite(v)):
             raise InputError(f"training option {key} must be a positive number, got {v}")
-    if not 0.0 <= opts.angle_fraction <= 1.0 or not 0.0 <= opts.lr_final <= 1.0:
-        raise InputError("training options angle_fraction and lr_final must lie in [0, 1]")
+    if not (opts.weight_decay >= 0 and math.isfinite(opts.weight_decay)):
+        raise InputError(f"training option weight_decay must be a number >= 0, got {opts.weight_decay}")
+    if not all(0.0 <= v <= 1.0 for v in (opts.angle_fraction, opts.lr_final, opts.mixup)):
+        raise InputError("training options angle_fraction, lr_final and mixup must lie in [0, 1]")
     if opts.warmup_steps < 0:
         raise InputError(f"training option warmup_steps must be >= 0, got {opts.warmup_steps}")
     if not isinstance(latent_dim, int) or latent_dim < 1:
@@ -303,7 +316,10 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
 
     torch.manual_seed(seed)  # same initial weights on every rank
     net = network.HyperBRDF(cfg).to(device)
-    opt = torch.optim.Adam(net.parameters(), lr=opts.lr)
+    if opts.weight_decay > 0:
+        opt = torch.optim.AdamW(net.parameters(), lr=opts.lr, weight_decay=opts.weight_decay)
+    else:
+        opt = torch.optim.Adam(net.parameters(), lr=opts.lr)
     step, elapsed_before, skipped, resumed_from = 0, 0.0, 0, []
     if state is not None:
         check_resumable(ckpt, state, config=cfg.to_json(), options=opts.identity_json(),
@@ -329,7 +345,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
         model = DDP(net, device_ids=[device.index] if device.type == "cuda" else None)
 
     sampler = BatchSampler(tset, device, opts.batch_materials, opts.query_size, opts.context_min,
-                           opts.context_max, seed, rank, opts.angle_fraction)
+                           opts.context_max, seed, rank, opts.angle_fraction, opts.mixup)
     rho_ref = tset.rho_ref
     tset.values = None  # the sampler holds them now (on the device); no second host copy
 

@@ -211,17 +211,23 @@ class BatchSampler:
         Materials per step; query samples per material; context size range.
     angle_fraction
         Probability that a material's context is uniform over angles rather than cells.
+    mixup
+        Probability that a batch slot holds a mixture of two training materials instead
+        of one: ``t v_a + (1 - t) v_b`` in mapped space, ``t ~ U(0, 1)``, context and
+        query alike (mixup, Zhang et al. 2018; issue 12's lever). At 0 the batches are
+        those drawn before the option existed.
     """
 
     def __init__(self, tset: TrainingSet, device, batch: int, query: int, context_min: int,
-                 context_max: int, seed: int, rank: int = 0, angle_fraction: float = 0.5):
+                 context_max: int, seed: int, rank: int = 0, angle_fraction: float = 0.5,
+                 mixup: float = 0.0):
         import torch
 
         self.torch = torch
         self.device = device
         self.batch = min(batch, len(tset.own))
         self.query, self.cmin, self.cmax = query, context_min, context_max
-        self.seed, self.rank, self.angle_fraction = seed, rank, angle_fraction
+        self.seed, self.rank, self.angle_fraction, self.mixup = seed, rank, angle_fraction, mixup
         self.values = torch.from_numpy(tset.values).to(device)
         self.cells = torch.from_numpy(tset.cells).to(device)
         # Uniform over (theta_h, theta_d, phi_d) gives theta_h row i the weight of its
@@ -267,6 +273,13 @@ class BatchSampler:
         q_hd, q_cos = self._geometry(q_pos)
         ctx_val = self.values[mats[:, None], c_pos]
         q_val = self.values[mats[:, None], q_pos]
+        if self.mixup > 0:  # drawn after everything else: mixup = 0 keeps the old batches
+            other = torch.randint(0, self.values.shape[0], (self.batch,), generator=g).to(self.device)
+            t = torch.rand(self.batch, generator=g)
+            t = torch.where(torch.rand(self.batch, generator=g) < self.mixup, t, torch.ones_like(t))
+            t = t.to(self.device)[:, None, None]
+            ctx_val = t * ctx_val + (1 - t) * self.values[other[:, None], c_pos]
+            q_val = t * q_val + (1 - t) * self.values[other[:, None], q_pos]
         return ctx_hd, ctx_val, q_hd, q_val, q_cos
 
     def _geometry(self, pos):

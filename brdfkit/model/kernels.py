@@ -25,6 +25,8 @@ The kernels are built from the network's public layer lists
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .network import IN_FEATURES, OUT_FEATURES
@@ -56,7 +58,9 @@ def encoder_layers(model):
 
 
 def encode_mean(model, hd: np.ndarray, rgb: np.ndarray, ref: np.ndarray) -> np.ndarray:
-    """The set encoder's mean over ``N`` samples, in chunks of :data:`ENCODE_CHUNK`.
+    """The set encoder's mean over ``N`` samples, in chunks of :data:`ENCODE_CHUNK`
+    (with ``pooling="attention"``, the softmax-weighted mean, accumulated with a running
+    maximum of the scores so that no chunk overflows).
 
     Parameters
     ----------
@@ -82,6 +86,8 @@ def encode_mean(model, hd: np.ndarray, rgb: np.ndarray, ref: np.ndarray) -> np.n
     hidden, w_last, b_last = encoder_layers(model)
     n_in = IN_FEATURES + OUT_FEATURES
     total = torch.zeros(w_last.shape[1], dtype=torch.float64, device=model.device)
+    attention = model.net.encoder.attention
+    top, weight_sum = -math.inf, 0.0
     with torch.inference_mode():
         for s in range(0, n, ENCODE_CHUNK):
             e = min(n, s + ENCODE_CHUNK)
@@ -99,8 +105,17 @@ def encode_mean(model, hd: np.ndarray, rgb: np.ndarray, ref: np.ndarray) -> np.n
                 h = out
             if not hidden:  # one affine layer: the mean of the inputs themselves
                 h = h[:n_in]
-            total += h.sum(dim=1, dtype=torch.float64)
-        z = torch.addmv(b_last, w_last, total / n)
+            if attention is None:
+                total += h.sum(dim=1, dtype=torch.float64)
+                continue
+            score = (attention.weight.double() @ h.double())[0] + attention.bias.double()
+            new_top = max(top, float(score.max()))
+            scale = math.exp(top - new_top) if top > -math.inf else 0.0
+            w = torch.exp(score - new_top)
+            total = total * scale + h.double() @ w
+            weight_sum = weight_sum * scale + float(w.sum())
+            top = new_top
+        z = torch.addmv(b_last, w_last, total / (n if attention is None else weight_sum))
     return z.float().cpu().numpy()
 
 

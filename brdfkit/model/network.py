@@ -55,6 +55,12 @@ class HyperConfig:
         Width and number of hidden layers of each per-tensor decoder MLP.
     lambda_w, lambda_z
         Weights of the hyponet-weight and latent regularisers in the loss.
+    pooling
+        How the set encoder pools its samples: ``"mean"`` (the paper's) or
+        ``"attention"`` (a softmax over a learnt score of each sample's last hidden
+        features, Ilse et al. 2018: any count and order still work).
+    encoder_dropout
+        Dropout after each hidden layer of the set encoder, in training only.
     """
 
     latent_dim: int = 40
@@ -65,9 +71,25 @@ class HyperConfig:
     decoder_layers: int = 2
     lambda_w: float = 0.1
     lambda_z: float = 0.1
+    pooling: str = "mean"
+    encoder_dropout: float = 0.0
+
+    # Keys added after models shipped: left out of the JSON at their defaults, so that
+    # the configs (and checkpoints) of those models read as they were written.
+    _LATER_KEYS = {"pooling": "mean", "encoder_dropout": 0.0}
+
+    def __post_init__(self):
+        if self.pooling not in ("mean", "attention"):
+            raise ValueError(f"pooling must be 'mean' or 'attention', got {self.pooling!r}")
+        if not 0.0 <= float(self.encoder_dropout) < 1.0:
+            raise ValueError(f"encoder_dropout must lie in [0, 1), got {self.encoder_dropout!r}")
 
     def to_json(self) -> str:
-        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+        d = dataclasses.asdict(self)
+        for key, default in self._LATER_KEYS.items():
+            if d[key] == default:
+                del d[key]
+        return json.dumps(d, sort_keys=True)
 
     @classmethod
     def from_json(cls, text: str) -> "HyperConfig":
@@ -91,12 +113,14 @@ def hyponet_shapes(cfg: HyperConfig) -> list[tuple[int, int]]:
     return list(zip(widths[:-1], widths[1:]))
 
 
-def _mlp(sizes, last_activation=False):
+def _mlp(sizes, last_activation=False, dropout=0.0):
     layers = []
     for i, (a, b) in enumerate(zip(sizes[:-1], sizes[1:])):
         layers.append(nn.Linear(a, b))
         if i < len(sizes) - 2 or last_activation:
             layers.append(nn.ReLU())
+            if dropout > 0:
+                layers.append(nn.Dropout(dropout))
     return nn.Sequential(*layers)
 
 
@@ -105,15 +129,24 @@ def _linears(seq: nn.Sequential) -> list[nn.Linear]:
 
 
 class SetEncoder(nn.Module):
-    """Permutation-invariant encoder: per-sample MLP, then the mean over samples."""
+    """Permutation-invariant encoder: per-sample MLP, then the mean over samples (or,
+    with ``pooling="attention"``, a softmax-weighted mean of the last hidden features,
+    the weights a learnt linear score of those features; the last layer is affine, so
+    it is applied after the pooling)."""
 
     def __init__(self, cfg: HyperConfig):
         super().__init__()
-        self.net = _mlp([IN_FEATURES + OUT_FEATURES, *cfg.encoder_hidden, cfg.latent_dim])
+        sizes = [IN_FEATURES + OUT_FEATURES, *cfg.encoder_hidden, cfg.latent_dim]
+        self.net = _mlp(sizes, dropout=cfg.encoder_dropout)
+        self.attention = nn.Linear(sizes[-2], 1) if cfg.pooling == "attention" else None
 
     def forward(self, samples: torch.Tensor) -> torch.Tensor:
         """``samples (B, N, 9)`` -> ``z (B, L)``; any ``N >= 1``."""
-        return self.net(samples).mean(dim=1)
+        if self.attention is None:
+            return self.net(samples).mean(dim=1)
+        h = self.net[:-1](samples)
+        w = torch.softmax(self.attention(h), dim=1)
+        return self.net[-1]((w * h).sum(dim=1))
 
     def layers(self) -> list[nn.Linear]:
         """The per-sample MLP's layers in order, a ReLU after each but the last."""
