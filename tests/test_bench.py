@@ -154,6 +154,11 @@ def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
 
     with pytest.raises(InputError, match="both hold sparse"):
         merge_results([tmp_path / "out", tmp_path / "merged"], str(tmp_path / "again"))
+    # --replace: the later run's ipca records (seeds 0-2) replace the earlier run's (0-1).
+    again = merge_results([tmp_path / "out", tmp_path / "merged"], str(tmp_path / "again"), replace=True)
+    ipca = [r for r in again["records"] if r["method"] == "ipca" and r["material"] == good]
+    want = [r for r in merged["records"] if r["method"] == "ipca" and r["material"] == good]
+    assert ipca == want and len(ipca) == 3
 
     # An interrupted run (only `good` finished) merges on request, over the common materials.
     part = json.loads((tmp_path / "more" / "bench.json").read_text())

@@ -183,7 +183,7 @@ def _finish(result: dict, folder: str, json_path: str, group_by_prefix: bool) ->
     return result
 
 
-def merge_results(paths, output: str, allow_incomplete: bool = False) -> dict:
+def merge_results(paths, output: str, allow_incomplete: bool = False, replace: bool = False) -> dict:
     """Merge the ``bench.json`` of runs with other seeds (or methods) into one result.
 
     The runs must share the render resolution; a record that two runs both hold (same
@@ -197,6 +197,9 @@ def merge_results(paths, output: str, allow_incomplete: bool = False) -> dict:
     ----------
     allow_incomplete
         Also merge runs that were interrupted (their finished materials).
+    replace
+        A method that a later run holds replaces that method's records of the earlier
+        runs (one method re-run after a change), instead of a duplicate being refused.
 
     Raises
     ------
@@ -232,14 +235,16 @@ def merge_results(paths, output: str, allow_incomplete: bool = False) -> dict:
         common[kind] = set.intersection(*covered) if covered else set()
         dropped += sorted(set().union(*covered) - common[kind]) if covered else []
     seen, records = set(), []
-    for run in runs:
+    for i, run in enumerate(runs):
+        later = {(r["kind"], r["method"]) for other in runs[i + 1:] for r in other["records"]} if replace else set()
         for r in run["records"]:
-            if r["material"] not in common[r["kind"]]:
+            if r["material"] not in common[r["kind"]] or (r["kind"], r["method"]) in later:
                 continue
             key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), r.get("latent"))
             if key in seen:
                 raise InputError(f"two runs both hold {r['kind']} {r['material']} {r['method']} "
-                                 f"N={r.get('n')} seed={r.get('seed')}; merge runs with other seeds or methods")
+                                 f"N={r.get('n')} seed={r.get('seed')}; merge runs with other seeds or methods "
+                                 f"(or --replace: a later run's method replaces an earlier run's)")
             seen.add(key)
             records.append(r)
     first = runs[0]

@@ -73,9 +73,12 @@ def _str_list(value: str | None) -> tuple:
                    "repeat the option) into -o.")
 @click.option("--allow-incomplete", is_flag=True,
               help="With --merge: also merge interrupted runs (the materials every run finished).")
+@click.option("--replace", is_flag=True,
+              help="With --merge: a method that a later run holds replaces its records in the earlier runs "
+                   "(one method re-run after a change).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed, methods, compression_models, compression_data,
-            resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, method_options, group_by_prefix, cache, merge, output,
+            resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, method_options, group_by_prefix, cache, merge, replace, output,
             allow_incomplete, quiet):
     """Measure reconstruction error against run time (and compression error).
 
@@ -93,7 +96,7 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
     if merge:
         if data or compression_models:
             raise InputError("--merge combines finished runs; give no --data or --compression-models with it")
-        result = merge_results(merge, output, allow_incomplete=allow_incomplete)
+        result = merge_results(merge, output, allow_incomplete=allow_incomplete, replace=replace)
         console().print(f"merged {len(merge)} runs: wrote {', '.join(result['outputs'])}")
         return
 
