@@ -253,6 +253,8 @@ def merge_results(paths, output: str, allow_incomplete: bool = False, replace: b
     cfg["seeds"] = len(cfg["seed_values"]) or cfg["seeds"]
     cfg["methods"] = list(dict.fromkeys(m for run in runs for m in run["config"]["methods"]))
     cfg["command"] = " + ".join(run["config"].get("command", "") for run in runs)
+    if replace:
+        cfg["command"] += "  # merged with --replace: a later run's methods replace the earlier runs' records of them"
     mats = {"sparse": [m for m in dict.fromkeys(m for run in runs for m in run["materials"]["sparse"])
                        if m in common["sparse"]],
             "compression": list(dict.fromkeys(r["material"] for r in records if r["kind"] == "compression"))}
