@@ -52,7 +52,8 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     assert proc.stdout == ""  # progress and messages go to stderr
     result = json.loads((out / "bench.json").read_text())
     assert result["complete"] and result["format"] == "brdfkit-bench"
-    assert set(result["environment"]["method_defaults"]) == {"ipca", "nbrdf", "prior"}
+    assert set(result["environment"]["method_defaults"]) == {"hypernet", "ipca", "nbrdf", "prior"}
+    assert result["environment"]["method_defaults"]["hypernet"] == {"refine": True, "refine_target": "weights"}
     test_names = [setup["names"][0], setup["names"][2]]
     assert result["materials"]["sparse"] == test_names
 
