@@ -35,7 +35,10 @@ METHOD_TEXT = {
     "nbrdf": "**nbrdf**: a 6-21-21-3 NBRDF network (Sztrajman et al. 2021) fitted to the samples of each "
              "material from scratch ([baselines.md](baselines.md)).",
     "hypernet": "**hypernet**: the paper's method, the encoder / decoder of the built-in `merl80-l40` "
-                "(set encoder of the samples, hypernetwork decoder of a neural BRDF).",
+                "(set encoder of the samples, hypernetwork decoder of a neural BRDF), as `brdfkit sparse "
+                "--method hypernet` runs it: then refined on the samples (the latent, then the hyponet's "
+                "weights, early-stopped on held-out samples; the paper does not refine; "
+                "[generalisation.md](generalisation.md), Lever 4).",
 }
 _HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
 
@@ -293,7 +296,8 @@ def paper_section(sparse, model_name: str) -> list[str]:
              "FreNBRDF (Zhou, Hu, Oztireli 2025) publish, for MERL reconstruction, HyperBRDF 26.3 dB against "
              "NBRDF 29.2 dB PSNR (SSIM 0.926 against 0.950).", ""]
     if diffs:
-        lines.append(f"* What differs, generated: our hypernetwork (`{model_name}`) against the paper's: "
+        lines.append(f"* What differs, generated: our hypernetwork (`{model_name}`, refined on the samples as "
+                     f"shipped) against the paper's (one encoder pass): "
                      + "; ".join(diffs) + f"; SSIM {_range(ssim, 3)}.")
     lines += ["* The scene, the resolution, the data (proxies) and the training budget differ (table at the "
               "top), so equal figures would be a coincidence and unequal ones do not refute the paper; the "
