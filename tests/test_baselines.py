@@ -337,8 +337,9 @@ def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library
 
 
 def test_registry_hypernet_is_api_sparse(library, tmp_path):
-    """The registry's ``hypernet`` entry is exactly ``brdfkit.api.sparse`` (an untrained
-    tiny model is enough to check the plumbing)."""
+    """The registry's ``hypernet`` entry without refinement is exactly
+    ``brdfkit.api.sparse``, and refined it is :func:`brdfkit.model.refine.refine` (an
+    untrained tiny model is enough to check the plumbing)."""
     from brdfkit import api
 
     from helpers_model import make_model
@@ -347,7 +348,11 @@ def test_registry_hypernet_is_api_sparse(library, tmp_path):
     method = get_method("hypernet")
     model = method.load(tmp_path / "model.safetensors", device="cpu")
     samples = draw_samples(library[1], 100, seed=0)
-    np.testing.assert_array_equal(method.reconstruct(samples, model), api.sparse(model, samples)[0])
+    np.testing.assert_array_equal(method.reconstruct(samples, model, refine=False), api.sparse(model, samples)[0])
+    from brdfkit.model.refine import RefineConfig, refine
+
+    np.testing.assert_array_equal(method.reconstruct(samples, model),
+                                  refine(model, samples, config=RefineConfig(target="weights")).brdf.to_table())
     with pytest.raises(InputError, match="needs a hypernetwork model"):
         method.reconstruct(samples)
 
@@ -361,12 +366,14 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
 
     assert get_method("ipca").defaults() == {"lam": DEFAULT_LAMBDA}
     assert get_method("nbrdf").defaults()["steps"] == DEFAULT_STEPS
-    assert get_method("hypernet").defaults() == {}
+    assert get_method("hypernet").defaults() == {"refine": True, "refine_target": "weights"}
     assert get_method("nbrdf").make_options(steps=None, lr=0.01).steps == DEFAULT_STEPS
     with pytest.raises(InputError, match="'ipca' takes the option.*lam, got lr"):
         get_method("ipca").make_options(lr=1.0)
-    with pytest.raises(InputError, match="'hypernet' takes no options"):
+    with pytest.raises(InputError, match="'hypernet' takes the option.*refine, refine_target, got lam"):
         get_method("hypernet").make_options(lam=1.0)
+    with pytest.raises(InputError, match="refine_target"):
+        get_method("hypernet").make_options(refine_target="bias")
     with pytest.raises(InputError, match="lam"):
         get_method("ipca").make_options(lam=-1.0)
     path = tmp_path / "basis.safetensors"
