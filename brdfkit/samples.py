@@ -67,6 +67,11 @@ class SampleSet:
         pd[pd >= np.pi] = 0.0  # -1e-17 % pi rounds to pi itself
         return hd_vectors(self.theta_h, self.theta_d, pd)
 
+    def measured(self) -> np.ndarray:
+        """``(N,)`` bool: the samples with a value. A NaN value is an unmeasured sample
+        (MERL's convention), not a black one, and the fits leave it out."""
+        return ~np.isnan(np.asarray(self.rgb, np.float64)).any(axis=1)
+
     def cos_i(self) -> np.ndarray:
         """``cos(theta_i)`` ``(N,)``, clamped to ``>= 0``."""
         return np.clip(cos_theta_i(self.theta_h, self.theta_d, self.phi_d), 0.0, None)

@@ -81,11 +81,12 @@ class TrainOptions:
     RESUMABLE_CHANGES = ("checkpoint_minutes", "max_bad_steps")
     # Options added later: left out of the identity at their defaults, so that older
     # checkpoints still resume.
-    LATER_DEFAULTS = {"weight_decay": 0.0, "mixup": 0.0}
+    LATER_OPTIONS = ("weight_decay", "mixup")
 
     def identity_json(self) -> str:
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
         d = {k: v for k, v in dataclasses.asdict(self).items() if k not in self.RESUMABLE_CHANGES
-             and not (k in self.LATER_DEFAULTS and v == self.LATER_DEFAULTS[k])}
+             and not (k in self.LATER_OPTIONS and v == defaults[k])}
         return json.dumps(d, sort_keys=True)
 
 

@@ -75,7 +75,8 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
     data = read_samples(samples)
-    table, emb = METHODS[method].sparse(data, model_path, **given)
+    options = METHODS[method].make_options(**given)
+    table, emb = METHODS[method].sparse(data, model_path, options=options)
     write_merl(output, table)
     if emb_path:
         write_embedding(emb_path, emb)
@@ -83,6 +84,5 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     used = f"method {method}" + (f", model {choice.label}" if choice.label else "")
     how = ""
     if method == "hypernet":
-        options = METHODS[method].make_options(**given)
         how = f"; refined on the samples ({options.refine_target})" if options.refine else "; not refined"
     click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used}){how}", err=True)

@@ -189,10 +189,10 @@ class IpcaModel:
         w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
         # Samples no basis cell reaches, with no weight (on the horizon), or unmeasured
         # (NaN, MERL's convention) say nothing.
-        nan = np.isnan(np.asarray(samples.rgb)).any(axis=1)
-        use = np.isfinite(at).all(axis=1) & (w > 0) & ~nan
+        measured = samples.measured()
+        use = np.isfinite(at).all(axis=1) & (w > 0) & measured
         if not use.any():
-            what = ("no sample has a measured (non-NaN) value" if nan.all()
+            what = ("no sample has a measured (non-NaN) value" if not measured.any()
                     else "no sample lies on a cell the PCA basis covers")
             raise InputError(f"{samples.source or 'samples'}: {what}")
         at, w = at[use], w[use]

@@ -163,8 +163,7 @@ def sample_rows(basis: IpcaModel, samples):
                            samples.phi_d).astype(np.float64)
     w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
     rgb = np.asarray(samples.rgb, np.float64)
-    # A NaN value is an unmeasured sample (MERL's convention), not a black one: it says nothing.
-    ok = np.isfinite(tab).all(1) & (w > 0) & ~np.isnan(rgb).any(1)
+    ok = np.isfinite(tab).all(1) & (w > 0) & samples.measured()
     cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
     rho = np.clip(rgb[ok], 0, None)
     return ok, tab[ok], w[ok], cos, rho, samples.hd()[ok]
@@ -204,7 +203,7 @@ class PriorModel:
             raise InputError(f"{samples.source or 'samples'}: no samples to fit")
         ok, tab, w, cos, rho, hd = sample_rows(self.basis, samples)
         if not ok.any():
-            what = ("no sample has a measured (non-NaN) value" if np.isnan(np.asarray(samples.rgb)).any(1).all()
+            what = ("no sample has a measured (non-NaN) value" if not samples.measured().any()
                     else "no sample lies on a cell the basis covers above the horizon")
             raise InputError(f"{samples.source or 'samples'}: {what}")
         T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731

@@ -76,7 +76,7 @@ class HyperConfig:
 
     # Keys added after models shipped: left out of the JSON at their defaults, so that
     # the configs (and checkpoints) of those models read as they were written.
-    _LATER_KEYS = {"pooling": "mean", "encoder_dropout": 0.0}
+    _LATER_KEYS = ("pooling", "encoder_dropout")
 
     def __post_init__(self):
         if self.pooling not in ("mean", "attention"):
@@ -85,10 +85,8 @@ class HyperConfig:
             raise ValueError(f"encoder_dropout must lie in [0, 1), got {self.encoder_dropout!r}")
 
     def to_json(self) -> str:
-        d = dataclasses.asdict(self)
-        for key, default in self._LATER_KEYS.items():
-            if d[key] == default:
-                del d[key]
+        defaults = {f.name: f.default for f in dataclasses.fields(self)}
+        d = {k: v for k, v in dataclasses.asdict(self).items() if not (k in self._LATER_KEYS and v == defaults[k])}
         return json.dumps(d, sort_keys=True)
 
     @classmethod

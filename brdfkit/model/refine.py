@@ -108,12 +108,11 @@ def _sample_tensors(model, samples, device):
     hd = torch.from_numpy(np.asarray(samples.hd(), np.float32)).to(device)
     ref = torch.from_numpy(np.asarray(model.reference_at(samples.theta_h, samples.theta_d, samples.phi_d),
                                       np.float32)).to(device)
-    cos = torch.from_numpy(np.asarray(samples.cos_i(), np.float32)).to(device)[:, None]
-    rgb = np.asarray(samples.rgb, np.float64)
-    with np.errstate(invalid="ignore"):
-        target = np.log1p(np.clip(rgb, 0.0, None) * samples.cos_i()[:, None]).astype(np.float32)
-    target = torch.from_numpy(target)
-    return hd, ref, cos, target.to(device)
+    cos_i = samples.cos_i()[:, None]
+    with np.errstate(invalid="ignore"):  # NaN (unmeasured) rows stay NaN; refine drops them
+        target = np.log1p(np.clip(np.asarray(samples.rgb, np.float64), 0.0, None) * cos_i)
+    cos, target = (torch.from_numpy(a.astype(np.float32)).to(device) for a in (cos_i, target))
+    return hd, ref, cos, target
 
 
 def _metric_mse(weights, hd, ref, cos, target):
@@ -197,8 +196,7 @@ def refine(model, samples, embedding: Embedding | None = None, *, config: Refine
     emb = embedding if embedding is not None else encode_samples(model, samples, name)
     dev = model.device
     z0 = torch.from_numpy(np.asarray(emb.latent, np.float32).copy()).to(dev)[None]
-    # A NaN value is an unmeasured sample (MERL's convention): it says nothing.
-    ok = torch.from_numpy(~np.isnan(np.asarray(samples.rgb, np.float64)).any(axis=1)).to(dev)
+    ok = torch.from_numpy(samples.measured()).to(dev)
     n = int(ok.sum())
     if n < cfg.min_samples:
         return RefineResult(NeuralBRDF.from_embedding(model, emb, name), emb, {"latent": 0}, {})
