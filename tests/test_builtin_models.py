@@ -29,7 +29,7 @@ from brdfkit.model.file import load_model, save_model, state_fingerprint
 from brdfkit.model.network import HyperBRDF, HyperConfig
 from brdfkit.samples import draw_samples, write_samples
 
-from conftest import TINY_CONFIG
+from conftest import TINY_CONFIG, quiet_env, run_brdfkit
 from helpers_model import make_model, material_table, pack_tiny_builtins
 
 F16_EPS = 2.0 ** -11  # float16's relative rounding error
@@ -306,6 +306,29 @@ def test_models_command(installed, capsys):
     doc = json.loads(out)
     assert doc["default"] == "tiny-a" and [m["name"] for m in doc["models"]] == ["tiny-a", "tiny-b"]
     assert doc["models"][1]["validation"] == {"40": 0.3, "400": 0.2} and doc["models"][0]["installed"]
+
+
+def test_models_command_fits_80_columns(shelf, tmp_path):
+    # The shipped manifest's shape (longer names, steps, minutes, five N) in an 80-column
+    # terminal: every figure readable, none cut to an ellipsis.
+    folder = tmp_path / "builtin"
+    shutil.copytree(shelf[0], folder)
+    doc = json.loads((folder / "manifest.json").read_text())
+    ns = (40, 100, 400, 1000, 4000)
+    for i, d in enumerate(doc["models"]):
+        d.update(name=f"merl-rgl-l40-{i}", materials=151, steps=30000 + i, train_seconds=840.3,
+                 validation={str(n): 0.1234 + n / 1e5 for n in ns})
+    builtin.write_manifest(folder, doc["models"], default="merl-rgl-l40-0")
+    r = run_brdfkit(["models"], env={**quiet_env(), builtin.BUILTIN_ENV: str(folder), "COLUMNS": "80"})
+    assert r.returncode == 0, r.stderr
+    assert "\u2026" not in r.stdout and "..." not in r.stdout
+    # The folder and the path lines run on (a terminal wraps them); the tables must fit.
+    tables = r.stdout.split("\n\n")[:2]
+    assert all(len(line) <= 80 for t in tables for line in t.splitlines()[1:]), r.stdout
+    for i, d in enumerate(doc["models"]):
+        assert f"merl-rgl-l40-{i}" in tables[0] and f"{30000 + i:,}" in tables[0] and "14 min" in tables[0]
+        assert f"(fingerprint {d['fingerprint'][:12]}; materials: stiff)" in r.stdout
+    assert all(f"N={n}" in tables[1] and f"{0.1234 + n / 1e5:.3f}" in tables[1] for n in ns)
 
 
 def test_models_command_with_none_installed(capsys):

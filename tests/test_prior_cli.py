@@ -200,7 +200,10 @@ def test_models_command_shows_the_prior(installed, capsys):
     folder, _ = installed
     code, out, err = _cli(capsys, ["models", "--check"])
     assert code == 0, err
-    rows = {line.split()[0]: line.split() for line in out.splitlines() if line.startswith("tiny-") and "/" not in line}
+    rows = {}  # the first table's rows (the validation table's come after)
+    for line in out.splitlines():
+        if line.startswith("tiny-") and "/" not in line:
+            rows.setdefault(line.split()[0], line.split())
     assert rows["tiny-p"][1:4] == ["*", "7", "yes"] and rows["tiny-h"][1:3] == ["7", "-"]
     assert f"tiny-p learnt prior: {folder / PRIOR}" in out
     assert "checked: 2 model(s) and 1 learnt prior(s) load and match the manifest" in out

@@ -28,6 +28,17 @@ def _prior_state(m) -> str:
     return "yes" if os.path.isfile(_prior_path(m)) else "missing"
 
 
+def _table(columns):
+    from rich import box
+    from rich.table import Table
+
+    tab = Table(box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False, collapse_padding=True, show_edge=False)
+    for col in columns:
+        # Fold rather than cut with an ellipsis when a terminal is narrower still.
+        tab.add_column(col, justify="left" if col == "name" else "right", overflow="fold")
+    return tab
+
+
 def _json(m) -> dict:
     d = m.to_json()
     d["prior_installed"] = bool(m.prior) and os.path.isfile(_prior_path(m))
@@ -67,30 +78,34 @@ def command(as_json, check):
     if not installed:
         click.echo(f"no built-in models installed (in {man.folder}); pass -m MODEL.safetensors from `brdfkit fit`")
         return
-    from rich import box
     from rich.console import Console
-    from rich.table import Table
 
+    # Two narrow tables, not one wide one: each fits an 80-column terminal, and the
+    # validation table grows by one 8-column N per figure without pushing the rest out.
+    # Headings, notes and paths are plain lines: a table's title would wrap at its width.
     ns = sorted({n for m in installed for n in m.validation})
-    # Narrow enough for an 80-column terminal; the paths follow the table.
-    tab = Table(title=f"Built-in models in {man.folder}", box=box.SIMPLE_HEAD, padding=(0, 1), pad_edge=False,
-                collapse_padding=True, show_edge=False,
-                caption="*: the default. prior: has a learnt prior (sparse's default method with it). "
-                        "N=...: BRDF log RMSE on held-out materials from N samples.")
-    for col in ("name", "dim", "prior", "mats", "steps", "time", *(f"N={n}" for n in ns), "fingerprint"):
-        tab.add_column(col, justify="left" if col in ("name", "fingerprint") else "right", no_wrap=True)
+    out = Console(markup=False)  # a path or list name may hold "[...]"
+    out.print(f"Built-in models in {man.folder}", soft_wrap=True)
+    tab = _table(("name", "dim", "prior", "mats", "steps", "time"))
     for m in installed:
-        val = ["-" if m.validation.get(n) is None else f"{m.validation[n]:.3f}" for n in ns]
         tab.add_row(m.name + (" *" if m.default else ""), str(m.latent_dim), _prior_state(m),
                     "-" if m.materials is None else str(m.materials), "-" if m.steps is None else f"{m.steps:,}",
-                    _duration(m.train_seconds), *val, m.fingerprint[:12])
-    out = Console()
+                    _duration(m.train_seconds))
     out.print(tab)
+    out.print("*: the default. prior: has a learnt prior (sparse's default method with it).")
+    if ns:
+        out.print("\nValidation: BRDF log RMSE on held-out materials from N samples (-: not measured)")
+        val = _table(("name", *(f"N={n}" for n in ns)))
+        for m in installed:
+            val.add_row(m.name, *("-" if m.validation.get(n) is None else f"{m.validation[n]:.3f}" for n in ns))
+        out.print(val)
+    out.print()
     for m in installed:
-        lists = f" (materials: {m.materials_list})" if m.materials_list else ""
-        out.print(f"{m.name}: {m.path}{lists}", soft_wrap=True)
+        lists = f"; materials: {m.materials_list}" if m.materials_list else ""
+        out.print(f"{m.name}: {m.path} (fingerprint {m.fingerprint[:12]}{lists})", soft_wrap=True)
         if m.prior:
-            out.print(f"{m.name} learnt prior: {_prior_path(m)} ({m.prior_fingerprint[:12]})", soft_wrap=True)
+            out.print(f"{m.name} learnt prior: {_prior_path(m)} (fingerprint {m.prior_fingerprint[:12]})",
+                      soft_wrap=True)
     missing = [m.name for m in man.models if not m.installed]
     if missing:
         out.print(f"in the manifest but not installed: {', '.join(missing)}")
