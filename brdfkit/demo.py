@@ -1,4 +1,5 @@
-"""The demo: the whole job on built-in synthetic data, no download (``brdfkit demo``).
+"""The training demo: the whole job on built-in synthetic data, no download
+(``brdfkit demo --train``; ``brdfkit demo`` alone is :mod:`brdfkit.demo_real`).
 
 Writes a synthetic material library (:mod:`brdfkit.synthetic`, stiff cases included),
 holds a few materials out, trains a small budget of the hypernetwork

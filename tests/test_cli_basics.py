@@ -49,6 +49,15 @@ def test_help_lists_commands_quickly():
     assert listed == cli.list_commands(None) and set(listed) <= set(COMMANDS)
 
 
+def test_help_says_what_the_demo_runs():
+    # `brdfkit demo` runs real materials through the built-in models; only --train is synthetic.
+    res = run_brdfkit(["--help"], env={**os.environ, "COLUMNS": "80"})  # one row a command
+    rows = {line.split()[0]: " ".join(line.split()[1:])
+            for line in res.stdout.split("Commands:")[1].splitlines() if line.strip()}
+    assert "real materials" in rows["demo"] and "--train: synthetic" in rows["demo"], rows["demo"]
+    assert "synthetic data" not in rows["demo"]
+
+
 def test_help_imports_no_heavy_module():
     res = _python("import sys\nimport brdfkit.cli\n"
                   "try:\n    brdfkit.cli.main(['--help'])\nexcept SystemExit:\n    pass\n"

@@ -19,7 +19,7 @@ from ..errors import BrdfkitError
 
 # name -> one-line help, shown by ``brdfkit --help`` without importing the module.
 COMMANDS = {
-    "demo": "Run the main job on built-in synthetic data (no download).",
+    "demo": "Try the built-in models on real materials (--train: synthetic).",
     "synth": "Write a library of synthetic (GGX) materials as MERL tables.",
     "sample": "Draw N measurements of a MERL table into a CSV sample set.",
     "fit": "Train a hypernetwork (or a baseline) on MERL tables.",
