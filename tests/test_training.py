@@ -261,6 +261,29 @@ def test_bad_inputs_are_clear_errors(lib, tmp_path):
         tiny_fit(lib, tmp_path / "m.safetensors", steps=2, device="tpu")
 
 
+def test_options_and_the_schedule():
+    # brdfkit.trainoptions holds them; brdfkit.training still offers TrainOptions.
+    from brdfkit import training
+    from brdfkit.trainoptions import TrainOptions, lr_factor, parse_options
+
+    assert training.TrainOptions is TrainOptions
+    cos = TrainOptions(warmup_steps=10, lr_schedule="cosine", lr_final=0.1)
+    assert lr_factor(0, 0.0, cos) == pytest.approx(0.1)  # warm-up: step 1 of 10
+    assert lr_factor(9, 0.0, cos) == pytest.approx(1.0)
+    assert lr_factor(50, 0.5, cos) == pytest.approx(0.55)  # half way down the cosine
+    assert lr_factor(50, 1.0, cos) == lr_factor(50, 3.0, cos) == pytest.approx(0.1)
+    const = TrainOptions(warmup_steps=4, lr_schedule="constant")
+    assert [lr_factor(s, 0.9, const) for s in (0, 3, 99)] == [0.25, 1.0, 1.0]
+    assert lr_factor(0, 0.0, TrainOptions(warmup_steps=0, lr_schedule="constant")) == 1.0
+    opts, cfg = parse_options(7, {"lr": 1, "hypo_hidden": 16, "encoder_hidden": [8, 8]})
+    assert opts.lr == 1.0 and isinstance(opts.lr, float) and cfg.latent_dim == 7
+    assert cfg.hypo_hidden == 16 and cfg.encoder_hidden == (8, 8)
+    for bad, match in (({"lr_schedule": "step"}, "lr_schedule"), ({"query_sise": 3}, "unknown training option"),
+                       ({"lr": "fast"}, "not a float"), ({"context_min": 9, "context_max": 8}, "context_max")):
+        with pytest.raises(InputError, match=match):
+            parse_options(7, bad)
+
+
 def test_cli_reports_bad_input_in_one_line(lib, tmp_path):
     proc = popen_brdfkit(["fit", tmp_path / "nothing", "-o", tmp_path / "m.safetensors"])
     out, err = proc.communicate(timeout=60)
