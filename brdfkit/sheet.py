@@ -22,11 +22,52 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["comparison_sheet", "DELTA_E_SCALE"]
+__all__ = ["comparison_sheet", "DELTA_E_SCALE", "pyplot", "bare_axes", "show_render", "save_png"]
 
 # Lowest top of the error colour scale: a few units of Delta E 2000 (about 1 is just
 # noticeable), so that near-identical images do not show amplified noise.
 DELTA_E_SCALE = 5.0
+
+
+def pyplot():
+    """``matplotlib.pyplot`` on the Agg backend: a sheet is a file, never a window, and
+    needs no display."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    return plt
+
+
+def bare_axes(ax) -> None:
+    """No ticks and no frame: the axes shows an image or text only."""
+    ax.set_xticks([])
+    ax.set_yticks([])
+    for spine in ax.spines.values():
+        spine.set_visible(False)
+
+
+def show_render(ax, image, title: str | None = None, fontsize: float = 10) -> None:
+    """Draw a linear RGB render ``(H, W, 3)`` as displayed
+    (:func:`brdfkit.metrics.display_encode`: exposure 1, clipped, sRGB), nearest-pixel,
+    on bare axes, with ``title`` above it."""
+    from .metrics import display_encode
+
+    ax.imshow(display_encode(image), interpolation="nearest")
+    if title is not None:
+        ax.set_title(title, fontsize=fontsize)
+    bare_axes(ax)
+
+
+def save_png(fig, output: str | os.PathLike) -> None:
+    """Write ``fig`` to the PNG ``output`` atomically (:func:`brdfkit.atomic.atomic_path`)
+    at the figure's own dpi, then close it."""
+    from .atomic import atomic_path
+
+    with atomic_path(os.fspath(output)) as tmp:
+        fig.savefig(tmp, format="png", dpi=fig.dpi)
+    pyplot().close(fig)
 
 
 def _caption(scores: dict) -> str:
@@ -68,14 +109,9 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
         ``{label: scores}`` per prediction, labels the file stems (unique), scores as
         :func:`brdfkit.metrics.score` returns them.
     """
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    from .atomic import atomic_path, check_input_file
+    from .atomic import check_input_file
     from .compare import FileLoader
-    from .metrics import delta_e_2000_map, display_encode, score
+    from .metrics import delta_e_2000_map, score
     from .plot import input_labels
 
     ref = os.fspath(ref)
@@ -109,30 +145,22 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     top = max(DELTA_E_SCALE, float(np.ceil(max(np.percentile(m, 99.5) for m in maps))))
 
     n = len(preds) + 1
-    fig, axes = plt.subplots(2, n, figsize=(2.6 * n + 0.9, 6.4), dpi=dpi, squeeze=False,
-                             layout="constrained")
-    axes[0, 0].imshow(display_encode(img_ref), interpolation="nearest")
-    axes[0, 0].set_title(f"reference\n{labels[0]}", fontsize=10)
+    fig, axes = pyplot().subplots(2, n, figsize=(2.6 * n + 0.9, 6.4), dpi=dpi, squeeze=False,
+                                  layout="constrained")
+    show_render(axes[0, 0], img_ref, f"reference\n{labels[0]}")
     axes[1, 0].text(0.5, 0.5, "per-pixel error\nagainst the\nreference\n(Delta E 2000)",
                     ha="center", va="center", fontsize=9, color="0.3", transform=axes[1, 0].transAxes)
     im = None
     for j, (label, img, de) in enumerate(zip(labels[1:], images, maps), start=1):
-        axes[0, j].imshow(display_encode(img), interpolation="nearest")
-        axes[0, j].set_title(label, fontsize=10)
+        show_render(axes[0, j], img, label)
         axes[0, j].set_xlabel(_caption(rows[label]), fontsize=8.5, loc="left")
         im = axes[1, j].imshow(de, cmap="inferno", vmin=0.0, vmax=top, interpolation="nearest")
         axes[1, j].set_xlabel(f"mean {rows[label]['delta_e']:.2f}, max {float(de.max()):.1f}", fontsize=8.5)
     for ax in axes.ravel():
-        ax.set_xticks([])
-        ax.set_yticks([])
-        for spine in ax.spines.values():
-            spine.set_visible(False)
+        bare_axes(ax)
     cb = fig.colorbar(im, ax=axes[1, 1:].tolist(), shrink=0.9, aspect=20, pad=0.02)
     cb.set_label("Delta E 2000", fontsize=9)
     fig.suptitle("Reference scene, quadrature renders (exposure 1, sRGB)", fontsize=10)
 
-    output = os.fspath(output)
-    with atomic_path(output) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
+    save_png(fig, output)
     return rows

@@ -254,3 +254,75 @@ def test_encode_folder_among_inputs_is_one_failure(files, tmp_path, capsys):
                               "-o", tmp_path / "out"])
     assert code == 2 and "is a directory" in err
     assert os.listdir(tmp_path / "out") == ["mat.emb"]
+
+
+# --- interpolate --sheet: the strip of blends from A to B ----------------------------------
+
+def _tile_at(png, want) -> bool:
+    """Whether the uint8 image ``want`` appears, unresampled, somewhere in ``png``."""
+    h, w = want.shape[:2]
+    for y in range(png.shape[0] - h + 1):
+        for x in range(png.shape[1] - w + 1):
+            if np.array_equal(png[y:y + h, x:x + w], want):
+                return True
+    return False
+
+
+def test_interpolate_strip(files, two_embs, tmp_path, capsys):
+    from PIL import Image
+
+    from brdfkit.errors import InputError
+    from brdfkit.metrics import display_encode
+    from brdfkit.model.brdf import NeuralBRDF
+    from brdfkit.render.files import reference_scene
+    from brdfkit.render.quadrature import render
+    from brdfkit.strip import interpolation_strip
+
+    sheet = tmp_path / "strip.png"
+    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--steps", "3",
+                              "--sheet", sheet, "--size", "16", "-m", files / "model.safetensors"])
+    assert code == 0, err
+    assert "3 materials, t = 0, 0.5, 1" in err
+    png = np.asarray(Image.open(sheet).convert("RGB"))
+    assert png.shape[0] > 16 and png.shape[1] > 3 * 16
+
+    m = api.load_model(files / "model.safetensors", "cpu")
+    a, b = read_embedding(two_embs / "a.emb"), read_embedding(two_embs / "b.emb")
+    tiles = interpolation_strip(m, a, b, tmp_path / "lib.png", steps=3, size=16, progress=False)
+    assert [t for t, _ in tiles] == [0.0, 0.5, 1.0]
+    with pytest.raises(InputError, match="steps = 1"):  # the library checks what the CLI checks
+        interpolation_strip(m, a, b, tmp_path / "one.png", steps=1, size=16)
+    for (_, img), emb in zip(tiles[::2], (a, b)):  # the ends are A and B themselves
+        alone, _ = render(NeuralBRDF.from_embedding(m, emb), reference_scene(16))
+        np.testing.assert_array_equal(img, alone)
+    assert not np.array_equal(tiles[1][1], tiles[0][1]) and not np.array_equal(tiles[1][1], tiles[2][1])
+    for _, img in tiles:  # each render drawn pixel for pixel (matplotlib truncates to 8 bits)
+        assert _tile_at(png, np.floor(display_encode(img) * 255).astype(np.uint8))
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--steps", "3"], "--steps: options of the strip; add --sheet"),
+    (["--steps", "3", "--t", "0.5", "-o", "{tmp}/c.emb"], "--steps: options of the strip"),
+    (["--sheet", "{tmp}/s.png", "--t", "0.5"], "--t: --sheet draws the strip from t = 0 to 1"),
+    (["--sheet", "{tmp}/s.png", "-o", "{tmp}/c.emb"], "-o: --sheet draws the strip"),
+    (["--sheet", "{tmp}/s.png", "--steps", "1"], "'--steps': 1 is not in the range 2<=x<=100"),
+    (["--sheet", "{tmp}/s.png", "--size", "4"], "'--size': 4 is not in the range 8<=x<=1024"),
+    (["--sheet", "{tmp}/s.png", "--size", "1024", "--steps", "17"], "17,408 px wide, more than 16,384"),
+    (["--sheet", "{embs}/a.emb"], "refusing to overwrite"),
+    (["--sheet", "{tmp}/s.jpg"], "written as PNG; name it .png"),
+    (["--sheet", "/nonexistent/s.png"], "does not exist"),
+    ([], "missing --t T -o OUT.emb"),
+    (["--t", "0.5"], "missing -o OUT.emb"),
+])
+def test_interpolate_strip_refusals(two_embs, tmp_path, capsys, args, message):
+    args = [a.format(tmp=tmp_path, embs=two_embs) for a in args]
+    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", *args])
+    assert code == 2 and message in _one_error_line(err)
+    assert os.listdir(tmp_path) == []
+
+
+def test_interpolate_strip_of_two_models_refused(files, two_embs, tmp_path, capsys):
+    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--sheet",
+                              tmp_path / "s.png", "-m", files / "model.safetensors", "--size", "16"])
+    assert code == 2 and "different models" in _one_error_line(err)
+    assert not (tmp_path / "s.png").exists()

@@ -1,29 +1,71 @@
-"""``brdfkit interpolate``: blend two embeddings (material editing)."""
+"""``brdfkit interpolate``: blend two embeddings (material editing), once (``--t``) or as
+a strip of renders from A to B (``--sheet``)."""
 
 from __future__ import annotations
 
 import click
 
 from ..console import console
+from ..strip import MAX_SIZE, MAX_STEPS, MIN_SIZE, SIZE, STEPS
 from .common import model_option, parse_float, require_model
+
+
+def _mode(t_text, output, binary, allow_extrapolation, sheet, steps, size) -> str:
+    """``"blend"`` or ``"strip"``, or an InputError naming the options that do not go
+    together: ``--t T -o OUT.emb`` writes one blend, ``--sheet FILE.png`` (with
+    ``--steps``, ``--size``) draws the strip from t = 0 to 1."""
+    from ..errors import InputError
+
+    blend_opts = [flag for flag, v in (("--t", t_text), ("-o", output), ("--binary", binary),
+                                       ("--allow-extrapolation", allow_extrapolation)) if v]
+    if sheet is not None:
+        if blend_opts:
+            raise InputError(f"{', '.join(blend_opts)}: --sheet draws the strip from t = 0 to 1 and writes only "
+                             f"the PNG; blend once with --t T -o OUT.emb in a separate call")
+        return "strip"
+    strip_opts = [flag for flag, v in (("--steps", steps), ("--size", size)) if v is not None]
+    if strip_opts:
+        raise InputError(f"{', '.join(strip_opts)}: options of the strip; add --sheet FILE.png "
+                         f"(or blend once with --t T -o OUT.emb)")
+    if t_text is None or output is None:
+        missing = "-o OUT.emb" if t_text is not None else "--t T" if output is not None else "--t T -o OUT.emb"
+        raise InputError(f"missing {missing}: --t T -o OUT.emb writes one blend; --sheet FILE.png "
+                         f"[--steps N] draws the strip from A to B")
+    return "blend"
 
 
 @click.command("interpolate")
 @click.argument("a", type=click.Path(dir_okay=False))
 @click.argument("b", type=click.Path(dir_okay=False))
-@click.option("-t", "--t", "t_text", required=True, metavar="T",
-              help="Blend weight: 0 gives A, 1 gives B.")
-@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output .emb.")
+@click.option("-t", "--t", "t_text", default=None, metavar="T",
+              help="Blend weight: 0 gives A, 1 gives B (with -o).")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), default=None, help="Output .emb of the blend.")
 @click.option("--binary", "binary", type=click.Path(dir_okay=False), default=None,
               help="Also decode the blend into this MERL .binary (needs the model).")
 @click.option("--allow-extrapolation", is_flag=True, help="Accept T outside [0, 1].")
+@click.option("--sheet", type=click.Path(dir_okay=False), default=None,
+              help="Instead: render --steps blends from A (t = 0) to B (t = 1) in the reference scene "
+                   "into this PNG strip, each labelled with its t.")
+@click.option("--steps", type=click.IntRange(min=2, max=MAX_STEPS), default=None,
+              help=f"Materials in the --sheet strip, t evenly spaced from 0 to 1 [default: {STEPS}].")
+@click.option("--size", type=click.IntRange(min=MIN_SIZE, max=MAX_SIZE), default=None,
+              help=f"Pixels per tile side of the --sheet strip [default: {SIZE}].")
 @model_option
-def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
-    """Write the embedding (1 - T) A + T B; both must come from the same model."""
+def command(a, b, t_text, output, binary, allow_extrapolation, sheet, steps, size, model_path):
+    """Write the embedding (1 - T) A + T B; both must come from the same model.
+
+    With --sheet FILE.png instead of --t and -o: render --steps materials from A (t = 0)
+    to B (t = 1) in the reference scene and write them as one labelled strip, the
+    paper's editing figure (docs/editing.md).
+    """
     from ..api import decode, interpolate, load_model
     from ..atomic import refuse_overwrite_of_inputs
-    from ..embedding import read_embedding, write_embedding
+    from ..embedding import write_embedding
 
+    mode = _mode(t_text, output, binary, allow_extrapolation, sheet, steps, size)
+    if mode == "strip":
+        _strip(a, b, sheet, steps, size, model_path)
+        return
     t = parse_float(t_text, "--t")
     if not allow_extrapolation and not 0.0 <= t <= 1.0:
         from ..errors import InputError
@@ -31,11 +73,7 @@ def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
         raise InputError(f"--t {t:g} is outside [0, 1]; add --allow-extrapolation to extrapolate")
     refuse_overwrite_of_inputs(output, [a, b, model_path])
     refuse_overwrite_of_inputs(binary, [a, b, model_path, output])
-    ea, eb = read_embedding(a), read_embedding(b)
-    # Named by their files: a mismatch message must say which file to fix (two embeddings
-    # encoded from the same samples.csv share their source), and the blend's provenance
-    # reads "interpolate(a.emb, b.emb, t=0.3)".
-    ea.source, eb.source = a, b
+    ea, eb = _read_named(a, b)
     mix = interpolate(ea, eb, t, allow_extrapolation=allow_extrapolation)
     table = None
     if binary:
@@ -47,3 +85,32 @@ def command(a, b, t_text, output, binary, allow_extrapolation, model_path):
 
         write_merl(binary, table)
     console().print(f"wrote {output}{f' and {binary}' if binary else ''} (t = {t:g})")
+
+
+def _read_named(a, b):
+    from ..embedding import read_embedding
+
+    ea, eb = read_embedding(a), read_embedding(b)
+    # Named by their files: a mismatch message must say which file to fix (two embeddings
+    # encoded from the same samples.csv share their source), and the blend's provenance
+    # reads "interpolate(a.emb, b.emb, t=0.3)".
+    ea.source, eb.source = a, b
+    return ea, eb
+
+
+def _strip(a, b, sheet, steps, size, model_path):
+    from ..api import load_model
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..errors import InputError
+    from ..strip import check_strip, interpolation_strip
+
+    refuse_overwrite_of_inputs(sheet, [a, b, model_path])
+    if not sheet.lower().endswith(".png"):
+        raise InputError(f"{sheet}: the strip is written as PNG; name it .png")
+    steps, size = steps or STEPS, size or SIZE
+    check_strip(steps, size)  # before the model loads
+    ea, eb = _read_named(a, b)
+    model = load_model(require_model(model_path, ea.model_fingerprint))
+    tiles = interpolation_strip(model, ea, eb, sheet, steps=steps, size=size, progress=True)
+    console().print(f"wrote {sheet} ({len(tiles)} materials, t = "
+                    f"{', '.join(f'{t:.3g}' for t, _ in tiles)}; {size} px each)", soft_wrap=True)
