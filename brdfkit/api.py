@@ -77,8 +77,16 @@ def _load_input(obj, source: str):
                      f"table, or the path of a .binary or .csv file")
 
 
-def encode(model, samples_or_table, *, source: str = "") -> Embedding:
+def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
+           budget: float | None = None) -> Embedding:
     """Encode a material into an embedding.
+
+    A dense table is compressed by the set encoder's pass over all its measured cells
+    (Gokbudak et al. 2024), then, by default, that latent is refined on screen for
+    ``budget`` seconds: descended on the render-aligned error and kept only where
+    held-out pixels agree (:func:`brdfkit.compression.compress_table`; never worse there
+    than the encoder's pass). A sample set is encoded by the encoder's pass alone
+    (``brdfkit sparse --method hypernet`` refines on samples).
 
     Parameters
     ----------
@@ -91,6 +99,10 @@ def encode(model, samples_or_table, *, source: str = "") -> Embedding:
     source
         Provenance recorded in the embedding; defaults to the file name or the sample
         set's source.
+    refine
+        Refine a table's latent on screen (``False``: the paper's single pass).
+    budget
+        Seconds of that refinement (default :data:`brdfkit.compression.DEFAULT_BUDGET`).
 
     Returns
     -------
@@ -101,9 +113,14 @@ def encode(model, samples_or_table, *, source: str = "") -> Embedding:
     from .model.encoding import encode_samples, encode_table
 
     data, name = _load_input(samples_or_table, source)
-    if isinstance(data, np.ndarray):
+    if not isinstance(data, np.ndarray):
+        return encode_samples(model, data, name)
+    if not refine:
         return encode_table(model, data, name)
-    return encode_samples(model, data, name)
+    from .compression import DEFAULT_BUDGET, CompressConfig, compress_table
+
+    cfg = CompressConfig(budget=DEFAULT_BUDGET if budget is None else budget)
+    return compress_table(model, data, cfg, name).embedding
 
 
 def decode(model, embedding, *, source: str = "") -> np.ndarray:

@@ -88,7 +88,7 @@ def test_chunking_does_not_change_the_embedding(models, table, monkeypatch):
 
 def test_dense_table_uses_all_measured_cells(models, table):
     m = models["tiny"]
-    e = api.encode(m, table, source="t")
+    e = api.encode(m, table, source="t", refine=False)  # the paper's pass (refined: test_compression)
     measured = np.isfinite(table).all(-1)
     assert e.sample_count == int(measured.sum()) and e.source == "t"
     # Same as encoding those cells as a sample set at the grid angles.
@@ -102,9 +102,9 @@ def test_encode_from_paths(models, table, tmp_path):
     write_merl(tmp_path / "mat.binary", table)
     s = draw_samples(table, 200, seed=3)
     write_samples(tmp_path / "s.csv", s)
-    e_bin = api.encode(m, tmp_path / "mat.binary")
+    e_bin = api.encode(m, tmp_path / "mat.binary", refine=False)
     assert e_bin.source == "mat.binary"
-    np.testing.assert_allclose(e_bin.latent, api.encode(m, table).latent, atol=1e-6)
+    np.testing.assert_allclose(e_bin.latent, api.encode(m, table, refine=False).latent, atol=1e-6)
     e_csv = api.encode(m, str(tmp_path / "s.csv"))
     assert e_csv.source == "s.csv" and e_csv.sample_count == 200
     np.testing.assert_allclose(e_csv.latent, api.encode(m, s).latent, atol=1e-6)

@@ -23,6 +23,7 @@ COMMANDS = {
     "synth": "Write a library of synthetic (GGX) materials as MERL tables.",
     "sample": "Draw N measurements of a MERL table into a CSV sample set.",
     "fit": "Train a hypernetwork (or a baseline) on MERL tables.",
+    "tune": "Tune a trained hypernetwork on renders of its materials.",
     "encode": "Compress MERL tables into embedding (.emb) files.",
     "decode": "Expand an embedding into a dense MERL table.",
     "sparse": "Reconstruct a dense MERL table from sparse samples.",

@@ -15,11 +15,18 @@ from .common import model_option, require_model
 @model_option
 @click.option("-o", "--output-dir", type=click.Path(file_okay=False), default=None,
               help="Folder for the .emb files (created if missing); default: beside each input.")
-def command(inputs, model_path, output_dir):
+@click.option("--refine/--no-refine", default=True, show_default=True,
+              help="Refine a table's latent on screen after the encoder's pass (--no-refine: the "
+                   "paper's single pass).")
+@click.option("--budget", type=click.FloatRange(min=0), default=None, metavar="SECONDS",
+              help="Seconds of refinement per table [default: 3].")
+def command(inputs, model_path, output_dir, refine, budget):
     """Encode each BRDF (.binary MERL table or .csv sample set) into <stem>.emb.
 
-    A MERL table is encoded from all its measured cells. A bad input is reported and
-    skipped; the others are still encoded, and the exit code is 2 if any failed.
+    A MERL table is encoded from all its measured cells, then its latent is refined for
+    --budget seconds on the render-aligned error (docs/model.md), keeping it only where
+    held-out pixels agree. A sample set gets the encoder's pass. A bad input is reported
+    and skipped; the others are still encoded, and the exit code is 2 if any failed.
     """
     import os
 
@@ -45,7 +52,7 @@ def command(inputs, model_path, output_dir):
             raise InputError(f"{path}: would write {target}, already written for {planned[key]}; "
                              f"rename one of them")
         refuse_overwrite_of_inputs(target, [*inputs, model_path])
-        emb = encode(model, path)
+        emb = encode(model, path, refine=refine, budget=budget)
         write_embedding(target, emb)
         planned[key] = path
 
@@ -63,8 +70,9 @@ def command(inputs, model_path, output_dir):
         one(inputs[0])
         done = 1
     where = output_dir if output_dir else "beside the inputs"
+    how = "refined on screen" if refine and budget != 0 else "encoder pass"
     out.print(f"encoded {done} of {len(inputs)} file{'s' if len(inputs) != 1 else ''} "
-              f"(latent {model.cfg.latent_dim}, model {model.short_fingerprint}) into {where}")
+              f"(latent {model.cfg.latent_dim}, model {model.short_fingerprint}, {how}) into {where}")
     if failures:
         for msg in failures:
             click.echo(f"brdfkit: error: {msg}", err=True)

@@ -52,6 +52,9 @@ class ModelCache:
     decode_inputs
         ``(cells, [HD | 1] (7, P), rho_ref (3, P))`` of the measured cells, for the
         dense decode.
+    screen
+        ``rho_ref`` at the pairs of the last :class:`brdfkit.render.screen.Screen`
+        rendered with this model, keyed by that screen's id.
     """
 
     fallback: np.ndarray | None = None
@@ -61,6 +64,7 @@ class ModelCache:
     encoder: dict = dataclasses.field(default_factory=dict)
     decoder: dict = dataclasses.field(default_factory=dict)
     decode_inputs: dict = dataclasses.field(default_factory=dict)
+    screen: dict = dataclasses.field(default_factory=dict)
 
 
 @dataclasses.dataclass
