@@ -2,14 +2,16 @@
 decode (``brdfkit.nbrdf_tables``).
 
 The built-in folder is a temporary one (``$BRDFKIT_BUILTIN_MODELS``) holding untrained
-tiny models under the names the demo asks for: ``merl80-l40`` (a hypernetwork and a
-learnt prior over a 3-component basis of two synthetic tables, the basis in a shared file)
-and ``merl-rgl-l7`` (a hypernetwork). The tests check the plumbing and the files, not
-how well untrained models do.
+tiny models under the names the demo asks for: ``merl80-l40`` (a hypernetwork of latent
+size 40 and a learnt prior over a 3-component basis of two synthetic tables, the basis in
+a shared file), ``merl-rgl-l40`` (latent 40) and ``merl-rgl-l7`` (latent 7), the latent
+sizes of the shipped ones, so that the compressions' labels are the real ones. The tests
+check the plumbing, the labels and the files, not how well untrained models do.
 """
 
 from __future__ import annotations
 
+import json
 import os
 import re
 import subprocess
@@ -24,18 +26,24 @@ from brdfkit.merl import read_merl
 from brdfkit.model import builtin
 from brdfkit.nbrdf_tables import DEMO_WEIGHTS, LAYERS, load_nbrdf_weights, nbrdf_table
 
-from conftest import brdfkit_command, quiet_env
-from helpers_model import material_table, pack_tiny_builtins
+from conftest import TINY_CONFIG, brdfkit_command, quiet_env
+from helpers_model import make_model, material_table
 
 SHARED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "..", "shared")
 TOOL = os.path.join(SHARED, "tools", "nbrdf_to_merl.py")
 SHIPPED = ["blue-metallic-paint", "teflon", "chrome-steel", "violet-rubber"]
+# The tiny shelf's hypernetworks: name, latent size (the shipped one's), seed.
+SHELF = (("merl80-l40", 40, 0), ("merl-rgl-l40", 40, 2), ("merl-rgl-l7", 7, 1))
+# The compressions' labels: the error columns and errors.json keys, and the sheet's tiles.
+LABELS = ["in-sample 40-D (merl-rgl-l40)", "in-sample 7-D (merl-rgl-l7)", "unseen 40-D (merl80-l40)"]
+TILES = ["in-sample 40-D", "in-sample 7-D", "unseen 40-D"]
+SPARSE_COLUMNS = ["prior 40", "prior 400", "ipca 40", "ipca 400"]
 
 
 @pytest.fixture(scope="module")
 def shelf(tmp_path_factory):
-    """A built-in folder with tiny untrained ``merl80-l40`` (and learnt prior) and
-    ``merl-rgl-l7``."""
+    """A built-in folder with tiny untrained ``merl80-l40`` (and learnt prior),
+    ``merl-rgl-l40`` and ``merl-rgl-l7``."""
     import torch
 
     from brdfkit.methods.ipca import fit_ipca
@@ -44,8 +52,13 @@ def shelf(tmp_path_factory):
 
     src = tmp_path_factory.mktemp("trained")
     folder = tmp_path_factory.mktemp("builtin")
-    entries = pack_tiny_builtins(src, folder, (("merl80-l40", 0), ("merl-rgl-l7", 1)), command="brdfkit fit (tiny)",
-                                 validation={40: 0.3})
+    entries = []
+    for name, latent, seed in SHELF:
+        make_model(src / f"{name}.safetensors", {**TINY_CONFIG, "latent_dim": latent}, seed=seed)
+        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+                           reference_file="tiny.reference.safetensors")
+        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command="brdfkit fit (tiny)",
+                                              validation={40: 0.3}))
     basis = fit_ipca([material_table(0), material_table(1)], n_components=3, names=["stiff-white", "ggx"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
     torch.manual_seed(0)
@@ -55,6 +68,17 @@ def shelf(tmp_path_factory):
     entries[0].update(prior="merl80-l40.prior.safetensors", prior_fingerprint=fp)
     builtin.write_manifest(folder, entries, default="merl80-l40")
     return folder
+
+
+@pytest.fixture
+def quick(monkeypatch, shelf):
+    """The tiny shelf installed in this process, and a short refinement (0.1 s a table):
+    in-process runs read the demo's budget when called."""
+    import brdfkit.demo_real
+
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
+    monkeypatch.setattr(brdfkit.demo_real, "COMPRESSION_BUDGET", 0.1)
+    return shelf
 
 
 def _run(args, env_folder=None, timeout=300):
@@ -143,89 +167,159 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     proc = _run(["--out", out, "--only", "violet-rubber,teflon", "--resolution", "12", "--keep-tables"], shelf)
     assert proc.returncode == 0, proc.stderr[-3000:]
     report = proc.stdout
-    assert "MERL test materials: BRDF log RMSE" in report and "Times" in report and "whole demo" in report
-    for name in ("violet-rubber", "teflon"):
-        row = re.search(rf"{name}\s*[│|]((?:\s*[\d.]+\s*[│|]?)+)", report)
-        assert row, report
-        values = [float(v) for v in re.findall(r"[\d.]+", row.group(1))]
-        assert len(values) == 6 and all(np.isfinite(values))
-    assert re.search(r"mean\s*[│|]", report)
+    flat = re.sub(r"\s+", " ", report)
+    assert "Times" in report and "whole demo" in report
+    for what in ("sparse", "compressed"):
+        assert f"MERL test materials, {what}: BRDF log RMSE" in report
+    for name in ("violet-rubber", "teflon"):  # a row in each table: 4 sparse columns, 3 compressions
+        rows = re.findall(rf"{name}\s*[│|]((?:\s*[\d.]+\s*[│|]?)+)", report)
+        values = [[float(v) for v in re.findall(r"[\d.]+", row)] for row in rows]
+        assert [len(v) for v in values] == [4, 3] and np.isfinite(sum(values, [])).all(), report
+    assert len(re.findall(r"mean\s*[│|]", report)) == 2
+    # The compressions' headers whole (wrapped at the model's name, not cut).
+    assert "…" not in report and all(w in report for t in LABELS for w in t.split(" ("))
+    # Each compression labelled by kind, in the explanation and the times; the budget said.
+    assert "refined on screen, 1 s" in flat and "brdfkit encode refines for 3 s by default" in flat
+    assert "in-sample (merl-rgl-l40, merl-rgl-l7): trained on all 151 MERL + RGL materials, these included" in flat
+    assert "unseen (merl80-l40): trained without the 20 MERL test materials" in flat
+    for label in LABELS:
+        assert re.search(rf"encode \+ refine 1 s, {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
+        assert re.search(rf"decode, {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
     assert f"writing into {out}" in proc.stderr.replace("\n", "")
+    assert "compressing (refined on screen, 1 s)" in re.sub(r"\s+", " ", proc.stderr)
     assert "materials/  (2 files, 70.0 MB)" in report and "not kept" not in report
 
-    # The tables: the material, the four sparse reconstructions, two compressions, a blend.
+    # The tables: the material, the four sparse reconstructions, three compressions, a blend.
     ref = read_merl(out / "materials" / "violet-rubber.binary")
     np.testing.assert_allclose(ref, nbrdf_table(load_nbrdf_weights()["violet-rubber"], device="cpu"),
                                rtol=1e-12, equal_nan=True)
     for stem in ("prior-40", "prior-400", "ipca-40", "ipca-400"):
         assert np.isfinite(read_merl(out / "reconstructed" / f"violet-rubber-{stem}.binary")).any()
     fingerprints = {m.name: m.fingerprint for m in builtin.read_manifest(shelf).models}
-    for m in ("merl80-l40", "merl-rgl-l7"):
+    assert len(set(fingerprints.values())) == 3
+    for m, latent, _ in SHELF:
         emb = read_embedding(out / "embeddings" / f"teflon-{m}.emb")
-        assert emb.model_fingerprint == fingerprints[m]
+        assert emb.model_fingerprint == fingerprints[m] and emb.latent_dim == latent
         assert (out / "decoded" / f"teflon-{m}.binary").is_file()
-    assert (out / "decoded" / "violet-rubber+teflon-t0.5-merl80-l40.binary").is_file()
-    assert (out / "embeddings" / "violet-rubber+teflon-t0.5-merl80-l40.emb").is_file()
+    assert sorted(os.listdir(out / "decoded")) == sorted(
+        [f"{n}-{m}.binary" for n in ("violet-rubber", "teflon") for m, _, _ in SHELF]
+        + ["violet-rubber+teflon-t0.5-merl80-l40.binary"])
+    blend = read_embedding(out / "embeddings" / "violet-rubber+teflon-t0.5-merl80-l40.emb")
+    assert blend.model_fingerprint == fingerprints["merl80-l40"]
     assert len((out / "samples" / "teflon-40.csv").read_text().splitlines()) > 40
+    doc = json.loads((out / "errors.json").read_text())
+    assert doc["columns"] == SPARSE_COLUMNS + LABELS and list(doc["errors"]["teflon"]) == doc["columns"]
+    assert [(c["column"], c["kind"], c["latent_dim"]) for c in doc["compressions"]] == [
+        (LABELS[0], "in-sample", 40), (LABELS[1], "in-sample", 7), (LABELS[2], "unseen", 40)]
+    assert doc["compression_budget_s"] == 1.0 and doc["interpolation_model"] == "merl80-l40"
     # The sheet and the plot, of the first material.
     for png in ("sheet-violet-rubber.png", "plot-violet-rubber.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not [n for n in os.listdir(out) if n.startswith(".brdfkit-tmp-")]
 
 
-def test_real_demo_in_process_without_render(shelf, monkeypatch, tmp_path):
-    import json
-
+def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
+    import brdfkit.api
     from brdfkit.demo_real import run_real_demo
 
-    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
+    calls = []
+    encode = brdfkit.api.encode
+
+    def recording_encode(model, data, **kw):
+        calls.append((model.cfg.latent_dim, kw.get("refine", True), kw.get("budget")))
+        return encode(model, data, **kw)
+
+    monkeypatch.setattr(brdfkit.api, "encode", recording_encode)
     res = run_real_demo(tmp_path / "d", only=["chrome-steel"], render=False, device="cpu")
     assert res.materials == ["chrome-steel"] and res.sparse_method == "prior" and res.sheet is None
-    # (both tiny hypernetworks have latent size 7; the shipped ones 40 and 7)
-    assert res.columns == ["prior 40", "prior 400", "ipca 40", "ipca 400", "full 7-D", "full 7-D"]
-    assert len(res.errors) == 1 and len(res.errors[0][1]) == 6
+    assert res.columns == SPARSE_COLUMNS + LABELS
+    assert [c[:3] for c in res.compressions] == [
+        ("merl-rgl-l40", "in-sample", LABELS[0]), ("merl-rgl-l7", "in-sample", LABELS[1]),
+        ("merl80-l40", "unseen", LABELS[2])]
+    # Every full table refined on screen for the demo's budget, read when the demo runs.
+    assert calls == [(40, True, 0.1), (7, True, 0.1), (40, True, 0.1)] and res.compression_budget == 0.1
+    assert [t for t, _ in res.times if t.startswith("encode")] == [
+        f"encode + refine 0.1 s, {label} (mean)" for label in LABELS]
+    assert len(res.errors) == 1 and len(res.errors[0][1]) == 7
     assert res.times[-1][0] == "whole demo" and all(t >= 0 for _, t in res.times)
     assert all(os.path.isfile(p) for p in res.files)
     assert not any("+" in os.path.basename(p) for p in res.files)  # one material: no blend
     # By default no dense table is written: no sheet, so not even a temporary one.
     assert not res.keep_tables and not [p for p in res.files if p.endswith(".binary")]
     assert sorted(os.listdir(tmp_path / "d")) == ["embeddings", "errors.json", "plot-chrome-steel.png", "samples"]
+    assert sorted(os.listdir(tmp_path / "d" / "embeddings")) == [
+        "chrome-steel-merl-rgl-l40.emb", "chrome-steel-merl-rgl-l7.emb", "chrome-steel-merl80-l40.emb"]
     doc = json.loads((tmp_path / "d" / "errors.json").read_text())
     assert doc["columns"] == res.columns and doc["errors"]["chrome-steel"]["ipca 40"] == res.errors[0][1][2]
+    assert doc["errors"]["chrome-steel"][LABELS[1]] == res.errors[0][1][5]
     assert ("write the MERL tables the sheet renders, to a temporary folder (0)", 0.0) in res.times
 
+    calls.clear()
+    res = run_real_demo(tmp_path / "e", only=["teflon"], render=False, device="cpu", budget=0)
+    assert calls == [(40, False, 0), (7, False, 0), (40, False, 0)]  # the encoder's pass alone
+    assert res.times[2 + 2][0] == f"encode (encoder pass only), {LABELS[0]} (mean)"
 
-def test_real_demo_sheet_tables_are_temporary(shelf, monkeypatch, tmp_path):
-    """Without --keep-tables the sheet's six tables go to a temporary folder in OUT that
-    is removed at the end, and on Ctrl-C during the sheet too."""
+
+def test_compression_labels():
+    from brdfkit.demo_real import compression_labels
+
+    assert [c[2:] for c in compression_labels({"merl-rgl-l40": 40, "merl-rgl-l7": 7, "merl80-l40": 40})] == \
+        list(zip(LABELS, TILES))
+    # What the files hold, not what the names say; where short labels would coincide, the full ones.
+    got = compression_labels({"merl-rgl-l40": 7, "merl-rgl-l7": 7, "merl80-l40": 16})
+    assert [c[2:] for c in got] == [("in-sample 7-D (merl-rgl-l40)",) * 2, ("in-sample 7-D (merl-rgl-l7)",) * 2,
+                                    ("unseen 16-D (merl80-l40)",) * 2]
+
+
+def _interrupted_sheet(monkeypatch, seen):
     import brdfkit.sheet
-    from brdfkit.demo_real import run_real_demo
 
-    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
-    seen = []
-
-    def interrupted_sheet(ref, preds, output, **kw):
+    def sheet(ref, preds, output, **kw):
         seen.extend([ref, *preds])
+        seen.append({p: read_merl(p) for p in [ref, *preds]})
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(brdfkit.sheet, "comparison_sheet", interrupted_sheet)
-    with pytest.raises(KeyboardInterrupt):
-        run_real_demo(tmp_path / "d", only=["teflon"], device="cpu")
-    assert [os.path.basename(p) for p in seen] == [
-        "teflon.binary", "teflon-prior-40.binary", "teflon-prior-400.binary", "teflon-ipca-400.binary",
-        "teflon-merl80-l40.binary", "teflon-merl-rgl-l7.binary"]
-    assert all(os.path.basename(os.path.dirname(p)).startswith(".brdfkit-tmp-demo-") for p in seen)
-    assert not any(os.path.exists(p) for p in seen)
-    assert not [n for n in os.listdir(tmp_path / "d") if n.startswith(".")]
+    monkeypatch.setattr(brdfkit.sheet, "comparison_sheet", sheet)
+
+
+def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, tmp_path):
+    """The sheet's six inputs are named by their tiles' labels (the sheet labels its tiles
+    with the file stems): the reference, the default method from both sample counts and
+    the three compressions, in-sample and unseen. Without --keep-tables they go to a
+    temporary folder in OUT that is removed at the end, and on Ctrl-C during the sheet
+    too; with it, they are links to the kept tables, in a temporary folder likewise."""
+    from brdfkit.demo_real import run_real_demo
+
+    tiles = ["teflon.binary", "prior, 40 samples.binary", "prior, 400 samples.binary",
+             *(f"{t}.binary" for t in TILES)]
+    for keep, out in ((False, tmp_path / "d"), (True, tmp_path / "k")):
+        seen = []
+        _interrupted_sheet(monkeypatch, seen)
+        with pytest.raises(KeyboardInterrupt):
+            run_real_demo(out, only=["teflon"], device="cpu", keep_tables=keep)
+        tables = seen.pop()
+        assert [os.path.basename(p) for p in seen] == tiles
+        assert all(os.path.basename(os.path.dirname(p)).startswith(".brdfkit-tmp-demo-") for p in seen)
+        assert not any(os.path.exists(p) for p in seen)
+        assert not [n for n in os.listdir(out) if n.startswith(".")]
+        if keep:  # the same tables as those kept, compression by compression
+            kept = [out / "materials" / "teflon.binary", out / "reconstructed" / "teflon-prior-40.binary",
+                    out / "reconstructed" / "teflon-prior-400.binary",
+                    *(out / "decoded" / f"teflon-{m}.binary" for m in ("merl-rgl-l40", "merl-rgl-l7", "merl80-l40"))]
+            for path, k in zip(seen, kept):
+                np.testing.assert_array_equal(tables[path], read_merl(k))
+        else:
+            assert sorted(os.listdir(out)) == ["embeddings", "plot-teflon.png", "samples"]
 
     monkeypatch.undo()
-    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
     out = tmp_path / "e"
-    proc = _run(["--out", out, "--only", "teflon", "--resolution", "8"], shelf)
+    proc = _run(["--out", out, "--only", "teflon", "--resolution", "8"], quick)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples", "sheet-teflon.png"]
     assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", proc.stdout)
     assert "dense tables stay in memory" in re.sub(r"\s+", " ", proc.stderr)
+    assert "rendering teflon and 5 reconstructions" in re.sub(r"\s+", " ", proc.stderr)
+    assert "comparison sheet (6 renders, 8 px)" in proc.stdout
 
 
 def test_no_builtin_models_is_one_line_pointing_at_train(tmp_path):
@@ -246,3 +340,9 @@ def test_bad_options_are_one_line(shelf, monkeypatch, capsys, tmp_path):
             main(["demo", "--out", str(tmp_path / "d"), *args])
         err = capsys.readouterr().err
         assert e.value.code == 2 and words in err and len(err.strip().splitlines()) == 1, err
+    from brdfkit.demo_real import run_real_demo
+    from brdfkit.errors import InputError
+
+    with pytest.raises(InputError, match="budget must be a finite number of seconds >= 0"):
+        run_real_demo(tmp_path / "b", budget=-1.0)
+    assert not (tmp_path / "b").exists()

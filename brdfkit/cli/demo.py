@@ -83,7 +83,7 @@ def _error_table(title, columns, errors):
 @click.option("--resolution", type=click.IntRange(min=8, max=1024), default=SHEET_RESOLUTION,
               show_default=True, help="Render size of the comparison sheet, pixels.")
 @click.option("--keep-tables/--no-keep-tables", default=False, show_default=True,
-              help="Also write the dense MERL tables (35 MB each: 29 of them, 1 GB; --train: the 700 MB "
+              help="Also write the dense MERL tables (35 MB each: 33 of them, 1.2 GB; --train: the 700 MB "
                    "library and the decoded tables); without it they stay in memory or in a temporary "
                    "folder in OUT that is removed at the end.")
 @click.option("--only", default=None, hidden=True, metavar="NAME,...",
@@ -104,10 +104,11 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
 
     Four MERL materials the benchmark model never saw (shipped as their published NBRDF
     fits) are reconstructed from 40 and 400 samples (learnt prior, and IPCA beside it),
-    compressed by the hypernetworks (40 and 7 numbers) and blended; prints the errors and
-    times, and writes the samples, embeddings, errors, a comparison sheet and a plot into
-    OUT (--keep-tables: the dense tables too, 1 GB).
-    About 30 s on 2 idle CPU cores. With --train: trains a small model on synthetic
+    compressed by three hypernetworks (in-sample 40-D and 7-D: trained on them, the
+    paper's protocol; unseen 40-D: not), each refined on screen for 1 s, and blended;
+    prints the errors and times, and writes the samples, embeddings, errors, a comparison
+    sheet and a plot into OUT (--keep-tables: the dense tables too, 1.2 GB).
+    About a minute on 2 idle CPU cores. With --train: trains a small model on synthetic
     materials instead (about 5 minutes). See docs/demo.md.
     """
     if _mode(train):
@@ -115,18 +116,30 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
         return
     from rich.console import Console
 
-    from ..demo_real import COMPRESSION_MODELS, SPARSE_MODEL, run_real_demo
+    from ..compression import DEFAULT_BUDGET
+    from ..demo_real import COMPRESSION_KINDS, INTERPOLATION_MODEL, SPARSE_MODEL, run_real_demo
 
     res = run_real_demo(out_dir, only=[s.strip() for s in only.split(",") if s.strip()] if only else None,
                         seed=seed, device=device, render=do_render, resolution=resolution, keep_tables=keep_tables)
     report = Console()
-    report.print(_error_table("MERL test materials: BRDF log RMSE (lower is better)", res.columns, res.errors))
+    # Two tables: the compressions' full labels (kind, size, model) do not fit beside the
+    # sparse columns in 80 characters, and would be cut.
+    n = len(res.columns) - len(res.compressions)
+    for what, cols in (("sparse", slice(0, n)), ("compressed", slice(n, None))):
+        report.print(_error_table(f"MERL test materials, {what}: BRDF log RMSE (lower is better)",
+                                  res.columns[cols], [(m, row[cols]) for m, row in res.errors]))
+    kinds = {}
+    for m, kind, _, _ in res.compressions:
+        kinds.setdefault(kind, []).append(m)
+    refined = (f"its latent refined on screen, {res.compression_budget:g} s; brdfkit encode refines for "
+               f"{DEFAULT_BUDGET:g} s by default" if res.compression_budget > 0 else "the encoder's pass only")
     report.print(f"{res.sparse_method} N, ipca N: reconstructed from N samples by brdfkit sparse's default "
                  f"method on {SPARSE_MODEL} ({res.sparse_method}) and by IPCA on its PCA basis; {SPARSE_MODEL} "
-                 f"never saw these materials. full K-D: the full table encoded into K numbers by a hypernetwork "
-                 f"and decoded ({' and '.join(COMPRESSION_MODELS)}; the 7-D one was trained on these materials "
-                 f"too). "
-                 f"brdf_log_rmse as in brdfkit.metrics.")
+                 f"never saw these materials. K-D: the full table compressed into K numbers by a hypernetwork "
+                 f"({refined}) and decoded; "
+                 + "; ".join(f"{kind} ({', '.join(ms)}): {COMPRESSION_KINDS.get(kind, kind)}"
+                             for kind, ms in kinds.items())
+                 + ". brdf_log_rmse as in brdfkit.metrics.")
     report.print(_times_table(res.times))
     report.print(f"Files in {res.out_dir}:")
     folders = {}
@@ -148,9 +161,9 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
         return
     report.print("The dense MERL tables (materials, reconstructions, compressions: 35 MB each) were not "
                  "kept; --keep-tables writes them into materials/, reconstructed/ and decoded/.", soft_wrap=True)
-    emb = os.path.relpath(os.path.join(res.out_dir, "embeddings", f"{name}-{COMPRESSION_MODELS[0]}.emb"))
+    emb = os.path.relpath(os.path.join(res.out_dir, "embeddings", f"{name}-{INTERPOLATION_MODEL}.emb"))
     report.print(f"Next: brdfkit sparse {samples} -m {SPARSE_MODEL} -o r.binary && "
-                 f"brdfkit plot r.binary {emb} -m {COMPRESSION_MODELS[0]} -o r.png", soft_wrap=True)
+                 f"brdfkit plot r.binary {emb} -m {INTERPOLATION_MODEL} -o r.png", soft_wrap=True)
 
 
 def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options, keep_tables):
