@@ -172,9 +172,7 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
     """
     import torch
 
-    from .mapping import from_mapped
     from .model.encoding import encode_table
-    from .model.network import hyponet_forward
     from .render.screen import screen, screen_error
 
     cfg = config or CompressConfig()
@@ -184,13 +182,8 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
     dev = model.device
     sc = screen(dev, cfg.resolution)
     with torch.no_grad():
-        target = sc.render_table(table)
-    from .geometry import lookup_trilinear
-
-    with torch.no_grad():
-        t = torch.as_tensor(np.ascontiguousarray(table, np.float32), device=dev)
-        at_pairs = lookup_trilinear(t, sc.theta_h.float(), sc.theta_d.float(), sc.phi_d.float(),
-                                    fill=0.0).double()
+        at_pairs = sc.lookup(table)
+        target = sc.render_table(table, at_pairs)
     rng = np.random.default_rng(cfg.seed)
     perm = rng.permutation(sc.pixels)
     n_held = max(1, int(round(cfg.holdout * sc.pixels)))
@@ -198,21 +191,13 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
     fit_pix = np.sort(perm[n_held:])
     idx, wts = _draw(sc, at_pairs, cfg, fit_pix, dev)
     fit_pix_t = torch.from_numpy(fit_pix).to(dev)
-    held_pairs = torch.isin(sc.pix, held_pix).nonzero().squeeze(1)
-    ref = sc.reference(model)
-    hd_fit, ref_fit, pix_fit = sc.hd[idx], ref[idx], sc.pix[idx]
-    rw_fit = sc.rw[idx] * wts[:, None]
     target_f = target.float()
+    held_pairs = torch.isin(sc.pix, held_pix).nonzero().squeeze(1)
 
     net = model.net
     was = [p.requires_grad for p in net.parameters()]
     for p in net.parameters():
         p.requires_grad_(False)
-
-    def fitted_image(z):
-        rho = from_mapped(hyponet_forward(net.hyponet_weights(z), hd_fit[None])[0], ref_fit)
-        out = torch.zeros(sc.pixels, 3, dtype=rho.dtype, device=dev)
-        return out.index_add(0, pix_fit, rho * rw_fit)
 
     def held_error(z):
         with torch.no_grad():
@@ -228,7 +213,7 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
         first = best[0]
         step = 0
         while step < cfg.max_steps and time.perf_counter() - start < cfg.budget:
-            loss = screen_error(fitted_image(z), target_f, fit_pix_t)
+            loss = screen_error(sc.render_hyponet(model, net.hyponet_weights(z), idx, wts), target_f, fit_pix_t)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()

@@ -23,7 +23,8 @@ of its pass over ``context`` random cells to ``z_i`` (a target, not a gradient p
 that an encoder pass lands where the refinement of :mod:`brdfkit.compression` starts.
 
 A checkpoint ``<output>.ckpt`` is written every ``checkpoint_minutes`` and on Ctrl-C;
-``resume=True`` continues it (the batches are seeded by ``(seed, step)``).
+``resume=True`` continues it (the batches are seeded by ``(seed, step)``); the learning
+rates may be changed on resuming, the other options not.
 """
 
 from __future__ import annotations
@@ -115,7 +116,6 @@ def _material_data(model, paths, opts, screens, log):
     import torch
 
     from .compression import CompressConfig, _draw
-    from .geometry import lookup_trilinear
     from .merl import read_merl
     from .model.encoding import encode_table
 
@@ -125,17 +125,28 @@ def _material_data(model, paths, opts, screens, log):
         log(i, p)
         table = read_merl(p)
         latents.append(np.asarray(encode_table(model, table).latent, np.float32))
-        t = torch.as_tensor(np.ascontiguousarray(table, np.float32))
         views = []
         for k, sc in enumerate(screens):
             with torch.no_grad():
-                target = sc.render_table(table).float()
-                at = lookup_trilinear(t, sc.theta_h.float(), sc.theta_d.float(), sc.phi_d.float(), fill=0.0)
-            idx, w = _draw(sc, at.double(), dataclasses.replace(cfg, seed=1000 * i + k),
+                at = sc.lookup(table)
+                target = sc.render_table(table, at).float()
+            idx, w = _draw(sc, at, dataclasses.replace(cfg, seed=1000 * i + k),
                            np.arange(sc.pixels), torch.device("cpu"))
             views.append((target, idx.int(), w))
         per.append(views)
     return np.stack(latents), per
+
+
+def _identity_without_rates(text):
+    """A checkpoint's identity with the learning rates left out (checkpoints of the first
+    tunes recorded them; they may change on resuming)."""
+    try:
+        doc = json.loads(text)
+        for key in ("lr_decoder", "lr_latent", "lr_encoder"):
+            doc["options"].pop(key, None)
+    except (TypeError, ValueError, KeyError, AttributeError):
+        return None
+    return json.dumps(doc, sort_keys=True)
 
 
 def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: float | None = None,
@@ -173,7 +184,6 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     from .atomic import refuse_overwrite_of_inputs
     from .checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
     from .geometry import cell_angles, cos_theta_i, hd_vectors
-    from .mapping import from_mapped
     from .materials import collect_materials
     from .model.file import save_model
     from .model.network import hyponet_forward
@@ -207,19 +217,24 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     fields = dataclasses.asdict(opts)
     if fields["resolution"] == 32:  # added later: left out at its default, so older checkpoints resume
         del fields["resolution"]
+    for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
+        del fields[key]
     identity = json.dumps({"model": m.fingerprint, "materials": names, "options": fields, "seed": seed},
                           sort_keys=True)
     step, elapsed0, history = 0, 0.0, []
     if resume:
         state = load_checkpoint(ckpt)
-        if state.get("options") != identity:
+        if _identity_without_rates(state.get("options")) != identity:
             raise InputError(f"{ckpt}: checkpoint was made for another model, data or options; "
                              f"tune afresh without --resume")
         net.load_state_dict(state["net"])
         for z, v in zip(latents, state["latents"]):
             z.data.copy_(v)
-        for o, k in ((opt_dec, "opt_dec"), (opt_lat, "opt_lat"), (opt_enc, "opt_enc")):
+        for o, k, lr in ((opt_dec, "opt_dec", opts.lr_decoder), (opt_lat, "opt_lat", opts.lr_latent),
+                         (opt_enc, "opt_enc", opts.lr_encoder)):
             o.load_state_dict(state["optimizer"][k])
+            for group in o.param_groups:  # the options' rates, not the checkpoint's
+                group["lr"] = lr
         step, elapsed0, history = int(state["step"]), float(state["elapsed"]), list(state["history"])
 
     def save_ckpt():
@@ -233,7 +248,6 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
 
     values = torch.from_numpy(tset.values)
     cells = torch.from_numpy(tset.cells)
-    refs = [sc.reference(m) for sc in screens]
     gen = torch.Generator()
     last_ckpt = time.monotonic()
     ema = None
@@ -248,11 +262,9 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
             loss_s = loss_m = loss_e = 0.0
             for b in range(opts.batch):
                 i, k = int(mats[b]), int(turn[b])
-                sc, (target, idx, w) = screens[k], views[i][k]
+                target, idx, w = views[i][k]
                 weights = net.hyponet_weights(latents[i])
-                idx = idx.long()
-                rho = from_mapped(hyponet_forward(weights, sc.hd[idx][None])[0], refs[k][idx])
-                img = torch.zeros(sc.pixels, 3).index_add(0, sc.pix[idx], rho * sc.rw[idx] * w[:, None])
+                img = screens[k].render_hyponet(m, weights, idx.long(), w)
                 loss_s = loss_s + torch.log(screen_error(img, target) + 1e-10)
                 th, td, pd = (a.float() for a in cell_angles(cells[q[b]]))
                 pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]

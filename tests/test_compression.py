@@ -6,6 +6,8 @@ are one-line errors."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 import torch
@@ -150,6 +152,9 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     with pytest.raises(InputError, match="another model, data or options"):
         tune(d / "model.safetensors", data, out, steps=6, options=TuneOptions(batch=1, turns=(0.0,), resolution=8),
              resume=True)
+    # The learning rates may change on resuming (a second stage at other rates).
+    faster = dataclasses.replace(opts, lr_decoder=1e-3, lr_latent=1e-2)
+    assert tune(d / "model.safetensors", data, out, steps=6, options=faster, resume=True)["steps"] == 6
 
 
 @pytest.mark.parametrize("args, message", [

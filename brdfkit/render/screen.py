@@ -93,16 +93,20 @@ class Screen:
         out = torch.zeros(self.pixels, 3, dtype=f.dtype, device=f.device)
         return out.index_add(0, self.pix, f * self.rw.to(f.dtype))
 
-    def render_table(self, table):
-        """Image ``(P, 3)`` float64 torch of a ``(90, 90, 180, 3)`` table (trilinear, as
-        :class:`~brdfkit.render.brdf.TableBRDF` renders it; unmeasured corners left out)."""
+    def lookup(self, table):
+        """A ``(90, 90, 180, 3)`` table at the pairs, float64 torch ``(M, 3)`` (trilinear,
+        as :class:`~brdfkit.render.brdf.TableBRDF` renders it; unmeasured corners left out)."""
         import torch
 
         from ..geometry import lookup_trilinear
 
         t = torch.as_tensor(np.ascontiguousarray(table, np.float32), device=self.hd.device)
-        rho = lookup_trilinear(t, self.theta_h.float(), self.theta_d.float(), self.phi_d.float(), fill=0.0)
-        return self._sum(rho.double())
+        return lookup_trilinear(t, self.theta_h.float(), self.theta_d.float(), self.phi_d.float(), fill=0.0).double()
+
+    def render_table(self, table, at_pairs=None):
+        """Image ``(P, 3)`` float64 torch of a table (``at_pairs``: its :meth:`lookup`,
+        when already made)."""
+        return self._sum(self.lookup(table) if at_pairs is None else at_pairs)
 
     def reference(self, model):
         """The model's ``rho_ref`` at the pairs, float32 ``(M, 3)`` (cached per model)."""
@@ -114,23 +118,35 @@ class Screen:
             fallback = model.reference_torch()[1]
             ref = interp_reference(model.reference_trilinear(), fallback, self.theta_h.to(model.device),
                                    self.theta_d.to(model.device), self.phi_d.to(model.device))
-            cache.clear()
+            if len(cache) >= 8:  # a few scenes per model (screen tuning turns three)
+                cache.clear()
             cache[key] = ref.float()
         return cache[key]
 
-    def render_hyponet(self, model, weights, idx=None):
+    def render_hyponet(self, model, weights, idx=None, scale=None):
         """Image ``(P, 3)`` float32 torch of hyponet ``weights`` (batch of one, as
         :meth:`brdfkit.model.network.HyperBRDF.hyponet_weights` gives them), with
-        gradients. ``idx``: evaluate only these pairs (a subset of pixels' pairs)."""
+        gradients, evaluated at the pairs only.
+
+        Parameters
+        ----------
+        idx
+            Evaluate only these pairs (int64 ``(K,)``, repeats allowed): a subset of the
+            pixels' pairs, or a draw of them.
+        scale
+            float32 ``(K,)`` factor of each evaluated pair (a draw's ``1 / (K p)``).
+        """
+        import torch
+
         from ..mapping import from_mapped
         from ..model.network import hyponet_forward
 
         hd, ref, pix, rw = self.hd, self.reference(model), self.pix, self.rw
         if idx is not None:
             hd, ref, pix, rw = hd[idx], ref[idx], pix[idx], rw[idx]
+        if scale is not None:
+            rw = rw * scale[:, None]
         rho = from_mapped(hyponet_forward(weights, hd[None])[0], ref)
-        import torch
-
         out = torch.zeros(self.pixels, 3, dtype=rho.dtype, device=rho.device)
         return out.index_add(0, pix, rho * rw)
 

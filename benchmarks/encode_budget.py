@@ -1,0 +1,115 @@
+"""Compression error against encode time: `brdfkit encode`'s refinement budget (issue 21).
+
+For each material (MERL tables of ``--proxies``, every ``--every``-th by name) and each
+model, the table is compressed by :func:`brdfkit.compression.compress_table` with each
+``--budgets`` value (0: the paper's encoder pass), decoded densely and rendered in the
+reference scene at ``--px`` pixels (quadrature) beside the table itself: PSNR and Delta E
+2000 of the renders, the BRDF log RMSE, the render-aligned error's held-out PSNR, and the
+encode's wall-clock seconds (the encoder pass included, reading the file not). Writes a
+JSON of every record and a plot of mean PSNR against mean encode time.
+
+    python benchmarks/encode_budget.py --proxies PROXIES --models merl-rgl-l40 merl-rgl-l7 \\
+        --budgets 0 0.5 1 2 3 5 --every 10 --json encode-budget.json --plot docs/images/encode-budget.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+sys.path.insert(0, os.path.dirname(__file__))
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--proxies", required=True, help="folder of MERL tables NAME.binary")
+    ap.add_argument("--models", nargs="+", default=["merl-rgl-l40", "merl-rgl-l7"])
+    ap.add_argument("--budgets", type=float, nargs="+", default=[0, 0.5, 1, 2, 3, 5])
+    ap.add_argument("--every", type=int, default=10, help="every K-th material by name")
+    ap.add_argument("--px", type=int, default=128)
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--json", required=True)
+    ap.add_argument("--plot", default=None)
+    args = ap.parse_args()
+
+    import torch
+
+    torch.set_num_threads(args.threads)
+    from common import load_average, machine
+
+    from brdfkit.api import load_model
+    from brdfkit.compression import CompressConfig, compress_table
+    from brdfkit.merl import read_merl
+    from brdfkit.metrics import brdf_log_rmse, delta_e_2000, psnr
+    from brdfkit.model.brdf import NeuralBRDF
+    from brdfkit.model.encoding import encode_table
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.quadrature import render
+    from brdfkit.render.scene import Scene
+
+    names = sorted(f[:-7] for f in os.listdir(args.proxies) if f.endswith(".binary"))[::args.every]
+    models = {m: load_model(m, "cpu") for m in args.models}
+    scene = Scene(resolution=args.px)
+    records = []
+    t_all = time.time()
+    for name in names:
+        table = read_merl(os.path.join(args.proxies, name + ".binary"))
+        ref_img, _ = render(TableBRDF(table, device="cpu"), scene)
+        for mname, model in models.items():
+            for budget in args.budgets:
+                t = time.perf_counter()
+                if budget == 0:
+                    emb, held = encode_table(model, table, name), None
+                else:
+                    r = compress_table(model, table, CompressConfig(budget=budget), name)
+                    emb, held = r.embedding, r.heldout
+                seconds = time.perf_counter() - t
+                pred = NeuralBRDF.from_embedding(model, emb).to_table()
+                img, _ = render(NeuralBRDF.from_embedding(model, emb), scene)
+                rec = dict(material=name, model=mname, budget=budget, encode_s=seconds,
+                           psnr=psnr(img, ref_img), delta_e=delta_e_2000(img, ref_img),
+                           log_rmse=brdf_log_rmse(pred, table),
+                           heldout_psnr=None if held is None else [-10 * np.log10(h) for h in held])
+                records.append(rec)
+                print(f"{name:28s} {mname:14s} budget {budget:4g}: {rec['psnr']:6.2f} dB, dE {rec['delta_e']:.3f}, "
+                      f"{seconds:5.2f} s", flush=True)
+    summary = {}
+    for mname in models:
+        for budget in args.budgets:
+            rs = [r for r in records if r["model"] == mname and r["budget"] == budget]
+            summary[f"{mname}@{budget:g}"] = {k: float(np.mean([r[k] for r in rs]))
+                                              for k in ("psnr", "delta_e", "log_rmse", "encode_s")}
+    print("\n| model | budget (s) | encode (s) | PSNR (dB) | Delta E | log RMSE |\n| --- | ---: | ---: | ---: | ---: | ---: |")
+    for key, s in summary.items():
+        m, b = key.split("@")
+        print(f"| {m} | {b} | {s['encode_s']:.2f} | {s['psnr']:.2f} | {s['delta_e']:.3f} | {s['log_rmse']:.4f} |")
+    out = dict(command=" ".join(sys.argv), machine=machine(), load_end=load_average(),
+               materials=names, records=records, summary=summary, seconds=time.time() - t_all)
+    with open(args.json, "w") as f:
+        json.dump(out, f, indent=1)
+    if args.plot:
+        import matplotlib
+
+        matplotlib.use("Agg")
+        import matplotlib.pyplot as plt
+
+        fig, ax = plt.subplots(figsize=(5.5, 3.6), dpi=120)
+        for mname in models:
+            pts = [summary[f"{mname}@{b:g}"] for b in args.budgets]
+            ax.plot([p["encode_s"] for p in pts], [p["psnr"] for p in pts], "o-", label=mname)
+        ax.set_xlabel("encode time per table (s, 2-core CPU)")
+        ax.set_ylabel(f"mean render PSNR (dB, {args.px} px)")
+        ax.set_title(f"compression of {len(names)} MERL proxies: error against encode time", fontsize=9)
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        fig.savefig(args.plot)
+
+
+if __name__ == "__main__":
+    main()
