@@ -21,7 +21,9 @@ import shutil
 MODELS = [  # name, hypernetwork file, learnt-prior file, materials list, fit commands
     ("merl-rgl-l40", "merl-rgl-l40.safetensors", "merl-rgl-prior.safetensors", "MERL + RGL (151)",
      "brdfkit fit PROXIES/merl PROXIES/rgl -O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
-     "-o merl-rgl-l40.safetensors; brdfkit fit --method prior PROXIES/merl PROXIES/rgl "
+     "-o merl-rgl-l40-paper.safetensors; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l40-paper.safetensors "
+     "-o merl-rgl-l40.safetensors --minutes 50; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l40-paper.safetensors "
+     "-o merl-rgl-l40.safetensors --minutes 44 --resume -O lr_encoder=1e-3; brdfkit fit --method prior PROXIES/merl PROXIES/rgl "
      "-O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 --steps 3000 --seed 0 -o merl-rgl-prior.safetensors"),
     ("merl80-l40", "merl80-l40.safetensors", "merl80-prior.safetensors", "MERL less merl-test.txt (80)",
      "brdfkit fit PROXIES/merl --exclude-list merl-test.txt --minutes 14 --seed 0 -o merl80-l40.safetensors; "
@@ -30,7 +32,9 @@ MODELS = [  # name, hypernetwork file, learnt-prior file, materials list, fit co
      "-O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 --steps 3000 --seed 0 -o merl80-prior.safetensors"),
     ("merl-rgl-l7", "merl-rgl-l7.safetensors", None, "MERL + RGL (151)",
      "brdfkit fit PROXIES/merl PROXIES/rgl --latent-dim 7 -O reference=merl80-l40.safetensors --minutes 14 "
-     "--seed 0 -o merl-rgl-l7.safetensors"),
+     "--seed 0 -o merl-rgl-l7-paper.safetensors; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l7-paper.safetensors "
+     "-o merl-rgl-l7.safetensors --minutes 50; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l7-paper.safetensors "
+     "-o merl-rgl-l7.safetensors --minutes 44 --resume -O lr_encoder=1e-3"),
 ]
 REFERENCE = "merl80-reference.safetensors"
 BASIS = "merl80-basis.safetensors"

@@ -58,7 +58,7 @@ def test_the_three_models_are_listed_installed_and_intact(shipped, tmp_path):
 def test_the_package_is_within_its_size_budget(shipped):
     folder = models_folder()
     total = sum(os.path.getsize(os.path.join(folder, f)) for f in os.listdir(folder))
-    assert total <= 30e6, f"built-in models take {total / 1e6:.1f} MB, over the 30 MB budget"
+    assert total <= 60e6, f"built-in models take {total / 1e6:.1f} MB, over the 60 MB budget (issue 21)"
 
 
 def test_sparse_encode_decode_without_m(shipped, tmp_path):
