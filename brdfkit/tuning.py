@@ -131,7 +131,7 @@ def _material_data(model, paths, opts, screens, log):
                 at = sc.lookup(table)
                 target = sc.render_table(table, at).float()
             idx, w = _draw(sc, at, dataclasses.replace(cfg, seed=1000 * i + k),
-                           np.arange(sc.pixels), torch.device("cpu"))
+                           np.arange(sc.pixels), sc.hd.device)
             views.append((target, idx.int(), w))
         per.append(views)
     return np.stack(latents), per
@@ -151,7 +151,7 @@ def _identity_without_rates(text):
 
 def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: float | None = None,
          seed: int = 0, resume: bool = False, options: TuneOptions | None = None,
-         checkpoint_minutes: float = 2.0, progress=None) -> dict:
+         checkpoint_minutes: float = 2.0, device=None, progress=None) -> dict:
     """Tune a trained hypernetwork on renders of its materials (module docstring).
 
     Parameters
@@ -170,6 +170,8 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
         them is required.
     options
         :class:`TuneOptions`.
+    device
+        ``"auto"`` / ``None`` (CUDA when present), ``"cpu"`` or ``"cuda"``.
     progress
         Optional callable ``progress(message)``.
 
@@ -198,11 +200,14 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     output = os.fspath(output)
     ckpt = checkpoint_path(output)
     paths, names, excluded, _ = collect_materials(data, exclude)
-    m = load_model(model, "cpu")
+    from .device import resolve_device
+
+    dev = resolve_device(None if device == "auto" else device)
+    m = load_model(model, dev)
     refuse_overwrite_of_inputs(output, [*paths, m.path])
     refuse_overwrite_of_inputs(ckpt, [*paths, m.path])
     torch.manual_seed(seed)
-    screens = [screen(None, opts.resolution, rotated_envmap(float(t)) if t else None) for t in opts.turns]
+    screens = [screen(dev, opts.resolution, rotated_envmap(float(t)) if t else None) for t in opts.turns]
     say(f"reading {len(paths)} materials")
     z0, views = _material_data(m, paths, opts, screens, lambda i, p: None)
     tset = TrainingSet.load(paths, names, reference=m.rho_ref)
@@ -210,7 +215,7 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     net.train()
     for p in net.parameters():
         p.requires_grad_(True)
-    latents = [torch.from_numpy(z[None].copy()).requires_grad_(True) for z in z0]
+    latents = [torch.from_numpy(z[None].copy()).to(dev).requires_grad_(True) for z in z0]
     opt_dec = torch.optim.Adam(net.decoder.parameters(), lr=opts.lr_decoder)
     opt_lat = torch.optim.Adam(latents, lr=opts.lr_latent)
     opt_enc = torch.optim.Adam(net.encoder.parameters(), lr=opts.lr_encoder)
@@ -223,7 +228,7 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
                           sort_keys=True)
     step, elapsed0, history = 0, 0.0, []
     if resume:
-        state = load_checkpoint(ckpt)
+        state = load_checkpoint(ckpt, dev)
         if _identity_without_rates(state.get("options")) != identity:
             raise InputError(f"{ckpt}: checkpoint was made for another model, data or options; "
                              f"tune afresh without --resume")
@@ -246,8 +251,8 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
             "history": history, "config": "", "options": identity, "materials": names,
             "data_digest": tset.digest, "seed": seed})
 
-    values = torch.from_numpy(tset.values)
-    cells = torch.from_numpy(tset.cells)
+    values = torch.from_numpy(tset.values).to(dev)
+    cells = torch.from_numpy(tset.cells).to(dev)
     gen = torch.Generator()
     last_ckpt = time.monotonic()
     ema = None
@@ -257,8 +262,8 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
             gen.manual_seed(int(np.random.SeedSequence([seed, step]).generate_state(1, np.uint64)[0]))
             mats = torch.randperm(len(names), generator=gen)[:opts.batch]
             turn = torch.randint(0, len(screens), (opts.batch,), generator=gen)
-            q = torch.randint(0, cells.numel(), (opts.batch, opts.query), generator=gen)
-            c = torch.randint(0, cells.numel(), (opts.batch, opts.context), generator=gen)
+            q = torch.randint(0, cells.numel(), (opts.batch, opts.query), generator=gen).to(dev)
+            c = torch.randint(0, cells.numel(), (opts.batch, opts.context), generator=gen).to(dev)
             loss_s = loss_m = loss_e = 0.0
             for b in range(opts.batch):
                 i, k = int(mats[b]), int(turn[b])

@@ -19,12 +19,14 @@ from .common import model_option, parse_option, require_model
 @click.option("--minutes", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Wall-clock budget in minutes; stops at --steps or here, whichever first.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("--device", default="auto", show_default=True, help="auto (CUDA when present), cpu or cuda.")
 @click.option("--resume", is_flag=True, help="Continue from OUTPUT.ckpt (same model, data and options).")
 @click.option("-O", "--option", "options", multiple=True, metavar="KEY=VALUE",
               help="lr_decoder, lr_latent, lr_encoder, batch, pairs_per_pixel, turns, map_weight, "
                    "lambda_z, query, context (docs/training.md).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
-def command(data, model_path, output, exclude_list, exclude_names, steps, minutes, seed, resume, options, quiet):
+def command(data, model_path, output, exclude_list, exclude_names, steps, minutes, seed, device, resume, options,
+            quiet):
     """Tune the model -m on renders of the MERL tables DATA (its training materials):
     one latent per material and the decoder fitted to the reference scene's renders, the
     set encoder trained to reach those latents. Ctrl-C saves a checkpoint; --resume
@@ -43,6 +45,6 @@ def command(data, model_path, output, exclude_list, exclude_names, steps, minute
     out = console()
     say = None if quiet else (lambda msg: out.print(msg, markup=False))
     done = tune(require_model(model_path), list(data), output, exclude=exclude, steps=steps, minutes=minutes,
-                seed=seed, resume=resume, options=opts, progress=say)
+                seed=seed, resume=resume, options=opts, device=device, progress=say)
     out.print(f"wrote {output}: {done['steps']} steps, {done['wall_time_s']:.0f} s, screen PSNR (moving mean) "
               f"{done['screen_psnr_ema']:.2f} dB", markup=False)
