@@ -33,7 +33,7 @@ import time
 import numpy as np
 
 from .embedding import Embedding
-from .errors import InputError
+from .errors import InputError, require_counts
 
 __all__ = ["DEFAULT_BUDGET", "CompressConfig", "CompressResult", "compress_table"]
 
@@ -91,9 +91,7 @@ class CompressConfig:
             raise InputError(f"holdout must be in (0, 1), got {self.holdout!r}")
         if not 0.0 <= self.uniform_share <= 1.0:
             raise InputError(f"uniform_share must be in [0, 1], got {self.uniform_share!r}")
-        for name in ("max_steps", "pairs_per_pixel", "check_every", "patience", "resolution"):
-            if int(getattr(self, name)) < 1:
-                raise InputError(f"{name} must be >= 1, got {getattr(self, name)!r}")
+        require_counts(self, ("max_steps", "pairs_per_pixel", "check_every", "patience", "resolution"))
 
 
 @dataclasses.dataclass

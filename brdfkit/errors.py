@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import os
 
-__all__ = ["BrdfkitError", "InputError", "FormatError", "ModelMismatchError", "TrainingError"]
+__all__ = ["BrdfkitError", "InputError", "FormatError", "ModelMismatchError", "TrainingError", "require_counts"]
 
 
 class BrdfkitError(Exception):
@@ -55,3 +55,12 @@ class TrainingError(BrdfkitError):
     nothing the user handed in was wrong."""
 
     exit_code = 1
+
+
+def require_counts(settings, names, prefix: str = "") -> None:
+    """Refuse, as an :class:`InputError`, a count field of a settings dataclass below 1:
+    ``"{prefix}{name} must be >= 1, got {value!r}"``."""
+    for name in names:
+        value = getattr(settings, name)
+        if int(value) < 1:
+            raise InputError(f"{prefix}{name} must be >= 1, got {value!r}")

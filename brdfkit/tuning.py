@@ -37,9 +37,12 @@ import time
 
 import numpy as np
 
-from .errors import InputError
+from .errors import InputError, require_counts
 
 __all__ = ["TuneOptions", "tune"]
+
+_COUNTS = ("batch", "pairs_per_pixel", "query", "context", "resolution")
+"""The integer options of :class:`TuneOptions` (each at least 1)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -83,9 +86,7 @@ class TuneOptions:
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(f"tune option {name} must be a finite number >= 0, got {v!r}")
-        for name in ("batch", "pairs_per_pixel", "query", "context", "resolution"):
-            if int(getattr(self, name)) < 1:
-                raise InputError(f"tune option {name} must be >= 1, got {getattr(self, name)!r}")
+        require_counts(self, _COUNTS, "tune option ")
         if not self.turns or any(not 0.0 <= float(t) < 1.0 for t in self.turns):
             raise InputError(f"tune option turns must be fractions of a turn in [0, 1), got {self.turns!r}")
 
@@ -101,7 +102,7 @@ class TuneOptions:
                 if key == "turns":
                     parts = value if isinstance(value, (tuple, list)) else str(value).split(",")
                     out[key] = tuple(float(v) for v in parts)
-                elif key in ("batch", "pairs_per_pixel", "query", "context", "resolution"):
+                elif key in _COUNTS:
                     out[key] = int(value)
                 else:
                     out[key] = float(value)
@@ -110,7 +111,7 @@ class TuneOptions:
         return cls(**out)
 
 
-def _material_data(model, paths, opts, screens, log):
+def _material_data(model, paths, opts, screens):
     """Per material: the encoder's latent, and per screen the table's image and the fixed
     pair draw ``(idx, weight)`` (:func:`brdfkit.compression._draw`)."""
     import torch
@@ -122,7 +123,6 @@ def _material_data(model, paths, opts, screens, log):
     cfg = CompressConfig(pairs_per_pixel=opts.pairs_per_pixel, uniform_share=0.25)
     latents, per = [], []
     for i, p in enumerate(paths):
-        log(i, p)
         table = read_merl(p)
         latents.append(np.asarray(encode_table(model, table).latent, np.float32))
         views = []
@@ -209,7 +209,7 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     torch.manual_seed(seed)
     screens = [screen(dev, opts.resolution, rotated_envmap(float(t)) if t else None) for t in opts.turns]
     say(f"reading {len(paths)} materials")
-    z0, views = _material_data(m, paths, opts, screens, lambda i, p: None)
+    z0, views = _material_data(m, paths, opts, screens)
     tset = TrainingSet.load(paths, names, reference=m.rho_ref)
     net = m.net
     net.train()

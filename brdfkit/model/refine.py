@@ -28,7 +28,7 @@ import dataclasses
 import numpy as np
 
 from ..embedding import Embedding
-from ..errors import InputError
+from ..errors import InputError, require_counts
 
 __all__ = ["RefineConfig", "RefineResult", "refine"]
 
@@ -73,9 +73,7 @@ class RefineConfig:
             raise InputError(f"refine target must be 'latent' or 'weights', got {self.target!r}")
         if not 0.0 < self.holdout < 1.0:
             raise InputError(f"refine holdout must be in (0, 1), got {self.holdout!r}")
-        for name in ("max_steps", "check_every", "patience", "min_samples"):
-            if int(getattr(self, name)) < 1:
-                raise InputError(f"refine {name} must be >= 1, got {getattr(self, name)!r}")
+        require_counts(self, ("max_steps", "check_every", "patience", "min_samples"), "refine ")
 
 
 @dataclasses.dataclass
