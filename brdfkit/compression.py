@@ -57,7 +57,7 @@ class CompressConfig:
         issue 21 (blue-metallic-paint, gold-metallic-paint, teflon, chrome-steel,
         violet-rubber, red-fabric) with the first screen-tuned ``merl-rgl-l40``, a 3 s
         budget and 64 px renders, 0.002 / 0.005 / 0.02 gave 44.58 / 45.39 / 42.64 dB
-        (Delta E 0.62 / 0.60 / 0.78; the encoder's pass 36.91 dB, 1.31).
+        (Delta E 0.62 / 0.60 / 0.78; the encoder's pass 36.91 dB, 1.31), at load 3-4.
     pairs_per_pixel
         Pairs drawn per pixel for the fitted render (the full render has about 280).
     uniform_share
