@@ -48,7 +48,7 @@ def main():
                     help="eval_sparse.py --json output of a model's held-out materials")
     args = ap.parse_args()
 
-    from brdfkit.methods.prior_file import pack_prior
+    from brdfkit.methods.prior.file import pack_prior
     from brdfkit.model.builtin import manifest_entry, pack_model, write_manifest
 
     validation = {}

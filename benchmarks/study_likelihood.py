@@ -1,6 +1,6 @@
 """Which likelihood should the basis fit use, judged by the renders? (issue 12)
 
-The learnt prior's closed-form fit (:func:`brdfkit.methods.prior_model.solve`) weighs
+The learnt prior's closed-form fit (:func:`brdfkit.methods.prior.model.solve`) weighs
 each sample's mapped-value residual by ``q = 1 / lam + h / s2``. As shipped, ``h = g^2``,
 the evaluation metric's ``ln(1 + rho cos_i)`` linearised: it beats IPCA in BRDF log RMSE
 but not in render PSNR on the test set. This script ranks other choices of ``h`` by the
@@ -143,8 +143,8 @@ def main():
     from brdfkit.merl import read_merl
     from brdfkit.methods import get_method
     from brdfkit.methods.ipca import IpcaModel
-    from brdfkit.methods.prior_model import sample_rows
-    from brdfkit.methods.prior_model import solve as tsolve
+    from brdfkit.methods.prior.model import sample_rows
+    from brdfkit.methods.prior.model import solve as tsolve
     from brdfkit.metrics import brdf_log_rmse, psnr
     from brdfkit.render.brdf import TableBRDF
     from brdfkit.render.envmap import reference_envmap

@@ -191,7 +191,7 @@ def test_half_stride_two_file_round_trip(basis, tmp_path):
 
 @pytest.mark.parametrize("half,stride", [(True, 2), (True, 1), (False, 2)])
 def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, half, stride):
-    """What ``prior_fit`` relies on: a basis read back from compact storage and stored the
+    """What ``brdfkit.methods.prior.fit`` relies on: a basis read back from compact storage and stored the
     same way again is bit-identical, so a model trained on it sees what it ships with."""
     first, second = tmp_path / "a.safetensors", tmp_path / "b.safetensors"
     basis.save(first, half=half, phi_stride=stride)

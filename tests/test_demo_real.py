@@ -47,8 +47,8 @@ def shelf(tmp_path_factory):
     import torch
 
     from brdfkit.methods.ipca import fit_ipca
-    from brdfkit.methods.prior_file import save_prior
-    from brdfkit.methods.prior_model import PriorConfig, PriorModel, prior_net
+    from brdfkit.methods.prior.file import save_prior
+    from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
     src = tmp_path_factory.mktemp("trained")
     folder = tmp_path_factory.mktemp("builtin")

@@ -1,6 +1,6 @@
 """The learnt-prior method (``prior``): the closed-form fit around a prior mean
-(:mod:`brdfkit.methods.prior_model`), its model file (:mod:`brdfkit.methods.prior_file`)
-and its training (:mod:`brdfkit.methods.prior_fit`, ``brdfkit fit --method prior``).
+(:mod:`brdfkit.methods.prior.model`), its model file (:mod:`brdfkit.methods.prior.file`)
+and its training (:mod:`brdfkit.methods.prior.fit`, ``brdfkit fit --method prior``).
 
 Tables are cheap analytic ones (a Lambertian base and a Gaussian lobe in ``theta_h``
 with a Fresnel-like rise in ``theta_d``, computed on the ``(theta_h, theta_d)`` rows
@@ -23,8 +23,8 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, HALF_PI, grid_angles, valid_mask
 from brdfkit.methods import get_method
 from brdfkit.methods.ipca import EPS, fit_ipca, load_ipca
-from brdfkit.methods.prior_file import is_prior_file, load_prior, save_prior
-from brdfkit.methods.prior_model import PriorConfig, PriorModel, prior_net, sample_rows, solve
+from brdfkit.methods.prior.file import is_prior_file, load_prior, save_prior
+from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, sample_rows, solve
 from brdfkit.samples import SampleSet, draw_samples
 
 CFG = PriorConfig(n_components=3, latent_dim=4, width=8)
@@ -300,7 +300,7 @@ def test_the_fingerprint_covers_the_likelihood_in_the_config(noisy, tmp_path):
     a fingerprint of the weights and the basis alone) still loads."""
     import hashlib
 
-    from brdfkit.methods.prior_file import _digest
+    from brdfkit.methods.prior.file import _digest
     from helpers_bad_input import rewrite_header
 
     path = tmp_path / "prior.safetensors"
@@ -487,7 +487,7 @@ def data(make_table, tmp_path_factory):
 
 
 def test_fit_prior_smoke(data, tables):
-    from brdfkit.methods.prior_fit import fit_prior
+    from brdfkit.methods.prior.fit import fit_prior
 
     out = data / "api.safetensors"
     assert fit_prior([data / "data"], out, progress=False, exclude=["nothing-such"], **TINY_FIT) == out
@@ -584,7 +584,7 @@ def test_solve_is_the_weighted_ridge_of_its_docstring(weight):
     import torch
 
     from brdfkit.methods.ipca import EPS
-    from brdfkit.methods.prior_model import solve
+    from brdfkit.methods.prior.model import solve
 
     rng = np.random.default_rng(3)
     s, k = 50, 3
@@ -609,7 +609,7 @@ def test_solve_is_the_weighted_ridge_of_its_docstring(weight):
 
 
 def test_a_config_the_fit_cannot_use_is_refused():
-    from brdfkit.methods.prior_model import PriorConfig
+    from brdfkit.methods.prior.model import PriorConfig
 
     for bad in ({"weight": "bright"}, {"s2": 0.0}, {"lam": -1.0}):
         with pytest.raises(ValueError):

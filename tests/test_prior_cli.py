@@ -51,8 +51,8 @@ def _pack_prior(path, tables) -> str:
     import torch
 
     from brdfkit.methods.ipca import fit_ipca
-    from brdfkit.methods.prior_file import save_prior
-    from brdfkit.methods.prior_model import PriorConfig, PriorModel, prior_net
+    from brdfkit.methods.prior.file import save_prior
+    from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
     basis = fit_ipca(tables, n_components=3, names=["stiff-white", "ggx"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)

@@ -62,7 +62,7 @@ def command(as_json, check):
     man = read_manifest()
     installed = man.installed()
     if check:
-        from ..methods.prior_file import load_prior
+        from ..methods.prior.file import load_prior
         from ..model.builtin import resolve_prior
 
         for m in installed:

@@ -55,7 +55,7 @@ def file_method(path: str | os.PathLike) -> str:
     """The method a model file is for, by the format its header records: ``prior``
     (``brdfkit-prior``), ``ipca`` (``brdfkit-ipca``), else ``hypernet`` (whose loader
     then names what is wrong with a file that is none of them)."""
-    from .prior_file import is_prior_file
+    from .prior.file import is_prior_file
 
     if is_prior_file(path):
         return "prior"

@@ -1,15 +1,23 @@
 """The learnt prior as a reconstruction method: a PCA basis fitted in closed form around
-the prior mean a set encoder reads from the samples (:mod:`.prior_model`); trained by
-``brdfkit fit --method prior`` (:mod:`.prior_fit`). ``brdfkit sparse``'s default with
-the built-in models (``docs/generalisation.md`` says why it is not the paper's decoder)."""
+the prior mean a set encoder reads from the samples. ``brdfkit sparse``'s default with
+the built-in models (``docs/generalisation.md`` says why it is not the paper's decoder).
+
+This package registers the method (:data:`METHOD`); its parts are
+
+- :mod:`.model`: the network and the closed-form fit (:class:`~.model.PriorModel`,
+  :func:`~.model.solve`);
+- :mod:`.fit`: its training, ``brdfkit fit --method prior``;
+- :mod:`.file`: its model file (format ``brdfkit-prior``), which holds or names the
+  PCA basis (:mod:`brdfkit.methods.ipca`).
+"""
 
 from __future__ import annotations
 
 import dataclasses
 import os
 
-from .method import Method, MethodOptions
-from .prior_fit import FIT_OPTIONS
+from ..method import Method, MethodOptions
+from .fit import FIT_OPTIONS
 
 __all__ = ["METHOD", "PriorOptions"]
 
@@ -23,8 +31,8 @@ class PriorOptions(MethodOptions):
 
 
 def _load(path, device):
-    from ..model.builtin import resolve_prior
-    from .prior_file import load_prior
+    from ...model.builtin import resolve_prior
+    from .file import load_prior
 
     return load_prior(resolve_prior(path), device)
 
@@ -34,7 +42,7 @@ def _reconstruct(samples, model, options, *, seed, device):
 
 
 def _fit(data, output, *, exclude=(), progress=True, **options):
-    from .prior_fit import fit_prior
+    from .fit import fit_prior
 
     return fit_prior(data, output, exclude=exclude, progress=progress, **options)
 

@@ -4,7 +4,7 @@ One file holds the network's weights (``net.*``) and its basis, either inside
 (``basis.*`` tensors and metadata, as :meth:`IpcaModel.tensors` writes them) or in a
 basis file beside it (metadata ``basis_file``, a bare name, and ``basis_digest``, the
 sha256 of that file), so that the built-in models trained on one basis ship it once.
-Metadata ``config`` is the :class:`~brdfkit.methods.prior_model.PriorConfig` as JSON and
+Metadata ``config`` is the :class:`~brdfkit.methods.prior.model.PriorConfig` as JSON and
 ``fingerprint`` the sha256 of the weights, the basis and that config (the likelihood in
 it changes what the model reconstructs), checked on loading. Files written before the
 config held a likelihood (no ``weight`` in it) carry the fingerprint of the weights and
@@ -20,9 +20,9 @@ import os
 
 import numpy as np
 
-from ..atomic import atomic_path, check_input_file
-from ..errors import FormatError, InputError
-from .prior_model import PriorConfig, PriorModel, prior_net
+from ...atomic import atomic_path, check_input_file
+from ...errors import FormatError, InputError
+from .model import PriorConfig, PriorModel, prior_net
 
 __all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior"]
 
@@ -86,7 +86,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
         if not os.path.exists(where):
             model.basis.save(where, half=half, phi_stride=phi_stride)
         else:  # shared with another model: it must be this model's basis as stored
-            from .ipca import load_ipca
+            from ..ipca import load_ipca
             other = load_ipca(where)
             same = (np.array_equal(other.cells, model.basis.cells)
                     and np.array_equal(other.components, model.basis.components))
@@ -107,7 +107,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
 
 def is_prior_file(path: str | os.PathLike) -> bool:
     """Whether ``path`` is a safetensors file of format ``brdfkit-prior`` (header only)."""
-    from ..tensorfile import open_safetensors
+    from ...tensorfile import open_safetensors
 
     try:
         with open_safetensors(os.fspath(path)) as f:
@@ -127,8 +127,8 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
     """
     import torch
 
-    from ..tensorfile import open_safetensors
-    from .ipca import load_ipca, read_ipca
+    from ...tensorfile import open_safetensors
+    from ..ipca import load_ipca, read_ipca
 
     path = check_input_file(path)
     with open_safetensors(path, diagnose="brdfkit learnt-prior model file") as f:
@@ -186,7 +186,7 @@ def pack_prior(src: str | os.PathLike, dst: str | os.PathLike, basis_file: str) 
     """Re-save a learnt-prior model for shipping with its basis in the shared file
     ``basis_file`` beside ``dst``, stored as the source stores it (so the model is the
     same to the bit). Returns the packed file's fingerprint (for the manifest)."""
-    from ..tensorfile import open_safetensors
+    from ...tensorfile import open_safetensors
 
     model = load_prior(src)
     src = os.fspath(src)

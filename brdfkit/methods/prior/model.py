@@ -36,9 +36,9 @@ import math
 
 import numpy as np
 
-from ..errors import InputError
-from ..geometry import GRID_SHAPE, lookup_trilinear
-from .ipca import EPS, IpcaModel, cosine_weight
+from ...errors import InputError
+from ...geometry import GRID_SHAPE, lookup_trilinear
+from ..ipca import EPS, IpcaModel, cosine_weight
 
 __all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF"]
 
@@ -157,7 +157,7 @@ def sample_rows(basis: IpcaModel, samples):
     ``(ok, tab (S, K + 2), w, cos_i, rho, hd (S, 6))``, ``ok`` the mask over the
     samples. The basis is read trilinearly at each sample's angles (exactly at a cell's
     own angles), as :meth:`IpcaModel.coefficients` reads it."""
-    from ..geometry import cos_theta_i
+    from ...geometry import cos_theta_i
 
     tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
                            samples.phi_d).astype(np.float64)
@@ -184,7 +184,7 @@ class PriorModel:
     meta
         Training record (``materials``, ``steps``, ``wall_time_s`` ...).
     fingerprint
-        sha256 hex of the weights and the basis (:mod:`brdfkit.methods.prior_file`).
+        sha256 hex of the weights and the basis (:mod:`brdfkit.methods.prior.file`).
     """
 
     basis: IpcaModel

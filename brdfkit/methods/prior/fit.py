@@ -33,10 +33,10 @@ import time
 
 import numpy as np
 
-from ..errors import InputError
-from ..geometry import N_CELLS, N_PHI_D, N_THETA_D
-from .ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca
-from .prior_model import PriorConfig, PriorModel, prior_net, solve
+from ...errors import InputError
+from ...geometry import N_CELLS, N_PHI_D, N_THETA_D
+from ..ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca
+from .model import PriorConfig, PriorModel, prior_net, solve
 
 __all__ = ["fit_prior", "FIT_OPTIONS"]
 
@@ -45,7 +45,7 @@ FIT_OPTIONS = ("latent_dim", "steps", "minutes", "seed", "device", "batch_materi
 
 
 def _storage(path: str) -> dict:
-    from ..tensorfile import open_safetensors
+    from ...tensorfile import open_safetensors
 
     with open_safetensors(path) as f:
         meta = f.metadata() or {}
@@ -63,7 +63,7 @@ def _as_stored(basis: IpcaModel, storage: dict) -> IpcaModel:
 
 
 def _resolve_basis(spec) -> str:
-    from ..model.builtin import resolve_basis
+    from ...model.builtin import resolve_basis
 
     return resolve_basis(spec)
 
@@ -103,11 +103,11 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     """
     import torch
 
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..device import resolve_device
-    from ..materials import collect_materials
-    from ..merl import read_merl
-    from .prior_file import save_prior
+    from ...atomic import refuse_overwrite_of_inputs
+    from ...device import resolve_device
+    from ...materials import collect_materials
+    from ...merl import read_merl
+    from .file import save_prior
 
     if steps is None and minutes is None:
         steps = 3000
@@ -187,7 +187,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     fold_tab = torch.from_numpy(np.stack(tabs)).to(dev)
     fold_sig = torch.from_numpy(np.stack(sigmas)).to(dev)
     del tabs
-    from ..geometry import cos_theta_i, grid_angles, grid_cosine_weight, grid_hd
+    from ...geometry import cos_theta_i, grid_angles, grid_cosine_weight, grid_hd
     values = values.to(dev)
     hd_all = torch.from_numpy(np.ascontiguousarray(grid_hd()[cells], np.float32)).to(dev)
     w_all = torch.from_numpy(np.clip(grid_cosine_weight()[cells], 1e-6, None).astype(np.float32)).to(dev)
