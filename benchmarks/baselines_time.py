@@ -46,7 +46,7 @@ def main(argv=None) -> int:
 
     import torch
 
-    from brdfkit.methods.ipca import fit_ipca, load_ipca
+    from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
     from brdfkit.methods.nbrdf import DEFAULT_STEPS, fit_nbrdf
     from brdfkit.merl import read_merl
     from brdfkit.metrics import brdf_log_rmse
@@ -68,7 +68,7 @@ def main(argv=None) -> int:
         basis = fit_ipca(train, args.components)
         out["ipca_fit_s"] = time.perf_counter() - t
         if args.basis:
-            basis.save(args.basis)
+            save_ipca(args.basis, basis)
     steps = args.nbrdf_steps or DEFAULT_STEPS
 
     for name in chosen:

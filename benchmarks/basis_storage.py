@@ -18,7 +18,7 @@ import tempfile
 import numpy as np
 
 from brdfkit.geometry import N_CELLS
-from brdfkit.methods.ipca import fit_ipca, load_ipca
+from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
 from brdfkit.samples import draw_samples
 
 from study_data import load_library, validation_materials
@@ -51,7 +51,7 @@ def main():
         for label, kw in (("float32, all cells", {}), ("float16, all cells", {"half": True}),
                           ("float16, half phi_d", {"half": True, "phi_stride": 2})):
             path = os.path.join(tmp, "b.safetensors")
-            basis.save(path, **kw)
+            save_ipca(path, basis, **kw)
             variants[label] = (load_ipca(path), os.path.getsize(path))
         print(f"{'storage':22s} {'MB':>6s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  projection")
         for label, (model, size) in variants.items():

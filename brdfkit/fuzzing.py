@@ -107,14 +107,14 @@ def reference_seed() -> bytes:
 
 @functools.lru_cache(maxsize=None)
 def ipca_seed() -> bytes:
-    from brdfkit.methods.ipca import IpcaModel
+    from brdfkit.methods.ipca import IpcaModel, save_ipca
 
     path = os.path.join(_seed_folder(), "basis.safetensors")
     p = 64
     rng = np.random.default_rng(0)
-    IpcaModel(np.arange(1000, 1000 + 3 * p, 3, dtype=np.int64), rng.random(p, dtype=np.float32),
-              rng.random(p, dtype=np.float32), rng.random((2, p), dtype=np.float32),
-              np.array([1.0, 0.5], np.float32), ["a", "b"]).save(path)
+    save_ipca(path, IpcaModel(np.arange(1000, 1000 + 3 * p, 3, dtype=np.int64), rng.random(p, dtype=np.float32),
+                              rng.random(p, dtype=np.float32), rng.random((2, p), dtype=np.float32),
+                              np.array([1.0, 0.5], np.float32), ["a", "b"]))
     return _take(path)
 
 

@@ -12,7 +12,7 @@ import pytest
 
 from brdfkit import synthetic
 from brdfkit.methods import METHODS, get_method
-from brdfkit.methods.ipca import fit_ipca, load_ipca
+from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import HALF_PI, io_from_half_diff, valid_mask
 from brdfkit.metrics import brdf_log_rmse
@@ -114,7 +114,7 @@ def test_ipca_arbitrary_angles_and_tiny_sample_sets(basis, lobes, library):
 
 def test_ipca_save_load_round_trip(basis, library, tmp_path):
     path = tmp_path / "basis.safetensors"
-    basis.save(path)
+    save_ipca(path, basis)
     back = load_ipca(path)
     for k in ("cells", "reference", "mean", "components", "sigma"):
         np.testing.assert_array_equal(getattr(back, k), getattr(basis, k))
@@ -130,7 +130,7 @@ def test_ipca_load_refuses_other_files(basis, tmp_path):
     with pytest.raises(FormatError, match="notes.safetensors"):
         load_ipca(text)
     good = tmp_path / "b.safetensors"
-    basis.save(good)
+    save_ipca(good, basis)
     cut = tmp_path / "cut.safetensors"
     cut.write_bytes(good.read_bytes()[:100000])
     with pytest.raises(FormatError, match="cut.safetensors"):
@@ -235,7 +235,7 @@ def test_registry_names_and_uniform_interface(basis, library, tmp_path):
         get_method("pca")
     ipca = get_method("ipca")
     path = tmp_path / "basis.safetensors"
-    basis.save(path)
+    save_ipca(path, basis)
     samples = draw_samples(library[1], 500, seed=2)
     np.testing.assert_array_equal(ipca.reconstruct(samples, str(path)), basis.reconstruct(samples))
     np.testing.assert_array_equal(ipca.reconstruct(samples, ipca.load(path), lam=0.5),
@@ -377,7 +377,7 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
     with pytest.raises(InputError, match="lam"):
         get_method("ipca").make_options(lam=-1.0)
     path = tmp_path / "basis.safetensors"
-    basis.save(path)
+    save_ipca(path, basis)
     samples = draw_samples(library[1], 300, seed=4)
     np.testing.assert_array_equal(reconstruct(samples, method="ipca", model=path, lam=0.5),
                                   basis.reconstruct(samples, lam=0.5))

@@ -1,4 +1,4 @@
-"""Compact storage of a PCA basis (:mod:`brdfkit.methods.basis_storage`) and the
+"""Compact storage of a PCA basis (:mod:`brdfkit.methods.ipca.storage`) and the
 version-2 basis file that uses it (float16, every other ``phi_d`` cell), with version-1
 files still read."""
 
@@ -11,8 +11,8 @@ import pytest
 
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
-from brdfkit.methods.basis_storage import check_half, compact, expand
-from brdfkit.methods.ipca import IPCA_VERSION, IpcaModel, load_ipca
+from brdfkit.methods.ipca.storage import check_half, compact, expand
+from brdfkit.methods.ipca import IPCA_VERSION, IpcaModel, basis_tensors, load_ipca, save_ipca
 
 _TENSORS = ("cells", "reference", "mean", "components", "sigma")
 
@@ -130,9 +130,9 @@ def test_check_half_refuses_values_float16_cannot_hold(tmp_path):
     big = IpcaModel(np.array([0, 2], np.int64), np.array([1.0, 1e5], np.float32), np.zeros(2, np.float32),
                     np.ones((1, 2), np.float32), np.ones(1, np.float32), [])
     with pytest.raises(InputError, match="float16"):
-        big.save(tmp_path / "big.safetensors", half=True)
+        save_ipca(tmp_path / "big.safetensors", big, half=True)
     assert not (tmp_path / "big.safetensors").exists()
-    big.save(tmp_path / "big.safetensors")  # float32 holds it
+    save_ipca(tmp_path / "big.safetensors", big)  # float32 holds it
 
 
 # --- the basis file ---------------------------------------------------------------------------
@@ -148,8 +148,8 @@ def _raw(path):
 
 def test_half_stride_two_file_round_trip(basis, tmp_path):
     full, packed = tmp_path / "full.safetensors", tmp_path / "packed.safetensors"
-    basis.save(full)
-    basis.save(packed, half=True, phi_stride=2)
+    save_ipca(full, basis)
+    save_ipca(packed, basis, half=True, phi_stride=2)
     tensors, meta = _raw(packed)
     assert meta["version"] == IPCA_VERSION == "2"
     assert meta["phi_d_stride"] == "2" and meta["dtype"] == "float16"
@@ -194,9 +194,9 @@ def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, ha
     """What ``brdfkit.methods.prior.fit`` relies on: a basis read back from compact storage and stored the
     same way again is bit-identical, so a model trained on it sees what it ships with."""
     first, second = tmp_path / "a.safetensors", tmp_path / "b.safetensors"
-    basis.save(first, half=half, phi_stride=stride)
+    save_ipca(first, basis, half=half, phi_stride=stride)
     back = load_ipca(first)
-    back.save(second, half=half, phi_stride=stride)
+    save_ipca(second, back, half=half, phi_stride=stride)
     t1, m1 = _raw(first)
     t2, m2 = _raw(second)
     assert m1 == m2 and sorted(t1) == sorted(t2)
@@ -207,7 +207,7 @@ def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, ha
     for k in _TENSORS:
         np.testing.assert_array_equal(getattr(again, k), getattr(back, k))
     # The same through the prefixed tensors a learnt-prior file stores inside itself.
-    pt, pm = back.tensors(half=half, phi_stride=stride, prefix="basis.")
+    pt, pm = basis_tensors(back, half=half, phi_stride=stride, prefix="basis.")
     assert sorted(pt) == sorted("basis." + k for k in t1)
     for k in t1:
         np.testing.assert_array_equal(pt["basis." + k], t1[k])
@@ -251,7 +251,7 @@ def test_version_1_files_still_load(basis, tmp_path):
 
 def test_bad_storage_metadata_and_odd_cells_are_format_errors(basis, tmp_path):
     good = tmp_path / "good.safetensors"
-    basis.save(good, half=True, phi_stride=2)
+    save_ipca(good, basis, half=True, phi_stride=2)
     tensors, meta = _raw(good)
     for bad in ("3", "0", "", "two", "2.0"):
         path = tmp_path / "stride.safetensors"

@@ -20,7 +20,7 @@ RES = 16
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
-    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.methods.ipca import fit_ipca, save_ipca
     from brdfkit.synthetic import write_library
     from brdfkit.training import fit
 
@@ -31,7 +31,7 @@ def setup(tmp_path_factory):
     model = root / "tiny.safetensors"
     fit(lib, model, latent_dim=6, steps=30, seed=0, progress=False, **TINY)
     basis = root / "basis.safetensors"
-    fit_ipca(sorted(lib.glob("*.binary")), n_components=2).save(basis)
+    save_ipca(basis, fit_ipca(sorted(lib.glob("*.binary")), n_components=2))
     test_list = root / "test.txt"
     test_list.write_text(f"# two of the three\n{names[0]}\n{names[2]}\n")
     return {"root": root, "lib": lib, "names": names, "model": model, "basis": basis, "test_list": test_list}

@@ -22,7 +22,7 @@ import pytest
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, HALF_PI, grid_angles, valid_mask
 from brdfkit.methods import get_method
-from brdfkit.methods.ipca import EPS, fit_ipca, load_ipca
+from brdfkit.methods.ipca import EPS, fit_ipca, load_ipca, save_ipca
 from brdfkit.methods.prior.file import is_prior_file, load_prior, save_prior
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, sample_rows, solve
 from brdfkit.samples import SampleSet, draw_samples
@@ -209,7 +209,7 @@ def test_save_load_round_trip_inline(noisy, tables, tmp_path):
     fp2 = save_prior(small, noisy, half=True, phi_stride=2)
     assert fp2 != fp and small.stat().st_size < 0.4 * path.stat().st_size
     back2 = load_prior(small)
-    noisy.basis.save(tmp_path / "b.safetensors", half=True, phi_stride=2)
+    save_ipca(tmp_path / "b.safetensors", noisy.basis, half=True, phi_stride=2)
     stored = load_ipca(tmp_path / "b.safetensors")
     _same_model(dataclasses.replace(noisy, basis=stored), back2, samples)
     assert back2.fingerprint == fp2
@@ -244,7 +244,7 @@ def test_shared_basis_file(basis, tables, tmp_path):
         save_prior(tmp_path / "d.safetensors", a, basis_file="sub/basis.safetensors")
 
     # A basis file changed after the models were saved: refused, naming the digest.
-    other.save(shared)
+    save_ipca(shared, other)
     for name in ("a", "b"):
         with pytest.raises(FormatError, match=f"{name}.safetensors: .*shared.basis.safetensors.*digest"):
             load_prior(tmp_path / f"{name}.safetensors")
@@ -354,7 +354,7 @@ def test_is_prior_file(noisy, basis, tmp_path):
     from helpers_model import make_model
 
     save_prior(tmp_path / "prior.safetensors", noisy)
-    basis.save(tmp_path / "basis.safetensors")
+    save_ipca(tmp_path / "basis.safetensors", basis)
     make_model(tmp_path / "hyper.safetensors")
     (tmp_path / "garbage.safetensors").write_bytes(b"\x00\x01 not a tensor file" * 10)
     (tmp_path / "empty.safetensors").write_bytes(b"")

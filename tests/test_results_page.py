@@ -48,6 +48,7 @@ def _prior(path, tables) -> None:
 def runs(tmp_path_factory):
     """``(proxies, runs)``: proxies ``merl/mat-a``, ``rgl/rgl_b_rgb``; the two bench folders."""
     from brdfkit.bench import BenchConfig, run_bench
+    from brdfkit.methods.ipca import save_ipca
 
     root = tmp_path_factory.mktemp("results")
     proxies, runs, models = root / "proxies", root / "runs", root / "models"
@@ -57,7 +58,7 @@ def runs(tmp_path_factory):
     write_merl(proxies / "rgl" / "rgl_b_rgb.binary", material_table(2))
     make_model(models / "hyp.safetensors")
     basis = _prior(models / "prior.safetensors", [material_table(0), material_table(2)])
-    basis.save(models / "basis.safetensors")
+    save_ipca(models / "basis.safetensors", basis)
     common = dict(ipca=str(models / "basis.safetensors"), resolution=16, jobs=1, threads=1, device="cpu",
                   cache=str(runs / "bench-cache"))
     run_bench(BenchConfig(output=str(runs / "bench-sparse"), data=str(proxies / "merl"),

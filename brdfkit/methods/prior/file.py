@@ -1,7 +1,7 @@
 """The learnt-prior model file (format ``brdfkit-prior``): safetensors, never pickle.
 
 One file holds the network's weights (``net.*``) and its basis, either inside
-(``basis.*`` tensors and metadata, as :meth:`IpcaModel.tensors` writes them) or in a
+(``basis.*`` tensors and metadata, as :func:`brdfkit.methods.ipca.file.basis_tensors` writes them) or in a
 basis file beside it (metadata ``basis_file``, a bare name, and ``basis_digest``, the
 sha256 of that file), so that the built-in models trained on one basis ship it once.
 Metadata ``config`` is the :class:`~brdfkit.methods.prior.model.PriorConfig` as JSON and
@@ -22,6 +22,7 @@ import numpy as np
 
 from ...atomic import atomic_path, check_input_file
 from ...errors import FormatError, InputError
+from ..ipca import basis_tensors, load_ipca, read_ipca, save_ipca
 from .model import PriorConfig, PriorModel, prior_net
 
 __all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior"]
@@ -61,7 +62,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
     Parameters
     ----------
     half, phi_stride
-        How the basis is stored (:meth:`IpcaModel.tensors`); the network stays float32
+        How the basis is stored (:func:`~brdfkit.methods.ipca.file.basis_tensors`); the network stays float32
         (it is 60k numbers).
     basis_file
         A bare file name: the basis goes into that file beside ``path`` (written when it
@@ -75,7 +76,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             "config": json.dumps(dataclasses.asdict(model.cfg), sort_keys=True)}
     meta.update({k: json.dumps(v) for k, v in model.meta.items()})
     if basis_file is None:
-        btens, bmeta = model.basis.tensors(half=half, phi_stride=phi_stride, prefix="basis.", where=path)
+        btens, bmeta = basis_tensors(model.basis, half=half, phi_stride=phi_stride, prefix="basis.", where=path)
         tensors = {**net, **btens}
         meta.update(bmeta)
         basis_digest = _digest(btens)
@@ -84,15 +85,14 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             raise InputError(f"basis_file {basis_file!r}: give a bare file name (it lives beside the model)")
         where = os.path.join(os.path.dirname(os.path.abspath(path)), basis_file)
         if not os.path.exists(where):
-            model.basis.save(where, half=half, phi_stride=phi_stride)
+            save_ipca(where, model.basis, half=half, phi_stride=phi_stride)
         else:  # shared with another model: it must be this model's basis as stored
-            from ..ipca import load_ipca
             other = load_ipca(where)
             same = (np.array_equal(other.cells, model.basis.cells)
                     and np.array_equal(other.components, model.basis.components))
             if not same and (half or phi_stride != 1):  # the file holds it rounded: compare as stored
-                same = (_digest(other.tensors(half=half, phi_stride=phi_stride)[0])
-                        == _digest(model.basis.tensors(half=half, phi_stride=phi_stride)[0]))
+                same = (_digest(basis_tensors(other, half=half, phi_stride=phi_stride)[0])
+                        == _digest(basis_tensors(model.basis, half=half, phi_stride=phi_stride)[0]))
             if not same:
                 raise InputError(f"{where}: holds another basis than this model's")
         tensors = net
@@ -128,7 +128,6 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
     import torch
 
     from ...tensorfile import open_safetensors
-    from ..ipca import load_ipca, read_ipca
 
     path = check_input_file(path)
     with open_safetensors(path, diagnose="brdfkit learnt-prior model file") as f:

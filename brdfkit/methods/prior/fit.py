@@ -35,7 +35,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...geometry import N_CELLS, N_PHI_D, N_THETA_D
-from ..ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca
+from ..ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca, save_ipca
 from .model import PriorConfig, PriorModel, prior_net, solve
 
 __all__ = ["fit_prior", "FIT_OPTIONS"]
@@ -58,7 +58,7 @@ def _as_stored(basis: IpcaModel, storage: dict) -> IpcaModel:
         return basis
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "basis.safetensors")
-        basis.save(path, **storage)
+        save_ipca(path, basis, **storage)
         return load_ipca(path)
 
 

@@ -18,8 +18,8 @@ import os
 
 import numpy as np
 
-from ..errors import InputError
-from ..geometry import N_PHI_D, N_THETA_D, N_THETA_H, grid_cosine_weight
+from ...errors import InputError
+from ...geometry import N_PHI_D, N_THETA_D, N_THETA_H, grid_cosine_weight
 
 __all__ = ["compact", "expand", "check_half"]
 
@@ -42,7 +42,7 @@ def expand(cells: np.ndarray, arrays: list) -> tuple[np.ndarray, list]:
     """Inverse of :func:`compact` with ``stride = 2``: the even ``phi_d`` cells as
     stored, each odd one the mean of its two even neighbours (wrapping at pi), or the
     one of them that is stored (cells where the cosine weight ``cos_i cos_o`` is 0 are
-    left out, as :func:`~brdfkit.methods.ipca.fit_ipca` leaves them out); float32 arrays
+    left out, as :func:`~.fit.fit_ipca` leaves them out); float32 arrays
     over the returned sorted cells."""
     cells = np.asarray(cells, np.int64)
     if ((cells % N_PHI_D) % 2).any():

@@ -1,0 +1,139 @@
+"""The PCA basis file (format ``brdfkit-ipca``): safetensors, never pickle.
+
+Tensors ``cells`` (int64 ``(P,)``, sorted flat MERL indices) or, in compact files,
+``cell_mask`` (the grid's cells as a bit mask), ``reference``, ``mean``, ``components``
+(float32, or float16 in compact files) and ``sigma`` (float32) as :class:`~.model.IpcaModel`
+holds them; metadata the format, its version, ``n_components``, the mapping's ``eps``,
+``phi_d_stride`` (1, or 2 for every other ``phi_d`` cell, :mod:`.storage`), ``dtype`` and
+the training ``materials`` (JSON). The same tensors and metadata, prefixed, hold the basis
+inside a learnt-prior model file (:mod:`brdfkit.methods.prior.file`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from ...atomic import atomic_path, check_input_file
+from ...errors import FormatError
+from ...geometry import N_CELLS, N_PHI_D
+from .model import EPS, IpcaModel
+from .storage import check_half, compact, expand
+
+__all__ = ["IPCA_FORMAT", "IPCA_VERSION", "basis_tensors", "save_ipca", "load_ipca", "read_ipca"]
+
+IPCA_FORMAT = "brdfkit-ipca"
+IPCA_VERSION = "2"
+_READS = ("1", "2")  # version 2 adds the optional float16 and half-phi_d storage
+_TENSORS = ("cells", "reference", "mean", "components", "sigma")
+
+
+def save_ipca(path: str | os.PathLike, basis: IpcaModel, *, half: bool = False, phi_stride: int = 1) -> None:
+    """Write ``basis`` as one safetensors file (format ``brdfkit-ipca``), atomically;
+    ``half`` and ``phi_stride`` as :func:`basis_tensors` takes them."""
+    from safetensors.numpy import save_file
+
+    tensors, meta = basis_tensors(basis, half=half, phi_stride=phi_stride, where=os.fspath(path))
+    with atomic_path(path) as tmp:
+        save_file(tensors, tmp, metadata=meta)
+
+
+def basis_tensors(basis: IpcaModel, *, half: bool = False, phi_stride: int = 1, prefix: str = "",
+                  where: str = "basis") -> tuple[dict, dict]:
+    """The tensors and metadata of the file of ``basis`` (names prefixed with ``prefix``
+    when it is stored inside another model file); ``where`` names it in errors.
+
+    ``half`` stores the per-cell tensors in float16 and ``phi_stride = 2`` only the
+    cells of even ``phi_d`` index (:mod:`.storage`): together a quarter of the size, for
+    the bases shipped with the package. The reader restores the full grid the same way
+    every time, so a model trained on the restored basis sees exactly what it is shipped
+    with.
+    """
+    cells, per_cell = compact(basis.cells, [basis.reference, basis.mean, basis.components], phi_stride)
+    if half:
+        check_half(where, per_cell)
+    dtype = np.float16 if half else np.float32
+    # Compact files name their cells by a bit mask over the grid (0.18 MB), not by
+    # int64 indices (4.4 MB for half the grid).
+    where_cells = ({"cell_mask": np.packbits(np.isin(np.arange(N_CELLS), cells))} if half or phi_stride != 1
+                   else {"cells": np.ascontiguousarray(cells, dtype=np.int64)})
+    tensors = {**where_cells,
+               "reference": np.ascontiguousarray(per_cell[0], dtype=dtype),
+               "mean": np.ascontiguousarray(per_cell[1], dtype=dtype),
+               "components": np.ascontiguousarray(per_cell[2], dtype=dtype),
+               "sigma": np.ascontiguousarray(basis.sigma, dtype=np.float32)}
+    meta = {"format": IPCA_FORMAT, "version": IPCA_VERSION,
+            "n_components": str(basis.n_components), "eps": repr(EPS),
+            "weight": "cos_i*cos_o", "channels": "separate observations, shared basis",
+            "phi_d_stride": str(int(phi_stride)), "dtype": "float16" if half else "float32",
+            "materials": json.dumps(list(basis.materials))}
+    return ({prefix + k: v for k, v in tensors.items()}, {prefix + k: v for k, v in meta.items()})
+
+
+def load_ipca(path: str | os.PathLike) -> IpcaModel:
+    """Read a basis written by :func:`save_ipca`.
+
+    Raises
+    ------
+    FormatError
+        Not a safetensors file, another format or version, missing or inconsistent
+        tensors, non-finite values.
+    """
+    from ...tensorfile import open_safetensors
+
+    path = check_input_file(path)
+    with open_safetensors(path) as f:
+        return read_ipca(f, path)
+
+
+def read_ipca(f, path: str, prefix: str = "") -> IpcaModel:
+    """The basis in an open safetensors file ``f`` (tensors and metadata keys named
+    ``prefix + name``: a basis stored inside another model file); errors name ``path``."""
+    meta = {k[len(prefix):]: v for k, v in (f.metadata() or {}).items() if k.startswith(prefix)}
+    if meta.get("format") != IPCA_FORMAT:
+        raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
+                                f"expected {IPCA_FORMAT!r})")
+    if meta.get("version") not in _READS:
+        raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
+                                f"(this brdfkit reads versions {', '.join(_READS)})")
+    stride = meta.get("phi_d_stride", "1")
+    if stride not in ("1", "2"):
+        raise FormatError(path, f"PCA basis phi_d_stride {stride!r} is not 1 or 2")
+    keys = set(f.keys())
+    missing = [k for k in _TENSORS if prefix + k not in keys and not (k == "cells" and prefix + "cell_mask" in keys)]
+    if missing:
+        raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
+    t = {k: f.get_tensor(prefix + k) for k in _TENSORS if prefix + k in keys}
+    if "cells" not in t:
+        mask = f.get_tensor(prefix + "cell_mask")
+        if mask.dtype != np.uint8 or mask.shape != ((N_CELLS + 7) // 8,):
+            raise FormatError(path, "PCA basis cell mask is not a bit mask of the MERL grid")
+        t["cells"] = np.flatnonzero(np.unpackbits(mask)[:N_CELLS]).astype(np.int64)
+    cells, comp = t["cells"], t["components"]
+    p = cells.shape[0] if cells.ndim == 1 else -1
+    if (cells.ndim != 1 or comp.ndim != 2 or comp.shape[1] != p or t["reference"].shape != (p,)
+            or t["mean"].shape != (p,) or t["sigma"].shape != (comp.shape[0],) or comp.shape[0] < 1):
+        raise FormatError(path, "PCA basis tensors have inconsistent shapes")
+    if p == 0 or cells.min() < 0 or cells.max() >= N_CELLS or (np.diff(cells) <= 0).any():
+        raise FormatError(path, "PCA basis cell indices are not sorted indices of the MERL grid")
+    for k in ("reference", "mean", "components", "sigma"):
+        if not np.isfinite(t[k]).all():
+            raise FormatError(path, f"PCA basis tensor {k!r} holds non-finite values")
+    if not (t["sigma"] > 0).all():
+        raise FormatError(path, "PCA basis tensor 'sigma' must be positive")
+    try:
+        materials = json.loads(meta.get("materials", "[]"))
+    except json.JSONDecodeError:
+        raise FormatError(path, "PCA basis metadata 'materials' is not JSON") from None
+    # found by benchmarks/fuzz_parsers.py: 'materials' = "5" raised a TypeError below
+    if not isinstance(materials, list) or not all(isinstance(m, str) for m in materials):
+        raise FormatError(path, "PCA basis metadata 'materials' is not a list of names")
+    cells = cells.astype(np.int64)
+    per_cell = [t["reference"].astype(np.float32), t["mean"].astype(np.float32), comp.astype(np.float32)]
+    if stride == "2":
+        if ((cells % N_PHI_D) % 2).any():
+            raise FormatError(path, "a half-phi_d PCA basis may hold only cells of even phi_d index")
+        cells, per_cell = expand(cells, per_cell)
+    return IpcaModel(cells, *per_cell, t["sigma"].astype(np.float32), list(materials))

@@ -1,0 +1,178 @@
+"""The PCA basis of Nielsen, Jensen and Ramamoorthi 2015 ("On Optimal, Minimal BRDF
+Sampling for Reflectance Acquisition", SIGGRAPH Asia): a linear basis of log-mapped
+measured BRDFs, and its fit to sparse samples by regularised least squares.
+
+What is mapped
+--------------
+Each training table is cosine weighted and log-relative mapped, following the authors'
+published code (``MapBRDF`` of brdf.compute.dtu.dk)::
+
+    x    = rho * w,                w = cos(theta_i) cos(theta_o)
+    x'   = ln((x + eps) / (x_ref + eps)),   eps = 0.001
+
+with ``x_ref`` the per-cell median of the cosine-weighted training values (over every
+material *and* channel, see below). This is deliberately not
+:func:`brdfkit.mapping.to_mapped`, the hypernetwork paper's variant
+``ln((rho + 0.002) / (rho_ref + 0.002) + 1)``: its ``+ 1`` flattens every value below
+the reference towards 0, which throws away the dark half of the data a linear basis has
+to model. The inverse is ``rho = ((exp(x') (x_ref + eps) - eps) / w``, clamped at 0.
+
+Channels
+--------
+As in Nielsen et al., the three colour channels of a material are three separate
+observations of one shared basis: ``M`` training materials give ``3 M`` vectors (so the
+reference is one value per cell, the median over all ``3 M``). A sample set is fitted
+channel by channel with the same basis.
+
+Basis
+-----
+PCA over the cells measured by at least one training table (:mod:`.fit`), ``K``
+components kept; the basis is stored in its own file (:mod:`.file`).
+
+Reconstruction
+--------------
+The mean, components and reference are interpolated trilinearly at each sample's angles
+(:func:`brdfkit.geometry.lookup_trilinear`; a sample on a cell's own angles reads that
+cell exactly), the sample is mapped with its exact ``w``, and the coefficients solve::
+
+    min_z || A diag(sigma) z - b ||^2 + lam ||z||^2,      c = sigma * z
+
+with ``A`` the components at the samples, ``b`` the mapped samples minus the mean and
+``sigma_k`` the standard deviation of the training coefficients of component ``k``: a
+ridge on coefficients measured in training standard deviations, i.e. a Gaussian prior
+fitted to the training set (Nielsen et al. regularise the singular-value-scaled
+components with one fixed ``eta`` in the same way). ``lam`` is :data:`DEFAULT_LAMBDA`
+unless given (see ``docs/baselines.md`` for how it was chosen).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+
+from ...errors import InputError
+from ...geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff, lookup_trilinear
+
+__all__ = ["IpcaModel", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
+
+EPS = 0.001
+DEFAULT_COMPONENTS = 8
+DEFAULT_LAMBDA = 0.1
+
+
+def cosine_weight(theta_h, theta_d, phi_d) -> np.ndarray:
+    """Nielsen's cosine weight ``max(cos theta_i, 0) * max(cos theta_o, 0)`` at
+    Rusinkiewicz angles (radians, broadcastable); float64 of the broadcast shape."""
+    wi, wo = io_from_half_diff(theta_h, theta_d, phi_d)
+    return np.clip(wi[..., 2], 0.0, None) * np.clip(wo[..., 2], 0.0, None)
+
+
+@dataclasses.dataclass
+class IpcaModel:
+    """A PCA basis of cosine-weighted, log-mapped BRDF tables.
+
+    Attributes
+    ----------
+    cells
+        int64 ``(P,)``, sorted flat MERL indices of the cells the basis covers.
+    reference
+        float32 ``(P,)``, per-cell median of the cosine-weighted training values.
+    mean
+        float32 ``(P,)``, mean of the mapped training vectors.
+    components
+        float32 ``(K, P)``, orthonormal principal directions, strongest first.
+    sigma
+        float32 ``(K,)``, standard deviation of the training coefficients along each
+        component.
+    materials
+        Names of the training materials.
+    """
+
+    cells: np.ndarray
+    reference: np.ndarray
+    mean: np.ndarray
+    components: np.ndarray
+    sigma: np.ndarray
+    materials: list = dataclasses.field(default_factory=list)
+    _dense: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
+
+    @property
+    def n_components(self) -> int:
+        return int(self.components.shape[0])
+
+    def _table(self) -> np.ndarray:
+        """Dense ``(N_CELLS, K + 2)`` float32 ``[reference, mean, components...]``, NaN
+        off the basis cells, built once for trilinear lookups."""
+        if self._dense is None:
+            dense = np.full((N_CELLS, self.n_components + 2), np.nan, dtype=np.float32)
+            dense[self.cells, 0] = self.reference
+            dense[self.cells, 1] = self.mean
+            dense[self.cells, 2:] = self.components.T
+            self._dense = dense
+        return self._dense
+
+    def coefficients(self, samples, lam: float | None = None) -> np.ndarray:
+        """Fit the basis to a sample set: coefficients ``(K, 3)``, one column per channel.
+
+        Parameters
+        ----------
+        samples
+            :class:`brdfkit.samples.SampleSet`; BRDF values in 1/sr.
+        lam
+            Ridge weight (``>= 0``; default :data:`DEFAULT_LAMBDA`), on coefficients in
+            units of the training standard deviations.
+        """
+        lam = DEFAULT_LAMBDA if lam is None else float(lam)
+        if not lam >= 0 or not np.isfinite(lam):
+            raise InputError(f"ridge lambda must be a finite number >= 0, got {lam}")
+        if len(samples) == 0:
+            raise InputError(f"{samples.source or 'samples'}: no samples to fit")
+        at = lookup_trilinear(self._table().reshape(GRID_SHAPE + (-1,)),
+                              samples.theta_h, samples.theta_d, samples.phi_d)
+        w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+        # Samples no basis cell reaches, with no weight (on the horizon), or unmeasured
+        # (NaN, MERL's convention) say nothing.
+        measured = samples.measured()
+        use = np.isfinite(at).all(axis=1) & (w > 0) & measured
+        if not use.any():
+            what = ("no sample has a measured (non-NaN) value" if not measured.any()
+                    else "no sample lies on a cell the PCA basis covers")
+            raise InputError(f"{samples.source or 'samples'}: {what}")
+        at, w = at[use], w[use]
+        ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
+        x = np.clip(np.asarray(samples.rgb, np.float64)[use], 0.0, None) * w[:, None]
+        b = np.log((x + EPS) / (ref[:, None] + EPS)) - mean[:, None]
+        a = comp * self.sigma.astype(np.float64)[None, :]
+        lhs = a.T @ a + lam * np.eye(self.n_components)
+        z = np.linalg.lstsq(lhs, a.T @ b, rcond=None)[0] if lam == 0 else np.linalg.solve(lhs, a.T @ b)
+        return z * self.sigma.astype(np.float64)[:, None]
+
+    def decode(self, coefficients: np.ndarray) -> np.ndarray:
+        """Dense table from coefficients ``(K, 3)``: float64 ``(90, 90, 180, 3)``, 1/sr,
+        ``>= 0``, NaN off the basis cells."""
+        c = np.asarray(coefficients, np.float32)
+        mapped = self.mean[:, None] + self.components.T @ c  # (P, 3), float32
+        ref = self.reference[:, None].astype(np.float64)
+        # expm1 form of exp(x') (x_ref + eps) - eps: exact where x' ~ 0 and x_ref ~ 0.
+        x = np.expm1(mapped.astype(np.float64)) * (ref + EPS) + ref
+        w = grid_cosine_weight()[self.cells]
+        out = np.full((N_CELLS, 3), np.nan)
+        out[self.cells] = np.clip(x / w[:, None], 0.0, None)
+        return out.reshape(GRID_SHAPE + (3,))
+
+    def reconstruct(self, samples, lam: float | None = None) -> np.ndarray:
+        """Dense table fitted to a sample set (see :meth:`coefficients`, :meth:`decode`)."""
+        return self.decode(self.coefficients(samples, lam))
+
+    def project(self, table: np.ndarray) -> np.ndarray:
+        """Least-squares coefficients ``(K, 3)`` of a dense table over all basis cells it
+        measures (no regulariser): the best this basis can do for that material."""
+        flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[self.cells]
+        w = grid_cosine_weight()[self.cells]
+        ok = np.isfinite(flat).all(axis=1)
+        b = np.log((np.clip(flat[ok], 0, None) * w[ok, None] + EPS) /
+                   (self.reference[ok, None].astype(np.float64) + EPS)) - self.mean[ok, None]
+        a = self.components[:, ok].T.astype(np.float64)
+        return np.linalg.lstsq(a, b, rcond=None)[0]
+
