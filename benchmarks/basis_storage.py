@@ -1,4 +1,4 @@
-"""What the compact storage of a PCA basis costs (``brdfkit.methods.basis_storage``).
+"""What the compact storage of a PCA basis costs (``brdfkit.methods.ipca.storage``).
 
 Fits the 8-component basis to the MERL training proxies less the fixed validation split,
 stores it as shipped (float16, every other ``phi_d`` cell) and as float32, reads both
@@ -21,7 +21,7 @@ from brdfkit.geometry import N_CELLS
 from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
 from brdfkit.samples import draw_samples
 
-from study_data import load_library, validation_materials
+from studies.study_data import load_library, validation_materials
 
 
 def main():

@@ -17,8 +17,8 @@ pixels on the sphere) once, as Rusinkiewicz angles, network inputs and weights, 
 
 and :func:`screen_error` compares two such images as the metrics do: exposure, clip to
 ``[0, 1]``, sRGB OETF, mean squared difference (:func:`brdfkit.metrics.display_encode`),
-reported as a PSNR (:func:`screen_psnr`). ``benchmarks/study_error.py`` measured how
-well it ranks reconstructions as the 128 px renders do, on the reference scene and on a
+reported as a PSNR (:func:`screen_psnr`). ``benchmarks/studies/study_error.py`` measured
+how well it ranks reconstructions as the 128 px renders do, on the reference scene and on a
 second scene nothing was tuned on (the environment turned half a turn about the vertical,
 :func:`rotated_envmap`), beside ``brdf_log_rmse`` and the training loss
 (``docs/render-error.md``).

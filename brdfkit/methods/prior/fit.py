@@ -1,7 +1,8 @@
 """Training of the learnt-prior model (``brdfkit fit --method prior``).
 
-The recipe is the one ``benchmarks/study_residual.py --coef --align --prior --mixup 0.5``
-ranked first on the validation split (``docs/generalisation.md``):
+The recipe is the one
+``benchmarks/studies/study_residual.py --coef --align --prior --mixup 0.5`` ranked first
+on the validation split (``docs/generalisation.md``):
 
 - **Basis**: the ``K``-component PCA basis of the training tables (or a given basis
   file, e.g. the one shipped with the package).

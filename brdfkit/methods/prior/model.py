@@ -20,13 +20,13 @@ With the basis's mapped value of a sample ``b = ln((rho w + eps) / (x_ref + eps)
 the evaluation metric's likelihood (``ln(1 + rho cos_i)``, :func:`brdfkit.metrics.brdf_log_rmse`,
 noise variance ``s2``) linearised around the observed values, plus IPCA's own likelihood
 (noise variance ``lam``), and the Gaussian prior of the training coefficients
-(standard deviations ``sigma``) centred on ``mu``. ``benchmarks/study_pca.py`` measured this
-closed form within 0.002 of the iterative fit in the metric's space.
+(standard deviations ``sigma``) centred on ``mu``. ``benchmarks/studies/study_pca.py``
+measured this closed form within 0.002 of the iterative fit in the metric's space.
 
 With ``weight = "energy"`` the metric's term is ``g_s / s2`` instead: a residual counts
 in proportion to the sample's saturating energy ``rho cos_i / (1 + rho cos_i)`` rather
 than its square, so that the bright samples of a glossy lobe outweigh the diffuse body
-less (``benchmarks/study_likelihood.py`` ranks the choices by render PSNR).
+less (``benchmarks/studies/study_likelihood.py`` ranks the choices by render PSNR).
 """
 
 from __future__ import annotations

@@ -14,7 +14,7 @@ Prints, for the fixed validation split (``validation.txt``), the mean log RMSE a
 N = 40 / 400 / 4000 of IPCA, of the basis fit alone and of the residual model, at each
 evaluation and at the end, with the training time.
 
-    python benchmarks/study_residual.py --proxies PROXIES --minutes 10 [--rgl]
+    python benchmarks/studies/study_residual.py --proxies PROXIES --minutes 10 [--rgl]
 """
 
 from __future__ import annotations

@@ -3,7 +3,7 @@
 IPCA (8 components, ridge in its own log space) against the same basis with its
 coefficients refined in the evaluation metric's space, on the fixed validation split.
 
-    python benchmarks/study_pca.py --proxies DIR
+    python benchmarks/studies/study_pca.py --proxies DIR
 """
 
 from __future__ import annotations

@@ -53,7 +53,7 @@ the table gives its mean over materials, the JSON also its minimum and the poole
 correlation over every (material, reconstruction) pair. The ``(judge)`` rows rank by the
 reference scene's 128 px judges themselves: the ceiling the rotated columns allow.
 
-    python benchmarks/study_error.py --proxies /work/proxies --n 40 400 4000 --seeds 0 \
+    python benchmarks/studies/study_error.py --proxies /work/proxies --n 40 400 4000 --seeds 0 \
         --px 128 --json study_error.json
 
 (tables ``PROXIES/NAME.binary`` or ``PROXIES/merl/NAME.binary``). Smoke test:
@@ -72,10 +72,9 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-
-HERE = pathlib.Path(__file__).resolve().parent
-TEST_LIST = HERE.parent.parent / "shared" / "data" / "merl-test.txt"
+BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(BENCHMARKS))  # benchmarks/common.py
+TEST_LIST = BENCHMARKS.parent.parent / "shared" / "data" / "merl-test.txt"
 
 SPARSE_MODEL = "merl80-l40"
 COMPRESS_MODELS = ("merl-rgl-l40", "merl-rgl-l7")

@@ -15,10 +15,10 @@ import numpy as np
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, cos_theta_i, grid_angles
 from brdfkit.merl import read_merl
 
-HERE = pathlib.Path(__file__).resolve().parent
-SHARED = HERE.parent.parent / "shared"
+BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent
+SHARED = BENCHMARKS.parent.parent / "shared"
 TEST_LIST = SHARED / "data" / "merl-test.txt"
-VALIDATION_LIST = HERE / "validation.txt"
+VALIDATION_LIST = BENCHMARKS / "validation.txt"
 
 
 def test_materials() -> list[str]:

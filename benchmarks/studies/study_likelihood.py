@@ -24,7 +24,7 @@ Choices of ``h`` (``e = rho cos_i``, the sample's share of a pixel's integrand):
   derivative in the log of the BRDF, ``D'(e) e`` with ``D(x) = x^(1 / 2.2)`` clipped at 1,
   as if each sample were a pixel (``kappa`` scales a sample's ``e`` to a pixel value).
 
-    python benchmarks/study_likelihood.py --proxies PROXIES --val-prior val64-prior.safetensors \
+    python benchmarks/studies/study_likelihood.py --proxies PROXIES --val-prior val64-prior.safetensors \
         --n 40 400 4000 --seeds 0 --px 64 --json likelihood.json
 """
 

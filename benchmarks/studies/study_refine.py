@@ -14,7 +14,7 @@ from ``draw_samples(table, N, seed)`` samples, with the CPU seconds of each.
 
     brdfkit fit PROXIES/merl --exclude-list merl-test.txt $(sed 's/^/--exclude /' benchmarks/validation.txt) \
         --steps 2500 --seed 0 -o val64-l40.safetensors
-    python benchmarks/study_refine.py --proxies PROXIES --model val64-l40.safetensors \
+    python benchmarks/studies/study_refine.py --proxies PROXIES --model val64-l40.safetensors \
         --prior val64-prior.safetensors --n 40 400 4000 --seeds 0 1 2 --json refine.json
 """
 
