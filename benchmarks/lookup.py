@@ -8,8 +8,9 @@ The direction pairs are those the quadrature evaluates in the reference scene at
 ``--resolution``, in its blocks and column-major as it hands them over (every
 ``--stride``-th block, at most ``--max-pairs``), the table the synthetic ``stiff-white``
 (``--brdf``: a MERL file). The other revision's ``brdfkit/geometry.py`` (and
-``brdfkit/trilinear.py`` where it has one) is loaded from git as a package of its own, and
-its ``eval_dirs`` is ``TableBRDF.eval_dirs`` as it was up to this lookup's change
+``brdfkit/trilinear.py`` where it has one; the lookup moved there from ``geometry.py``) is
+loaded from git as a package of its own, and its ``eval_dirs`` is ``TableBRDF.eval_dirs``
+as it was up to this lookup's change
 (``half_diff_from_io``, the lookup, ``torch.where`` over the horizon). Both sides are timed
 in interleaved rounds, best of ``--repeat`` (process CPU time; another job on the machine
 slows both alike), and their results compared bit for bit (exit status 1 if they differ).
@@ -28,6 +29,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import types
 
 import common
 
@@ -46,7 +48,7 @@ def main(argv=None) -> int:
     common.set_threads(args.threads)
     import torch
 
-    from brdfkit import geometry, synthetic
+    from brdfkit import geometry, synthetic, trilinear
     from brdfkit.merl import read_merl
     from brdfkit.render.brdf import TableBRDF
 
@@ -54,9 +56,9 @@ def main(argv=None) -> int:
     wi, wo = _render_pairs(args.resolution, args.stride, args.max_pairs)
     n = sum(w.shape[0] for w in wi)
     with tempfile.TemporaryDirectory() as tmp:
-        old = _revision_geometry(args.against, tmp)
+        old = _revision_lookup(args.against, tmp)
         t32 = torch.as_tensor(table, dtype=torch.float32)
-        luts = {"old": old.TrilinearTable(t32), "new": geometry.TrilinearTable(t32)}
+        luts = {"old": old.TrilinearTable(t32), "new": trilinear.TrilinearTable(t32)}
         new_brdf = TableBRDF(table, device="cpu")
         new_brdf.PREPARE_AFTER = 0
         angles = [geometry.half_diff_from_io(a, b) for a, b in zip(wi, wo)]
@@ -76,7 +78,7 @@ def main(argv=None) -> int:
         def new_eval():
             return [new_brdf.eval_dirs(a, b) for a, b in zip(wi, wo)]
 
-        fns = {"lookup_old": lookup(old, luts["old"]), "lookup_new": lookup(geometry, luts["new"]),
+        fns = {"lookup_old": lookup(old, luts["old"]), "lookup_new": lookup(trilinear, luts["new"]),
                "eval_dirs_old": old_eval, "eval_dirs_new": new_eval}
         same = all(torch.equal(x, y) for k in ("lookup", "eval_dirs")
                    for x, y in zip(fns[k + "_old"](), fns[k + "_new"]()))
@@ -129,9 +131,11 @@ def _render_pairs(resolution, stride, max_pairs):
     return rec.wi, rec.wo
 
 
-def _revision_geometry(rev: str, folder: str):
-    """``brdfkit.geometry`` as of git revision ``rev``, imported as ``brdfkit_<rev>.geometry``
-    from files written into ``folder``."""
+def _revision_lookup(rev: str, folder: str):
+    """The lookup of git revision ``rev``: its ``lookup_trilinear``, ``TrilinearTable`` and
+    ``half_diff_from_io``, from its ``brdfkit/geometry.py`` and ``brdfkit/trilinear.py``
+    imported as the package ``brdfkit_<rev>`` from files written into ``folder`` (each name
+    from ``trilinear`` where the revision has it there, else from ``geometry``)."""
     package = "brdfkit_" + "".join(c if c.isalnum() else "_" for c in rev)
     os.makedirs(os.path.join(folder, package))
     open(os.path.join(folder, package, "__init__.py"), "w").close()
@@ -144,7 +148,11 @@ def _revision_geometry(rev: str, folder: str):
         elif name == "geometry.py":
             raise SystemExit(f"lookup.py: git show {rev}:brdfkit/geometry.py failed: {text.stderr.strip()}")
     sys.path.insert(0, folder)
-    return importlib.import_module(package + ".geometry")
+    modules = [importlib.import_module(package + ".geometry")]
+    if os.path.exists(os.path.join(folder, package, "trilinear.py")):
+        modules.insert(0, importlib.import_module(package + ".trilinear"))
+    return types.SimpleNamespace(**{name: next(getattr(m, name) for m in modules if hasattr(m, name))
+                                    for name in ("lookup_trilinear", "TrilinearTable", "half_diff_from_io")})
 
 
 if __name__ == "__main__":

@@ -30,19 +30,15 @@ from __future__ import annotations
 
 import functools
 import math
-from typing import TYPE_CHECKING
 
 import numpy as np
-
-if TYPE_CHECKING:  # at run time, __getattr__ below imports it on first use
-    from .trilinear import TrilinearTable
 
 __all__ = [
     "N_THETA_H", "N_THETA_D", "N_PHI_D", "GRID_SHAPE", "TABLE_SHAPE", "N_CELLS",
     "half_diff_from_io", "io_from_half_diff", "hd_vectors", "cos_theta_i",
     "grid_angles", "cell_angles", "cell_index", "fractional_indices",
     "valid_mask", "valid_cells", "grid_hd", "grid_directions", "grid_cosine_weight",
-    "lookup_nearest", "lookup_trilinear", "TrilinearTable",
+    "lookup_nearest",
 ]
 
 N_THETA_H, N_THETA_D, N_PHI_D = 90, 90, 180
@@ -281,85 +277,10 @@ def grid_cosine_weight() -> np.ndarray:
     return w
 
 
-def _flat_table(table):
-    xp = _xp(table)
-    return table.reshape(N_CELLS, -1) if xp is np else table.reshape(N_CELLS, -1)
-
-
 def lookup_nearest(table, theta_h, theta_d, phi_d):
     """MERL's own lookup: the value of the cell containing each direction.
 
     ``table`` has shape ``(90, 90, 180, C)``; the result ``(..., C)``.
     """
     idx = cell_index(theta_h, theta_d, phi_d)
-    return _flat_table(table)[idx]
-
-
-def lookup_trilinear(table, theta_h, theta_d, phi_d, fill=float("nan")):
-    """Trilinear interpolation of a MERL-grid table at arbitrary angles.
-
-    Interpolates in the grid's own coordinates (``sqrt`` spacing of ``theta_h``), clamps
-    at ``theta = pi/2`` and wraps ``phi_d`` over ``pi``. Corners holding NaN (cells not
-    measured) are left out and the remaining weights renormalised, so values next to the
-    horizon stay defined; where no corner is measured the result is ``fill``.
-
-    Parameters
-    ----------
-    table
-        ``(90, 90, 180, C)`` array or tensor, NaN where not measured, or a
-        :class:`~brdfkit.trilinear.TrilinearTable` of one (same results to the bit, about
-        four times faster than the plain table, on one CPU thread; for many calls).
-    theta_h, theta_d, phi_d
-        Angles in radians, broadcastable, shape ``(...)``.
-
-    Returns
-    -------
-    array
-        ``(..., C)`` of the table's dtype (float64 for NumPy).
-    """
-    from .trilinear import TrilinearTable, lookup_prepared
-
-    u_h, u_d, u_p = fractional_indices(theta_h, theta_d, phi_d)
-    if isinstance(table, TrilinearTable):
-        return lookup_prepared(table, u_h, u_d, u_p, fill)
-    xp = _xp(u_h)
-    flat = _flat_table(table)
-    if xp is np:
-        u_h, u_d, u_p = np.broadcast_arrays(u_h, u_d, u_p)
-        floor = lambda a: np.floor(a).astype(np.int64)  # noqa: E731
-    else:
-        u_h, u_d, u_p = xp.broadcast_tensors(u_h, u_d, u_p)
-        floor = lambda a: xp.floor(a).long()  # noqa: E731
-    i0, j0, k0 = floor(u_h), floor(u_d), floor(u_p)
-    fh, fd, fp = u_h - i0, u_d - j0, u_p - k0
-    i0 = xp.clip(i0, 0, N_THETA_H - 1)
-    j0 = xp.clip(j0, 0, N_THETA_D - 1)
-    i1 = xp.clip(i0 + 1, 0, N_THETA_H - 1)
-    j1 = xp.clip(j0 + 1, 0, N_THETA_D - 1)
-    k0 = k0 % N_PHI_D
-    k1 = (k0 + 1) % N_PHI_D
-    acc = None
-    wsum = None
-    for ii, wh in ((i0, 1 - fh), (i1, fh)):
-        for jj, wd in ((j0, 1 - fd), (j1, fd)):
-            for kk, wp in ((k0, 1 - fp), (k1, fp)):
-                v = flat[kk + N_PHI_D * (jj + N_THETA_D * ii)]
-                w = (wh * wd * wp)[..., None]
-                ok = ~xp.isnan(v)
-                # zeros_like, not 0 * v: 0 * NaN is NaN and would poison the sum.
-                wv = w * xp.where(ok, v, xp.zeros_like(v))
-                wk = xp.where(ok, w, xp.zeros_like(w))
-                acc = wv if acc is None else acc + wv
-                wsum = wk if wsum is None else wsum + wk
-    out = acc / xp.where(wsum > 0, wsum, 1 + 0 * wsum)
-    return xp.where(wsum > 0, out, fill + 0 * out)
-
-
-def __getattr__(name):
-    # The prepared table lives in its own module (brdfkit.trilinear); it is still
-    # brdfkit.geometry.TrilinearTable, as it has been.
-    if name == "TrilinearTable":
-        from .trilinear import TrilinearTable
-
-        return TrilinearTable
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    return table.reshape(N_CELLS, -1)[idx]

@@ -16,7 +16,7 @@ reconstructions, say), written as one PNG with matplotlib's Agg backend:
 
 Values are one channel (``red``, ``green``, ``blue``) or the luminance
 ``Y = 0.2126 R + 0.7152 G + 0.0722 B`` (Rec. 709 primaries, linear), in 1/sr.
-Lobes are looked up trilinearly in the table (:func:`brdfkit.geometry.lookup_trilinear`).
+Lobes are looked up trilinearly in the table (:func:`brdfkit.trilinear.lookup_trilinear`).
 
 Inputs are MERL tables (``.binary``) or embeddings (``.emb``), which are decoded to a
 table with their model (that alone imports torch; plotting tables does not).
@@ -124,7 +124,8 @@ def inplane_lobe(table: np.ndarray, theta_i_deg: float, channel: str = "luminanc
         ``(theta_o, values)``: :data:`THETA_O_DEG` in degrees, and the values ``(359,)``,
         NaN where the table has no measured neighbour.
     """
-    from .geometry import half_diff_from_io, lookup_trilinear
+    from .geometry import half_diff_from_io
+    from .trilinear import lookup_trilinear
 
     ti = math.radians(theta_i_deg)
     to = np.radians(THETA_O_DEG)

@@ -1,11 +1,12 @@
-"""The MERL-grid table prepared for a renderer's many trilinear lookups.
+"""Trilinear lookups in MERL-grid tables, and the table prepared for a renderer's many.
 
-:class:`TrilinearTable` gives what :func:`brdfkit.geometry.lookup_trilinear` gives on the
-plain table, to the bit, NaN semantics included (corners not measured left out, the
-weights renormalised over the rest; ``fill`` where none is measured), only faster: a
-render of a table evaluates 11.8 M direction pairs, and this lookup was most of each
-(issue 14). ``lookup_trilinear`` dispatches here when handed a prepared table;
-``brdfkit.geometry.TrilinearTable`` names the class.
+:func:`lookup_trilinear` interpolates a ``(90, 90, 180, C)`` table (NumPy or torch) at
+arbitrary angles, in the grid's own coordinates
+(:func:`brdfkit.geometry.fractional_indices`), leaving out the corners not measured and
+renormalising the weights over the rest (``fill`` where none is measured).
+:class:`TrilinearTable` gives what it gives on the plain table, to the bit, NaN semantics
+included, only faster: a render of a table evaluates 11.8 M direction pairs, and this
+lookup was most of each (issue 14). :func:`lookup_trilinear` takes either.
 
 How, and why this way (PyTorch's CPU kernels, one thread; ``docs/performance.md``):
 
@@ -34,13 +35,71 @@ from __future__ import annotations
 
 import numpy as np
 
-from .geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H
+from .geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, _xp, fractional_indices
 
-__all__ = ["TrilinearTable", "lookup_prepared", "lookup_prepared_many"]
+__all__ = ["lookup_trilinear", "TrilinearTable", "lookup_prepared", "lookup_prepared_many"]
+
+
+def lookup_trilinear(table, theta_h, theta_d, phi_d, fill=float("nan")):
+    """Trilinear interpolation of a MERL-grid table at arbitrary angles.
+
+    Interpolates in the grid's own coordinates (``sqrt`` spacing of ``theta_h``), clamps
+    at ``theta = pi/2`` and wraps ``phi_d`` over ``pi``. Corners holding NaN (cells not
+    measured) are left out and the remaining weights renormalised, so values next to the
+    horizon stay defined; where no corner is measured the result is ``fill``.
+
+    Parameters
+    ----------
+    table
+        ``(90, 90, 180, C)`` array or tensor, NaN where not measured, or a
+        :class:`TrilinearTable` of one (same results to the bit, about four times faster
+        than the plain table, on one CPU thread; for many calls).
+    theta_h, theta_d, phi_d
+        Angles in radians, broadcastable, shape ``(...)``.
+
+    Returns
+    -------
+    array
+        ``(..., C)`` of the table's dtype (float64 for NumPy).
+    """
+    u_h, u_d, u_p = fractional_indices(theta_h, theta_d, phi_d)
+    if isinstance(table, TrilinearTable):
+        return lookup_prepared(table, u_h, u_d, u_p, fill)
+    xp = _xp(u_h)
+    flat = table.reshape(N_CELLS, -1)
+    if xp is np:
+        u_h, u_d, u_p = np.broadcast_arrays(u_h, u_d, u_p)
+        floor = lambda a: np.floor(a).astype(np.int64)  # noqa: E731
+    else:
+        u_h, u_d, u_p = xp.broadcast_tensors(u_h, u_d, u_p)
+        floor = lambda a: xp.floor(a).long()  # noqa: E731
+    i0, j0, k0 = floor(u_h), floor(u_d), floor(u_p)
+    fh, fd, fp = u_h - i0, u_d - j0, u_p - k0
+    i0 = xp.clip(i0, 0, N_THETA_H - 1)
+    j0 = xp.clip(j0, 0, N_THETA_D - 1)
+    i1 = xp.clip(i0 + 1, 0, N_THETA_H - 1)
+    j1 = xp.clip(j0 + 1, 0, N_THETA_D - 1)
+    k0 = k0 % N_PHI_D
+    k1 = (k0 + 1) % N_PHI_D
+    acc = None
+    wsum = None
+    for ii, wh in ((i0, 1 - fh), (i1, fh)):
+        for jj, wd in ((j0, 1 - fd), (j1, fd)):
+            for kk, wp in ((k0, 1 - fp), (k1, fp)):
+                v = flat[kk + N_PHI_D * (jj + N_THETA_D * ii)]
+                w = (wh * wd * wp)[..., None]
+                ok = ~xp.isnan(v)
+                # zeros_like, not 0 * v: 0 * NaN is NaN and would poison the sum.
+                wv = w * xp.where(ok, v, xp.zeros_like(v))
+                wk = xp.where(ok, w, xp.zeros_like(w))
+                acc = wv if acc is None else acc + wv
+                wsum = wk if wsum is None else wsum + wk
+    out = acc / xp.where(wsum > 0, wsum, 1 + 0 * wsum)
+    return xp.where(wsum > 0, out, fill + 0 * out)
 
 
 class TrilinearTable:
-    """A MERL-grid table prepared for many :func:`brdfkit.geometry.lookup_trilinear` calls.
+    """A MERL-grid table prepared for many :func:`lookup_trilinear` calls.
 
     Costs 1.34 times a float32 MERL table's memory (23.5 MB), and to build about as much
     as one plain lookup of 100,000 points; build it once per table. Runs in torch, on the

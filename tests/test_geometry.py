@@ -12,6 +12,7 @@ from hypothesis import strategies as st
 
 from brdfkit import geometry as g
 from brdfkit.merl import read_merl
+from brdfkit.trilinear import lookup_trilinear
 
 from helpers_foundation import measured_mask, proxy_material
 
@@ -215,7 +216,7 @@ def test_trilinear_equals_table_at_grid_points(linear_table):
     table = rng.random(g.GRID_SHAPE + (3,))
     idx = rng.integers(0, g.N_CELLS, 2000)
     angles = g.cell_angles(idx)
-    np.testing.assert_allclose(g.lookup_trilinear(table, *angles), table.reshape(-1, 3)[idx],
+    np.testing.assert_allclose(lookup_trilinear(table, *angles), table.reshape(-1, 3)[idx],
                                rtol=1e-9)
     np.testing.assert_array_equal(g.lookup_nearest(table, *angles), table.reshape(-1, 3)[idx])
 
@@ -226,7 +227,7 @@ def test_trilinear_is_linear_between_cells(linear_table, u_h, u_d, u_p):
     th = (u_h / 90) ** 2 * PI / 2
     td = u_d / 90 * PI / 2
     pd = u_p / 180 * PI
-    got = g.lookup_trilinear(linear_table, th, td, pd)
+    got = lookup_trilinear(linear_table, th, td, pd)
     np.testing.assert_allclose(got, [u_h, 2 * u_d + 1, 0.5 * u_p + 3], atol=1e-7)
 
 
@@ -234,11 +235,11 @@ def test_trilinear_wraps_phi_d(linear_table):
     table = linear_table
     # half-way between cell 179 and cell 0 (= 180): the mean of the two
     pd = 179.5 / 180 * PI
-    got = g.lookup_trilinear(table, 0.2, 0.3, pd)[2]
+    got = lookup_trilinear(table, 0.2, 0.3, pd)[2]
     assert abs(got - (0.5 * (0.5 * 179 + 3) + 0.5 * 3)) < 1e-9
     for shift in (PI, -PI, 2 * PI):
-        np.testing.assert_allclose(g.lookup_trilinear(table, 0.2, 0.3, 0.4 + shift),
-                                   g.lookup_trilinear(table, 0.2, 0.3, 0.4), rtol=1e-9)
+        np.testing.assert_allclose(lookup_trilinear(table, 0.2, 0.3, 0.4 + shift),
+                                   lookup_trilinear(table, 0.2, 0.3, 0.4), rtol=1e-9)
 
 
 def test_trilinear_nan_corners():
@@ -248,14 +249,14 @@ def test_trilinear_nan_corners():
     th = (10.5 / 90) ** 2 * PI / 2
     td, pd = 20 / 90 * PI / 2, 30 / 180 * PI
     # corners (10,20,30)=5 and (11,20,30)=NaN with equal weight: NaN left out
-    assert g.lookup_trilinear(table, th, td, pd)[0] == pytest.approx(5.0)
+    assert lookup_trilinear(table, th, td, pd)[0] == pytest.approx(5.0)
     table[10, 20, 30] = np.nan
-    assert np.isnan(g.lookup_trilinear(table, th, td, pd)[0])
-    assert g.lookup_trilinear(table, th, td, pd, fill=-7.0)[0] == -7.0
+    assert np.isnan(lookup_trilinear(table, th, td, pd)[0])
+    assert lookup_trilinear(table, th, td, pd, fill=-7.0)[0] == -7.0
     # next to the horizon a real table stays defined
     real = np.where(measured_mask()[..., None], 2.0, np.nan)
     th, td, pd = np.meshgrid(*g.grid_angles(), indexing="ij")
-    v = g.lookup_trilinear(real, th[measured_mask()] + 1e-3, td[measured_mask()] + 1e-3,
+    v = lookup_trilinear(real, th[measured_mask()] + 1e-3, td[measured_mask()] + 1e-3,
                            pd[measured_mask()])
     np.testing.assert_array_equal(v, 2.0)
 
@@ -288,7 +289,7 @@ def test_torch_matches_numpy():
     same(g.cell_index(th, td, pd), g.cell_index(T(th), T(td), T(pd)), exact=True)
     table = rng.random(g.GRID_SHAPE + (3,))
     table[~measured_mask()] = np.nan
-    same(g.lookup_trilinear(table, th, td, pd), g.lookup_trilinear(T(table), T(th), T(td), T(pd)))
+    same(lookup_trilinear(table, th, td, pd), lookup_trilinear(T(table), T(th), T(td), T(pd)))
     same(g.lookup_nearest(table, th, td, pd), g.lookup_nearest(T(table), T(th), T(td), T(pd)),
          exact=True)
     # cell_angles of integer tensors follow torch's default dtype
@@ -301,7 +302,7 @@ def test_float32_tensors_stay_float32():
     th = torch.tensor([0.1, 0.5], dtype=torch.float32)
     assert g.hd_vectors(th, th, th).dtype == torch.float32
     table = torch.rand(g.GRID_SHAPE + (3,), dtype=torch.float32)
-    assert g.lookup_trilinear(table, th, th, th).dtype == torch.float32
+    assert lookup_trilinear(table, th, th, th).dtype == torch.float32
 
 
 # --- the grid caches (computed once per process, shared by every module) -----------------

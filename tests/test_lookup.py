@@ -1,5 +1,5 @@
-"""The prepared table of the render's lookup (:class:`brdfkit.geometry.TrilinearTable`)
-gives exactly what :func:`brdfkit.geometry.lookup_trilinear` gives on the plain table,
+"""The prepared table of the render's lookup (:class:`brdfkit.trilinear.TrilinearTable`)
+gives exactly what :func:`brdfkit.trilinear.lookup_trilinear` gives on the plain table,
 NaN semantics included (issue 14 item 1).
 
 The reference below is the plain-table lookup as it was before the prepared table
@@ -16,6 +16,7 @@ import pytest
 import torch
 
 from brdfkit import geometry as g
+from brdfkit.trilinear import TrilinearTable, lookup_prepared_many, lookup_trilinear
 
 from helpers_foundation import measured_mask
 
@@ -99,12 +100,12 @@ def _same(a, b):
 @pytest.mark.parametrize("kind", ["merl", "holes", "per_channel", "all_nan"])
 def test_prepared_numpy_table_is_bit_identical(kind):
     table = _tables(0)[kind]
-    lut = g.TrilinearTable(table)
+    lut = TrilinearTable(table)
     th, td, pd = _angles(20000, 1)
     for fill in (float("nan"), 0.0, -7.0):
         want = reference_lookup(table, th, td, pd, fill=fill)
-        _same(g.lookup_trilinear(lut, th, td, pd, fill=fill), want)
-        _same(g.lookup_trilinear(table, th, td, pd, fill=fill), want)
+        _same(lookup_trilinear(lut, th, td, pd, fill=fill), want)
+        _same(lookup_trilinear(table, th, td, pd, fill=fill), want)
 
 
 @pytest.mark.parametrize("dtype", [torch.float32, torch.float64])
@@ -112,11 +113,11 @@ def test_prepared_numpy_table_is_bit_identical(kind):
 def test_prepared_torch_table_is_bit_identical(kind, dtype):
     """Float32, as the renderer's ``TableBRDF`` holds it, and float64."""
     table = torch.as_tensor(_tables(2)[kind], dtype=dtype)
-    lut = g.TrilinearTable(table)
+    lut = TrilinearTable(table)
     th, td, pd = (torch.as_tensor(a, dtype=dtype) for a in _angles(20000, 3))
     for fill in (float("nan"), 0.0):
         want = reference_lookup(table, th, td, pd, fill=fill)
-        got = g.lookup_trilinear(lut, th, td, pd, fill=fill)
+        got = lookup_trilinear(lut, th, td, pd, fill=fill)
         assert got.dtype == dtype
         _same(got.numpy(), want.numpy())
 
@@ -128,23 +129,23 @@ def test_nan_corner_semantics_on_the_prepared_table():
     table = np.ones(g.GRID_SHAPE + (1,))
     table[40, 40, 90] = np.nan
     table[40, 40, 91] = 5.0
-    lut = g.TrilinearTable(table)
+    lut = TrilinearTable(table)
     th, td, pd = g.cell_angles(np.array([90 + 180 * (40 + 90 * 40)]))
-    assert np.isnan(g.lookup_trilinear(lut, th, td, pd)[0, 0])
-    assert g.lookup_trilinear(lut, th, td, pd, fill=0.0)[0, 0] == 0.0
+    assert np.isnan(lookup_trilinear(lut, th, td, pd)[0, 0])
+    assert lookup_trilinear(lut, th, td, pd, fill=0.0)[0, 0] == 0.0
     half = math.pi / 180 / 2
     # halfway between the NaN cell and the 5.0 cell: the NaN corner left out, 5.0 remains
-    assert g.lookup_trilinear(lut, th, td, pd + half)[0, 0] == pytest.approx(5.0)
+    assert lookup_trilinear(lut, th, td, pd + half)[0, 0] == pytest.approx(5.0)
 
 
 def test_shapes_broadcast_like_the_plain_table():
     table = _tables(4)["merl"]
-    lut = g.TrilinearTable(table)
+    lut = TrilinearTable(table)
     th = np.full((4, 5), 0.3)
     pd = np.linspace(0, 3, 5)
-    assert g.lookup_trilinear(lut, th, 0.2, pd).shape == (4, 5, 3)
-    assert g.lookup_trilinear(lut, 0.3, 0.2, 0.1).shape == (3,)
-    _same(g.lookup_trilinear(lut, th, 0.2, pd), reference_lookup(table, th, 0.2, pd))
+    assert lookup_trilinear(lut, th, 0.2, pd).shape == (4, 5, 3)
+    assert lookup_trilinear(lut, 0.3, 0.2, 0.1).shape == (3,)
+    _same(lookup_trilinear(lut, th, 0.2, pd), reference_lookup(table, th, 0.2, pd))
 
 
 @pytest.mark.parametrize("prepare_after", [0, 1 << 40])
@@ -191,7 +192,7 @@ def test_prepared_table_blocks_and_edges(block):
     angles (NaN whatever ``fill``, as in the reference), and float64 angles on a float32
     table (a neural BRDF's ``rho_ref``: the lookup is done in float64)."""
     table32 = torch.as_tensor(_tables(8)["holes"], dtype=torch.float32)
-    lut = g.TrilinearTable(table32)
+    lut = TrilinearTable(table32)
     lut.block = block
     n = 3000 if block == 1 else 20000
     for dtype in (torch.float32, torch.float64):
@@ -199,13 +200,13 @@ def test_prepared_table_blocks_and_edges(block):
         th[:7] = float("nan")
         pd[7:9] = float("nan")
         for fill in (float("nan"), 0.0):
-            got = g.lookup_trilinear(lut, th, td, pd, fill=fill)
+            got = lookup_trilinear(lut, th, td, pd, fill=fill)
             want = reference_lookup(table32, th, td, pd, fill=fill)
             assert got.dtype == want.dtype == dtype
             assert torch.isnan(got[:9]).all()
             _same(got.numpy(), want.numpy())
     empty = torch.zeros(0)
-    assert g.lookup_trilinear(lut, empty, empty, empty).shape == (0, 3)
+    assert lookup_trilinear(lut, empty, empty, empty).shape == (0, 3)
 
 
 @pytest.mark.filterwarnings("ignore:invalid value:RuntimeWarning")
@@ -214,11 +215,11 @@ def test_prepared_table_with_infinite_values():
     where no corner is measured, as the reference computes it."""
     table = _tables(10)["holes"]
     table[table > 0.9] = np.inf
-    lut = g.TrilinearTable(table)
+    lut = TrilinearTable(table)
     assert not lut.finite
     th, td, pd = _angles(20000, 11)
     for fill in (float("nan"), 0.0):
-        _same(g.lookup_trilinear(lut, th, td, pd, fill=fill), reference_lookup(table, th, td, pd, fill=fill))
+        _same(lookup_trilinear(lut, th, td, pd, fill=fill), reference_lookup(table, th, td, pd, fill=fill))
 
 
 @pytest.mark.parametrize("block", [977, 1 << 14])
@@ -226,8 +227,6 @@ def test_tables_looked_up_together_are_each_alone(block):
     """``trilinear.lookup_prepared_many`` (a pass rendering two tables): each table's
     result is its own lookup's, NaN semantics included, whatever the other tables hold
     (MERL's unmeasured region, holes, per-channel NaN, one channel all NaN, infinities)."""
-    from brdfkit.trilinear import lookup_prepared_many
-
     ts = _tables(12)
     inf = ts["holes"].copy()
     inf[inf > 0.9] = np.inf
@@ -237,7 +236,7 @@ def test_tables_looked_up_together_are_each_alone(block):
         tabs = tables if kind == "numpy" else [torch.as_tensor(t, dtype=torch.float32) for t in tables]
         angles = (th, td, pd) if kind == "numpy" else tuple(torch.as_tensor(a, dtype=torch.float32)
                                                             for a in (th, td, pd))
-        luts = [g.TrilinearTable(t) for t in tabs]
+        luts = [TrilinearTable(t) for t in tabs]
         for lut in luts:
             lut.block = block
         with np.errstate(invalid="ignore"):
@@ -245,10 +244,10 @@ def test_tables_looked_up_together_are_each_alone(block):
                 got = lookup_prepared_many(luts, *g.fractional_indices(*angles), fill)
                 assert len(got) == len(tabs)
                 for t, lut, x in zip(tabs, luts, got):
-                    _same(np.asarray(x), np.asarray(g.lookup_trilinear(lut, *angles, fill=fill)))
+                    _same(np.asarray(x), np.asarray(lookup_trilinear(lut, *angles, fill=fill)))
                     _same(np.asarray(x), np.asarray(reference_lookup(t, *angles, fill=fill)))
     with pytest.raises(ValueError, match="share"):
-        lookup_prepared_many([g.TrilinearTable(tables[0]), g.TrilinearTable(torch.as_tensor(tables[1]))],
+        lookup_prepared_many([TrilinearTable(tables[0]), TrilinearTable(torch.as_tensor(tables[1]))],
                              *g.fractional_indices(th, td, pd), 0.0)
 
 
@@ -280,9 +279,9 @@ def test_finite_flag_sees_either_infinity_and_not_nan():
     """``TrilinearTable.finite`` (which fill path it takes): False with +inf or -inf
     anywhere, True for a table whose only non-finite values are NaN (not measured)."""
     table = _tables(16)["holes"]
-    assert np.isnan(table).any() and g.TrilinearTable(table).finite
+    assert np.isnan(table).any() and TrilinearTable(table).finite
     for bad in (np.inf, -np.inf):
         t = table.copy()
         t[3, 4, 5, 2] = bad
-        assert not g.TrilinearTable(t).finite
-        assert not g.TrilinearTable(torch.as_tensor(t, dtype=torch.float32)).finite
+        assert not TrilinearTable(t).finite
+        assert not TrilinearTable(torch.as_tensor(t, dtype=torch.float32)).finite

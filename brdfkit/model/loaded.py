@@ -21,7 +21,8 @@ import dataclasses
 import numpy as np
 
 from ..errors import InputError
-from ..geometry import N_CELLS, cell_angles, cell_index, lookup_trilinear
+from ..geometry import N_CELLS, cell_angles, cell_index
+from ..trilinear import lookup_trilinear
 
 __all__ = ["NeuralModel", "ModelCache", "interp_reference"]
 
@@ -44,7 +45,7 @@ class ModelCache:
     reference
         ``(rho_ref float32 (90, 90, 180, 3), fallback float32 (3,))`` as torch tensors.
     trilinear
-        :class:`brdfkit.geometry.TrilinearTable` of that ``rho_ref`` (the renders' lookups).
+        :class:`brdfkit.trilinear.TrilinearTable` of that ``rho_ref`` (the renders' lookups).
     encoder
         The set encoder's fused layers (:func:`brdfkit.model.kernels.encoder_layers`).
     decoder
@@ -142,9 +143,9 @@ class NeuralModel:
         return self.cache.reference[key]
 
     def reference_trilinear(self):
-        """:func:`reference_torch`'s ``rho_ref`` as a :class:`brdfkit.geometry.TrilinearTable`
+        """:func:`reference_torch`'s ``rho_ref`` as a :class:`brdfkit.trilinear.TrilinearTable`
         (same lookups, about four times faster; built once per device)."""
-        from ..geometry import TrilinearTable
+        from ..trilinear import TrilinearTable
 
         key = str(self.device)
         if key not in self.cache.trilinear:

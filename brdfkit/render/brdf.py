@@ -5,7 +5,7 @@ the local frame, ``z`` the normal; BRDF in 1/sr, 0 where either direction is at 
 the horizon) and a ``name``. Two kinds exist:
 
 * :class:`TableBRDF`: a dense MERL-grid table, interpolated with
-  :func:`brdfkit.geometry.lookup_trilinear` (NaN-aware; 0 where no corner is measured);
+  :func:`brdfkit.trilinear.lookup_trilinear` (NaN-aware; 0 where no corner is measured);
 * :class:`brdfkit.model.brdf.NeuralBRDF`: one material's hyponet, evaluated directly at the
   queried directions (never through a dense table).
 
@@ -38,7 +38,7 @@ class TableBRDF:
     device
         Torch device of the float32 copy used for lookups (default: CUDA if available).
 
-    Lookups go through a :class:`brdfkit.geometry.TrilinearTable` once the BRDF has been
+    Lookups go through a :class:`brdfkit.trilinear.TrilinearTable` once the BRDF has been
     asked for :attr:`PREPARE_AFTER` pairs (same values to the bit; building it costs
     about as much as one plain lookup of a render's block, so a tiny render skips it).
     """
@@ -55,13 +55,13 @@ class TableBRDF:
         self.table = arr
         self.device = resolve_device(device)
         self._t = torch.as_tensor(np.ascontiguousarray(arr, np.float32), device=self.device)
-        self._lut = None  # geometry.TrilinearTable of _t, built after PREPARE_AFTER pairs
+        self._lut = None  # trilinear.TrilinearTable of _t, built after PREPARE_AFTER pairs
         self._pairs = 0
 
     def _lookup_table(self, pairs: int):
         """The table to look up after ``pairs`` more pairs: the prepared one once asked for
         :attr:`PREPARE_AFTER` in all, else the plain float32 table."""
-        from ..geometry import TrilinearTable
+        from ..trilinear import TrilinearTable
 
         self._pairs += pairs
         if self._lut is None and self._pairs >= self.PREPARE_AFTER:
@@ -70,7 +70,7 @@ class TableBRDF:
 
     def eval_dirs(self, wi, wo):
         """BRDF ``(N, 3)`` float32 at local direction pairs ``wi, wo`` (torch ``(N, 3)``)."""
-        from ..geometry import lookup_trilinear
+        from ..trilinear import lookup_trilinear
 
         th, td, pd, above = _pair_angles(wi, wo, self.device)
         rho = lookup_trilinear(self._lookup_table(th.shape[0]), th, td, pd, fill=0.0)
@@ -131,8 +131,8 @@ class TableStackBRDF:
         ``(N, 3)``): member ``j`` in columns ``3 j .. 3 j + 2``, channel-major in memory."""
         import torch
 
-        from ..geometry import fractional_indices, lookup_trilinear
-        from ..trilinear import TrilinearTable, lookup_prepared_many
+        from ..geometry import fractional_indices
+        from ..trilinear import TrilinearTable, lookup_prepared_many, lookup_trilinear
 
         th, td, pd, above = _pair_angles(wi, wo, self.device)
         tables = [b._lookup_table(th.shape[0]) for b in self.brdfs]

@@ -98,7 +98,7 @@ class Screen:
         as :class:`~brdfkit.render.brdf.TableBRDF` renders it; unmeasured corners left out)."""
         import torch
 
-        from ..geometry import lookup_trilinear
+        from ..trilinear import lookup_trilinear
 
         t = torch.as_tensor(np.ascontiguousarray(table, np.float32), device=self.hd.device)
         return lookup_trilinear(t, self.theta_h.float(), self.theta_d.float(), self.phi_d.float(), fill=0.0).double()

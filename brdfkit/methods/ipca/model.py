@@ -32,7 +32,7 @@ components kept; the basis is stored in its own file (:mod:`.file`).
 Reconstruction
 --------------
 The mean, components and reference are interpolated trilinearly at each sample's angles
-(:func:`brdfkit.geometry.lookup_trilinear`; a sample on a cell's own angles reads that
+(:func:`brdfkit.trilinear.lookup_trilinear`; a sample on a cell's own angles reads that
 cell exactly), the sample is mapped with its exact ``w``, and the coefficients solve::
 
     min_z || A diag(sigma) z - b ||^2 + lam ||z||^2,      c = sigma * z
@@ -52,7 +52,8 @@ import dataclasses
 import numpy as np
 
 from ...errors import InputError
-from ...geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff, lookup_trilinear
+from ...geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff
+from ...trilinear import lookup_trilinear
 
 __all__ = ["IpcaModel", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
 

@@ -37,7 +37,8 @@ import math
 import numpy as np
 
 from ...errors import InputError
-from ...geometry import GRID_SHAPE, lookup_trilinear
+from ...geometry import GRID_SHAPE
+from ...trilinear import lookup_trilinear
 from ..ipca import EPS, IpcaModel, cosine_weight
 
 __all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF"]
