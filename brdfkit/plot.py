@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import math
 import os
+import textwrap
 from typing import Sequence
 
 import numpy as np
@@ -33,7 +34,7 @@ import numpy as np
 from .errors import InputError
 
 __all__ = ["CHANNELS", "VIEWS", "input_labels", "load_tables", "channel_values", "inplane_lobe",
-           "check_options", "plot_brdfs"]
+           "check_options", "plot_brdfs", "plot_figure"]
 
 CHANNELS = ("luminance", "red", "green", "blue")
 VIEWS = ("both", "lobes", "slices")
@@ -167,6 +168,13 @@ def check_options(theta_i: Sequence[float], phi_d: Sequence[float], channel: str
         raise InputError("--theta-i / --phi-d: at most 12 angles each")
 
 
+def _wrap(text: str, inches: float, size: float) -> str:
+    """``text`` in lines that fit ``inches`` at ``size`` pt (the layout makes room for
+    a title's height, never for its width): 0.6 em a character is DejaVu Sans' widest
+    for these titles (file stems: 0.57 em; prose: 0.49 em)."""
+    return textwrap.fill(text, max(int(inches * 72 / (0.6 * size)), 12))
+
+
 def _decade_label(x: float) -> str:
     return f"$10^{{{int(round(x))}}}$"
 
@@ -215,6 +223,40 @@ def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
         inputs in the legend and the slice titles.
     output
         PNG path.
+    theta_i, phi_d, channel, cosine, log, decades, view, dpi
+        As :func:`plot_figure` takes them.
+
+    Returns
+    -------
+    str
+        ``output``.
+    """
+    from .atomic import atomic_path
+
+    fig = plot_figure(tables, theta_i=theta_i, phi_d=phi_d, channel=channel, cosine=cosine, log=log,
+                      decades=decades, view=view, dpi=dpi)
+    import matplotlib.pyplot as plt
+
+    output = os.fspath(output)
+    try:
+        with atomic_path(output) as tmp:
+            fig.savefig(tmp, format="png")
+    finally:
+        plt.close(fig)
+    return output
+
+
+def plot_figure(tables: dict[str, np.ndarray], *, theta_i: Sequence[float] = (0.0, 30.0, 60.0, 75.0),
+                phi_d: Sequence[float] = (90.0,), channel: str = "luminance", cosine: bool = False,
+                log: bool = True, decades: float = 6.0, view: str = "both", dpi: int = 110):
+    """The figure :func:`plot_brdfs` writes (matplotlib, Agg backend; close it with
+    ``matplotlib.pyplot.close``).
+
+    Parameters
+    ----------
+    tables
+        ``{label: (90, 90, 180, 3) table}`` (:func:`load_tables`); labels name the
+        inputs in the legend and the slice titles.
     theta_i
         Incident angles of the lobes, degrees in ``[0, 90)``.
     phi_d
@@ -229,18 +271,17 @@ def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
         Decades of the log scales (lobes and slices), below the largest value.
     view
         ``"both"``, ``"lobes"`` or ``"slices"``.
+    dpi
+        Pixels an inch.
 
     Returns
     -------
-    str
-        ``output``.
+    matplotlib.figure.Figure
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
-
-    from .atomic import atomic_path
 
     check_options(theta_i, phi_d, channel, decades, view)
     if not tables:
@@ -253,10 +294,17 @@ def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
     what = f"{channel}, {unit}"
 
     n_lobes, n_cols = len(theta_i), len(labels)
-    panel = 3.3
-    width = max(n_lobes * panel if want_lobes else 0, n_cols * 3.0 + 1.2 if want_slices else 0, 6.0)
-    heights = ([panel * 0.56 + 0.8] if want_lobes else []) + ([2.9 * len(phi_d) + 0.6] if want_slices else [])
+    # Inches: a lobe panel; a slice image (square: it fills its axes, and the layout
+    # makes room for every title and label only around axes it does not shrink) and
+    # what a column and a row of them add around it (titles, ticks, labels, colour bar).
+    panel, image = 3.3, 2.6
+    slices_width = n_cols * (image + 0.15) + 1.5
+    width = max(n_lobes * panel if want_lobes else 0, slices_width if want_slices else 0, 6.0)
+    heights = (([panel * 0.56 + 1.0] if want_lobes else [])
+               + ([(image + 0.45) * len(phi_d) + 0.9] if want_slices else []))
     fig = plt.figure(figsize=(width, sum(heights)), dpi=dpi, layout="constrained")
+    # Room between a view's title and its panels' titles, and at the figure's edges.
+    fig.get_layout_engine().set(h_pad=6 / 72, w_pad=6 / 72)
     subfigs = fig.subfigures(len(heights), 1, height_ratios=heights, squeeze=False)[:, 0]
     row = 0
 
@@ -289,11 +337,10 @@ def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
             ax.annotate("", xy=(0, 0), xytext=(-rmax * math.sin(ti), rmax * math.cos(ti)),
                         arrowprops=dict(arrowstyle="->", color="0.3", lw=1.3))
             ax.plot([0, rmax * math.sin(ti)], [0, rmax * math.cos(ti)], color="0.5", lw=0.9, ls=":")
-            ax.set_title(f"theta_i = {t:g} deg", fontsize=10, pad=2)
+            ax.set_title(f"theta_i = {t:g} deg", fontsize=10)
         handles, names = axes[0].get_legend_handles_labels()
-        sub.suptitle(f"In-plane lobes ({what}, {'log' if log else 'linear'} radius; light along the "
-                     "arrow, dotted: mirror direction)",
-                     fontsize=10)
+        sub.suptitle(_wrap(f"In-plane lobes ({what}, {'log' if log else 'linear'} radius; light along the "
+                           "arrow, dotted: mirror direction)", width - 0.4, 10), fontsize=10)
         sub.legend(handles, names, loc="outside lower center", ncol=min(len(labels), 6), fontsize=9,
                    frameon=False)
 
@@ -302,9 +349,14 @@ def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
         ks = [int(round(p / 180.0 * 180)) % 180 for p in phi_d]
         images = {(lab, k): channel_values(tables[lab][:, :, k, :], channel) for lab in labels for k in ks}
         lo_s, hi_s = _log_range(images.values(), decades)
-        axes = sub.subplots(len(ks), n_cols, squeeze=False, sharex=True, sharey=True)
-        cmap = matplotlib.colormaps["magma"].copy()
-        cmap.set_bad("0.82")
+        # Empty columns either side keep the images square and centred in a figure wider
+        # than they need (the lobes').
+        side = (width - slices_width) / 2 / (image + 0.15)
+        ratios = [side, *[1.0] * n_cols, side] if side > 0 else [1.0] * n_cols
+        grid = sub.add_gridspec(len(ks), len(ratios), width_ratios=ratios)
+        first = 1 if side > 0 else 0
+        axes = np.array([[sub.add_subplot(grid[i, first + j]) for j in range(n_cols)] for i in range(len(ks))])
+        cmap = matplotlib.colormaps["magma"].with_extremes(bad="0.82")
         th_ticks = [90.0 * math.sqrt(d / 90.0) for d in THETA_H_TICKS]
         im = None
         for i, (k, p) in enumerate(zip(ks, phi_d)):
@@ -314,27 +366,26 @@ def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
                 with np.errstate(divide="ignore", invalid="ignore"):
                     lv = np.log10(np.where(v > 0, v, np.nan))
                 lv = np.where(np.isfinite(v) & (v <= 0), lo_s, lv)
-                im = ax.imshow(lv, origin="lower", cmap=cmap, vmin=lo_s, vmax=hi_s, aspect="equal",
+                im = ax.imshow(lv, origin="lower", cmap=cmap, vmin=lo_s, vmax=hi_s, aspect="auto",
                                extent=(-0.5, 89.5, -0.5, 89.5), interpolation="nearest")
-                ax.set_title(f"{lab}\nphi_d = {p:g} deg", fontsize=9)
+                ax.set_title(f"{_wrap(lab, image, 9)}\nphi_d = {p:g} deg", fontsize=9)
                 ax.set_xticks([0, 15, 30, 45, 60, 75, 89])
                 ax.set_xticklabels(["0", "15", "30", "45", "60", "75", "90"], fontsize=7)
                 ax.set_yticks(th_ticks)
                 ax.set_yticklabels([f"{d:g}" for d in THETA_H_TICKS], fontsize=7)
                 if i == len(ks) - 1:
                     ax.set_xlabel("theta_d (deg)", fontsize=8)
+                else:
+                    ax.tick_params(labelbottom=False)
                 if j == 0:
                     ax.set_ylabel("theta_h (deg)", fontsize=8)
+                else:
+                    ax.tick_params(labelleft=False)
         cb = sub.colorbar(im, ax=axes, shrink=0.85, aspect=25, pad=0.02)
         ticks = np.arange(math.ceil(lo_s), math.floor(hi_s) + 1)
         cb.set_ticks(ticks)
         cb.set_ticklabels([_decade_label(x) for x in ticks])
         cb.set_label(f"{unit.replace(' x cos(theta_o)', '')}, {channel}", fontsize=8)
-        sub.suptitle(f"Slices at fixed phi_d ({channel}, log colour scale shared by all; "
-                     "grey: not measured)", fontsize=10)
-
-    output = os.fspath(output)
-    with atomic_path(output) as tmp:
-        fig.savefig(tmp, format="png")
-    plt.close(fig)
-    return output
+        sub.suptitle(_wrap(f"Slices at fixed phi_d ({channel}, log colour scale shared by all; "
+                           "grey: not measured)", width - 0.4, 10), fontsize=10)
+    return fig

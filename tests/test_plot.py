@@ -13,7 +13,7 @@ import pytest
 from brdfkit import synthetic
 from brdfkit.geometry import GRID_SHAPE, valid_mask
 from brdfkit.merl import write_merl
-from brdfkit.plot import inplane_lobe
+from brdfkit.plot import inplane_lobe, plot_figure
 
 from conftest import quiet_env
 from conftest import run_brdfkit as _run_brdfkit
@@ -87,6 +87,42 @@ def test_plot_of_tables_writes_a_png_and_imports_no_torch(tables, tmp_path):
     assert r.returncode == 0, r.stderr
     assert "lambert, mirror" in r.stderr
     _png_ok(out)
+
+
+@pytest.mark.parametrize("n, options", [
+    (1, {}), (4, {}), (3, {"view": "slices"}), (1, {"theta_i": (0.0, 45.0)}),
+    (2, {"view": "slices", "phi_d": (0.0, 90.0)}), (5, {"theta_i": (20.0,), "phi_d": (0.0, 45.0, 90.0)}),
+    (1, {"view": "lobes", "theta_i": (10.0,)}),
+])
+def test_layout_cuts_and_overlaps_nothing(n, options):
+    """Regression: the slices' x label fell off the figure's bottom and the panels'
+    titles ran into their view's title (fixed-aspect axes the layout had placed before
+    they shrank); a view's title wider than the figure was cut at both edges; long
+    labels ran into each other."""
+    import matplotlib.pyplot as plt
+
+    labels = ["lambert", "mirror-silver-reconstructed-from-40-samples", "c", "d", "e-with-a-long-name-too"][:n]
+    tabs = {lab: (_lambert() if i % 2 == 0 else synthetic.table(MIRROR)) for i, lab in enumerate(labels)}
+    fig = plot_figure(tabs, **options)
+    try:
+        fig.canvas.draw()
+        r = fig.canvas.get_renderer()
+        page = fig.bbox
+        views = [sub for sub in fig.subfigs]
+        assert views
+        for sub in views:
+            title = sub._suptitle.get_window_extent(r)
+            assert page.x0 <= title.x0 and title.x1 <= page.x1
+            for ax in sub.axes:
+                box = ax.get_tightbbox(r)
+                assert page.x0 - 0.5 <= box.x0 and box.x1 <= page.x1 + 0.5
+                assert page.y0 - 0.5 <= box.y0 and box.y1 <= page.y1 + 0.5
+                assert box.y1 <= title.y0, "a panel runs into its view's title"
+            heads = [ax.title.get_window_extent(r) for ax in sub.axes if ax.get_title()]
+            for i, a in enumerate(heads):
+                assert not any(a.overlaps(b) for b in heads[i + 1:]), "two panel titles overlap"
+    finally:
+        plt.close(fig)
 
 
 @pytest.mark.parametrize("view", ["lobes", "slices"])
