@@ -143,6 +143,26 @@ def run_brdfkit(args, cwd=None, timeout=120, env=None) -> subprocess.CompletedPr
                           capture_output=True, text=True, timeout=timeout)
 
 
+def run_cli(capsys, args) -> tuple[int, str, str]:
+    """Run ``brdfkit ARGS`` in-process (the console script's entry point, without a
+    process's start-up): ``(exit code, stdout, stderr)`` of the command alone."""
+    from brdfkit.cli import main
+
+    capsys.readouterr()
+    with pytest.raises(SystemExit) as e:
+        main([str(a) for a in args])
+    out = capsys.readouterr()
+    return e.value.code, out.out, out.err
+
+
+def one_error_line(err: str) -> str:
+    """The one line of ``err``, a ``brdfkit: error: ...`` (bad input is one line, never
+    a traceback)."""
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: ") and "Traceback" not in err, err
+    return lines[0]
+
+
 def popen_brdfkit(args, **kw) -> subprocess.Popen:
     """Start ``brdfkit ARGS`` as a user would (own process, one thread, text output
     captured)."""

@@ -1,7 +1,7 @@
-"""Shared helpers of the bad-input tests (``test_bad_input_*.py``): the in-process CLI
-runner, the one-line error checks, and the builders of bad files of each format (the
-fixtures that call them, ``good``, ``bad_merl``, ``bad_models``, ``bad_embs``, are in
-``conftest.py``).
+"""Shared helpers of the bad-input tests (``test_bad_input_*.py``): the error-line
+checks, and the builders of bad files of each format (the in-process CLI runner
+``run_cli``, ``one_error_line`` and the fixtures that call the builders, ``good``,
+``bad_merl``, ``bad_models``, ``bad_embs``, are in ``conftest.py``).
 
 Each case of those tests: exit code 2, exactly one line on stderr that names the input
 and the problem, no traceback, no output file and no temporary file left behind.
@@ -11,20 +11,8 @@ from __future__ import annotations
 
 import os
 
-import pytest
-
-from brdfkit.cli import main
-
 from conftest import tmp_leftovers
 from helpers_model import material_table
-
-
-def run_cli(capsys, args):
-    """Run the CLI in-process; returns ``(exit code, stderr)``."""
-    capsys.readouterr()
-    with pytest.raises(SystemExit) as e:
-        main([str(a) for a in args])
-    return e.value.code, capsys.readouterr().err
 
 
 def error_lines(err: str) -> list[str]:
@@ -32,13 +20,6 @@ def error_lines(err: str) -> list[str]:
     lines = [ln for ln in err.splitlines() if ln.strip()]
     errors = [ln for ln in lines if ln.startswith("brdfkit: error: ")]
     return errors
-
-
-def one_error(err: str) -> str:
-    errors = error_lines(err)
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and len(errors) == 1, err
-    return errors[0]
 
 
 def check_line(line: str, path, message: str) -> None:

@@ -18,7 +18,8 @@ from brdfkit import samples as samples_mod
 from brdfkit.errors import FormatError
 from brdfkit.samples import read_samples
 
-from helpers_bad_input import error_lines, nothing_written, one_error, run_cli
+from conftest import one_error_line, run_cli
+from helpers_bad_input import error_lines, nothing_written
 
 
 # --- a runaway CSV file --------------------------------------------------------------------
@@ -109,16 +110,16 @@ def small_limit(monkeypatch):
 @pytest.mark.parametrize("name", sorted(BAD_CSV))
 def test_bad_csv_through_sparse(good, bad_csv, tmp_path, capsys, small_limit, name):
     out, emb = tmp_path / "out.binary", tmp_path / "out.emb"
-    code, err = run_cli(capsys, ["sparse", bad_csv[name], "-m", good / "model.safetensors", "-o", out,
+    code, _, err = run_cli(capsys, ["sparse", bad_csv[name], "-m", good / "model.safetensors", "-o", out,
                               "--emb", emb])
     assert code == 2
-    assert one_error(err) == f"brdfkit: error: {bad_csv[name]}: {BAD_CSV[name][1]}"
+    assert one_error_line(err) == f"brdfkit: error: {bad_csv[name]}: {BAD_CSV[name][1]}"
     nothing_written(tmp_path, out, emb)
 
 
 def test_bad_csv_through_encode(good, bad_csv, tmp_path, capsys, small_limit):
     names = sorted(bad_csv)
-    code, err = run_cli(capsys, ["encode", *[bad_csv[n] for n in names], good / "mat.binary",
+    code, _, err = run_cli(capsys, ["encode", *[bad_csv[n] for n in names], good / "mat.binary",
                               "-m", good / "model.safetensors", "-o", tmp_path / "out"])
     assert code == 2
     errors = error_lines(err)

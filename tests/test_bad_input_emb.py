@@ -13,7 +13,8 @@ import os
 
 import pytest
 
-from helpers_bad_input import check_emb_line, one_error, run_cli
+from conftest import one_error_line, run_cli
+from helpers_bad_input import check_emb_line
 
 
 @pytest.mark.parametrize("name", ["missing", "directory", "empty", "not_json", "wrong_version",
@@ -21,9 +22,9 @@ from helpers_bad_input import check_emb_line, one_error, run_cli
 def test_bad_embedding_through_decode(good, bad_embs, tmp_path, capsys, name):
     path, message = bad_embs[name]
     out = tmp_path / "x.binary"
-    code, err = run_cli(capsys, ["decode", path, "-m", good / "model.safetensors", "-o", out])
+    code, _, err = run_cli(capsys, ["decode", path, "-m", good / "model.safetensors", "-o", out])
     assert code == 2
-    check_emb_line(one_error(err), path, message)
+    check_emb_line(one_error_line(err), path, message)
     assert os.listdir(tmp_path) == []
 
 
@@ -33,9 +34,9 @@ def test_bad_embedding_through_decode(good, bad_embs, tmp_path, capsys, name):
 def test_bad_embedding_through_interpolate(good, bad_embs, tmp_path, capsys, name, position):
     path, message = bad_embs[name]
     a, b = (path, good / "a.emb") if position == "a" else (good / "a.emb", path)
-    code, err = run_cli(capsys, ["interpolate", a, b, "--t", "0.5", "-o", tmp_path / "x.emb"])
+    code, _, err = run_cli(capsys, ["interpolate", a, b, "--t", "0.5", "-o", tmp_path / "x.emb"])
     assert code == 2
-    line = one_error(err)
+    line = one_error_line(err)
     if name == "other_model":  # without a model: the two embeddings disagree
         assert "cannot interpolate embeddings of different models" in line and str(path) in line
     else:
@@ -46,10 +47,10 @@ def test_bad_embedding_through_interpolate(good, bad_embs, tmp_path, capsys, nam
 def test_embedding_of_another_latent_size_through_interpolate_binary(good, bad_embs, tmp_path, capsys):
     # two embeddings of the same (wrong) size: interpolated, then refused by the model
     path, _ = bad_embs["latent_dim"]
-    code, err = run_cli(capsys, ["interpolate", path, path, "--t", "0.5", "-o", tmp_path / "x.emb",
+    code, _, err = run_cli(capsys, ["interpolate", path, path, "--t", "0.5", "-o", tmp_path / "x.emb",
                               "--binary", tmp_path / "x.binary", "-m", good / "model.safetensors"])
     assert code == 2
-    assert "(latent 5), not by the given model" in one_error(err)
+    assert "(latent 5), not by the given model" in one_error_line(err)
     assert os.listdir(tmp_path) == []
 
 
@@ -57,8 +58,8 @@ def test_embedding_of_another_latent_size_through_interpolate_binary(good, bad_e
                                   "latent_length", "latent_dim", "other_model"])
 def test_bad_embedding_through_render(good, bad_embs, tmp_path, capsys, name):
     path, message = bad_embs[name]
-    code, err = run_cli(capsys, ["render", path, "-m", good / "model.safetensors", "-o", tmp_path / "x.exr",
+    code, _, err = run_cli(capsys, ["render", path, "-m", good / "model.safetensors", "-o", tmp_path / "x.exr",
                               "--resolution", "8", "--quiet"])
     assert code == 2
-    check_emb_line(one_error(err), path, message)
+    check_emb_line(one_error_line(err), path, message)
     assert os.listdir(tmp_path) == []

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import pytest
 
-from helpers_bad_input import one_error, run_cli
+from conftest import one_error_line, run_cli
 
 
 @pytest.fixture(scope="module")
@@ -45,9 +45,9 @@ def bad_exr(tmp_path_factory):
 def test_bad_exr_through_metrics(bad_exr, capsys, name, message, position):
     bad, good_img = bad_exr / f"{name}.exr", bad_exr / "good.exr"
     args = [bad, good_img] if position == "pred" else [good_img, bad]
-    code, err = run_cli(capsys, ["metrics", *args, "--json"])
+    code, _, err = run_cli(capsys, ["metrics", *args, "--json"])
     assert code == 2
-    line = one_error(err)
+    line = one_error_line(err)
     assert line.startswith(f"brdfkit: error: {bad}: {message}"), line
 
 
@@ -87,7 +87,7 @@ def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, mon
     for args, bad in (([good / "mat.binary", bad_merl["nan"]], bad_merl["nan"]),
                       ([good / "a.emb", bad_merl["red_half"], "-m", good / "model.safetensors"], bad_merl["red_half"]),
                       ([good / "mat.binary", good / "other.emb", "-m", good / "model.safetensors"], None)):
-        code, err = run_cli(capsys, ["metrics", *args, "--json"])
+        code, _, err = run_cli(capsys, ["metrics", *args, "--json"])
         assert code == 2
-        line = one_error(err)
+        line = one_error_line(err)
         assert (str(bad) in line) if bad else ("other.emb was made by model" in line), line

@@ -13,14 +13,15 @@ import os
 
 import pytest
 
-from helpers_bad_input import MERL_MESSAGES, check_line, error_lines, nothing_written, one_error, run_cli
+from conftest import one_error_line, run_cli
+from helpers_bad_input import MERL_MESSAGES, check_line, error_lines, nothing_written
 
 
 def test_bad_merl_tables_through_encode(good, bad_merl, tmp_path, capsys):
     # One run over all of them: each reported in its own line, the good one still encoded.
     # (`brdfkit sample` gets every malformed table in test_merl.py::test_cli_sample_on_bad_file.)
     names = sorted(bad_merl)
-    code, err = run_cli(capsys, ["encode", *[bad_merl[n] for n in names], good / "mat.binary",
+    code, _, err = run_cli(capsys, ["encode", *[bad_merl[n] for n in names], good / "mat.binary",
                               "-m", good / "model.safetensors", "-o", tmp_path / "out"])
     assert code == 2
     errors = error_lines(err)
@@ -32,9 +33,9 @@ def test_bad_merl_tables_through_encode(good, bad_merl, tmp_path, capsys):
 
 @pytest.mark.parametrize("name", ["header_11", "green_half", "nan"])
 def test_bad_merl_table_alone_through_encode(good, bad_merl, tmp_path, capsys, name):
-    code, err = run_cli(capsys, ["encode", bad_merl[name], "-m", good / "model.safetensors", "-o", tmp_path])
+    code, _, err = run_cli(capsys, ["encode", bad_merl[name], "-m", good / "model.safetensors", "-o", tmp_path])
     assert code == 2
-    assert one_error(err) == f"brdfkit: error: {bad_merl[name]}: {MERL_MESSAGES[name]}"
+    assert one_error_line(err) == f"brdfkit: error: {bad_merl[name]}: {MERL_MESSAGES[name]}"
     nothing_written(tmp_path, tmp_path / f"{bad_merl[name].stem}.emb")
 
 
@@ -45,16 +46,16 @@ FIT_MESSAGES = {**MERL_MESSAGES, "missing": "no such file or folder",
 @pytest.mark.parametrize("name", sorted(MERL_MESSAGES))
 def test_bad_merl_table_through_fit(bad_merl, tmp_path, capsys, name):
     out = tmp_path / "m.safetensors"
-    code, err = run_cli(capsys, ["fit", bad_merl[name], "-o", out, "--steps", "1", "-q"])
+    code, _, err = run_cli(capsys, ["fit", bad_merl[name], "-o", out, "--steps", "1", "-q"])
     assert code == 2
-    assert one_error(err) == f"brdfkit: error: {bad_merl[name]}: {FIT_MESSAGES[name]}"
+    assert one_error_line(err) == f"brdfkit: error: {bad_merl[name]}: {FIT_MESSAGES[name]}"
     assert os.listdir(tmp_path) == []  # no model, no checkpoint, no temporary file
 
 
 def test_bad_merl_tables_through_render(bad_merl, tmp_path, capsys):
     for name in sorted(MERL_MESSAGES):
-        code, err = run_cli(capsys, ["render", bad_merl[name], "-o", tmp_path / "x.exr", "--resolution", "8",
+        code, _, err = run_cli(capsys, ["render", bad_merl[name], "-o", tmp_path / "x.exr", "--resolution", "8",
                                   "--quiet"])
         assert code == 2, name
-        check_line(one_error(err), bad_merl[name], MERL_MESSAGES[name])
+        check_line(one_error_line(err), bad_merl[name], MERL_MESSAGES[name])
         assert os.listdir(tmp_path) == [], name

@@ -16,7 +16,8 @@ import pytest
 
 from brdfkit.errors import FormatError
 
-from helpers_bad_input import check_line, one_error, rewrite_header, run_cli
+from conftest import one_error_line, run_cli
+from helpers_bad_input import check_line, rewrite_header
 from helpers_model import material_table
 
 
@@ -58,9 +59,9 @@ BAD_MODEL_NAMES = ["missing", "directory", "empty", "text", "pickle", "torch_sav
 @pytest.mark.parametrize("name", BAD_MODEL_NAMES)
 def test_bad_model_through_every_command(good, bad_models, tmp_path, capsys, command, name):
     path, message = bad_models[name]
-    code, err = run_cli(capsys, [*MODEL_COMMANDS[command](good, tmp_path), "-m", path])
+    code, _, err = run_cli(capsys, [*MODEL_COMMANDS[command](good, tmp_path), "-m", path])
     assert code == 2
-    check_line(one_error(err), path, message)
+    check_line(one_error_line(err), path, message)
     assert os.listdir(tmp_path) == []  # no output, no temporary file
 
 
@@ -75,10 +76,10 @@ def test_bad_basis_through_sparse_ipca(good, bad_models, tmp_path, capsys, name,
     # The PCA baseline takes its basis with -m. Regression: load_ipca wrapped its own
     # "not a brdfkit PCA basis" error again ("not a valid safetensors file (x: not a ...)").
     path = good / "model.safetensors" if name == "model" else bad_models[name][0]
-    code, err = run_cli(capsys, ["sparse", good / "samples.csv", "--method", "ipca", "-m", path,
+    code, _, err = run_cli(capsys, ["sparse", good / "samples.csv", "--method", "ipca", "-m", path,
                               "-o", tmp_path / "x.binary"])
     assert code == 2
-    line = one_error(err)
+    line = one_error_line(err)
     assert line.startswith(f"brdfkit: error: {path}: {message}") and line.count(str(path)) == 1, line
     assert os.listdir(tmp_path) == []
 

@@ -10,7 +10,7 @@ import os
 
 import pytest
 
-from helpers_bad_input import one_error, run_cli
+from conftest import one_error_line, run_cli
 
 
 OVERWRITES = {  # name -> (arguments given the folder d of copied inputs, the refused path)
@@ -42,9 +42,9 @@ def test_output_equal_to_an_input_is_refused(good, tmp_path, capsys, case):
     shutil.copy(good / "mat.binary", tmp_path / "t.emb")
     before = {p.name: p.read_bytes() for p in tmp_path.iterdir()}
     args, victim = OVERWRITES[case]
-    code, err = run_cli(capsys, args(tmp_path))
+    code, _, err = run_cli(capsys, args(tmp_path))
     assert code == 2
-    assert one_error(err) == f"brdfkit: error: {tmp_path / victim}: output path is also an input; " \
+    assert one_error_line(err) == f"brdfkit: error: {tmp_path / victim}: output path is also an input; " \
                               f"refusing to overwrite it"
     assert {p.name: p.read_bytes() for p in tmp_path.iterdir()} == before  # nothing touched, nothing new
 
@@ -54,9 +54,9 @@ def test_fit_output_equal_to_an_input_is_refused(good, tmp_path, capsys):
 
     shutil.copy(good / "mat.binary", tmp_path / "mat.binary")
     before = (tmp_path / "mat.binary").read_bytes()
-    code, err = run_cli(capsys, ["fit", tmp_path, "-o", tmp_path / "mat.binary", "--steps", "1", "-q"])
+    code, _, err = run_cli(capsys, ["fit", tmp_path, "-o", tmp_path / "mat.binary", "--steps", "1", "-q"])
     assert code == 2
-    assert one_error(err) == f"brdfkit: error: {tmp_path / 'mat.binary'}: output path is also an input; " \
+    assert one_error_line(err) == f"brdfkit: error: {tmp_path / 'mat.binary'}: output path is also an input; " \
                               f"refusing to overwrite it"
     assert os.listdir(tmp_path) == ["mat.binary"] and (tmp_path / "mat.binary").read_bytes() == before
 
@@ -66,9 +66,9 @@ def test_render_png_equal_to_the_input_is_refused(good, tmp_path, capsys):
 
     shutil.copy(good / "mat.binary", tmp_path / "mat.binary")
     before = (tmp_path / "mat.binary").read_bytes()
-    code, err = run_cli(capsys, ["render", tmp_path / "mat.binary", "-o", tmp_path / "x.exr", "--png",
+    code, _, err = run_cli(capsys, ["render", tmp_path / "mat.binary", "-o", tmp_path / "x.exr", "--png",
                               tmp_path / "mat.binary", "--resolution", "8", "--quiet"])
     assert code == 2
-    assert one_error(err) == f"brdfkit: error: {tmp_path / 'mat.binary'}: output path is also an input; " \
+    assert one_error_line(err) == f"brdfkit: error: {tmp_path / 'mat.binary'}: output path is also an input; " \
                               f"refusing to overwrite it"
     assert os.listdir(tmp_path) == ["mat.binary"] and (tmp_path / "mat.binary").read_bytes() == before

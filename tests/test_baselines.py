@@ -18,6 +18,8 @@ from brdfkit.geometry import HALF_PI, io_from_half_diff, valid_mask
 from brdfkit.metrics import brdf_log_rmse
 from brdfkit.samples import SampleSet, draw_samples
 
+from conftest import one_error_line, run_cli
+
 ALPHAS = (0.05, 0.15, 0.4)
 
 
@@ -257,21 +259,6 @@ def test_baselines_import_no_torch():
 
 # --- command line -----------------------------------------------------------------------------
 
-def _cli(capsys, args):
-    """Run ``brdfkit ARGS`` in-process (the console script's entry point); returns
-    ``(exit code, stderr)``."""
-    from brdfkit.cli import main
-
-    with pytest.raises(SystemExit) as e:
-        main([str(a) for a in args])
-    return e.value.code, capsys.readouterr().err
-
-
-def _one_error_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: ") and "Traceback" not in err, err
-    return lines[0]
-
 
 @pytest.fixture(scope="module")
 def cli_files(tmp_path_factory, library):
@@ -295,14 +282,14 @@ def test_cli_fit_ipca_then_sparse(cli_files, capsys, monkeypatch):
 
     monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
     d = cli_files
-    code, err = _cli(capsys, ["fit", "--method", "ipca", d / "data", "--exclude-list", d / "exclude.txt",
-                              "--components", 5, "-o", d / "basis.safetensors"])
+    code, _, err = run_cli(capsys, ["fit", "--method", "ipca", d / "data", "--exclude-list", d / "exclude.txt",
+                                    "--components", 5, "-o", d / "basis.safetensors"])
     assert code == 0, err
     basis = load_ipca(d / "basis.safetensors")
     assert basis.materials == ["mat-0", "mat-1", "mat-2"] and basis.n_components == 5
 
-    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-m", d / "basis.safetensors",
-                              "-o", d / "ipca.binary"])
+    code, _, err = run_cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-m", d / "basis.safetensors",
+                                    "-o", d / "ipca.binary"])
     assert code == 0, err
     want = basis.reconstruct(read_samples(d / "samples.csv"))
     got = read_merl(d / "ipca.binary")
@@ -310,12 +297,13 @@ def test_cli_fit_ipca_then_sparse(cli_files, capsys, monkeypatch):
     np.testing.assert_allclose(got[~np.isnan(want)], want[~np.isnan(want)], rtol=1e-12)
 
     # Without a basis, or with --components for the hypernetwork: one line, exit 2.
-    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-o", d / "x.binary"])
-    assert code == 2 and "needs a PCA basis" in _one_error_line(err)
-    code, err = _cli(capsys, ["fit", d / "data", "--components", 3, "-o", d / "y.safetensors"])
-    assert code == 2 and "--components" in _one_error_line(err)
-    code, err = _cli(capsys, ["fit", "--method", "ipca", d / "data", "--components", 99, "-o", d / "y.safetensors"])
-    assert code == 2 and "components" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-o", d / "x.binary"])
+    assert code == 2 and "needs a PCA basis" in one_error_line(err)
+    code, _, err = run_cli(capsys, ["fit", d / "data", "--components", 3, "-o", d / "y.safetensors"])
+    assert code == 2 and "--components" in one_error_line(err)
+    code, _, err = run_cli(capsys, ["fit", "--method", "ipca", d / "data", "--components", 99,
+                                    "-o", d / "y.safetensors"])
+    assert code == 2 and "components" in one_error_line(err)
     assert not (d / "x.binary").exists() and not (d / "y.safetensors").exists()
 
 
@@ -325,15 +313,15 @@ def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library
     d = cli_files
     # $BRDFKIT_MODEL (a hypernetwork) is not meant for nbrdf and must not get in the way.
     monkeypatch.setenv("BRDFKIT_MODEL", str(d / "exclude.txt"))
-    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "nbrdf", "-o", d / "nbrdf.binary"])
+    code, _, err = run_cli(capsys, ["sparse", d / "samples.csv", "--method", "nbrdf", "-o", d / "nbrdf.binary"])
     assert code == 0, err
     table = read_merl(d / "nbrdf.binary")
     ok = valid_mask()
     assert np.isfinite(table[ok]).all() and np.isnan(table[~ok]).all()
     assert brdf_log_rmse(table, library[1]) < 0.3
-    code, err = _cli(capsys, ["sparse", d / "samples.csv", "--method", "nbrdf", "-m", d / "exclude.txt",
-                              "-o", d / "z.binary"])
-    assert code == 2 and "takes no model" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["sparse", d / "samples.csv", "--method", "nbrdf", "-m", d / "exclude.txt",
+                                    "-o", d / "z.binary"])
+    assert code == 2 and "takes no model" in one_error_line(err)
 
 
 def test_registry_hypernet_is_api_sparse(library, tmp_path):

@@ -20,7 +20,6 @@ import pytest
 import torch
 
 from brdfkit import api
-from brdfkit.cli import main
 from brdfkit.embedding import read_embedding, write_embedding
 from brdfkit.errors import FormatError, InputError
 from brdfkit.merl import read_merl, write_merl
@@ -29,24 +28,10 @@ from brdfkit.model.file import load_model, save_model, state_fingerprint
 from brdfkit.model.network import HyperBRDF, HyperConfig
 from brdfkit.samples import draw_samples, write_samples
 
-from conftest import TINY_CONFIG, quiet_env, run_brdfkit
+from conftest import TINY_CONFIG, one_error_line, quiet_env, run_brdfkit, run_cli
 from helpers_model import make_model, material_table, pack_tiny_builtins
 
 F16_EPS = 2.0 ** -11  # float16's relative rounding error
-
-
-def _cli(capsys, args):
-    """Run the CLI in-process: ``(exit code, stdout, stderr)``."""
-    with pytest.raises(SystemExit) as e:
-        main([str(a) for a in args])
-    out = capsys.readouterr()
-    return e.value.code, out.out, out.err
-
-
-def _one_error_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: "), err
-    return lines[0]
 
 
 def _tiny_net(seed: int) -> HyperBRDF:
@@ -207,40 +192,41 @@ def test_listing_and_resolution(installed):
 
 def test_unknown_name_is_one_line_exit_2(installed, capsys):
     _, inputs = installed
-    code, _, err = _cli(capsys, ["encode", inputs / "mat.binary", "-m", "nope", "-o", inputs / "out"])
-    line = _one_error_line(err)
+    code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-m", "nope", "-o", inputs / "out"])
+    line = one_error_line(err)
     assert code == 2 and "unknown model 'nope'" in line and "tiny-a, tiny-b" in line
 
 
 def test_no_builtin_no_model_error(capsys, tmp_path):
     write_merl(tmp_path / "mat.binary", material_table(1))
-    code, _, err = _cli(capsys, ["encode", tmp_path / "mat.binary"])
-    line = _one_error_line(err)
+    code, _, err = run_cli(capsys, ["encode", tmp_path / "mat.binary"])
+    line = one_error_line(err)
     assert code == 2 and "no model given" in line and "brdfkit models" in line
-    code, _, err = _cli(capsys, ["encode", tmp_path / "mat.binary", "-m", "merl-rgl-l40"])
-    assert code == 2 and "no built-in models are installed" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["encode", tmp_path / "mat.binary", "-m", "merl-rgl-l40"])
+    assert code == 2 and "no built-in models are installed" in one_error_line(err)
 
 
 def test_default_and_env_resolution(installed, capsys, monkeypatch, tmp_path):
     folder, inputs = installed
     fps = {m.name: m.fingerprint for m in builtin.builtin_models()}
-    code, _, err = _cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "d"])
+    code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "d"])
     assert code == 0, err
     assert read_embedding(tmp_path / "d" / "mat.emb").model_fingerprint == fps["tiny-a"]
     monkeypatch.setenv("BRDFKIT_MODEL", "tiny-b")
-    code, _, err = _cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "e"])
+    code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "e"])
     assert code == 0, err
     assert read_embedding(tmp_path / "e" / "mat.emb").model_fingerprint == fps["tiny-b"]
     monkeypatch.delenv("BRDFKIT_MODEL")
-    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "s.binary", "--emb", tmp_path / "s.emb"])
+    code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "s.binary",
+                                    "--emb", tmp_path / "s.emb"])
     assert code == 0, err
     assert read_embedding(tmp_path / "s.emb").model_fingerprint == fps["tiny-a"]
 
 
 def test_other_methods_get_no_builtin(installed, capsys, tmp_path):
     _, inputs = installed
-    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "--method", "ipca", "-o", tmp_path / "x.binary"])
-    line = _one_error_line(err)
+    code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", "--method", "ipca", "-o", tmp_path / "x.binary"])
+    line = one_error_line(err)
     assert code == 2 and "method 'ipca' needs" in line
     assert not (tmp_path / "x.binary").exists()
 
@@ -251,12 +237,12 @@ def test_embedding_picks_its_builtin(installed, capsys, tmp_path):
     write_embedding(tmp_path / "x.emb", api.encode(b, inputs / "mat.binary"))
     write_embedding(tmp_path / "y.emb", api.encode(b, inputs / "s.csv"))
     assert builtin.embedding_model(None, tmp_path / "x.emb") == str(folder / "tiny-b.safetensors")
-    code, _, err = _cli(capsys, ["decode", tmp_path / "x.emb", "-o", tmp_path / "x.binary"])  # not the default
+    code, _, err = run_cli(capsys, ["decode", tmp_path / "x.emb", "-o", tmp_path / "x.binary"])  # not the default
     assert code == 0, err
     np.testing.assert_allclose(read_merl(tmp_path / "x.binary"), api.decode(b, tmp_path / "x.emb"), rtol=1e-12,
                                equal_nan=True)  # through the MERL scales and back
-    code, _, err = _cli(capsys, ["interpolate", tmp_path / "x.emb", tmp_path / "y.emb", "--t", "0.5",
-                                 "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary"])
+    code, _, err = run_cli(capsys, ["interpolate", tmp_path / "x.emb", tmp_path / "y.emb", "--t", "0.5",
+                                    "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary"])
     assert code == 0, err
     assert (tmp_path / "m.binary").exists()
     # An embedding of a model that is not built in falls back to the default: refused by
@@ -264,8 +250,8 @@ def test_embedding_picks_its_builtin(installed, capsys, tmp_path):
     make_model(tmp_path / "own.safetensors", seed=5)
     own = api.load_model(tmp_path / "own.safetensors", "cpu")
     write_embedding(tmp_path / "own.emb", api.encode(own, inputs / "s.csv"))
-    code, _, err = _cli(capsys, ["decode", tmp_path / "own.emb", "-o", tmp_path / "own.binary"])
-    assert code == 2 and own.fingerprint[:12] in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["decode", tmp_path / "own.emb", "-o", tmp_path / "own.binary"])
+    assert code == 2 and own.fingerprint[:12] in one_error_line(err)
 
 
 def test_damaged_builtin_refused(shelf, monkeypatch, capsys, tmp_path):
@@ -277,12 +263,12 @@ def test_damaged_builtin_refused(shelf, monkeypatch, capsys, tmp_path):
     data = bytearray(path.read_bytes())
     data[-3] ^= 0x40
     path.write_bytes(bytes(data))
-    code, _, err = _cli(capsys, ["encode", shelf[1] / "mat.binary", "-m", "tiny-a", "-o", tmp_path / "o"])
-    assert code == 2 and "damaged" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["encode", shelf[1] / "mat.binary", "-m", "tiny-a", "-o", tmp_path / "o"])
+    assert code == 2 and "damaged" in one_error_line(err)
     # Another valid model under a built-in's name: its recorded fingerprint is not the manifest's.
     shutil.copy(folder / "tiny-b.safetensors", path)
-    code, _, err = _cli(capsys, ["encode", shelf[1] / "mat.binary", "-o", tmp_path / "o"])
-    line = _one_error_line(err)
+    code, _, err = run_cli(capsys, ["encode", shelf[1] / "mat.binary", "-o", tmp_path / "o"])
+    line = one_error_line(err)
     assert code == 2 and "built-in model 'tiny-a'" in line and "the manifest" in line
 
 
@@ -290,18 +276,18 @@ def test_bad_manifest_refused(monkeypatch, capsys, tmp_path):
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(tmp_path))
     (tmp_path / "manifest.json").write_text('{"format": "brdfkit-builtin-models", "version": 1, '
                                             '"models": [{"name": "a b", "file": "x.safetensors"}]}')
-    code, _, err = _cli(capsys, ["models"])
-    assert code == 2 and "manifest.json: model 'a b'" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["models"])
+    assert code == 2 and "manifest.json: model 'a b'" in one_error_line(err)
 
 
 def test_models_command(installed, capsys):
-    code, out, err = _cli(capsys, ["models", "--check"])
+    code, out, err = run_cli(capsys, ["models", "--check"])
     assert code == 0, err
     for m in builtin.builtin_models():
         assert m.name in out and m.fingerprint[:12] in out
     assert "tiny-a *" in out and "N=400" in out and "0.300" in out and "checked: 2 model(s)" in out
     assert f"tiny-b: {installed[0] / 'tiny-b.safetensors'}" in out
-    code, out, err = _cli(capsys, ["models", "--json"])
+    code, out, err = run_cli(capsys, ["models", "--json"])
     assert code == 0, err
     doc = json.loads(out)
     assert doc["default"] == "tiny-a" and [m["name"] for m in doc["models"]] == ["tiny-a", "tiny-b"]
@@ -332,8 +318,8 @@ def test_models_command_fits_80_columns(shelf, tmp_path):
 
 
 def test_models_command_with_none_installed(capsys):
-    code, out, err = _cli(capsys, ["models"])
+    code, out, err = run_cli(capsys, ["models"])
     assert code == 0, err
     assert out.count("\n") == 1 and "no built-in models installed" in out
-    code, out, _ = _cli(capsys, ["models", "--json"])
+    code, out, _ = run_cli(capsys, ["models", "--json"])
     assert code == 0 and json.loads(out)["models"] == []

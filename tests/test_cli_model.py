@@ -14,12 +14,11 @@ import pytest
 import torch
 
 from brdfkit import api
-from brdfkit.cli import main
 from brdfkit.embedding import read_embedding, write_embedding
 from brdfkit.merl import MERL_FILE_SIZE, read_merl, write_merl
 from brdfkit.samples import draw_samples, write_samples
 
-from conftest import run_brdfkit
+from conftest import one_error_line, run_brdfkit, run_cli
 from helpers_model import make_model, material_table
 
 
@@ -34,20 +33,6 @@ def _env():
 
 def _run(args):
     return run_brdfkit([str(a) for a in args], env=_env(), timeout=300)
-
-
-def _cli(capsys, args):
-    """Run the CLI in-process; returns ``(exit code, stderr)``."""
-    with pytest.raises(SystemExit) as e:
-        main([str(a) for a in args])
-    return e.value.code, capsys.readouterr().err
-
-
-def _one_error_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1, err
-    assert lines[0].startswith("brdfkit: error: ") and "Traceback" not in err
-    return lines[0]
 
 
 @pytest.fixture(scope="module")
@@ -88,7 +73,7 @@ def test_encode_beside_input_and_env_model(files, tmp_path, capsys, monkeypatch)
     src = tmp_path / "copy.binary"
     src.write_bytes((files / "mat.binary").read_bytes())
     monkeypatch.setenv("BRDFKIT_MODEL", str(files / "model.safetensors"))
-    code, err = _cli(capsys, ["encode", src])
+    code, _, err = run_cli(capsys, ["encode", src])
     assert code == 0, err
     assert read_embedding(tmp_path / "copy.emb").sample_count == int(np.isfinite(material_table(1)).all(-1).sum())
 
@@ -96,15 +81,15 @@ def test_encode_beside_input_and_env_model(files, tmp_path, capsys, monkeypatch)
 def test_encode_same_stem_twice_is_refused(files, tmp_path, capsys):
     (tmp_path / "a").mkdir()
     (tmp_path / "a" / "mat.binary").write_bytes((files / "mat.binary").read_bytes())
-    code, err = _cli(capsys, ["encode", files / "mat.binary", tmp_path / "a" / "mat.binary",
-                              "-m", files / "model.safetensors", "-o", tmp_path / "out"])
+    code, _, err = run_cli(capsys, ["encode", files / "mat.binary", tmp_path / "a" / "mat.binary",
+                                    "-m", files / "model.safetensors", "-o", tmp_path / "out"])
     assert code == 2 and "already written for" in err
     assert os.listdir(tmp_path / "out") == ["mat.emb"]
 
 
 def test_encode_without_model(files, capsys):
-    code, err = _cli(capsys, ["encode", files / "mat.binary"])
-    assert code == 2 and "no model given" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["encode", files / "mat.binary"])
+    assert code == 2 and "no model given" in one_error_line(err)
 
 
 def test_decode_writes_a_merl_file(files, tmp_path, capsys):
@@ -122,7 +107,7 @@ def test_decode_writes_a_merl_file(files, tmp_path, capsys):
     assert (raw[:, unmeasured.reshape(-1)] == -1).all()
     np.testing.assert_allclose(table, api.decode(m, emb), rtol=1e-12, equal_nan=True)
     # Default output: beside the embedding.
-    code, err = _cli(capsys, ["decode", tmp_path / "x.emb", "-m", files / "model.safetensors"])
+    code, _, err = run_cli(capsys, ["decode", tmp_path / "x.emb", "-m", files / "model.safetensors"])
     assert code == 0 and (tmp_path / "x.binary").exists()
 
 
@@ -131,7 +116,7 @@ def test_decode_other_models_embedding_refused(files, tmp_path):
     write_embedding(tmp_path / "x.emb", api.encode(m, files / "samples.csv"))
     r = _run(["decode", tmp_path / "x.emb", "-m", files / "other.safetensors", "-o", tmp_path / "y.binary"])
     assert r.returncode == 2
-    line = _one_error_line(r.stderr)
+    line = one_error_line(r.stderr)
     assert "x.emb" in line and m.fingerprint[:12] in line and "other.safetensors" in line
     assert not (tmp_path / "y.binary").exists()
 
@@ -155,9 +140,9 @@ def test_decode_bad_inputs(files, tmp_path, capsys, case):
         emb.write_text("{not json")
     else:
         out = emb
-    code, err = _cli(capsys, ["decode", emb, "-m", model, "-o", out])
+    code, _, err = run_cli(capsys, ["decode", emb, "-m", model, "-o", out])
     assert code == 2
-    line = _one_error_line(err)
+    line = one_error_line(err)
     assert {"pickle model": "pickle", "truncated model": "truncated", "bad emb": "not JSON",
             "output is input": "refusing to overwrite"}[case] in line
     assert not (tmp_path / "y.binary").exists()
@@ -165,8 +150,8 @@ def test_decode_bad_inputs(files, tmp_path, capsys, case):
 
 def test_sparse(files, tmp_path, capsys):
     out, emb = tmp_path / "s.binary", tmp_path / "s.emb"
-    code, err = _cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
-                              "-o", out, "--emb", emb])
+    code, _, err = run_cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
+                                    "-o", out, "--emb", emb])
     assert code == 0, err
     m = api.load_model(files / "model.safetensors", "cpu")
     # With --emb the refinement stops at the latent, so that the embedding decodes to the table.
@@ -182,12 +167,12 @@ def test_sparse(files, tmp_path, capsys):
 
 
 def test_sparse_bad_method_and_overwrite(files, tmp_path, capsys):
-    code, err = _cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
-                              "-o", tmp_path / "s.binary", "--method", "magic"])
+    code, _, err = run_cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
+                                    "-o", tmp_path / "s.binary", "--method", "magic"])
     assert code == 2 and "magic" in err
-    code, err = _cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
-                              "-o", files / "samples.csv"])
-    assert code == 2 and "refusing to overwrite" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
+                                    "-o", files / "samples.csv"])
+    assert code == 2 and "refusing to overwrite" in one_error_line(err)
 
 
 @pytest.fixture(scope="module")
@@ -204,20 +189,20 @@ def two_embs(files, tmp_path_factory):
 def test_interpolate_t_not_a_number(two_embs, tmp_path):
     r = _run(["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "abc", "-o", tmp_path / "c.emb"])
     assert r.returncode == 2
-    assert "--t: 'abc' is not a number" in _one_error_line(r.stderr)
+    assert "--t: 'abc' is not a number" in one_error_line(r.stderr)
     assert not (tmp_path / "c.emb").exists()
 
 
 def test_interpolate(files, two_embs, tmp_path, capsys):
     a, b = read_embedding(two_embs / "a.emb"), read_embedding(two_embs / "b.emb")
     for t, want in (("0", a.latent), ("1", b.latent)):
-        code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", t,
-                                  "-o", tmp_path / "c.emb"])
+        code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", t,
+                                        "-o", tmp_path / "c.emb"])
         assert code == 0, err
         np.testing.assert_array_equal(read_embedding(tmp_path / "c.emb").latent, want)
-    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "0.3",
-                              "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary",
-                              "-m", files / "model.safetensors"])
+    code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "0.3",
+                                    "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary",
+                                    "-m", files / "model.safetensors"])
     assert code == 0, err
     m = api.load_model(files / "model.safetensors", "cpu")
     mix = read_embedding(tmp_path / "m.emb")
@@ -234,24 +219,24 @@ def test_interpolate_refusals(two_embs, tmp_path, capsys, args, message):
     args = [a.format(tmp=tmp_path, embs=two_embs) for a in args]
     if "-o" not in args:
         args += ["-o", str(tmp_path / "c.emb")]
-    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", *args])
-    assert code == 2 and message in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", *args])
+    assert code == 2 and message in one_error_line(err)
     assert not (tmp_path / "c.emb").exists() and not (tmp_path / "m.binary").exists()
 
 
 def test_interpolate_extrapolation_and_mismatch(two_embs, tmp_path, capsys):
-    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "1.5",
-                              "--allow-extrapolation", "-o", tmp_path / "c.emb"])
+    code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "1.5",
+                                    "--allow-extrapolation", "-o", tmp_path / "c.emb"])
     assert code == 0, err
-    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--t", "0.5",
-                              "-o", tmp_path / "d.emb"])
-    assert code == 2 and "different models" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--t", "0.5",
+                                    "-o", tmp_path / "d.emb"])
+    assert code == 2 and "different models" in one_error_line(err)
     assert not (tmp_path / "d.emb").exists()
 
 
 def test_encode_folder_among_inputs_is_one_failure(files, tmp_path, capsys):
-    code, err = _cli(capsys, ["encode", tmp_path, files / "mat.binary", "-m", files / "model.safetensors",
-                              "-o", tmp_path / "out"])
+    code, _, err = run_cli(capsys, ["encode", tmp_path, files / "mat.binary", "-m", files / "model.safetensors",
+                                    "-o", tmp_path / "out"])
     assert code == 2 and "is a directory" in err
     assert os.listdir(tmp_path / "out") == ["mat.emb"]
 
@@ -279,8 +264,8 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
     from brdfkit.strip import interpolation_strip
 
     sheet = tmp_path / "strip.png"
-    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--steps", "3",
-                              "--sheet", sheet, "--size", "16", "-m", files / "model.safetensors"])
+    code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--steps", "3",
+                                    "--sheet", sheet, "--size", "16", "-m", files / "model.safetensors"])
     assert code == 0, err
     assert "3 materials, t = 0, 0.5, 1" in err
     png = np.asarray(Image.open(sheet).convert("RGB"))
@@ -316,13 +301,13 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
 ])
 def test_interpolate_strip_refusals(two_embs, tmp_path, capsys, args, message):
     args = [a.format(tmp=tmp_path, embs=two_embs) for a in args]
-    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", *args])
-    assert code == 2 and message in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", *args])
+    assert code == 2 and message in one_error_line(err)
     assert os.listdir(tmp_path) == []
 
 
 def test_interpolate_strip_of_two_models_refused(files, two_embs, tmp_path, capsys):
-    code, err = _cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--sheet",
-                              tmp_path / "s.png", "-m", files / "model.safetensors", "--size", "16"])
-    assert code == 2 and "different models" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--sheet",
+                                    tmp_path / "s.png", "-m", files / "model.safetensors", "--size", "16"])
+    assert code == 2 and "different models" in one_error_line(err)
     assert not (tmp_path / "s.png").exists()

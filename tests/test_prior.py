@@ -27,6 +27,8 @@ from brdfkit.methods.prior.file import is_prior_file, load_prior, save_prior
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, sample_rows, solve
 from brdfkit.samples import SampleSet, draw_samples
 
+from conftest import run_cli
+
 CFG = PriorConfig(n_components=3, latent_dim=4, width=8)
 
 
@@ -503,15 +505,6 @@ def test_fit_prior_smoke(data, tables):
     assert not [p for p in data.iterdir() if p.name.startswith(".brdfkit-tmp-")]
 
 
-def _cli(capsys, args):
-    """``brdfkit ARGS`` in-process: ``(exit code, stderr)``."""
-    from brdfkit.cli import main
-
-    with pytest.raises(SystemExit) as e:
-        main([str(a) for a in args])
-    return e.value.code, capsys.readouterr().err
-
-
 def _tiny_args(data, out, **change):
     opts = {k: v for k, v in TINY_FIT.items() if k not in ("steps", "components", "latent_dim", "batch_materials")}
     opts.update(change)
@@ -530,7 +523,7 @@ def test_cli_fit_prior_with_a_compact_basis(data, capsys):
     basis_file = data / "basis.safetensors"
     fit_ipca_files([data / "data"], basis_file, progress=False, components=2, half=True, phi_stride=2)
     out = data / "cli.safetensors"
-    code, err = _cli(capsys, _tiny_args(data, out, basis=basis_file))
+    code, _, err = run_cli(capsys, _tiny_args(data, out, basis=basis_file))
     assert code == 0, err
     model = load_prior(out)
     stored = load_ipca(basis_file)
@@ -563,7 +556,7 @@ def _one_line(err):
 ])
 def test_cli_fit_prior_bad_options(data, capsys, tmp_path, change, extra, message):
     out = tmp_path / "bad.safetensors"
-    code, err = _cli(capsys, _tiny_args(data, out, **change) + extra)
+    code, _, err = run_cli(capsys, _tiny_args(data, out, **change) + extra)
     assert code == 2, err
     assert re.search(message, _one_line(err)), err
     assert not out.exists()
@@ -572,7 +565,7 @@ def test_cli_fit_prior_bad_options(data, capsys, tmp_path, change, extra, messag
 def test_cli_fit_prior_refuses_to_overwrite_an_input(data, capsys):
     target = data / "data" / "mat-1.binary"
     before = target.read_bytes()
-    code, err = _cli(capsys, _tiny_args(data, target))
+    code, _, err = run_cli(capsys, _tiny_args(data, target))
     assert code == 2 and "mat-1.binary" in _one_line(err)
     assert target.read_bytes() == before
 

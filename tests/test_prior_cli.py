@@ -18,31 +18,17 @@ import numpy as np
 import pytest
 
 from brdfkit import api
-from brdfkit.cli import main
 from brdfkit.embedding import read_embedding
 from brdfkit.merl import read_merl, write_merl
 from brdfkit.methods import get_method
 from brdfkit.model import builtin
 from brdfkit.samples import draw_samples, read_samples, write_samples
 
+from conftest import one_error_line, run_cli
 from helpers_model import material_table, pack_tiny_builtins
 
 BASIS = "tiny.basis.safetensors"
 PRIOR = "tiny-p.prior.safetensors"
-
-
-def _cli(capsys, args):
-    """Run the CLI in-process: ``(exit code, stdout, stderr)``."""
-    with pytest.raises(SystemExit) as e:
-        main([str(a) for a in args])
-    out = capsys.readouterr()
-    return e.value.code, out.out, out.err
-
-
-def _one_error_line(err: str) -> str:
-    lines = [ln for ln in err.splitlines() if ln.strip()]
-    assert len(lines) == 1 and lines[0].startswith("brdfkit: error: "), err
-    return lines[0]
 
 
 def _pack_prior(path, tables) -> str:
@@ -94,12 +80,12 @@ def _check_table(out, method: str, model, samples) -> None:
 
 def test_sparse_default_is_the_default_builtins_prior(installed, capsys, tmp_path):
     folder, inputs = installed
-    code, out, err = _cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "a.binary"])
+    code, out, err = run_cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "a.binary"])
     assert code == 0, err
     assert out == "" and "(method prior, model tiny-p, the default built-in)" in err
     _check_table(tmp_path / "a.binary", "prior", folder / PRIOR, inputs / "s.csv")
     # --method prior without -m takes the same file.
-    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "--method", "prior", "-o", tmp_path / "b.binary"])
+    code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", "--method", "prior", "-o", tmp_path / "b.binary"])
     assert code == 0 and "(method prior, model tiny-p, the default built-in)" in err
     assert (tmp_path / "b.binary").read_bytes() == (tmp_path / "a.binary").read_bytes()
 
@@ -115,7 +101,8 @@ def test_sparse_default_without_a_prior_is_the_hypernetwork(installed, capsys, m
             e.pop(key)
     builtin.write_manifest(alt, entries, default="tiny-h")
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(alt))
-    code, _, err = _cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "h.binary", "--emb", tmp_path / "h.emb"])
+    code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "h.binary",
+                                    "--emb", tmp_path / "h.emb"])
     assert code == 0, err
     assert "(method hypernet, model tiny-h, the default built-in)" in err
     assert read_embedding(tmp_path / "h.emb").model_fingerprint == builtin.builtin_models()[1].fingerprint
@@ -132,12 +119,12 @@ def test_sparse_builtin_name_for_every_method(installed, capsys, tmp_path):
              (["--method", "hypernet"], "tiny-p", "hypernet", folder / "tiny-p.safetensors")]
     for i, (extra, name, method, model) in enumerate(cases):
         out = tmp_path / f"{i}.binary"
-        code, _, err = _cli(capsys, ["sparse", s, "-m", name, *extra, "-o", out])
+        code, _, err = run_cli(capsys, ["sparse", s, "-m", name, *extra, "-o", out])
         assert code == 0, (extra, name, err)
         assert f"(method {method}, model {name})" in err, err
         _check_table(out, method, model, s)
-    code, _, err = _cli(capsys, ["sparse", s, "-m", "tiny-p", "--method", "hypernet", "-o", tmp_path / "e.binary",
-                                 "--emb", tmp_path / "e.emb"])
+    code, _, err = run_cli(capsys, ["sparse", s, "-m", "tiny-p", "--method", "hypernet", "-o", tmp_path / "e.binary",
+                                    "--emb", tmp_path / "e.emb"])
     assert code == 0, err
     assert read_embedding(tmp_path / "e.emb").model_fingerprint == fps["tiny-p"]  # the hypernetwork's
 
@@ -147,13 +134,13 @@ def test_sparse_file_by_its_format(installed, capsys, tmp_path):
     s = inputs / "s.csv"
     for i, (file, method) in enumerate(((PRIOR, "prior"), (BASIS, "ipca"), ("tiny-h.safetensors", "hypernet"))):
         out = tmp_path / f"{i}.binary"
-        code, _, err = _cli(capsys, ["sparse", s, "-m", folder / file, "-o", out])
+        code, _, err = run_cli(capsys, ["sparse", s, "-m", folder / file, "-o", out])
         assert code == 0, err
         assert f"(method {method}, model {folder / file})" in err
         _check_table(out, method, folder / file, s)
     # Not a model file at all: the hypernetwork loader names what it is.
-    code, _, err = _cli(capsys, ["sparse", s, "-m", inputs / "mat.binary", "-o", tmp_path / "x.binary"])
-    assert code == 2 and "mat.binary" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["sparse", s, "-m", inputs / "mat.binary", "-o", tmp_path / "x.binary"])
+    assert code == 2 and "mat.binary" in one_error_line(err)
     assert not (tmp_path / "x.binary").exists()
 
 
@@ -163,14 +150,14 @@ def test_sparse_usage_errors(installed, capsys, tmp_path):
     for argv, words in (([], ("learnt prior", "makes no embedding", "--method hypernet")),
                         (["--method", "prior", "-m", "tiny-p"], ("learnt prior", "--method hypernet")),
                         (["--method", "ipca", "-m", "tiny-p"], ("method 'ipca' makes no embedding",))):
-        code, _, err = _cli(capsys, ["sparse", s, *argv, "-o", out, "--emb", tmp_path / "x.emb"])
-        line = _one_error_line(err)
+        code, _, err = run_cli(capsys, ["sparse", s, *argv, "-o", out, "--emb", tmp_path / "x.emb"])
+        line = one_error_line(err)
         assert code == 2 and all(w in line for w in words), line
     for argv, words in ((["-m", "tiny-h", "--method", "prior"], ("'tiny-h' has no learnt prior",)),
                         (["-m", "tiny-h", "--method", "ipca"], ("'tiny-h' ships no PCA basis", "with one: tiny-p")),
                         (["-m", "nope"], ("unknown model 'nope'", "tiny-p, tiny-h"))):
-        code, _, err = _cli(capsys, ["sparse", s, *argv, "-o", out])
-        line = _one_error_line(err)
+        code, _, err = run_cli(capsys, ["sparse", s, *argv, "-o", out])
+        line = one_error_line(err)
         assert code == 2 and all(w in line for w in words), line
     assert not out.exists() and not (tmp_path / "x.emb").exists()
 
@@ -178,8 +165,8 @@ def test_sparse_usage_errors(installed, capsys, tmp_path):
 def test_sparse_with_nothing_installed(capsys, tmp_path):
     write_samples(tmp_path / "s.csv", draw_samples(material_table(1), 50, seed=0))
     for argv in ([], ["--method", "prior"], ["--method", "hypernet"]):
-        code, _, err = _cli(capsys, ["sparse", tmp_path / "s.csv", *argv, "-o", tmp_path / "x.binary"])
-        assert code == 2 and "no model given" in _one_error_line(err)
+        code, _, err = run_cli(capsys, ["sparse", tmp_path / "s.csv", *argv, "-o", tmp_path / "x.binary"])
+        assert code == 2 and "no model given" in one_error_line(err)
 
 
 def test_damaged_basis_refused(shelf, monkeypatch, capsys, tmp_path):
@@ -190,15 +177,15 @@ def test_damaged_basis_refused(shelf, monkeypatch, capsys, tmp_path):
     data[-3] ^= 0x40
     (folder / BASIS).write_bytes(bytes(data))
     for argv in (["sparse", shelf[1] / "s.csv", "-o", tmp_path / "x.binary"], ["models", "--check"]):
-        code, _, err = _cli(capsys, argv)
-        assert code == 2 and "not the one it was saved with" in _one_error_line(err)
+        code, _, err = run_cli(capsys, argv)
+        assert code == 2 and "not the one it was saved with" in one_error_line(err)
 
 
 # --- brdfkit models, brdfkit.load_model ---------------------------------------------------------
 
 def test_models_command_shows_the_prior(installed, capsys):
     folder, _ = installed
-    code, out, err = _cli(capsys, ["models", "--check"])
+    code, out, err = run_cli(capsys, ["models", "--check"])
     assert code == 0, err
     rows = {}  # the first table's rows (the validation table's come after)
     for line in out.splitlines():
@@ -207,7 +194,7 @@ def test_models_command_shows_the_prior(installed, capsys):
     assert rows["tiny-p"][1:4] == ["*", "7", "yes"] and rows["tiny-h"][1:3] == ["7", "-"]
     assert f"tiny-p learnt prior: {folder / PRIOR}" in out
     assert "checked: 2 model(s) and 1 learnt prior(s) load and match the manifest" in out
-    code, out, err = _cli(capsys, ["models", "--json"])
+    code, out, err = run_cli(capsys, ["models", "--json"])
     assert code == 0, err
     models = {m["name"]: m for m in json.loads(out)["models"]}
     assert models["tiny-p"]["prior"] == PRIOR and models["tiny-p"]["prior_installed"]
@@ -246,9 +233,9 @@ def test_bench_default_methods_lead_with_a_builtins_prior(installed, capsys, tmp
     assert given.methods == ("prior", *DEFAULT_METHODS) and given.models == {"prior": str(folder / PRIOR)}
 
     out = tmp_path / "out"
-    code, _, err = _cli(capsys, ["bench", "--data", inputs, "-m", "tiny-p", "--ipca", "tiny-p", "--n", "40",
-                                 "--seeds", "1", "--nbrdf-steps", "2", "--resolution", "8", "--threads", "1",
-                                 "-q", "-o", out])
+    code, _, err = run_cli(capsys, ["bench", "--data", inputs, "-m", "tiny-p", "--ipca", "tiny-p", "--n", "40",
+                                    "--seeds", "1", "--nbrdf-steps", "2", "--resolution", "8", "--threads", "1",
+                                    "-q", "-o", out])
     assert code == 0, err
     result = json.loads((out / "bench.json").read_text())
     assert result["config"]["methods"] == ["prior", "hypernet", "ipca", "nbrdf"]
@@ -275,9 +262,9 @@ def test_bench_takes_builtin_names(installed, capsys, tmp_path):
         BenchConfig(output="o", data=str(inputs), methods=("prior",)).validate()
 
     out = tmp_path / "out"
-    code, _, err = _cli(capsys, ["bench", "--data", inputs, "--methods", "hypernet,ipca,prior", "-m", "tiny-h",
-                                 "--ipca", "tiny-p", "--model-file", "prior=tiny-p", "--n", "40", "--seeds", "1",
-                                 "--resolution", "8", "--threads", "1", "-q", "-o", out])
+    code, _, err = run_cli(capsys, ["bench", "--data", inputs, "--methods", "hypernet,ipca,prior", "-m", "tiny-h",
+                                    "--ipca", "tiny-p", "--model-file", "prior=tiny-p", "--n", "40", "--seeds", "1",
+                                    "--resolution", "8", "--threads", "1", "-q", "-o", out])
     assert code == 0, err
     result = json.loads((out / "bench.json").read_text())
     assert result["complete"] and result["config"]["models"] == {"prior": str(folder / PRIOR)}
@@ -286,6 +273,6 @@ def test_bench_takes_builtin_names(installed, capsys, tmp_path):
     assert sorted(r["method"] for r in recs) == ["hypernet", "ipca", "prior"]
     assert all("error" not in r for r in recs), recs
 
-    code, _, err = _cli(capsys, ["bench", "--data", inputs, "--methods", "prior", "--model-file", "prior=nope",
-                                 "-o", tmp_path / "bad"])
-    assert code == 2 and "unknown model 'nope'" in _one_error_line(err)
+    code, _, err = run_cli(capsys, ["bench", "--data", inputs, "--methods", "prior", "--model-file", "prior=nope",
+                                    "-o", tmp_path / "bad"])
+    assert code == 2 and "unknown model 'nope'" in one_error_line(err)
