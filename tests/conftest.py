@@ -73,16 +73,14 @@ def good(tmp_path_factory):
     a MERL table, a sample CSV, two embeddings of the model and one of the other."""
     from brdfkit import api
     from brdfkit.embedding import write_embedding
-    from brdfkit.merl import write_merl
-    from brdfkit.samples import draw_samples, write_samples
+    from brdfkit.samples import draw_samples
 
-    from helpers_model import make_model, material_table
+    from helpers_model import make_model, material_table, write_inputs
 
     d = tmp_path_factory.mktemp("good")
     make_model(d / "model.safetensors", seed=0)
     make_model(d / "other.safetensors", seed=1)
-    write_merl(d / "mat.binary", material_table(1))
-    write_samples(d / "samples.csv", draw_samples(material_table(1), 200, seed=0))
+    write_inputs(d, "samples.csv")
     m = api.load_model(d / "model.safetensors", "cpu")
     write_embedding(d / "a.emb", api.encode(m, d / "samples.csv"))
     write_embedding(d / "b.emb", api.encode(m, draw_samples(material_table(0), 200, seed=0), source="w"))

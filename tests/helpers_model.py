@@ -44,6 +44,17 @@ def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) ->
 
 
 
+def write_inputs(folder, samples: str = "s.csv", n: int = 200):
+    """``folder`` with the inputs of the command tests: ``mat.binary``
+    (:func:`material_table` 1) and ``n`` samples of it (seed 0) named ``samples``."""
+    from brdfkit.merl import write_merl
+    from brdfkit.samples import draw_samples, write_samples
+
+    write_merl(folder / "mat.binary", material_table(1))
+    write_samples(folder / samples, draw_samples(material_table(1), n, seed=0))
+    return folder
+
+
 def pack_tiny_builtins(src, folder, names, command=None, **entry) -> list:
     """Tiny untrained hypernetworks packed as built-ins into ``folder`` (trained copies in
     ``src``), sharing ``tiny.reference.safetensors``: one manifest entry each, for the

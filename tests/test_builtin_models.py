@@ -26,10 +26,9 @@ from brdfkit.merl import read_merl, write_merl
 from brdfkit.model import builtin
 from brdfkit.model.file import load_model, save_model, state_fingerprint
 from brdfkit.model.network import HyperBRDF, HyperConfig
-from brdfkit.samples import draw_samples, write_samples
 
 from conftest import TINY_CONFIG, one_error_line, quiet_env, run_brdfkit, run_cli
-from helpers_model import make_model, material_table, pack_tiny_builtins
+from helpers_model import make_model, material_table, pack_tiny_builtins, write_inputs
 
 F16_EPS = 2.0 ** -11  # float16's relative rounding error
 
@@ -48,10 +47,7 @@ def shelf(tmp_path_factory):
     entries = pack_tiny_builtins(src, folder, (("tiny-a", 0), ("tiny-b", 1)), validation={40: 0.3, 400: 0.2},
                                  materials_list="stiff")
     builtin.write_manifest(folder, entries, default="tiny-a")
-    inputs = tmp_path_factory.mktemp("inputs")
-    write_merl(inputs / "mat.binary", material_table(1))
-    write_samples(inputs / "s.csv", draw_samples(material_table(1), 200, seed=0))
-    return folder, inputs
+    return folder, write_inputs(tmp_path_factory.mktemp("inputs"))
 
 
 @pytest.fixture

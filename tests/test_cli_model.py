@@ -15,11 +15,10 @@ import torch
 
 from brdfkit import api
 from brdfkit.embedding import read_embedding, write_embedding
-from brdfkit.merl import MERL_FILE_SIZE, read_merl, write_merl
-from brdfkit.samples import draw_samples, write_samples
+from brdfkit.merl import MERL_FILE_SIZE, read_merl
 
 from conftest import one_error_line, run_brdfkit, run_cli
-from helpers_model import make_model, material_table
+from helpers_model import make_model, material_table, write_inputs
 
 
 def _env():
@@ -40,8 +39,7 @@ def files(tmp_path_factory):
     d = tmp_path_factory.mktemp("cli-model")
     make_model(d / "model.safetensors", seed=0)
     make_model(d / "other.safetensors", seed=1)
-    write_merl(d / "mat.binary", material_table(1))
-    write_samples(d / "samples.csv", draw_samples(material_table(1), 300, seed=0))
+    write_inputs(d, "samples.csv", 300)
     return d
 
 

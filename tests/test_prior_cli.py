@@ -19,13 +19,13 @@ import pytest
 
 from brdfkit import api
 from brdfkit.embedding import read_embedding
-from brdfkit.merl import read_merl, write_merl
+from brdfkit.merl import read_merl
 from brdfkit.methods import get_method
 from brdfkit.model import builtin
 from brdfkit.samples import draw_samples, read_samples, write_samples
 
 from conftest import one_error_line, run_cli
-from helpers_model import material_table, pack_tiny_builtins
+from helpers_model import material_table, pack_tiny_builtins, write_inputs
 
 BASIS = "tiny.basis.safetensors"
 PRIOR = "tiny-p.prior.safetensors"
@@ -57,10 +57,7 @@ def shelf(tmp_path_factory):
     fp = _pack_prior(folder / PRIOR, [material_table(0), material_table(1)])
     entries[0].update(prior=PRIOR, prior_fingerprint=fp)
     builtin.write_manifest(folder, entries, default="tiny-p")
-    inputs = tmp_path_factory.mktemp("inputs")
-    write_merl(inputs / "mat.binary", material_table(1))
-    write_samples(inputs / "s.csv", draw_samples(material_table(1), 200, seed=0))
-    return folder, inputs
+    return folder, write_inputs(tmp_path_factory.mktemp("inputs"))
 
 
 @pytest.fixture
