@@ -15,6 +15,7 @@ import dataclasses
 import hashlib
 import os
 
+from .digest import file_digest
 from .errors import InputError
 
 __all__ = ["SUFFIXES", "FileLoader", "RenderCounts", "compare_files", "compare_folders", "mean_scores"]
@@ -116,12 +117,8 @@ class FileLoader:
         return self.renders([path], resolution)[0]
 
     def _render_key(self, path, scene) -> str:
-        h = hashlib.sha256()
-        with open(path, "rb") as f:
-            for chunk in iter(lambda: f.read(1 << 20), b""):
-                h.update(chunk)
         model = self.model(path).fingerprint if path.lower().endswith(".emb") else ""
-        return hashlib.sha256("\n".join([h.hexdigest(), model, repr(scene)]).encode()).hexdigest()
+        return hashlib.sha256("\n".join([file_digest(path), model, repr(scene)]).encode()).hexdigest()
 
     def renders(self, paths, resolution=None) -> list:
         """Reference-scene renders of BRDF files: float32 ``(R, R, 3)`` each; the ones not

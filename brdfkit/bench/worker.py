@@ -9,18 +9,11 @@ import json
 import os
 import time
 
+from ..digest import file_digest
 from ..errors import InputError
 from .config import BenchConfig, sample_seed
 
 __all__ = ["Worker", "run_task", "init_process", "failed_records", "error_text", "renderer_digest"]
-
-
-def _file_digest(path: str) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 22), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def renderer_digest() -> str:
@@ -97,7 +90,7 @@ class Worker:
         # The key is the table's content and everything the render depends on (scene,
         # quadrature, environment, the renderer's code), not the name: a table reached under another name
         # (a symlink in a second folder) reuses its render.
-        key = hashlib.sha256("\n".join([_file_digest(path), repr(self.scene), self.env.fingerprint(),
+        key = hashlib.sha256("\n".join([file_digest(path), repr(self.scene), self.env.fingerprint(),
                                         repr(self.env.bright), renderer_digest()]).encode()).hexdigest()[:16]
         suffix = f"-{self.cfg.resolution}px-{key}.exr"
         file = os.path.join(cache, name + suffix)

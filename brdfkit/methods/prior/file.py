@@ -21,6 +21,7 @@ import os
 import numpy as np
 
 from ...atomic import atomic_path, check_input_file
+from ...digest import file_digest
 from ...errors import FormatError, InputError
 from ..ipca import basis_tensors, load_ipca, read_ipca, save_ipca
 from .model import PriorConfig, PriorModel, prior_net
@@ -45,14 +46,6 @@ def _fingerprint(net_digest: str, basis_digest: str, config: str) -> str:
     the config (files from before the likelihood options) of the first two only."""
     legacy = "weight" not in json.loads(config)
     return hashlib.sha256((net_digest + basis_digest + ("" if legacy else "\0" + config)).encode()).hexdigest()
-
-
-def _file_digest(path: str) -> str:
-    h = hashlib.sha256()
-    with open(path, "rb") as f:
-        for block in iter(lambda: f.read(1 << 20), b""):
-            h.update(block)
-    return h.hexdigest()
 
 
 def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False, phi_stride: int = 1,
@@ -96,7 +89,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             if not same:
                 raise InputError(f"{where}: holds another basis than this model's")
         tensors = net
-        basis_digest = _file_digest(where)
+        basis_digest = file_digest(where)
         meta.update(basis_file=basis_file, basis_digest=basis_digest)
     fingerprint = _fingerprint(_digest(net), basis_digest, meta["config"])
     meta["fingerprint"] = fingerprint
@@ -150,7 +143,7 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
             where = os.path.join(os.path.dirname(os.path.abspath(path)), name)
             if not os.path.isfile(where):
                 raise FormatError(path, f"its basis file {name} is missing beside it")
-            basis_digest = _file_digest(where)
+            basis_digest = file_digest(where)
             if basis_digest != meta.get("basis_digest"):
                 raise FormatError(path, f"its basis file {name} is not the one it was saved with (digest differs)")
             basis = load_ipca(where)
