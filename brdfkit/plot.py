@@ -210,31 +210,14 @@ def _polar_frame(ax, rmax: float, lo: float | None, decades: float) -> None:
     ax.set_ylim(-0.16 * rmax, 1.17 * rmax)
 
 
-def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, *,
-               theta_i: Sequence[float] = (0.0, 30.0, 60.0, 75.0), phi_d: Sequence[float] = (90.0,),
-               channel: str = "luminance", cosine: bool = False, log: bool = True,
-               decades: float = 6.0, view: str = "both", dpi: int = 110) -> str:
-    """Write the lobes and/or slices of ``tables`` side by side as a PNG (atomically).
-
-    Parameters
-    ----------
-    tables
-        ``{label: (90, 90, 180, 3) table}`` (:func:`load_tables`); labels name the
-        inputs in the legend and the slice titles.
-    output
-        PNG path.
-    theta_i, phi_d, channel, cosine, log, decades, view, dpi
-        As :func:`plot_figure` takes them.
-
-    Returns
-    -------
-    str
-        ``output``.
-    """
+def plot_brdfs(tables: dict[str, np.ndarray], output: str | os.PathLike, **options) -> str:
+    """Write the lobes and/or slices of ``tables`` side by side as a PNG (atomically):
+    :func:`plot_figure` of ``tables`` and ``options`` (``theta_i``, ``phi_d``,
+    ``channel``, ``cosine``, ``log``, ``decades``, ``view``, ``dpi``) at the path
+    ``output``; returns ``output``."""
     from .atomic import atomic_path
 
-    fig = plot_figure(tables, theta_i=theta_i, phi_d=phi_d, channel=channel, cosine=cosine, log=log,
-                      decades=decades, view=view, dpi=dpi)
+    fig = plot_figure(tables, **options)
     import matplotlib.pyplot as plt
 
     output = os.fspath(output)
