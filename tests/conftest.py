@@ -1,6 +1,8 @@
 """What the test modules share: the one-torch-thread and no-``$BRDFKIT_MODEL`` fixtures,
-the tiny model configurations, the good and bad files of the bad-input tests, the
-``brdfkit`` subprocess runners and the leftover-file check.
+the tiny model configurations, the good and bad files of the bad-input tests,
+``installed`` (a module's ``shelf`` of built-in models in use), the ``brdfkit`` runners
+(a subprocess, or in-process with ``run_cli``), the checks of one-line errors
+(``one_error_line``, ``format_error``) and the leftover-file check.
 
 Fixtures apply by name (the two autouse ones to every test); the constants and functions are imported
 by name (``from conftest import run_brdfkit, TINY``; pytest puts ``tests/`` on
@@ -116,6 +118,16 @@ def bad_embs(good, tmp_path_factory):
                                json.loads((good / "other.emb").read_text()))
 
 
+@pytest.fixture
+def installed(shelf, monkeypatch):
+    """The test module's ``shelf`` fixture, ``(folder, inputs)``, with its folder of
+    built-in models as ``$BRDFKIT_BUILTIN_MODELS``."""
+    from brdfkit.model import builtin
+
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf[0]))
+    return shelf
+
+
 # --- brdfkit as a user runs it -------------------------------------------------------------
 
 def brdfkit_command() -> list[str]:
@@ -159,6 +171,18 @@ def one_error_line(err: str) -> str:
     lines = [ln for ln in err.splitlines() if ln.strip()]
     assert len(lines) == 1 and lines[0].startswith("brdfkit: error: ") and "Traceback" not in err, err
     return lines[0]
+
+
+def format_error(read, path, match: str | None = None) -> str:
+    """The message of the :class:`brdfkit.errors.FormatError` that ``read(path)`` raises
+    (matching ``match``), checked to name ``path`` on one line."""
+    from brdfkit.errors import FormatError
+
+    with pytest.raises(FormatError, match=match) as e:
+        read(path)
+    message = str(e.value)
+    assert str(path) in message and "\n" not in message, message
+    return message
 
 
 def popen_brdfkit(args, **kw) -> subprocess.Popen:

@@ -50,12 +50,6 @@ def shelf(tmp_path_factory):
     return folder, write_inputs(tmp_path_factory.mktemp("inputs"))
 
 
-@pytest.fixture
-def installed(shelf, monkeypatch):
-    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf[0]))
-    return shelf
-
-
 # --- compact model files ---------------------------------------------------------------------
 
 def test_compact_and_half_round_trip(tmp_path):

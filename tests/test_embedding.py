@@ -11,6 +11,8 @@ import pytest
 from brdfkit.embedding import Embedding, check_compatible, read_embedding, write_embedding
 from brdfkit.errors import FormatError, ModelMismatchError
 
+from conftest import format_error
+
 FP = "ab" * 32
 
 
@@ -81,9 +83,7 @@ def test_bad_documents(tmp_path, case):
     edit(d)
     path = tmp_path / "bad.emb"
     path.write_text(json.dumps(d))
-    with pytest.raises(FormatError, match=message) as e:
-        read_embedding(path)
-    assert str(path) in str(e.value) and "\n" not in str(e.value)
+    format_error(read_embedding, path, message)
 
 
 @pytest.mark.parametrize("raw", [b"", b"not json", b"[1, 2, 3]", b'"a string"', b"\xff\xfe\x00binary",
@@ -92,9 +92,7 @@ def test_bad_documents(tmp_path, case):
 def test_not_an_embedding(tmp_path, raw):
     path = tmp_path / "bad.emb"
     path.write_bytes(raw)
-    with pytest.raises(FormatError) as e:
-        read_embedding(path)
-    assert str(path) in str(e.value) and "\n" not in str(e.value)
+    format_error(read_embedding, path)
 
 
 def test_huge_file_refused_quickly(tmp_path):

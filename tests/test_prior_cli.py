@@ -60,12 +60,6 @@ def shelf(tmp_path_factory):
     return folder, write_inputs(tmp_path_factory.mktemp("inputs"))
 
 
-@pytest.fixture
-def installed(shelf, monkeypatch):
-    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf[0]))
-    return shelf
-
-
 def _check_table(out, method: str, model, samples) -> None:
     """``out`` holds what ``method`` reconstructs from ``samples`` with ``model`` (through
     the MERL file's scales and back)."""
