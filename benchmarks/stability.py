@@ -69,6 +69,20 @@ def section_mapping():
         print(f"  reference {ref_name:6s}: largest relative round-trip error {worst:.2g}")
 
 
+def _traced(fn):
+    """``(fn(), seconds, peak MB)`` of one call, the peak of what tracemalloc sees (Python's
+    and NumPy's allocations, not torch's)."""
+    tracemalloc.start()
+    t0 = time.perf_counter()
+    try:
+        out = fn()
+        sec = time.perf_counter() - t0
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    return out, sec, peak / 2**20
+
+
 def section_encode(folder):
     from brdfkit import api
     from brdfkit.samples import draw_samples
@@ -78,13 +92,8 @@ def section_encode(folder):
                                              name=f"m-{'tiny' if config else 'paper'}.safetensors")
         s = draw_samples(tables()["mirror"], 1_000_000, seed=3)
         api.encode(model, draw_samples(tables()["mirror"], 10, seed=0))  # warm up
-        tracemalloc.start()
-        t0 = time.perf_counter()
-        emb = api.encode(model, s)
-        sec = time.perf_counter() - t0
-        _, peak = tracemalloc.get_traced_memory()
-        tracemalloc.stop()
-        print(f"  {label:18s} 10^6 samples: {sec:.2f} s, NumPy peak {peak / 2**20:.0f} MB "
+        emb, sec, peak = _traced(lambda: api.encode(model, s))
+        print(f"  {label:18s} 10^6 samples: {sec:.2f} s, NumPy peak {peak:.0f} MB "
               f"(input {sum(a.nbytes for a in (s.theta_h, s.theta_d, s.phi_d, s.rgb)) / 2**20:.0f} MB), "
               f"finite {bool(np.isfinite(emb.latent).all())}")
 
@@ -95,14 +104,9 @@ def section_csv(folder):
 
     path = os.path.join(folder, "million.csv")
     write_samples(path, draw_samples(tables()["mirror"], 1_000_000, seed=3))
-    tracemalloc.start()
-    t0 = time.perf_counter()
-    n = len(read_samples(path))
-    sec = time.perf_counter() - t0
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
+    n, sec, peak = _traced(lambda: len(read_samples(path)))
     print(f"  read {n} rows ({os.path.getsize(path) / 1e6:.0f} MB, full precision): {sec:.2f} s, "
-          f"peak {peak / 2**20:.0f} MB traced")
+          f"peak {peak:.0f} MB traced")
     os.unlink(path)
     path = os.path.join(folder, "rows.csv")
     t0 = time.perf_counter()
@@ -112,18 +116,16 @@ def section_csv(folder):
         for _ in range(100):
             f.write(block)
     written = time.perf_counter() - t0
-    tracemalloc.start()
-    t0 = time.perf_counter()
-    try:
-        read_samples(path)
-        outcome = "ACCEPTED"
-    except FormatError as e:
-        outcome = str(e).split(": ", 1)[1]
-    sec = time.perf_counter() - t0
-    _, peak = tracemalloc.get_traced_memory()
-    tracemalloc.stop()
+    def outcome():
+        try:
+            read_samples(path)
+            return "ACCEPTED"
+        except FormatError as e:
+            return str(e).split(": ", 1)[1]
+
+    said, sec, peak = _traced(outcome)
     print(f"  10^7 rows ({os.path.getsize(path) / 1e6:.0f} MB, written in {written:.2f} s): {sec:.2f} s, "
-          f"peak {peak / 2**20:.0f} MB traced: {outcome}")
+          f"peak {peak:.0f} MB traced: {said}")
     os.unlink(path)
 
 
