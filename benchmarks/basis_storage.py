@@ -21,6 +21,7 @@ from brdfkit.geometry import N_CELLS
 from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
 from brdfkit.samples import draw_samples
 
+import common
 from studies.study_data import load_library, validation_materials
 
 
@@ -34,14 +35,7 @@ def main():
     args = ap.parse_args()
     if args.render:
         from brdfkit.metrics import psnr
-        from brdfkit.render.brdf import TableBRDF
-        from brdfkit.render.envmap import reference_envmap
-        from brdfkit.render.quadrature import render
-        from brdfkit.render.scene import Scene
-        scene, env = Scene(resolution=args.render), reference_envmap()
-
-        def img(t):
-            return render(TableBRDF(t, device="cpu"), scene, env=env)[0]
+        img = common.table_renderer(args.render)
     lib = load_library(args.proxies)
     val = validation_materials()
     train = [n for n in lib.names if n not in val and not n.startswith("rgl:")]

@@ -1,6 +1,6 @@
 """Helpers shared by the benchmarks: machine description, best-of-k timing interleaved with
 a bound, plain-``mm`` reference chains, the JSON + table report every performance
-benchmark prints (issue 7), and untrained models (the paper's architecture or the tiny one
+benchmark prints (issue 7), reference-scene renders of tables, and untrained models (the paper's architecture or the tiny one
 of the test suite).
 
 Benchmarks run as ``python benchmarks/NAME.py`` from the repository root with brdfkit
@@ -174,6 +174,19 @@ def _fmt(v) -> str:
             return f"{v:.3g}"
         return f"{v:.3g}"
     return str(v)
+
+
+def table_renderer(px: int):
+    """``img(table)``: the quadrature render of a ``(90, 90, 180, 3)`` table (1/sr) in the
+    reference scene at ``px`` pixels square, float32 ``(px, px, 3)``, on the CPU: what
+    the benchmarks' and studies' render PSNRs compare."""
+    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.envmap import reference_envmap
+    from brdfkit.render.quadrature import render
+    from brdfkit.render.scene import Scene
+
+    scene, env = Scene(resolution=px), reference_envmap()
+    return lambda table: render(TableBRDF(table, device="cpu"), scene, env=env)[0]
 
 
 def set_threads(n: int | None):

@@ -19,6 +19,8 @@ import time
 
 import numpy as np
 
+import common
+
 
 def main():
     ap = argparse.ArgumentParser()
@@ -49,14 +51,7 @@ def main():
     psnr_of = None
     if args.render:
         from brdfkit.metrics import psnr
-        from brdfkit.render.brdf import TableBRDF
-        from brdfkit.render.envmap import reference_envmap
-        from brdfkit.render.quadrature import render
-        from brdfkit.render.scene import Scene
-        scene, env = Scene(resolution=args.render), reference_envmap()
-
-        def img(t):
-            return render(TableBRDF(t, device="cpu"), scene, env=env)[0]
+        img = common.table_renderer(args.render)
 
         def psnr_of(pred, ref_img):
             return float(psnr(img(pred), ref_img))

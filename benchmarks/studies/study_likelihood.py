@@ -40,7 +40,8 @@ import time
 
 import numpy as np
 
-sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path[:0] = [HERE, os.path.dirname(HERE)]  # study_data.py; benchmarks/common.py
 
 
 def configs(spec):
@@ -146,11 +147,8 @@ def main():
     from brdfkit.methods.prior.model import sample_rows
     from brdfkit.methods.prior.model import solve as tsolve
     from brdfkit.metrics import brdf_log_rmse, psnr
-    from brdfkit.render.brdf import TableBRDF
-    from brdfkit.render.envmap import reference_envmap
-    from brdfkit.render.quadrature import render
-    from brdfkit.render.scene import Scene
     from brdfkit.samples import draw_samples
+    import common
     from study_data import load_library, validation_materials
 
     torch.set_num_threads(1)
@@ -169,10 +167,7 @@ def main():
                          components=np.ascontiguousarray(tab[:, 2:].T), sigma=folds["sigmas"][f])
 
     bases = [fold_basis(f) for f in range(5)]
-    scene, env = Scene(resolution=args.px), reference_envmap()
-
-    def img(t):
-        return render(TableBRDF(t, device="cpu"), scene, env=env)[0]
+    img = common.table_renderer(args.px)
 
     names = sorted(val if args.only_val else train + val)
     if args.materials:

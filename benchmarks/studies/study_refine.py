@@ -24,9 +24,12 @@ import argparse
 import json
 import os
 import pathlib
+import sys
 import time
 
 import numpy as np
+
+sys.path.insert(0, str(pathlib.Path(__file__).resolve().parent.parent))  # benchmarks/common.py
 
 DEFAULT_VARIANTS = ["latent:latent", "weights:weights"]
 
@@ -64,22 +67,14 @@ def main():
     from brdfkit.model.encoding import encode_samples
     from brdfkit.model.refine import refine
     from brdfkit.samples import draw_samples
+    import common
     from study_data import validation_materials
 
     torch.set_num_threads(1)
     model = load_model(args.model, device="cpu")
     prior = get_method("prior").load(args.prior, "cpu") if args.prior else None
     variants = [parse_variant(v) for v in args.variants]
-    if args.px:
-        from brdfkit.render.brdf import TableBRDF
-        from brdfkit.render.envmap import reference_envmap
-        from brdfkit.render.quadrature import render
-        from brdfkit.render.scene import Scene
-
-        scene, env = Scene(resolution=args.px), reference_envmap()
-
-        def img(t):
-            return render(TableBRDF(t, device="cpu"), scene, env=env)[0]
+    img = common.table_renderer(args.px) if args.px else None
 
     recs, t0 = [], time.time()
     for i, name in enumerate(validation_materials()):
