@@ -7,8 +7,10 @@ proxies so a study run starts in seconds. The 20 test materials are never loaded
 
 from __future__ import annotations
 
+import json
 import os
 import pathlib
+import time
 
 import numpy as np
 
@@ -89,3 +91,12 @@ def load_library(proxies: str | os.PathLike, exclude=()) -> Library:
     values = np.stack([t[cells] for t in tables])
     np.savez(cache, names=np.array(names), cells=cells, values=values)
     return Library(names, cells, values)
+
+
+def record_progress(recs: list, done: int, total: int, name: str, t0: float, json_path=None) -> None:
+    """After a material: its progress line (``t0`` the run's ``time.time()`` at its
+    start), and the records so far written to ``json_path`` when given, so that a run
+    stopped early keeps what it measured."""
+    print(f"[{done}/{total}] {name} {time.time() - t0:.0f} s", flush=True)
+    if json_path:
+        pathlib.Path(json_path).write_text(json.dumps(recs))

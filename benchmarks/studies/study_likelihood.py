@@ -149,7 +149,7 @@ def main():
     from brdfkit.metrics import brdf_log_rmse, psnr
     from brdfkit.samples import draw_samples
     import common
-    from study_data import load_library, validation_materials
+    from study_data import load_library, record_progress, validation_materials
 
     torch.set_num_threads(1)
     cfgs = configs(args.configs)
@@ -213,9 +213,7 @@ def main():
                            "log_rmse": float(brdf_log_rmse(pred, table)),
                            "psnr": float("nan") if args.no_render else float(psnr(img(pred), ref_img))}
                     recs.append(rec)
-        print(f"[{i + 1}/{len(names)}] {name} {time.time() - t0:.0f} s", flush=True)
-        if args.json:
-            pathlib.Path(args.json).write_text(json.dumps(recs))
+        record_progress(recs, i + 1, len(names), name, t0, args.json)
     summarise(recs, args.n)
 
 

@@ -21,7 +21,6 @@ from ``draw_samples(table, N, seed)`` samples, with the CPU seconds of each.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import pathlib
 import sys
@@ -68,7 +67,7 @@ def main():
     from brdfkit.model.refine import refine
     from brdfkit.samples import draw_samples
     import common
-    from study_data import validation_materials
+    from study_data import record_progress, validation_materials
 
     torch.set_num_threads(1)
     model = load_model(args.model, device="cpu")
@@ -104,9 +103,7 @@ def main():
                     recs.append({"material": name, "n": n, "seed": seed, "variant": vname,
                                  "log_rmse": float(brdf_log_rmse(pred, table)), "cpu_s": cpu, "steps": steps,
                                  "psnr": float(psnr(img(pred), ref_img)) if args.px else float("nan")})
-        print(f"[{i + 1}/16] {name} {time.time() - t0:.0f} s", flush=True)
-        if args.json:
-            pathlib.Path(args.json).write_text(json.dumps(recs))
+        record_progress(recs, i + 1, 16, name, t0, args.json)
     summarise(recs, args.n)
 
 
