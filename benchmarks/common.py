@@ -14,6 +14,7 @@ load other jobs put on a shared machine affects both alike. Not part of the test
 
 from __future__ import annotations
 
+import argparse
 import json
 import os
 import platform
@@ -187,6 +188,18 @@ def table_renderer(px: int):
 
     scene, env = Scene(resolution=px), reference_envmap()
     return lambda table: render(TableBRDF(table, device="cpu"), scene, env=env)[0]
+
+
+def timing_parser(doc: str, repeat: int) -> argparse.ArgumentParser:
+    """The command line of a timing benchmark: the first paragraph of ``doc`` as its
+    description, and the options they share, ``--threads`` (torch threads, default 1),
+    ``--repeat`` (rounds, default ``repeat``) and ``--json`` (also write the report's
+    JSON there); the benchmark adds its own."""
+    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
+    ap.add_argument("--threads", type=int, default=1, help="torch threads")
+    ap.add_argument("--repeat", type=int, default=repeat, help="rounds (best of)")
+    ap.add_argument("--json", default=None, help="also write the JSON here")
+    return ap
 
 
 def set_threads(n: int | None):

@@ -29,7 +29,6 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import os
 import re
 import subprocess
@@ -78,11 +77,8 @@ def _importtime(cmd, env):
 
 
 def main(argv=None):
-    p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    p.add_argument("--threads", type=int, default=1)
-    p.add_argument("--repeat", type=int, default=20)
+    p = common.timing_parser(__doc__, repeat=20)
     p.add_argument("--cli-repeat", type=int, default=3)
-    p.add_argument("--json", default=None)
     args = p.parse_args(argv)
 
     import numpy as np

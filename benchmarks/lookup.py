@@ -22,7 +22,6 @@ Example (the figures of docs/performance.md, "Table lookup")::
 
 from __future__ import annotations
 
-import argparse
 import importlib
 import os
 import subprocess
@@ -35,15 +34,12 @@ import common
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = common.timing_parser(__doc__, repeat=5)
     ap.add_argument("--against", required=True, help="git revision of the code to compare with")
     ap.add_argument("--brdf", default=None, help="a MERL .binary instead of the synthetic stiff-white table")
     ap.add_argument("--resolution", type=int, default=256)
     ap.add_argument("--stride", type=int, default=4, help="keep every STRIDE-th block of pairs")
     ap.add_argument("--max-pairs", type=int, default=3_000_000)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--repeat", type=int, default=5)
-    ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
     common.set_threads(args.threads)
     import torch

@@ -40,7 +40,6 @@ Examples (the figures in docs/render.md and docs/performance.md)::
 
 from __future__ import annotations
 
-import argparse
 import json
 import statistics
 import sys
@@ -51,16 +50,13 @@ import common
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap = common.timing_parser(__doc__, repeat=1)
     ap.add_argument("--brdf", default=None,
                     help="a BRDF file (MERL .binary) instead of the synthetic table and the neural BRDF")
     ap.add_argument("--resolution", type=int, default=128)
     ap.add_argument("--spp", type=int, default=4, help="Mitsuba samples per pixel")
-    ap.add_argument("--threads", type=int, default=1, help="torch threads")
-    ap.add_argument("--repeat", type=int, default=1)
     ap.add_argument("--skip-mitsuba", action="store_true")
     ap.add_argument("--accuracy", action="store_true", help="measure the quadrature's error instead")
-    ap.add_argument("--json", default=None, help="also write the JSON here")
     args = ap.parse_args(argv)
     if args.accuracy:
         out = accuracy(args.threads)
