@@ -173,11 +173,14 @@ def one_error_line(err: str) -> str:
     return lines[0]
 
 
-def format_error(read, path, match: str | None = None) -> str:
+def format_error(read, path, match: str | None = None, content: bytes | None = None) -> str:
     """The message of the :class:`brdfkit.errors.FormatError` that ``read(path)`` raises
-    (matching ``match``), checked to name ``path`` on one line."""
+    (matching ``match``), checked to name ``path`` on one line; ``content``: the bytes
+    written to ``path`` first."""
     from brdfkit.errors import FormatError
 
+    if content is not None:
+        path.write_bytes(content)
     with pytest.raises(FormatError, match=match) as e:
         read(path)
     message = str(e.value)

@@ -90,9 +90,7 @@ def test_bad_documents(tmp_path, case):
                                  b'{"format": "brdfkit-embedding", "version": 1, "latent_dim": 1, '
                                  b'"latent": [NaN], "model_fingerprint": "x"}'])
 def test_not_an_embedding(tmp_path, raw):
-    path = tmp_path / "bad.emb"
-    path.write_bytes(raw)
-    format_error(read_embedding, path)
+    format_error(read_embedding, tmp_path / "bad.emb", content=raw)
 
 
 def test_huge_file_refused_quickly(tmp_path):

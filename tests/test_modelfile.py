@@ -146,9 +146,7 @@ def test_truncated(model_path, tmp_path):
     data = model_path.read_bytes()
     for n, what in ((len(data) // 2, "truncated"), (len(data) - 1, "truncated"),
                     (100, "truncated"), (5, "too short")):
-        bad = tmp_path / f"cut{n}.safetensors"
-        bad.write_bytes(data[:n])
-        format_error(load_model, bad, what)
+        format_error(load_model, tmp_path / f"cut{n}.safetensors", what, content=data[:n])
 
 
 class _Trap:
@@ -179,9 +177,7 @@ def test_pickle_is_never_loaded(tmp_path, kind):
                                      b"\x10\x00\x00\x00\x00\x00\x00\x00not json at all!",
                                      os.urandom(4096)])
 def test_not_safetensors(tmp_path, content):
-    bad = tmp_path / "junk.safetensors"
-    bad.write_bytes(content)
-    format_error(load_model, bad)
+    format_error(load_model, tmp_path / "junk.safetensors", content=content)
 
 
 def test_other_safetensors_refused(tmp_path):
