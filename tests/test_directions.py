@@ -225,3 +225,16 @@ def test_sample_at_refuses_to_overwrite_its_directions(tmp_path, capsys):
     code, err = run_cli(capsys, ["sample", table, "--at", tmp_path / "d.csv", "-o", tmp_path / "d.csv"])
     assert code == 2 and "output path is also an input" in one_error(err)
     assert (tmp_path / "d.csv").read_bytes() == before
+
+
+def test_the_documented_example_reads(tmp_path):
+    """The directions example of docs/formats.md (rounded to 6 digits) is a valid file
+    whose angles and vectors agree."""
+    import re
+    from pathlib import Path
+
+    text = (Path(__file__).resolve().parents[1] / "docs" / "formats.md").read_text()
+    block = next(b for b in re.findall(r"```csv\n(.*?)```", text, re.S) if b.startswith("# brdfkit plan"))
+    (tmp_path / "plan.csv").write_text(block)
+    d = read_directions(tmp_path / "plan.csv")
+    assert len(d) == 2 and d.lines.tolist() == [4, 5]
