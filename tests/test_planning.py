@@ -240,3 +240,21 @@ def test_plan_with_a_built_in_name(shipped, tmp_path, monkeypatch, capsys):
     assert code == 0, err
     np.testing.assert_array_equal(read_directions(tmp_path / "p.csv").theta_h,
                                   plan_directions(shipped, 20).directions.theta_h)
+
+
+@pytest.mark.slow
+def test_plan_for_a_learnt_prior_file_is_the_plan_for_its_basis(tmp_path, capsys):
+    """-m a learnt-prior file (`brdfkit fit --method prior`): its basis, as inside it."""
+    from brdfkit.synthetic import write_library
+
+    write_library(tmp_path / "lib", 10, seed=2, stiff=False)  # the prior's fit needs 10
+    basis, prior = tmp_path / "b.safetensors", tmp_path / "p.safetensors"
+    for args in (["fit", "--method", "ipca", tmp_path / "lib", "--components", "3", "-o", basis],
+                 ["fit", "--method", "prior", tmp_path / "lib", "-O", f"basis={basis}", "--steps", "3", "-o", prior]):
+        code, err = run_cli(capsys, args)
+        assert code == 0, err
+    code, err = run_cli(capsys, ["plan", "-n", "6", "-m", prior, "-o", tmp_path / "p.csv"])
+    assert code == 0, err
+    assert "basis of p.safetensors: 3 components" in " ".join(err.split())
+    np.testing.assert_array_equal(read_directions(tmp_path / "p.csv").theta_h,
+                                  plan_directions(basis, 6).directions.theta_h)
