@@ -113,14 +113,14 @@ def main():
         return r[0] if r[1] == "uniform" else f"{r[0]} ({r[1]})"
 
     print(f"{len(names)} materials, draws {args.seeds}; mean BRDF log RMSE")
-    print(f"{'method':18s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  CPU s/recon")
+    print(f"{'method':20s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  CPU s/recon")
     for r in rows:
-        print(f"{row_name(r):18s} " + " ".join(f"{np.mean(errs[r][n]):7.4f}" for n in args.n)
+        print(f"{row_name(r):20s} " + " ".join(f"{np.mean(errs[r][n]):7.4f}" for n in args.n)
               + f"  {np.mean(secs[r]):.3f}")
     if psnr_of:
         print(f"mean PSNR (dB), reference scene at {args.render} px")
         for r in rows:
-            print(f"{row_name(r):18s} " + " ".join(f"{np.mean(psnrs[r][n]):7.2f}" for n in args.n))
+            print(f"{row_name(r):20s} " + " ".join(f"{np.mean(psnrs[r][n]):7.2f}" for n in args.n))
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"materials": names, "records": records}, f)
