@@ -67,8 +67,9 @@ __all__ = ["Plan", "Design", "DESIGNS", "DEFAULT_DESIGN", "DEFAULT_EVALUATIONS",
 
 DEFAULT_DESIGN = "nielsen"
 DEFAULT_EVALUATIONS = 2000
-"""Cells evaluated per added direction: Nielsen et al. evaluate 500; 2,000 costs about
-5 ms per direction (a batch of ``K x K`` eigenvalue problems, ``K = 8``)."""
+"""Cells evaluated per added direction: Nielsen et al. evaluate 500; 2,000 cost 5 to 8 ms
+per direction on the 2-core development machine under load (a batch of ``K x K``
+eigenvalue problems, ``K = 8``; ``docs/planning.md`` has whole-command times)."""
 _MAX_SWEEPS = 40
 
 
