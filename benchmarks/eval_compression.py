@@ -40,8 +40,19 @@ def _compressor(spec):
     return kind, path
 
 
+def _encode(model, table, name, kind, config):
+    """``brdfkit encode``'s embedding, with ``config`` (``--config``) overriding the
+    refinement's :class:`~brdfkit.compression.CompressConfig` fields."""
+    from brdfkit import api
+    from brdfkit.compression import CompressConfig, compress_table
+
+    if kind != "hypernet" or not config:
+        return api.encode(model, table, source=name, refine=kind == "hypernet")
+    return compress_table(model, table, CompressConfig(**config), name).embedding
+
+
 def _work(args):
-    names, data, specs, px, threads = args
+    names, data, specs, px, threads, config = args
     import torch
 
     torch.set_num_threads(threads)
@@ -70,7 +81,7 @@ def _work(args):
             if kind == "ipca":
                 pred = METHODS["ipca"].compress_fn(m, table, name)
             else:
-                pred = api.decode(m, api.encode(m, table, source=name, refine=kind == "hypernet"))
+                pred = api.decode(m, _encode(m, table, name, kind, config))
             secs.append(time.perf_counter() - t)
             preds.append(pred)
         imgs = render_many([TableBRDF(table, device="cpu")] + [TableBRDF(p, device="cpu") for p in preds], scene)
@@ -91,6 +102,8 @@ def main():
     ap.add_argument("--px", type=int, default=128)
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--floor", type=float, default=35.0, help="count materials below this PSNR")
+    ap.add_argument("--config", nargs="*", default=[], metavar="KEY=VALUE",
+                    help="refinement settings (CompressConfig fields, numbers) instead of the defaults")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     from common import load_average, machine
@@ -104,7 +117,14 @@ def main():
     t0 = time.time()
     load0 = load_average()
     jobs = max(1, min(args.jobs, len(names)))
-    parts = [(names[i::jobs], args.data, specs, args.px, max(1, (os.cpu_count() or 1) // jobs)) for i in range(jobs)]
+    config = {}
+    for item in args.config:
+        key, sep, value = item.partition("=")
+        if not sep:
+            raise SystemExit(f"bad --config entry {item!r}: KEY=VALUE")
+        config[key] = int(value) if value.lstrip("-").isdigit() else float(value)
+    parts = [(names[i::jobs], args.data, specs, args.px, max(1, (os.cpu_count() or 1) // jobs), config)
+             for i in range(jobs)]
     if jobs == 1:
         records = _work(parts[0])
     else:

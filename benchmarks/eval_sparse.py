@@ -1,13 +1,18 @@
 """BRDF log RMSE of sparse reconstructions on a list of materials, without rendering.
 
 For a learnt-prior model (a file or a built-in name): the learnt prior, the plain basis
-fit (the network unused) and IPCA's ridge fit with the same basis, from N samples drawn
-uniformly over the angles (draws 0, 1, 2), mean over the materials; optionally a
-hypernetwork model beside them. The quick check behind the built-in models' validation
+fit (the network unused) and IPCA's ridge fit with the same basis; or, with ``--ipca``
+alone, IPCA's fit with that basis; optionally a hypernetwork model beside them. The
+samples of each (material, N, draw) are those of the benchmarks' one sampling protocol,
+:class:`brdfkit.protocol.SamplingProtocol` (``docs/bench.md``, "Sampling"), the samples
+``brdfkit bench`` reconstructs for the same material, N and seed: uniform over the
+angles, and/or (``--sampling planned``) the table measured at ``brdfkit plan``'s
+directions for the basis (``--plan-model``, default the prior's or ``--ipca``'s). Mean
+over the materials and draws. The quick check behind the built-in models' validation
 figures (``docs/models.md``); the full comparison with renders is ``brdfkit bench``.
 
     python benchmarks/eval_sparse.py --prior merl80-l40 --list ../shared/data/merl-test.txt \
-        --data PROXIES/merl [--hypernet merl80-l40]
+        --data PROXIES/merl [--hypernet merl80-l40] [--sampling uniform planned --n 10 20 40]
 """
 
 from __future__ import annotations
@@ -24,12 +29,17 @@ import common
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--prior", required=True, help="learnt-prior model file or built-in name")
+    ap.add_argument("--prior", default=None, help="learnt-prior model file or built-in name")
+    ap.add_argument("--ipca", default=None, help="PCA basis file or built-in name (IPCA alone, without --prior)")
     ap.add_argument("--hypernet", default=None, help="also a hypernetwork model (file or built-in name)")
     ap.add_argument("--data", required=True, help="folder of MERL .binary tables")
     ap.add_argument("--list", required=True, help="material names, one a line")
     ap.add_argument("--n", type=int, nargs="+", default=[40, 400, 4000])
-    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="draw indices")
+    ap.add_argument("--sampling", nargs="+", default=["uniform"], choices=["uniform", "planned"],
+                    help="samplings of the protocol (brdfkit.protocol)")
+    ap.add_argument("--plan-model", default=None,
+                    help="basis planned samples are planned for (default: the prior's, or --ipca)")
     ap.add_argument("--json", default=None, help="also write the per-material records here")
     ap.add_argument("--render", type=int, default=0, metavar="PX",
                     help="also render each reconstruction in the reference scene at PX pixels and report PSNR")
@@ -37,14 +47,20 @@ def main():
     ap.add_argument("--lam", type=float, default=None, help="override the learnt prior's IPCA noise variance")
     args = ap.parse_args()
 
+    if (args.prior is None) == (args.ipca is None):
+        ap.error("give --prior (the learnt prior, its basis fit and IPCA) or --ipca (IPCA alone)")
+
     from brdfkit.materials import read_exclude_list
     from brdfkit.merl import read_merl
     from brdfkit.methods import get_method
     from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.samples import draw_samples
+    from brdfkit.protocol import SamplingProtocol
 
-    prior = get_method("prior").load(args.prior)
-    if args.s2 is not None or args.lam is not None:
+    prior = get_method("prior").load(args.prior) if args.prior else None
+    basis = prior.basis if prior else get_method("ipca").load(args.ipca)
+    protocols = {s: SamplingProtocol(s, args.plan_model or basis) if s == "planned" else SamplingProtocol(s)
+                 for s in dict.fromkeys(args.sampling)}
+    if prior and (args.s2 is not None or args.lam is not None):
         import dataclasses
         prior.cfg = dataclasses.replace(prior.cfg, **{k: v for k, v in (("s2", args.s2), ("lam", args.lam))
                                                       if v is not None})
@@ -57,42 +73,49 @@ def main():
             return float(psnr(img(pred), ref_img))
     names = read_exclude_list(args.list)
     variants = {"prior": lambda s: prior.reconstruct(s),
-                "basis fit": lambda s: prior.reconstruct(s, use_prior=False),
-                "ipca": lambda s: prior.basis.reconstruct(s)}
+                "basis fit": lambda s: prior.reconstruct(s, use_prior=False)} if prior else {}
+    variants["ipca"] = lambda s: basis.reconstruct(s)
     if args.hypernet:
         from brdfkit import api
         from brdfkit.model.builtin import load_builtin
         hyper = load_builtin(args.hypernet, device="cpu")
         variants["hypernet"] = lambda s: api.sparse(hyper, s)[0]
-    errs = {k: {n: [] for n in args.n} for k in variants}
-    psnrs = {k: {n: [] for n in args.n} for k in variants}
-    secs = {k: [] for k in variants}
+    rows = [(k, s) for k in variants for s in protocols]  # one table row per method and sampling
+    errs = {r: {n: [] for n in args.n} for r in rows}
+    psnrs = {r: {n: [] for n in args.n} for r in rows}
+    secs = {r: [] for r in rows}
     records = []
     for name in names:
         table = read_merl(os.path.join(args.data, name + ".binary"))
         ref_img = img(table) if psnr_of else None
         for n in args.n:
             for seed in args.seeds:
-                s = draw_samples(table, n, seed=seed)
-                for k, f in variants.items():
-                    t = time.process_time()
-                    pred = f(s)
-                    secs[k].append(time.process_time() - t)
-                    e = float(brdf_log_rmse(pred, table))
-                    errs[k][n].append(e)
-                    rec = {"material": name, "n": n, "seed": seed, "method": k, "log_rmse": e}
-                    if psnr_of:
-                        rec["psnr"] = psnr_of(pred, ref_img)
-                        psnrs[k][n].append(rec["psnr"])
-                    records.append(rec)
+                for sampling, protocol in protocols.items():
+                    s, info = protocol.samples(table, name, n, seed)
+                    for k, f in variants.items():
+                        t = time.process_time()
+                        pred = f(s)
+                        secs[k, sampling].append(time.process_time() - t)
+                        e = float(brdf_log_rmse(pred, table))
+                        errs[k, sampling][n].append(e)
+                        rec = {"material": name, "n": n, "seed": seed, "method": k, **info, "log_rmse": e}
+                        if psnr_of:
+                            rec["psnr"] = psnr_of(pred, ref_img)
+                            psnrs[k, sampling][n].append(rec["psnr"])
+                        records.append(rec)
+
+    def row_name(r):
+        return r[0] if r[1] == "uniform" else f"{r[0]} ({r[1]})"
+
     print(f"{len(names)} materials, draws {args.seeds}; mean BRDF log RMSE")
-    print(f"{'method':10s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  CPU s/recon")
-    for k in variants:
-        print(f"{k:10s} " + " ".join(f"{np.mean(errs[k][n]):7.4f}" for n in args.n) + f"  {np.mean(secs[k]):.3f}")
+    print(f"{'method':20s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  CPU s/recon")
+    for r in rows:
+        print(f"{row_name(r):20s} " + " ".join(f"{np.mean(errs[r][n]):7.4f}" for n in args.n)
+              + f"  {np.mean(secs[r]):.3f}")
     if psnr_of:
         print(f"mean PSNR (dB), reference scene at {args.render} px")
-        for k in variants:
-            print(f"{k:10s} " + " ".join(f"{np.mean(psnrs[k][n]):7.2f}" for n in args.n))
+        for r in rows:
+            print(f"{row_name(r):20s} " + " ".join(f"{np.mean(psnrs[r][n]):7.2f}" for n in args.n))
     if args.json:
         with open(args.json, "w") as f:
             json.dump({"materials": names, "records": records}, f)

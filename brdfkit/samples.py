@@ -1,4 +1,5 @@
-"""Sparse BRDF sample sets: drawing them from a table, reading and writing CSV.
+"""Sparse BRDF sample sets: drawing them from a table or measuring it at given
+directions, reading and writing CSV.
 
 A sample set is N measurements ``(direction pair, RGB BRDF value)``. On disk it is a CSV
 file with a header (see ``docs/formats.md``), in one of two column sets:
@@ -8,32 +9,37 @@ file with a header (see ``docs/formats.md``), in one of two column sets:
   normal), incident then outgoing.
 
 ``r,g,b`` are BRDF values in physical units (1/sr, MERL colour scales applied).
-In memory a :class:`SampleSet` always holds the Rusinkiewicz angles.
+In memory a :class:`SampleSet` always holds the Rusinkiewicz angles. The CSV reading
+is :mod:`brdfkit.csvfile`'s and the checks of a direction pair
+:mod:`brdfkit.directions`', shared with the directions files of ``brdfkit plan``.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import os
-import re
 
 import numpy as np
 
-from .atomic import atomic_open, check_input_file
-from .errors import FormatError, InputError
-from .geometry import HALF_PI, N_CELLS, cell_angles, cell_index, cos_theta_i, half_diff_from_io, \
+from .atomic import atomic_open
+from .csvfile import read_csv_table
+from .directions import HORIZON_TOLERANCE, UNIT_TOLERANCE, DirectionSet, checked_angles, checked_vectors, \
+    fold_phi_d
+from .errors import InputError
+from .geometry import GRID_SHAPE, HALF_PI, N_CELLS, cell_angles, cell_index, cos_theta_i, half_diff_from_io, \
     hd_vectors, io_from_half_diff
+from .trilinear import lookup_trilinear
 
-__all__ = ["SampleSet", "draw_samples", "read_samples", "write_samples", "ANGLE_COLUMNS",
-           "VECTOR_COLUMNS", "MAX_ROWS"]
+__all__ = ["SampleSet", "draw_samples", "draw_cells", "measure_samples", "read_samples", "write_samples",
+           "ANGLE_COLUMNS", "VECTOR_COLUMNS", "MAX_ROWS", "UNIT_TOLERANCE", "HORIZON_TOLERANCE"]
 
 ANGLE_COLUMNS = ("theta_h", "theta_d", "phi_d", "r", "g", "b")
 VECTOR_COLUMNS = ("wi_x", "wi_y", "wi_z", "wo_x", "wo_y", "wo_z", "r", "g", "b")
+_EXPECTED = f"{','.join(ANGLE_COLUMNS)} or {','.join(VECTOR_COLUMNS)}"
 # Four times the cells of a MERL table: enough for any real acquisition, and a clear
 # refusal (not minutes of parsing and gigabytes of memory) for a runaway file.
 MAX_ROWS = 4 * N_CELLS
-UNIT_TOLERANCE = 1e-3
-HORIZON_TOLERANCE = 1e-9
 
 
 @dataclasses.dataclass
@@ -80,6 +86,15 @@ class SampleSet:
         """``(wi, wo)``, each ``(N, 3)``, with ``phi_h = 0``."""
         return io_from_half_diff(self.theta_h, self.theta_d, self.phi_d)
 
+    def digest(self) -> str:
+        """sha256 hex of the angles and values (float64, little-endian, in that order):
+        two sets with the same digest hold the same measurements bit for bit (the
+        benchmarks record it to show which samples a figure came from)."""
+        h = hashlib.sha256()
+        for a in (self.theta_h, self.theta_d, self.phi_d, self.rgb):
+            h.update(np.ascontiguousarray(a, dtype="<f8").tobytes())
+        return h.hexdigest()
+
 
 def draw_samples(table: np.ndarray, n: int, seed: int | None = 0,
                  distribution: str = "angles", source: str = "") -> SampleSet:
@@ -97,7 +112,7 @@ def draw_samples(table: np.ndarray, n: int, seed: int | None = 0,
     distribution
         ``"angles"``: uniform over the Rusinkiewicz angles ``(theta_h, theta_d, phi_d)``
         in ``[0, pi/2]^2 x [0, pi)``, each draw taking the value of its cell;
-        ``"cells"``: uniform over the measured cells.
+        ``"cells"``: uniform over the measured cells (:func:`draw_cells`).
 
     Returns
     -------
@@ -110,25 +125,87 @@ def draw_samples(table: np.ndarray, n: int, seed: int | None = 0,
     measured = np.isfinite(flat).all(axis=1)
     if not measured.any():
         raise InputError(f"{source or 'table'}: no measured cells to sample from")
-    rng = np.random.default_rng(seed)
-    if distribution == "cells":
-        idx = rng.choice(np.flatnonzero(measured), size=n)
-    elif distribution == "angles":
-        chunks, have = [], 0
-        while have < n:
-            m = max(2 * (n - have), 64)
-            th = rng.uniform(0, HALF_PI, m)
-            td = rng.uniform(0, HALF_PI, m)
-            pd = rng.uniform(0, np.pi, m)
-            cand = cell_index(th, td, pd)
-            cand = cand[measured[cand]]
-            chunks.append(cand)
-            have += cand.size
-        idx = np.concatenate(chunks)[:n]
-    else:
-        raise InputError(f"unknown distribution {distribution!r}; use 'angles' or 'cells'")
+    idx = draw_cells(measured, n, seed, distribution)
     th, td, pd = cell_angles(idx)
     return SampleSet(th, td, pd, flat[idx].astype(np.float64), source)
+
+
+def draw_cells(allowed: np.ndarray, n: int, seed: int | None = 0, distribution: str = "angles") -> np.ndarray:
+    """Flat indices of ``n`` cells drawn among the ``allowed`` ones (bool ``(N_CELLS,)``,
+    at least one set), as :func:`draw_samples` draws them (the same seed, the same cells).
+
+    ``"angles"`` draws uniformly over ``(theta_h, theta_d, phi_d)`` in ``[0, pi/2]^2 x
+    [0, pi)`` and keeps the draws that land in an allowed cell (so a cell's chance is
+    its angular volume: the square-root spacing of ``theta_h`` makes the cells next to
+    the specular peak small); ``"cells"`` draws uniformly over the allowed cells. Cells
+    may repeat. int64 ``(n,)``.
+    """
+    rng = np.random.default_rng(seed)
+    if distribution == "cells":
+        return rng.choice(np.flatnonzero(allowed), size=n)
+    if distribution != "angles":
+        raise InputError(f"unknown distribution {distribution!r}; use 'angles' or 'cells'")
+    chunks, have = [], 0
+    while have < n:
+        m = max(2 * (n - have), 64)
+        th = rng.uniform(0, HALF_PI, m)
+        td = rng.uniform(0, HALF_PI, m)
+        pd = rng.uniform(0, np.pi, m)
+        cand = cell_index(th, td, pd)
+        cand = cand[allowed[cand]]
+        chunks.append(cand)
+        have += cand.size
+    return np.concatenate(chunks)[:n]
+
+
+def measure_samples(table: np.ndarray, directions: DirectionSet, source: str = "") -> SampleSet:
+    """A dense table measured at given directions: what an instrument set to them would
+    read, were the table the material.
+
+    The value at a direction is the table's trilinear interpolation there
+    (:func:`brdfkit.trilinear.lookup_trilinear`, the lookup the renderers and the PCA
+    fits use, in the grid's own coordinates, unmeasured corners left out). A real
+    measurement reads the material's BRDF at the direction itself, which the table
+    knows only at its cells: between them, the interpolation is the table's best
+    statement of it, continuous in the direction (the nearest cell would jump from one
+    value to the next, and MERL's own lookup takes the cell *below*, not the nearest).
+    At a cell's own angles, as :func:`brdfkit.planning.plan_directions` and
+    ``brdfkit sample -n`` give them, the weight of every other corner is zero (or a
+    rounding error of ``1e-15``) and the value is the cell's.
+
+    Parameters
+    ----------
+    table
+        ``(90, 90, 180, 3)`` in physical units (1/sr), NaN where not measured.
+    directions
+        :class:`brdfkit.directions.DirectionSet`.
+    source
+        The material's name, for the sample set and messages.
+
+    Returns
+    -------
+    SampleSet
+        The directions' own angles and the values, float64, 1/sr.
+
+    Raises
+    ------
+    InputError
+        A direction with no measured cell among the eight around it (named by its line).
+    """
+    table = np.asarray(table, np.float64)
+    if table.shape != GRID_SHAPE + (3,):
+        raise InputError(f"{source or 'table'}: expected a (90, 90, 180, 3) table, got shape {table.shape}")
+    if len(directions) == 0:
+        raise InputError(f"{directions.source or 'directions'}: no directions to measure at")
+    rgb = lookup_trilinear(table, directions.theta_h, directions.theta_d, directions.phi_d)
+    bad = ~np.isfinite(rgb).all(axis=1)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise InputError(f"{directions.source or 'directions'}: {directions.where(i)}: {source or 'the table'} "
+                         f"has no measured cell around this direction ({int(bad.sum())} such direction"
+                         f"{'s' if bad.sum() > 1 else ''})")
+    return SampleSet(np.array(directions.theta_h, np.float64), np.array(directions.theta_d, np.float64),
+                     np.array(directions.phi_d, np.float64), np.clip(rgb, 0.0, None), source)
 
 
 def write_samples(path: str | os.PathLike, samples: SampleSet) -> None:
@@ -137,11 +214,6 @@ def write_samples(path: str | os.PathLike, samples: SampleSet) -> None:
     with atomic_open(path, "w", newline="") as f:
         f.write(",".join(ANGLE_COLUMNS) + "\n")
         np.savetxt(f, data, fmt="%.17g", delimiter=",")
-
-
-# Line breaks as editors count them (str.splitlines also splits on form feeds and
-# Unicode separators, which would shift the line numbers in messages).
-_LINE_BREAK = re.compile(r"\r\n|\r|\n")
 
 
 def read_samples(path: str | os.PathLike) -> SampleSet:
@@ -161,133 +233,16 @@ def read_samples(path: str | os.PathLike) -> SampleSet:
     FormatError
         Naming the file, the line and the problem.
     """
-    path = check_input_file(path)
-    try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except OSError as e:
-        raise FormatError(path, f"cannot read: {e.strerror}") from None
-    if b"\x00" in raw[:65536]:
-        raise FormatError(path, "not a CSV text file (binary content)")
-    # A runaway file is refused before it is decoded and split into per-line strings
-    # (10^7 rows: 29 s and 2.1 GB before this check; docs/stability.md).
-    if raw.count(b"\n") + raw.count(b"\r") > MAX_ROWS:
-        _refuse_too_many(path, _count_value_lines(raw) - 1)
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise FormatError(path, f"not UTF-8 text (byte {e.start})") from None
-    del raw
-    lines = _LINE_BREAK.split(text)
-    numbered = [(i + 1, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
-    del lines, text
-    if not numbered:
-        raise FormatError(path, "empty: no header and no sample rows")
-    header_line, header = numbered[0]
-    columns = tuple(c.strip().lower() for c in header.split(","))
-    if all(_is_number(c) for c in columns):
-        raise FormatError(path, f"line {header_line}: no header; the first line must name the columns "
-                                f"({','.join(ANGLE_COLUMNS)} or {','.join(VECTOR_COLUMNS)})")
-    if set(columns) == set(ANGLE_COLUMNS) and len(columns) == len(ANGLE_COLUMNS):
-        kind = "angles"
-    elif set(columns) == set(VECTOR_COLUMNS) and len(columns) == len(VECTOR_COLUMNS):
-        kind = "vectors"
+    t = read_csv_table(path, {"angles": ANGLE_COLUMNS, "vectors": VECTOR_COLUMNS}, expected=_EXPECTED,
+                       noun="sample", max_rows=MAX_ROWS)
+    t.refuse(~np.isfinite(t.data).all(axis=1), "NaN or infinite value")
+    rgb = t.data[:, -3:]
+    t.refuse((rgb < 0).any(axis=1), "negative BRDF value")
+    if t.kind == "angles":
+        th, td, pd = t.data[:, 0], t.data[:, 1], t.data[:, 2]
+        checked_angles(t, th, td, pd)
     else:
-        known = set(ANGLE_COLUMNS) | set(VECTOR_COLUMNS)
-        unknown = [c for c in columns if c not in known]
-        what = f"unknown column(s) {', '.join(repr(c) for c in unknown)}" if unknown else \
-            f"columns {','.join(columns)} are not a known set"
-        raise FormatError(path, f"line {header_line}: {what}; expected {','.join(ANGLE_COLUMNS)} "
-                                f"or {','.join(VECTOR_COLUMNS)}")
-    rows = numbered[1:]
-    if not rows:
-        raise FormatError(path, "no sample rows after the header")
-    _refuse_too_many(path, len(rows))
-    ncol = len(columns)
-    linenos = np.fromiter((ln for ln, _ in rows), dtype=np.int64, count=len(rows))
-    try:
-        data = np.loadtxt([r for _, r in rows], delimiter=",", dtype=np.float64, ndmin=2,
-                          comments=None)
-    except ValueError as e:
-        raise _row_error(path, rows, ncol, e) from None
-    if data.shape[1] != ncol:
-        raise FormatError(path, f"line {int(linenos[0])}: {data.shape[1]} fields, the header names {ncol}")
-    data = data[:, [columns.index(c) for c in (ANGLE_COLUMNS if kind == "angles" else VECTOR_COLUMNS)]]
-
-    def refuse(mask, problem):
-        if mask.any():
-            i = int(np.flatnonzero(mask)[0])
-            raise FormatError(path, f"line {int(linenos[i])}: {problem} "
-                                    f"({int(mask.sum())} such row{'s' if mask.sum() > 1 else ''})")
-
-    refuse(~np.isfinite(data).all(axis=1), "NaN or infinite value")
-    rgb = data[:, -3:]
-    refuse((rgb < 0).any(axis=1), "negative BRDF value")
-    if kind == "angles":
-        th, td, pd = data[:, 0], data[:, 1], data[:, 2]
-        refuse((th < 0) | (th > HALF_PI + 1e-9), "theta_h outside [0, pi/2] radians")
-        refuse((td < 0) | (td > HALF_PI + 1e-9), "theta_d outside [0, pi/2] radians")
-        wi, wo = io_from_half_diff(th, td, pd)
-        refuse((wi[:, 2] < -HORIZON_TOLERANCE) | (wo[:, 2] < -HORIZON_TOLERANCE),
-               "direction below the horizon")
-    else:
-        wi, wo = data[:, 0:3], data[:, 3:6]
-        ni, no = np.linalg.norm(wi, axis=1), np.linalg.norm(wo, axis=1)
-        refuse((np.abs(ni - 1) > UNIT_TOLERANCE) | (np.abs(no - 1) > UNIT_TOLERANCE),
-               f"direction is not a unit vector (|norm - 1| > {UNIT_TOLERANCE})")
-        wi, wo = wi / ni[:, None], wo / no[:, None]
-        refuse((wi[:, 2] < -HORIZON_TOLERANCE) | (wo[:, 2] < -HORIZON_TOLERANCE),
-               "direction below the horizon (z < 0)")
-        refuse(np.einsum("ij,ij->i", wi, wo) < -1 + 1e-12, "wi and wo are opposite (no half vector)")
+        wi, wo = checked_vectors(t, t.data[:, 0:3], t.data[:, 3:6])
         th, _, td, pd = half_diff_from_io(wi, wo)
-    pd = np.asarray(pd, np.float64) % np.pi
-    pd[pd >= np.pi] = 0.0  # -1e-17 % pi rounds to pi itself; fold it to 0 as well
-    return SampleSet(np.asarray(th, np.float64), np.asarray(td, np.float64), pd,
-                     np.ascontiguousarray(rgb), os.path.basename(path))
-
-
-def _refuse_too_many(path: str, rows: int) -> None:
-    if rows > MAX_ROWS:
-        raise FormatError(path, f"{rows} sample rows, more than the limit of {MAX_ROWS} "
-                                f"(four times the cells of a MERL table)")
-
-
-# Bytes that cannot start a value: whitespace, line breaks, '#'.
-_NOT_VALUE_START = np.zeros(256, dtype=bool)
-_NOT_VALUE_START[[9, 10, 11, 12, 13, 32, ord("#")]] = True
-
-
-def _count_value_lines(raw: bytes, block: int = 1 << 24) -> int:
-    """Lines of ``raw`` whose first byte can start a value: a lower bound of the
-    non-blank, non-comment lines (an indented line is not counted), in C-speed blocks
-    of bounded memory."""
-    a = np.frombuffer(raw, dtype=np.uint8)
-    n = int(a.size > 0 and not _NOT_VALUE_START[a[0]])
-    for s in range(0, a.size - 1, block):
-        chunk = a[s:min(a.size - 1, s + block)]
-        after_break = np.flatnonzero((chunk == 10) | (chunk == 13)) + (s + 1)
-        n += int(np.count_nonzero(~_NOT_VALUE_START[a[after_break]]))
-    return n
-
-
-def _row_error(path: str, rows, ncol: int, error: ValueError) -> FormatError:
-    """The first malformed row, located in Python: ``np.loadtxt`` numbers rows from 0 in
-    conversion errors but from 1 in field-count errors, and blames the second row when
-    the first one has the wrong number of fields."""
-    for line, text in rows:
-        fields = text.split(",")
-        if len(fields) != ncol:
-            return FormatError(path, f"line {line}: {len(fields)} fields, the header names {ncol}")
-        for field in fields:
-            # float() also takes '1_000' and non-ASCII digits, which loadtxt refuses.
-            if "_" in field or not field.isascii() or not _is_number(field):
-                return FormatError(path, f"line {line}: {field.strip()!r} is not a number")
-    return FormatError(path, str(error).split(" at row")[0].split(";")[0])
-
-
-def _is_number(s: str) -> bool:
-    try:
-        float(s)
-        return True
-    except ValueError:
-        return False
+    return SampleSet(np.asarray(th, np.float64), np.asarray(td, np.float64), fold_phi_d(pd),
+                     np.ascontiguousarray(rgb), os.path.basename(t.path))

@@ -2,10 +2,13 @@
 
 What is measured (Gokbudak et al. 2024, Sec. 4, on whatever tables are given)
 --------------------------------------------------------------------------------
-**Sparse reconstruction.** For every test material, every ``N`` in :data:`DEFAULT_N`
-and every seed ``s = 0 .. K-1``, ``N`` samples are drawn from the material's table
-(:func:`brdfkit.samples.draw_samples`, uniform over the Rusinkiewicz angles, the seed
-derived from ``(s, N, material name)`` so all methods see the *same* draw), and every
+**Sparse reconstruction.** For every test material, every ``N`` in :data:`DEFAULT_N`,
+every seed ``s = 0 .. K-1`` and every sampling of ``BenchConfig.sampling``, ``N``
+samples are taken from the material's table by the benchmarks' one protocol
+(:class:`brdfkit.protocol.SamplingProtocol`, which ``benchmarks/eval_sparse.py`` uses
+too: uniform over the Rusinkiewicz angles with the seed derived from ``(s, N, material
+name)``, or the table measured at ``brdfkit plan``'s directions seeded by ``s``), so all
+methods see the *same* samples, and every
 method (by default :func:`default_methods`: the learnt prior of a built-in ``-m``, the
 hypernetwork, IPCA, NBRDF) reconstructs a dense table from them. Each reconstruction is
 scored:

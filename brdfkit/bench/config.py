@@ -4,12 +4,10 @@ from __future__ import annotations
 
 import dataclasses
 import os
-import zlib
-
-import numpy as np
 
 from ..atomic import check_input_file
 from ..errors import InputError
+from ..protocol import SAMPLINGS, draw_seed
 
 __all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed",
            "default_methods"]
@@ -53,6 +51,10 @@ class BenchConfig:
         :func:`merge_results`), methods (``None``: :func:`default_methods`, the learnt
         prior first when ``model`` names a built-in that has one; :meth:`resolved`
         fills them in).
+    sampling, plan_model, plan_design
+        The samplings every (material, N, seed) is run with (:data:`brdfkit.protocol.SAMPLINGS`:
+        ``uniform``, ``planned``); for ``planned``, the PCA basis to plan for (default:
+        ``ipca``'s) and the design (:data:`brdfkit.planning.DESIGNS`).
     compression_models, compression_data
         Hypernetwork models to test on encode -> decode of every table in
         ``compression_data`` (plus the PCA basis, when ``ipca`` is given).
@@ -84,6 +86,9 @@ class BenchConfig:
     seeds: int = 3
     first_seed: int = 0
     methods: tuple | None = None
+    sampling: tuple = ("uniform",)
+    plan_model: str | None = None
+    plan_design: str = "nielsen"
     compression_models: tuple = ()
     compression_data: str | None = None
     resolution: int = DEFAULT_RESOLUTION
@@ -102,6 +107,11 @@ class BenchConfig:
 
         option = get_method(method).bench_option
         return self.models.get(method) or (getattr(self, option) if option else None)
+
+    def plan_basis(self) -> str | None:
+        """The PCA basis planned samples are planned for: :attr:`plan_model`, else the
+        ``ipca`` method's basis."""
+        return self.plan_model or self.model_file("ipca")
 
     def resolved(self) -> "BenchConfig":
         """This configuration with its default methods filled in
@@ -123,6 +133,7 @@ class BenchConfig:
         return dataclasses.replace(
             cfg, **{f: resolve_for(name, getattr(cfg, f)) for f, name in fields.items() if getattr(cfg, f)},
             models={m: resolve_for(m, p) if p else p for m, p in cfg.models.items()},
+            plan_model=resolve_for("ipca", cfg.plan_model) if cfg.plan_model else None,
             compression_models=tuple(resolve_for("hypernet", p) for p in cfg.compression_models))
 
     def with_default_methods(self) -> "BenchConfig":
@@ -182,6 +193,22 @@ class BenchConfig:
                 raise InputError(f"--seeds must be at least 1, got {self.seeds}")
             if self.first_seed < 0:
                 raise InputError(f"--first-seed must be at least 0, got {self.first_seed}")
+            if not self.sampling:
+                raise InputError("--sampling: no sampling given")
+            for s in self.sampling:
+                if s not in SAMPLINGS:
+                    raise InputError(f"--sampling: unknown sampling {s!r}; known: {', '.join(SAMPLINGS)}")
+            if len(set(self.sampling)) != len(self.sampling):
+                raise InputError(f"--sampling: a sampling is named twice ({','.join(self.sampling)})")
+            if "planned" in self.sampling:
+                from ..planning import DESIGNS
+
+                if not self.plan_basis():
+                    raise InputError("--sampling planned needs the PCA basis to plan for: --plan-model NAME|FILE "
+                                     "(or --ipca, whose basis it takes)")
+                if self.plan_design not in DESIGNS:
+                    raise InputError(f"--plan-design: unknown design {self.plan_design!r}; known: "
+                                     f"{', '.join(DESIGNS)}")
             for m in self.methods:
                 method = get_method(m)
                 if method.needs_model and not self.model_file(m):
@@ -202,7 +229,8 @@ class BenchConfig:
             raise InputError(f"--jobs must be at least 1, got {self.jobs}")
         if self.threads is not None and self.threads < 1:
             raise InputError(f"--threads must be at least 1, got {self.threads}")
-        for f in [self.model, self.ipca, self.test_list, *self.compression_models, *self.models.values()]:
+        for f in [self.model, self.ipca, self.plan_model, self.test_list, *self.compression_models,
+                  *self.models.values()]:
             if f:
                 check_input_file(f)
         for d in (self.data, self.compression_data):
@@ -242,7 +270,8 @@ def default_methods(model: str | None, prior: str | None = None) -> tuple[tuple,
 
 
 def sample_seed(seed: int, n: int, name: str) -> int:
-    """Seed of the draw of ``n`` samples of material ``name`` for repetition ``seed``:
-    distinct per (seed, N, material), the same for every method."""
-    return int(np.random.SeedSequence([int(seed), int(n), zlib.crc32(name.encode())]).generate_state(1)[0])
+    """Seed of the uniform draw of ``n`` samples of material ``name`` for repetition
+    ``seed``: :func:`brdfkit.protocol.draw_seed`, the protocol ``brdfkit bench`` and
+    ``benchmarks/eval_sparse.py`` share."""
+    return draw_seed(seed, n, name)
 

@@ -8,7 +8,7 @@ from ..atomic import atomic_open, atomic_path
 from .config import METRICS
 from .summary import mean
 
-__all__ = ["write_markdown", "write_plots"]
+__all__ = ["write_markdown", "write_plots", "label"]
 
 _LABELS = {"psnr": "PSNR (dB)", "delta_e": "Delta E 2000", "ssim": "SSIM",
            "log_rmse": "BRDF log RMSE", "time_s": "time (s)", "cpu_s": "CPU time (s)"}
@@ -24,6 +24,13 @@ def _pm(row, m, digits):
 
 
 _DIGITS = {"psnr": 2, "delta_e": 2, "ssim": 4, "log_rmse": 4, "time_s": 3}
+
+
+def label(row) -> str:
+    """A sparse row's or record's method as the tables and plots name it: the method,
+    with its sampling in brackets unless uniform (``prior (planned)``)."""
+    sampling = row.get("sampling") or "uniform"
+    return row["method"] if sampling == "uniform" else f"{row['method']} ({sampling})"
 
 
 def write_markdown(path: str, result: dict) -> None:
@@ -45,12 +52,12 @@ def write_markdown(path: str, result: dict) -> None:
                   f"{result['materials']['sparse_count']} test material(s) from `{cfg['data']}`, "
                   f"{_seed_text(cfg)} each; mean over materials and draws ± standard deviation "
                   f"over draws of the per-draw mean; wall time of one reconstruction: mean (median); "
-                  f"CPU time: mean, all threads of the process.", "",
+                  f"CPU time: mean, all threads of the process.", "", _sampling_text(cfg), "",
                   "| method | N | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | wall time (s) | CPU time (s) | "
                   "ok / failed |",
                   "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
         for row in summ["sparse"]:
-            lines.append(f"| {row['method']} | {row['n']} | {_pm(row, 'psnr', 2)} | {_pm(row, 'delta_e', 2)} | "
+            lines.append(f"| {label(row)} | {row['n']} | {_pm(row, 'psnr', 2)} | {_pm(row, 'delta_e', 2)} | "
                          f"{_pm(row, 'ssim', 4)} | {_pm(row, 'log_rmse', 4)} | {_fmt(row['time_s'], 3)} "
                          f"({_fmt(row['time_s_median'], 3)}) | {_fmt(row['cpu_s'], 3)} | "
                          f"{row['count']} / {row['failures']} |")
@@ -62,7 +69,7 @@ def write_markdown(path: str, result: dict) -> None:
         lines += ["", "### Sparse, per family", "", "| family | method | N | PSNR (dB) | Delta E 2000 | SSIM | "
                   "BRDF log RMSE | materials |", "| --- | --- | ---: | ---: | ---: | ---: | ---: | ---: |"]
         for row in summ["sparse_by_family"]:
-            lines.append(f"| {row['family']} | {row['method']} | {row['n']} | {_fmt(row['psnr'], 2)} | "
+            lines.append(f"| {row['family']} | {label(row)} | {row['n']} | {_fmt(row['psnr'], 2)} | "
                          f"{_fmt(row['delta_e'], 2)} | {_fmt(row['ssim'], 4)} | {_fmt(row['log_rmse'], 4)} | "
                          f"{row['materials']} |")
     if summ["compression"]:
@@ -94,13 +101,28 @@ def write_markdown(path: str, result: dict) -> None:
         lines += ["", f"## Failures ({len(failures)})", ""]
         seen = set()
         for r in failures:
-            key = (r["material"], r["method"], r["error"])
+            key = (r["material"], label(r), r["error"])
             if key not in seen:
                 seen.add(key)
-                lines.append(f"- {r['material']}, {r['method']}: {r['error']}")
+                lines.append(f"- {r['material']}, {label(r)}: {r['error']}")
     lines.append("")
     with atomic_open(path, "w", encoding="utf-8") as f:
         f.write("\n".join(lines))
+
+
+def _sampling_text(cfg) -> str:
+    """How the samples were made (docs/bench.md, "Sampling")."""
+    parts = []
+    for s in cfg.get("sampling") or ["uniform"]:
+        if s == "uniform":
+            parts.append("uniform: drawn uniformly over the Rusinkiewicz angles, another draw for every "
+                         "(draw, N, material), the same for every method")
+        else:
+            basis = os.path.basename(cfg.get("plan_model") or cfg.get("ipca") or "?")
+            parts.append(f"{s} (rows marked so): the table measured at the directions of `brdfkit plan -n N "
+                         f"-m {basis} --design {cfg.get('plan_design', 'nielsen')} --seed DRAW`, the same for "
+                         f"every material")
+    return "Samples: " + "; ".join(parts) + "."
 
 
 def _seed_text(cfg) -> str:
@@ -115,13 +137,13 @@ def _pmm(row, m, digits):
 
 def _per_material_table(records, metric, digits) -> list[str]:
     sparse = [r for r in records if r["kind"] == "sparse"]
-    methods = list(dict.fromkeys(r["method"] for r in sparse))
+    methods = list(dict.fromkeys(label(r) for r in sparse))
     ns = sorted({r["n"] for r in sparse})
     cols = [(m, k) for k in ns for m in methods]
     cell: dict = {}
     for r in sparse:
         if "error" not in r:
-            cell.setdefault((r["material"], r["method"], r["n"]), []).append(r[metric])
+            cell.setdefault((r["material"], label(r), r["n"]), []).append(r[metric])
     better = max if metric in ("psnr", "ssim") else min
     out = ["| material | " + " | ".join(f"{m} {k}" for m, k in cols) + " |",
            "| --- | " + " | ".join("---:" for _ in cols) + " |"]
@@ -148,7 +170,7 @@ def write_plots(folder: str, result: dict) -> list[str]:
 
     written = []
     rows = result["summary"]["sparse"]
-    methods = list(dict.fromkeys(r["method"] for r in rows))
+    methods = list(dict.fromkeys(label(r) for r in rows))
     for xkey, fname, xlabel in (("n", "error_vs_n.png", "number of samples N"),
                                 ("time_s", "error_vs_time.png", "wall time per reconstruction (s)"),
                                 ("cpu_s", "error_vs_cpu_time.png", "CPU time per reconstruction (s, all threads)")):
@@ -157,7 +179,7 @@ def write_plots(folder: str, result: dict) -> list[str]:
         fig, axes = plt.subplots(2, 2, figsize=(9, 7), constrained_layout=True)
         for ax, metric in zip(axes.flat, METRICS):
             for m in methods:
-                pts = [r for r in rows if r["method"] == m and r[metric] is not None and r[xkey] is not None]
+                pts = [r for r in rows if label(r) == m and r[metric] is not None and r[xkey] is not None]
                 pts.sort(key=lambda r: r["n"])
                 if not pts:
                     continue

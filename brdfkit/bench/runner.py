@@ -74,8 +74,9 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     -------
     dict
         The content of ``bench.json``: ``config``, ``environment``, ``materials``,
-        ``records`` (one per reconstruction: material, method, N, seed, metrics,
-        ``time_s``, ``render_s``, or ``error``), ``summary`` (:func:`summarise`),
+        ``records`` (one per reconstruction: material, method, N, seed, sampling and
+        how the samples were made (:meth:`brdfkit.protocol.SamplingProtocol.samples`),
+        metrics, ``time_s``, ``render_s``, or ``error``), ``summary`` (:func:`summarise`),
         ``outputs``.
 
     Raises
@@ -100,7 +101,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     n_sparse = len(tasks)
     if cfg.compression_models:
         tasks += [("compression", n, p) for n, p in list_materials(cfg.compression_data)]
-    per_task = {"sparse": len(cfg.methods) * len(cfg.n) * cfg.seeds,
+    per_task = {"sparse": len(cfg.methods) * len(cfg.n) * cfg.seeds * len(cfg.sampling),
                 "compression": len(cfg.compressors())}
     result = {"format": "brdfkit-bench", "version": FORMAT_VERSION,
               "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
@@ -240,10 +241,13 @@ def merge_results(paths, output: str, allow_incomplete: bool = False, replace: b
         for r in run["records"]:
             if r["material"] not in common[r["kind"]] or (r["kind"], r["method"]) in later:
                 continue
-            key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), r.get("latent"))
+            key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), r.get("latent"),
+                   r.get("sampling", "uniform") if r["kind"] == "sparse" else None)
             if key in seen:
                 raise InputError(f"two runs both hold {r['kind']} {r['material']} {r['method']} "
-                                 f"N={r.get('n')} seed={r.get('seed')}; merge runs with other seeds or methods "
+                                 f"N={r.get('n')} seed={r.get('seed')}"
+                                 f"{' (' + r['sampling'] + ' sampling)' if r.get('sampling') else ''}; "
+                                 f"merge runs with other seeds, methods or samplings "
                                  f"(or --replace: a later run's method replaces an earlier run's)")
             seen.add(key)
             records.append(r)
@@ -252,6 +256,7 @@ def merge_results(paths, output: str, allow_incomplete: bool = False, replace: b
     cfg["seed_values"] = sorted({r["seed"] for r in records if r["kind"] == "sparse" and "seed" in r})
     cfg["seeds"] = len(cfg["seed_values"]) or cfg["seeds"]
     cfg["methods"] = list(dict.fromkeys(m for run in runs for m in run["config"]["methods"]))
+    cfg["sampling"] = list(dict.fromkeys(s for run in runs for s in run["config"].get("sampling", ["uniform"])))
     cfg["command"] = " + ".join(run["config"].get("command", "") for run in runs)
     if replace:
         cfg["command"] += "  # merged with --replace: a later run's methods replace the earlier runs' records of them"

@@ -1,4 +1,5 @@
-"""Summaries of benchmark records: means and spreads per (method, N) and per model.
+"""Summaries of benchmark records: means and spreads per (method, sampling, N) and per
+model.
 
 For each (method, N) the mean over materials and seeds of each metric; the spread is the
 standard deviation, over seeds, of the per-seed mean over materials (how much the result
@@ -58,21 +59,26 @@ def _summary_rows(records, keys) -> list[dict]:
 
 def summarise(records: list[dict], group_by_prefix: bool = False) -> dict:
     """Summaries of bench records: ``{"sparse": rows, "compression": rows}``; each row
-    holds the keys (method, N / latent, and ``family`` with ``group_by_prefix``), the mean
+    holds the keys (method, sampling and N / latent, and ``family`` with
+    ``group_by_prefix``; a sparse record without ``sampling``, from a run before planned
+    samples, is ``uniform``), the mean
     of every metric and its spreads (see the module doc), counts and failures."""
     sparse = [r for r in records if r["kind"] == "sparse"]
+    for r in sparse:
+        r.setdefault("sampling", "uniform")  # records of runs from before planned samples
     comp = [r for r in records if r["kind"] == "compression"]
-    out = {"sparse": _summary_rows(sparse, ("method", "n")),
+    out = {"sparse": _summary_rows(sparse, ("method", "sampling", "n")),
            "compression": _summary_rows(comp, ("method", "latent")),
            "compression_by_training": _summary_rows(comp, ("method", "latent", "trained_on"))}
     if group_by_prefix:
         for r in records:
             r["family"] = family(r["material"])
-        out["sparse_by_family"] = _summary_rows(sparse, ("family", "method", "n"))
+        out["sparse_by_family"] = _summary_rows(sparse, ("family", "method", "sampling", "n"))
         out["compression_by_family"] = _summary_rows(comp, ("family", "method", "latent"))
     for key in out:
         out[key].sort(key=lambda row: tuple(str(row.get(k)) if not isinstance(row.get(k), (int, float))
                                             else f"{row.get(k):012.3f}" for k in
-                                            ("family", "method", "n", "latent", "trained_on") if k in row))
+                                            ("family", "method", "sampling", "n", "latent", "trained_on")
+                                            if k in row))
     return out
 

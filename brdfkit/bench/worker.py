@@ -11,7 +11,7 @@ import time
 
 from ..digest import file_digest
 from ..errors import InputError
-from .config import BenchConfig, sample_seed
+from .config import BenchConfig
 
 __all__ = ["Worker", "run_task", "init_process", "failed_records", "error_text", "renderer_digest"]
 
@@ -33,8 +33,9 @@ def failed_records(cfg: BenchConfig, kind: str, name: str, error: str, compresso
     """The records of every reconstruction of one material, all failed with ``error``
     (``compressors``: the ``(label, latent)`` of the compression methods)."""
     if kind == "sparse":
-        return [{"kind": kind, "material": name, "method": m, "n": int(k), "seed": s, "error": error}
-                for m in cfg.methods for k in cfg.n for s in cfg.seed_list()]
+        return [{"kind": kind, "material": name, "method": m, "n": int(k), "seed": s, "sampling": sampling,
+                 "error": error}
+                for m in cfg.methods for k in cfg.n for s in cfg.seed_list() for sampling in cfg.sampling]
     return [{"kind": kind, "material": name, "method": label, "latent": dim, "error": error}
             for label, dim in compressors]
 
@@ -57,7 +58,13 @@ class Worker:
         self.scene = Scene(resolution=cfg.resolution)
         self.env = reference_envmap()
         self.methods, self.models, self.options = {}, {}, {}
+        self.protocols = {}  # sampling -> brdfkit.protocol.SamplingProtocol
         if cfg.data is not None:
+            from ..protocol import SamplingProtocol
+
+            for sampling in cfg.sampling:
+                self.protocols[sampling] = (SamplingProtocol(sampling, cfg.plan_basis(), cfg.plan_design)
+                                            if sampling == "planned" else SamplingProtocol(sampling))
             for name in cfg.methods:
                 m = get_method(name)
                 self.methods[name] = m
@@ -155,8 +162,10 @@ class Worker:
         self.warm.add(method)
 
     def sparse_material(self, name: str, path: str) -> list[dict]:
+        """The records of one material: for each N, draw and sampling, the samples of
+        the protocol (:meth:`brdfkit.protocol.SamplingProtocol.samples`, what
+        ``benchmarks/eval_sparse.py`` takes too), reconstructed by every method."""
         from ..merl import read_merl
-        from ..samples import draw_samples
 
         cfg = self.cfg
         base = {"kind": "sparse", "material": name}
@@ -168,19 +177,19 @@ class Worker:
         records = []
         for k in cfg.n:
             for s in cfg.seed_list():
-                draw = sample_seed(s, k, name)
-                try:
-                    samples = draw_samples(table, int(k), seed=draw, source=name)
-                except Exception as e:
-                    records += [dict(base, method=m, n=int(k), seed=s, error=error_text(e))
-                                for m in cfg.methods]
-                    continue
-                for m in cfg.methods:
-                    self._warm_up(m, table)
-                    records.append(self._timed(
-                        dict(base, method=m, n=int(k), seed=s, sample_seed=draw), table, ref_img,
-                        lambda m=m, s=s: self.methods[m].reconstruct(samples, self.models[m], seed=s,
-                                                                     device=self.device, options=self.options[m])))
+                for sampling, protocol in self.protocols.items():
+                    try:
+                        samples, info = protocol.samples(table, name, int(k), s)
+                    except Exception as e:
+                        records += [dict(base, method=m, n=int(k), seed=s, sampling=sampling, error=error_text(e))
+                                    for m in cfg.methods]
+                        continue
+                    for m in cfg.methods:
+                        self._warm_up(m, table)
+                        records.append(self._timed(
+                            dict(base, method=m, n=int(k), seed=s, **info), table, ref_img,
+                            lambda m=m, s=s, samples=samples: self.methods[m].reconstruct(
+                                samples, self.models[m], seed=s, device=self.device, options=self.options[m])))
         return records
 
     def compression_material(self, name: str, path: str) -> list[dict]:

@@ -21,7 +21,8 @@ from ..errors import BrdfkitError
 COMMANDS = {
     "demo": "Try the built-in models on real materials (--train: synthetic).",
     "synth": "Write a library of synthetic (GGX) materials as MERL tables.",
-    "sample": "Draw N measurements of a MERL table into a CSV sample set.",
+    "sample": "Measure a MERL table into a CSV sample set (N random, or --at).",
+    "plan": "Choose N measurement directions for a reconstruction.",
     "fit": "Train a hypernetwork (or a baseline) on MERL tables.",
     "tune": "Tune a trained hypernetwork on renders of its materials.",
     "encode": "Compress MERL tables into embedding (.emb) files.",

@@ -46,6 +46,14 @@ def _str_list(value: str | None) -> tuple:
               help="Reconstruction methods, comma-separated [default: hypernet,ipca,nbrdf, led by prior "
                    "when -m names a built-in with a learnt prior (as `sparse --method auto` picks) or "
                    "--model-file prior= is given].")
+@click.option("--sampling", "sampling", default="uniform", show_default=True,
+              help="Samplings, comma-separated: uniform (random draws over the angles) and/or planned (the table "
+                   "measured at `brdfkit plan` directions for --plan-model); every N and draw is run with each.")
+@click.option("--plan-model", default=None, metavar="NAME|FILE",
+              help="PCA basis planned samples are planned for (a built-in with a learnt prior, a basis or "
+                   "learnt-prior file) [default: the --ipca basis].")
+@click.option("--plan-design", default="nielsen", show_default=True,
+              help="Design of the planned samples (`brdfkit plan --design`).")
 @click.option("--compression-models", default=None,
               help="Hypernetwork models (files or built-in names) to test on encode -> decode, comma-separated "
                    "(e.g. merl-rgl-l7,m40.safetensors).")
@@ -77,14 +85,16 @@ def _str_list(value: str | None) -> tuple:
               help="With --merge: a method that a later run holds replaces its records in the earlier runs "
                    "(one method re-run after a change).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
-def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed, methods, compression_models, compression_data,
+def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed, methods, sampling, plan_model,
+            plan_design, compression_models, compression_data,
             resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, method_options, group_by_prefix, cache, merge, replace, output,
             allow_incomplete, quiet):
     """Measure reconstruction error against run time (and compression error).
 
-    For each test material of --data, each N and each seed, every method reconstructs the
-    material from the same N samples; each reconstruction is timed and scored in BRDF
-    space (log RMSE) and on reference-scene renders (PSNR, Delta E 2000, SSIM).
+    For each test material of --data, each N, each seed and each --sampling, every method
+    reconstructs the material from the same N samples; each reconstruction is timed and
+    scored in BRDF space (log RMSE) and on reference-scene renders (PSNR, Delta E 2000,
+    SSIM).
     See docs/bench.md.
     """
     import shlex
@@ -117,6 +127,7 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
     cfg = BenchConfig(output=output, data=data, test_list=test_list, model=model, ipca=ipca, models=models,
                       n=_int_list(n_list, "--n"), seeds=seeds, first_seed=first_seed,
                       methods=None if methods is None else _str_list(methods),
+                      sampling=_str_list(sampling), plan_model=plan_model, plan_design=plan_design,
                       compression_models=_str_list(compression_models), compression_data=compression_data,
                       resolution=resolution, jobs=jobs, threads=threads, device=device,
                       options=options,

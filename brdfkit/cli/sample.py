@@ -1,4 +1,4 @@
-"""``brdfkit sample``: draw sparse measurements of a dense MERL table."""
+"""``brdfkit sample``: measure a dense MERL table, at random or at given directions."""
 
 from __future__ import annotations
 
@@ -6,28 +6,57 @@ import click
 
 from ..atomic import refuse_overwrite_of_inputs
 from ..console import console
+from ..errors import InputError
+
+
+def _given(name: str) -> bool:
+    from click.core import ParameterSource
+
+    return click.get_current_context().get_parameter_source(name) is not ParameterSource.DEFAULT
 
 
 @click.command("sample")
 @click.argument("brdf", type=click.Path(dir_okay=True))
-@click.option("-n", "--count", "n", type=click.IntRange(min=1), required=True, help="Number of samples.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
+@click.option("-n", "--count", "n", type=click.IntRange(min=1), default=None,
+              help="Number of random samples (or give --at).")
+@click.option("--at", "at", type=click.Path(dir_okay=False), default=None,
+              help="Directions CSV (e.g. from `brdfkit plan`): measure the table at these directions "
+                   "instead of drawing at random (docs/formats.md).")
+@click.option("--seed", type=int, default=0, show_default=True, help="Random seed (with -n).")
 @click.option("--distribution", type=click.Choice(["angles", "cells"]), default="angles", show_default=True,
-              help="Uniform over Rusinkiewicz angles, or over measured cells.")
+              help="With -n: uniform over Rusinkiewicz angles, or over measured cells.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output CSV.")
-def command(brdf, n, seed, distribution, output):
-    """Draw N measurements of the MERL table BRDF into a CSV sample set.
+def command(brdf, n, at, seed, distribution, output):
+    """Measure the MERL table BRDF into a CSV sample set: N random measurements (-n), or
+    one at each direction of a directions CSV (--at).
 
-    Only measured cells are drawn. The CSV has columns theta_h,theta_d,phi_d,r,g,b
-    (radians, BRDF in 1/sr); see docs/formats.md.
+    With -n only measured cells are drawn, each with its cell's angles and value. With
+    --at each direction gets the table's trilinear interpolation there (a cell's own
+    value at its own angles). The CSV has columns theta_h,theta_d,phi_d,r,g,b (radians,
+    BRDF in 1/sr); see docs/formats.md.
     """
     import os
 
     from ..merl import read_merl
-    from ..samples import draw_samples, write_samples
+    from ..samples import draw_samples, measure_samples, write_samples
 
-    refuse_overwrite_of_inputs(output, [brdf])
-    table = read_merl(brdf)
-    samples = draw_samples(table, n, seed, distribution, source=os.path.basename(brdf))
+    if (n is None) == (at is None):
+        raise InputError("give either -n N (random samples) or --at DIRECTIONS.csv, not " +
+                         ("both" if n is not None else "neither"))
+    if at is not None:
+        extra = [f"--{o}" for o in ("seed", "distribution") if _given(o)]
+        if extra:
+            raise InputError(f"{' and '.join(extra)} apply to random samples (-n), not to --at")
+    refuse_overwrite_of_inputs(output, [brdf] + ([at] if at else []))
+    name = os.path.basename(brdf)
+    if at is not None:
+        from ..directions import read_directions
+
+        directions = read_directions(at)  # before the table: a bad file is refused at once
+        samples = measure_samples(read_merl(brdf), directions, source=name)
+        how = f" at the directions of {at}"
+    else:
+        samples = draw_samples(read_merl(brdf), n, seed, distribution, source=name)
+        how = ""
     write_samples(output, samples)
-    console().print(f"wrote {len(samples)} samples of {brdf} to {output}")
+    console().print(f"wrote {len(samples)} samples of {brdf}{how} to {output}")

@@ -1,0 +1,55 @@
+"""``brdfkit plan``: choose N measurement directions for a reconstruction."""
+
+from __future__ import annotations
+
+import click
+
+_DESIGNS = ("nielsen", "uniform")  # brdfkit.planning.DESIGNS, not imported here: --help stays light
+
+
+def _given(name: str) -> bool:
+    from click.core import ParameterSource
+
+    return click.get_current_context().get_parameter_source(name) is not ParameterSource.DEFAULT
+
+
+@click.command("plan")
+@click.option("-n", "--count", "n", type=click.IntRange(min=1), required=True, help="Number of directions.")
+@click.option("-m", "--model", "model", type=click.Path(dir_okay=False), default=None, metavar="NAME|FILE",
+              help="The PCA basis to plan for: a built-in with a learnt prior (`brdfkit models`; its basis), a "
+                   "learnt-prior file or a basis file from `brdfkit fit --method ipca`; default: the default "
+                   "built-in's (none for --design uniform).")
+@click.option("--design", type=click.Choice(_DESIGNS), default="nielsen", show_default=True,
+              help="nielsen: minimum condition number of the basis rows (Nielsen et al. 2015); uniform: uniform "
+                   "over the Rusinkiewicz angles, as `brdfkit sample -n` draws.")
+@click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything random in the design.")
+@click.option("--evaluations", type=click.IntRange(min=1), default=None,
+              help="nielsen: cells evaluated per added direction [default: 2000].")
+@click.option("--refine/--no-refine", default=None,
+              help="nielsen: move the chosen cells to better grid neighbours at the end [default: refine].")
+@click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output directions CSV.")
+def command(n, model, design, seed, evaluations, refine, output):
+    """Write N measurement directions chosen for the reconstruction with a PCA basis.
+
+    The CSV (docs/formats.md, "Directions CSV") gives each direction pair as the
+    Rusinkiewicz angles theta_h,theta_d,phi_d (radians) and as the unit vectors
+    wi_x..wo_z of the local frame (z the normal): what the light source and the detector
+    are set to. Measure there (or `brdfkit sample TABLE --at` it), then `brdfkit sparse`.
+    See docs/planning.md.
+    """
+    from ..atomic import refuse_overwrite_of_inputs
+    from ..console import console
+    from ..errors import InputError
+    from ..directions import write_directions
+    from ..planning import plan_directions
+
+    refuse_overwrite_of_inputs(output, [model] if model else [])
+    options = {k: v for k, v in (("evaluations", evaluations), ("refine", refine)) if _given(k)}
+    if options and design != "nielsen":
+        raise InputError(f"{' and '.join('--' + k for k in options)} apply to --design nielsen, not {design}")
+    plan = plan_directions(model, n, design=design, seed=seed, **options)
+    write_directions(output, plan.directions, comments=[
+        f"brdfkit plan: {plan.describe()}",
+        "theta_h,theta_d,phi_d: Rusinkiewicz angles in radians; wi, wo: unit vectors, z the surface normal, "
+        "phi_h = 0 (any rotation about the normal measures the same)"])
+    console().print(f"wrote {len(plan)} directions to {output} ({plan.describe()})")
