@@ -1,0 +1,110 @@
+"""How large a basis, fitted how, for sparse reconstruction judged by renders? (issue 22)
+
+Issue 22 asks the default ``brdfkit sparse`` to beat 8-component IPCA (Nielsen et al.
+2015) by 1 dB of render PSNR from N = 160 samples up. At N = 4000 an 8-component basis is
+at its own ceiling (the projection of the whole table); a larger basis raises the ceiling
+but has more coefficients to fit from few samples. This study measures both, with the
+render-aligned error of :mod:`brdfkit.render.screen` (32 px reference scene; Spearman
+0.996 with 128 px reference PSNR, ``docs/render-error.md``), never touching the 20 test
+materials:
+
+* bases fitted on the 64 MERL training materials outside ``benchmarks/validation.txt``
+  (``brdfkit fit --method ipca PROXIES --exclude-list TEST+VALIDATION --components K``), scored on the 16 validation ones;
+* samples: :func:`brdfkit.samples.draw_samples` (uniform over the Rusinkiewicz angles),
+  draws ``--seeds``;
+* fits: ``ipca`` (the basis's own ridge fit, :meth:`IpcaModel.coefficients`), ``solve``
+  (the learnt prior's closed form :func:`~brdfkit.methods.prior.model.solve` without a
+  network, the likelihood ``weight``/``s2``/``lam``), ``proj`` (least squares on the whole
+  table: the ceiling).
+
+    python benchmarks/studies/study_basis.py --proxies /work/proxies \
+        --basis 8=b8.safetensors 16=b16.safetensors 32=b32.safetensors --n 40 160 400 4000 --seeds 0 1
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import pathlib
+import time
+
+import numpy as np
+
+HERE = pathlib.Path(__file__).resolve().parent
+VALIDATION = HERE.parent / "validation.txt"
+
+FITS = ("ipca", "proj", "energy:0.01", "energy:0.03", "energy:0.1", "metric:0.03")
+
+
+def fit(basis, samples, table, how: str, lam: float):
+    """Coefficients ``(K, 3)`` of one fit (module docstring)."""
+    import torch
+
+    from brdfkit.methods.prior.model import sample_rows, solve
+
+    if how == "ipca":
+        return basis.coefficients(samples)
+    if how == "proj":
+        return basis.project(table)
+    weight, s2 = how.split(":")
+    ok, tab, w, cos, rho, _ = sample_rows(basis, samples)
+    T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
+    sig = torch.from_numpy(basis.sigma.astype(np.float32))[None]
+    with torch.no_grad():
+        c, _ = solve(T(tab), T(rho), T(w), T(cos), sig, float(s2), lam, weight=weight)
+    return c[0].double().numpy().T
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--proxies", required=True, help="folder of the 100 MERL proxy .binary tables")
+    ap.add_argument("--basis", nargs="+", required=True, help="K=FILE ipca model files")
+    ap.add_argument("--n", nargs="+", type=int, default=[40, 160, 400, 4000])
+    ap.add_argument("--seeds", nargs="+", type=int, default=[0])
+    ap.add_argument("--fits", nargs="+", default=list(FITS))
+    ap.add_argument("--lam", type=float, default=0.1, help="IPCA likelihood variance of solve")
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+
+    from brdfkit.merl import read_merl
+    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.metrics import brdf_log_rmse
+    from brdfkit.render.screen import screen, screen_psnr
+    from brdfkit.samples import draw_samples
+
+    names = VALIDATION.read_text().split()
+    bases = {int(k): load_ipca(f) for k, f in (s.split("=", 1) for s in args.basis)}
+    sc = screen()
+    rows, t0 = [], time.monotonic()
+    for name in names:
+        table = read_merl(pathlib.Path(args.proxies) / f"{name}.binary")
+        ref_img = sc.render_table(table)
+        for n in args.n:
+            for seed in args.seeds:
+                s = draw_samples(table, n, seed=seed, source=name)
+                for k, basis in bases.items():
+                    for how in args.fits:
+                        if how == "proj" and (n != args.n[0] or seed != args.seeds[0]):
+                            continue
+                        rec = basis.decode(fit(basis, s, table, how, args.lam))
+                        rows.append({"material": name, "n": n, "seed": seed, "k": k, "fit": how,
+                                     "psnr": screen_psnr(sc.render_table(np.nan_to_num(rec)), ref_img),
+                                     "log_rmse": float(brdf_log_rmse(rec, table))})
+        print(f"{name} done, {time.monotonic() - t0:.0f} s", flush=True)
+    print("\nmean screen PSNR (dB) / log RMSE over the validation materials and draws")
+    print("| K | fit | " + " | ".join(f"N = {n}" for n in args.n) + " |")
+    print("| --- | --- |" + " ---: |" * len(args.n))
+    for k in bases:
+        for how in args.fits:
+            cells = []
+            for n in args.n:
+                r = [x for x in rows if x["k"] == k and x["fit"] == how and (x["n"] == n or how == "proj")]
+                cells.append(f"{np.mean([x['psnr'] for x in r]):.2f} / {np.mean([x['log_rmse'] for x in r]):.4f}"
+                             if r else "")
+            print(f"| {k} | {how} | " + " | ".join(cells) + " |")
+    if args.json:
+        pathlib.Path(args.json).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
