@@ -59,6 +59,20 @@ def basis(library):
 
 # --- IPCA -------------------------------------------------------------------------------------
 
+def test_ipca_leading_components_are_the_smaller_fit(library):
+    """A basis's leading components are the basis a smaller fit to the same tables gives
+    (what the IPCA baseline takes from a built-in basis of 32 components)."""
+    train = library[0][:6]
+    small = fit_ipca(train, n_components=4, names=[f"m{i}" for i in range(len(train))])
+    big = fit_ipca(train, n_components=5, names=[f"m{i}" for i in range(len(train))]).leading(4)
+    np.testing.assert_allclose(big.sigma, small.sigma, rtol=1e-5)
+    cos = np.sum(big.components * small.components, axis=1) / (
+        np.linalg.norm(big.components, axis=1) * np.linalg.norm(small.components, axis=1))
+    assert big.n_components == 4 and np.all(np.abs(cos) > 1 - 1e-4), cos
+    with pytest.raises(InputError, match="no 6 leading"):
+        small.leading(6)
+
+
 def test_ipca_basis_shapes_and_orthonormality(basis):
     assert basis.n_components == 4
     assert basis.materials == [f"m{i}" for i in range(12)]

@@ -102,6 +102,14 @@ class IpcaModel:
     def n_components(self) -> int:
         return int(self.components.shape[0])
 
+    def leading(self, k: int) -> "IpcaModel":
+        """The basis of the ``k`` strongest components. PCA bases are nested: this is the
+        basis a fit with ``k`` components to the same tables gives (the same mean,
+        reference and components, to float precision)."""
+        if not 1 <= k <= self.n_components:
+            raise InputError(f"a basis of {self.n_components} components has no {k} leading ones")
+        return dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None)
+
     def _table(self) -> np.ndarray:
         """Dense ``(N_CELLS, K + 2)`` float32 ``[reference, mean, components...]``, NaN
         off the basis cells, built once for trilinear lookups."""
