@@ -5,10 +5,11 @@ The models are trained by the ``brdfkit fit`` commands listed in ``docs/models.m
 hypernetworks in float16 with one shared reference file (they were all trained against
 the reference of ``merl80-l40``, ``-O reference=``), learnt priors with the one shared
 basis file they were trained on. Validation figures come from
-``benchmarks/eval_sparse.py --json`` (held-out materials only).
+``benchmarks/eval_sparse.py --json`` or ``brdfkit bench``'s ``bench.json`` (held-out
+materials only: the learnt prior's mean log RMSE per N).
 
     python benchmarks/pack_builtin.py --src /work/models --dst brdfkit/models \
-        --validation merl80-l40=eval-merl80-test.json
+        --validation merl80-l40=bench-uniform/bench.json
 """
 
 from __future__ import annotations
@@ -18,26 +19,42 @@ import json
 import os
 import shutil
 
+_PAPER = ("brdfkit fit PROXIES/merl PROXIES/rgl {latent}-O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
+          "-o {name}-paper.safetensors")
+_PRIOR = ("brdfkit fit --method prior {data} -O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 "
+          "--steps 3000 --seed 0 -o {name}.safetensors")
+# The tuning's stages (brdfkit tune, docs/training.md): each a --resume of the last with
+# its learning rates; --steps is the stage's last step (the first two stages ran to a
+# time limit, and stopped there).
+_STAGES = ("", " -O lr_encoder=1e-3", " -O lr_decoder=3e-5 -O lr_latent=1e-3 -O lr_encoder=1e-3",
+           " -O lr_decoder=1e-5 -O lr_latent=3e-4 -O lr_encoder=1e-3")
+
+
+def _tuned(name, ends):
+    return "; ".join(f"brdfkit tune PROXIES/merl PROXIES/rgl -m {name}-paper.safetensors -o {name}.safetensors "
+                     f"--steps {end}" + (" --resume" if i else "") + _STAGES[i] for i, end in enumerate(ends))
+
+
 MODELS = [  # name, hypernetwork file, learnt-prior file, materials list, fit commands
     ("merl-rgl-l40", "merl-rgl-l40.safetensors", "merl-rgl-prior.safetensors", "MERL + RGL (151)",
-     "brdfkit fit PROXIES/merl PROXIES/rgl -O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
-     "-o merl-rgl-l40-paper.safetensors; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l40-paper.safetensors "
-     "-o merl-rgl-l40.safetensors --minutes 50; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l40-paper.safetensors "
-     "-o merl-rgl-l40.safetensors --minutes 44 --resume -O lr_encoder=1e-3; brdfkit fit --method prior PROXIES/merl PROXIES/rgl "
-     "-O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 --steps 3000 --seed 0 -o merl-rgl-prior.safetensors"),
+     _PAPER.format(name="merl-rgl-l40", latent="") + "; " + _tuned("merl-rgl-l40", (8965, 13633, 19735, 27242))
+     + "; " + _PRIOR.format(data="PROXIES/merl PROXIES/rgl", name="merl-rgl-prior")),
     ("merl80-l40", "merl80-l40.safetensors", "merl80-prior.safetensors", "MERL less merl-test.txt (80)",
      "brdfkit fit PROXIES/merl --exclude-list merl-test.txt --minutes 14 --seed 0 -o merl80-l40.safetensors; "
-     "brdfkit fit --method ipca PROXIES/merl --exclude-list merl-test.txt -O half=true -O phi_stride=2 "
-     "-o merl80-basis.safetensors; brdfkit fit --method prior PROXIES/merl --exclude-list merl-test.txt "
-     "-O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 --steps 3000 --seed 0 -o merl80-prior.safetensors"),
+     "brdfkit fit --method ipca PROXIES/merl --exclude-list merl-test.txt --components 32 -O half=true -O phi_stride=2 "
+     "-o merl80-basis.safetensors; " + _PRIOR.format(data="PROXIES/merl --exclude-list merl-test.txt", name="merl80-prior")),
     ("merl-rgl-l7", "merl-rgl-l7.safetensors", None, "MERL + RGL (151)",
-     "brdfkit fit PROXIES/merl PROXIES/rgl --latent-dim 7 -O reference=merl80-l40.safetensors --minutes 14 "
-     "--seed 0 -o merl-rgl-l7-paper.safetensors; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l7-paper.safetensors "
-     "-o merl-rgl-l7.safetensors --minutes 50; brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l7-paper.safetensors "
-     "-o merl-rgl-l7.safetensors --minutes 44 --resume -O lr_encoder=1e-3"),
+     _PAPER.format(name="merl-rgl-l7", latent="--latent-dim 7 ") + "; " + _tuned("merl-rgl-l7", (9710, 14495, 20283))),
 ]
 REFERENCE = "merl80-reference.safetensors"
 BASIS = "merl80-basis.safetensors"
+
+
+def _tune_record(path):
+    """A model file's ``meta["tune"]`` (``brdfkit tune``), or ``None``."""
+    from brdfkit.api import load_model
+
+    return load_model(path, "cpu").meta.get("tune")
 
 
 def main():
@@ -71,6 +88,10 @@ def main():
         pack_model(os.path.join(args.src, hyper), dst, half=True, reference_file=REFERENCE)
         entry = manifest_entry(dst, name, command=command, validation=validation.get(name, {}),
                                materials_list=mats)
+        tuned = _tune_record(dst)
+        if tuned:  # the manifest counts the paper's steps and the screen tuning's together
+            entry["steps"] += int(tuned["steps"])
+            entry["train_seconds"] = round(entry["train_seconds"] + float(tuned["wall_time_s"]), 1)
         if prior:
             entry["prior"] = prior
             entry["prior_fingerprint"] = pack_prior(os.path.join(args.src, prior), os.path.join(args.dst, prior), BASIS)

@@ -86,3 +86,14 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path):
     assert np.isfinite(out[np.isfinite(ref)]).all()
     # The learnt prior from 400 samples is a useful reconstruction of an unseen material.
     assert brdf_log_rmse(out, ref) < 0.5
+
+
+def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped):
+    """The learnt priors fit the shared 32-component basis (issue 22); `--method ipca`
+    with a built-in's name stays the baseline of Nielsen et al., its leading 8."""
+    from brdfkit.methods import get_method
+
+    prior = get_method("prior").load("merl80-l40", "cpu")
+    ipca = get_method("ipca").load("merl80-l40", "cpu")
+    assert prior.basis.n_components == 32 and ipca.n_components == 8
+    np.testing.assert_array_equal(ipca.sigma, prior.basis.sigma[:8])
