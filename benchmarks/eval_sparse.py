@@ -74,7 +74,8 @@ def main():
     names = read_exclude_list(args.list)
     variants = {"prior": lambda s: prior.reconstruct(s),
                 "basis fit": lambda s: prior.reconstruct(s, use_prior=False)} if prior else {}
-    variants["ipca"] = lambda s: basis.reconstruct(s)
+    ipca = basis.baseline() if prior else basis  # the prior's basis may have more components than IPCA-8
+    variants["ipca"] = lambda s: ipca.reconstruct(s)
     if args.hypernet:
         from brdfkit import api
         from brdfkit.model.builtin import load_builtin

@@ -340,10 +340,8 @@ def design_rows(basis, directions: DirectionSet) -> np.ndarray:
     """
     from .methods.ipca import cosine_weight
 
-    dense = np.full((N_CELLS, basis.n_components), np.nan, np.float32)
-    dense[basis.cells] = basis.components.T
-    at = lookup_trilinear(dense.reshape(GRID_SHAPE + (-1,)), directions.theta_h, directions.theta_d,
-                          directions.phi_d).astype(np.float64)
+    at = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), directions.theta_h, directions.theta_d,
+                          directions.phi_d)[:, 2:].astype(np.float64)
     used = np.isfinite(at).all(axis=1) & (cosine_weight(directions.theta_h, directions.theta_d,
                                                         directions.phi_d) > 0)
     return at[used] * basis.sigma.astype(np.float64)[None, :]

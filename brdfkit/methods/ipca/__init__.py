@@ -47,11 +47,8 @@ def _load(path, device):
     from ...model.builtin import is_path_spec, resolve_basis
 
     basis = load_ipca(resolve_basis(path))
-    if not is_path_spec(path) and basis.n_components > DEFAULT_COMPONENTS:
-        # A built-in's basis has the components its learnt prior fits (32); the baseline is
-        # Nielsen et al.'s 8, the leading ones of the same basis.
-        basis = basis.leading(DEFAULT_COMPONENTS)
-    return basis
+    # A built-in's basis has the components its learnt prior fits; a file is used whole.
+    return basis if is_path_spec(path) else basis.baseline()
 
 
 def _reconstruct(samples, model, options, *, seed, device):

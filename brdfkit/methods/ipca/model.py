@@ -110,6 +110,12 @@ class IpcaModel:
             raise InputError(f"a basis of {self.n_components} components has no {k} leading ones")
         return dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None)
 
+    def baseline(self) -> "IpcaModel":
+        """The basis of the IPCA baseline: Nielsen et al.'s :data:`DEFAULT_COMPONENTS`
+        leading components when this basis has more (the built-ins' basis has the 32 their
+        learnt priors fit), else this basis."""
+        return self.leading(DEFAULT_COMPONENTS) if self.n_components > DEFAULT_COMPONENTS else self
+
     def _table(self) -> np.ndarray:
         """Dense ``(N_CELLS, K + 2)`` float32 ``[reference, mean, components...]``, NaN
         off the basis cells, built once for trilinear lookups."""
