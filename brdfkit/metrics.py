@@ -33,7 +33,7 @@ import numpy as np
 
 from .errors import InputError
 
-__all__ = ["EXPOSURE", "PSNR_CAP", "brdf_log_rmse", "display_encode", "srgb_oetf",
+__all__ = ["EXPOSURE", "PSNR_CAP", "brdf_log_rmse", "dark_at_grazing", "display_encode", "srgb_oetf",
            "psnr", "delta_e_2000", "delta_e_2000_map", "ssim", "image_metrics", "score"]
 
 EXPOSURE = 1.0
@@ -95,6 +95,20 @@ def brdf_log_rmse(pred, ref) -> float:
     if not (np.isfinite(p).all() and np.isfinite(r).all()):
         raise InputError("brdf_log_rmse: a table holds values too negative for the log (rho cos_i <= -1)")
     return float(np.sqrt(np.mean((p - r) ** 2)))
+
+
+def dark_at_grazing(pred, ref, above_deg: float = 80.0) -> float:
+    """Share of the measured cells with ``theta_h > above_deg`` (degrees) where a channel
+    of ``pred`` is below a tenth of ``ref``: a reconstruction "orders of magnitude below
+    the data at grazing angles" (issue 22), which cosine-weighted errors and renders
+    barely see. Both ``(90, 90, 180, 3)`` tables in 1/sr; cells where ``ref`` is below
+    1e-4 /sr (black there) or either is NaN are not counted; 0 when none is left."""
+    from .geometry import grid_angles
+
+    rows = np.degrees(grid_angles()[0]) > above_deg
+    p, r = np.asarray(pred, np.float64)[rows], np.asarray(ref, np.float64)[rows]
+    ok = np.isfinite(p) & np.isfinite(r) & (r > 1e-4)
+    return float(np.mean(p[ok] < 0.1 * r[ok])) if ok.any() else 0.0
 
 
 def srgb_oetf(x):

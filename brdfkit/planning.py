@@ -10,9 +10,16 @@ name         design                                                        basis
 ============ ============================================================= =========
 ``nielsen``  greedy minimum condition number of the basis rows (Nielsen,   needed
              Jensen and Ramamoorthi 2015), then moved cell by cell
+``render``   greedy minimum expected render error of the fit under the     needed
+             basis's prior (:mod:`brdfkit.render_design`)
 ``uniform``  uniform over the Rusinkiewicz angles, as ``brdfkit sample``   optional
              draws (:func:`brdfkit.samples.draw_cells`)
 ============ ============================================================= =========
+
+A design is chosen for a *fit*: the PCA basis, and the precision the fit gives a sample
+(:class:`~brdfkit.render_design.Likelihood`), which a learnt-prior model's config holds
+and a plain basis (IPCA's ridge fit) does not need. The ``render`` design uses both; the
+``nielsen`` design the basis alone.
 
 The Nielsen et al. design
 -------------------------
@@ -63,14 +70,17 @@ from .geometry import GRID_SHAPE, N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, cell_a
     valid_mask
 from .trilinear import lookup_trilinear
 
-__all__ = ["Plan", "Design", "DESIGNS", "DEFAULT_DESIGN", "DEFAULT_EVALUATIONS", "plan_directions", "plan_basis",
-           "design_rows", "condition_number"]
+__all__ = ["Plan", "Design", "DESIGNS", "DEFAULT_DESIGN", "DEFAULT_EVALUATIONS", "DEFAULT_CANDIDATES",
+           "plan_directions", "plan_basis", "plan_target", "design_rows", "condition_number"]
 
 DEFAULT_DESIGN = "nielsen"
 DEFAULT_EVALUATIONS = 2000
 """Cells evaluated per added direction: Nielsen et al. evaluate 500; 2,000 cost 5 to 8 ms
 per direction on the 2-core development machine under load (a batch of ``K x K``
 eigenvalue problems, ``K = 8``; ``docs/planning.md`` has whole-command times)."""
+DEFAULT_CANDIDATES = 100_000
+"""Candidate cells of the ``render`` design, drawn at random from the basis's measurable
+cells (about 700,000 for a MERL basis): each added direction costs a pass over them."""
 _MAX_SWEEPS = 40
 
 
@@ -146,14 +156,16 @@ class Design:
 class _Pool:
     """The candidate cells of a basis: sorted flat indices ``cells`` (P,), their design
     rows ``rows`` (P, K) float32 (components times sigma), and ``where`` (N_CELLS,) int64,
-    each cell's position in ``cells`` or -1."""
+    each cell's position in ``cells`` or -1; the ``basis`` and the fit's ``likelihood``."""
 
     cells: np.ndarray
     rows: np.ndarray
     where: np.ndarray
+    basis: object = None
+    likelihood: object = None
 
     @classmethod
-    def of(cls, basis) -> "_Pool":
+    def of(cls, basis, likelihood=None) -> "_Pool":
         allowed = valid_mask().reshape(N_CELLS) & (grid_cosine_weight() > 0)
         keep = allowed[basis.cells]
         cells = np.asarray(basis.cells, np.int64)[keep]
@@ -162,7 +174,7 @@ class _Pool:
         rows = basis.components[:, keep].T * basis.sigma.astype(np.float32)[None, :]
         where = np.full(N_CELLS, -1, np.int64)
         where[cells] = np.arange(cells.size)
-        return cls(cells, np.ascontiguousarray(rows, np.float32), where)
+        return cls(cells, np.ascontiguousarray(rows, np.float32), where, basis, likelihood)
 
 
 def _cond2(gram_batch: np.ndarray, rank: int) -> np.ndarray:
@@ -257,6 +269,23 @@ def _nielsen_design(pool, n, seed, evaluations=DEFAULT_EVALUATIONS, refine=True)
     return pool.cells[_nielsen(pool, n, rng, evaluations=evaluations, refine=refine)]
 
 
+def _render_design(pool, n, seed, draws=None, candidates=DEFAULT_CANDIDATES):
+    from .render_design import DEFAULT_DRAWS, cell_precision, greedy_render, render_metric
+
+    draws = DEFAULT_DRAWS if draws is None else int(draws)
+    if draws < 0 or int(candidates) < 1:
+        raise InputError(f"render design: draws must be >= 0 and candidates >= 1, got {draws} and {candidates}")
+    rng = np.random.default_rng(seed)
+    p = pool.cells.size
+    if n > p:
+        raise InputError(f"{n} directions asked for, but the basis covers only {p} measurable cells")
+    pick = np.sort(rng.choice(p, size=min(p, max(int(candidates), n)), replace=False))
+    cells = pool.cells[pick]
+    q = cell_precision(pool.basis, cells, pool.likelihood, draws=draws, seed=seed)
+    metric = render_metric(pool.basis, draws=draws, seed=seed)
+    return cells[greedy_render(pool.rows[pick], q, metric, n)]
+
+
 def _uniform_design(pool, n, seed):
     from .samples import draw_cells
 
@@ -268,6 +297,8 @@ def _uniform_design(pool, n, seed):
 DESIGNS: dict[str, Design] = {
     "nielsen": Design("nielsen", "greedy minimum condition number of the PCA basis rows (Nielsen et al. 2015)",
                       _nielsen_design, needs_basis=True, options=("evaluations", "refine")),
+    "render": Design("render", "greedy minimum expected render error of the fit under the basis's prior "
+                     "(brdfkit.render_design)", _render_design, needs_basis=True, options=("draws", "candidates")),
     "uniform": Design("uniform", "uniform over the Rusinkiewicz angles, as `brdfkit sample -n` draws",
                       _uniform_design, needs_basis=False),
 }
@@ -275,19 +306,30 @@ DESIGNS: dict[str, Design] = {
 
 
 def plan_basis(spec: str | os.PathLike | None = None):
-    """The PCA basis a ``-m`` value names for planning, and its label.
+    """The PCA basis a ``-m`` value names for planning, and its label: the first two of
+    :func:`plan_target`."""
+    basis, label, _ = plan_target(spec)
+    return basis, label
+
+
+def plan_target(spec=None):
+    """The fit a ``-m`` value names for planning: its PCA basis, a label and the
+    precision the fit gives a sample.
 
     Parameters
     ----------
     spec
-        A built-in model's name (the basis its learnt prior is fitted with), a PCA basis
-        file (``brdfkit fit --method ipca``), a learnt-prior file (its basis) or ``None``
-        (the default built-in's basis).
+        A built-in model's name (its learnt prior: the basis and the prior's likelihood),
+        a learnt-prior file (likewise), a PCA basis file (``brdfkit fit --method ipca``;
+        IPCA's ridge fit), an :class:`~brdfkit.methods.ipca.IpcaModel` or
+        :class:`~brdfkit.methods.prior.model.PriorModel`, or ``None`` (the default
+        built-in's learnt prior).
 
     Returns
     -------
     tuple
-        ``(IpcaModel, label)``.
+        ``(IpcaModel, label, Likelihood)``
+        (:class:`~brdfkit.render_design.Likelihood`).
 
     Raises
     ------
@@ -296,31 +338,40 @@ def plan_basis(spec: str | os.PathLike | None = None):
         built-in installed.
     """
     from .atomic import check_input_file
-    from .methods.ipca import IpcaModel, load_ipca
+    from .methods.ipca import DEFAULT_LAMBDA, IpcaModel, load_ipca
     from .methods.model_spec import file_method, resolve_for
     from .model.builtin import is_path_spec, read_manifest
+    from .render_design import Likelihood
 
+    def prior(path, label):
+        from .methods import get_method
+
+        model = get_method("prior").load(path, "cpu")
+        return model.basis, label, Likelihood(model.cfg.weight, model.cfg.s2, model.cfg.lam)
+
+    ridge = Likelihood(None, lam=DEFAULT_LAMBDA)
+    if isinstance(spec, tuple) and len(spec) == 3 and isinstance(spec[0], IpcaModel):
+        return spec  # a target this function made: loaded once, planned for many times
     if isinstance(spec, IpcaModel):
-        return spec, "the given basis"
+        return spec, "the given basis", ridge
+    if hasattr(spec, "basis") and hasattr(spec, "cfg"):
+        return spec.basis, "the given learnt prior", Likelihood(spec.cfg.weight, spec.cfg.s2, spec.cfg.lam)
     if spec is None:
         entry = next((m for m in read_manifest().installed() if m.default), None)
         if entry is None:
             raise InputError("no PCA basis given: pass -m NAME (a built-in model with a learnt prior, "
                              "`brdfkit models`) or -m BASIS.safetensors (`brdfkit fit --method ipca`); "
                              "no default built-in model is installed")
-        basis = load_ipca(resolve_for("ipca", entry.name))
-        return basis, f"{entry.name}, the default built-in"
+        return prior(resolve_for("prior", entry.name), f"{entry.name}, the default built-in")
     spec = os.fspath(spec)
     if not is_path_spec(spec):
-        return load_ipca(resolve_for("ipca", spec)), spec
+        return prior(resolve_for("prior", spec), spec)
     check_input_file(spec)
     kind = file_method(spec)
     if kind == "ipca":
-        return load_ipca(spec), os.path.basename(spec)
+        return load_ipca(spec), os.path.basename(spec), ridge
     if kind == "prior":
-        from .methods import get_method
-
-        return get_method("prior").load(spec, "cpu").basis, os.path.basename(spec)
+        return prior(spec, os.path.basename(spec))
     raise InputError(f"{spec}: not a PCA basis or a learnt-prior model file; planning needs a basis: a built-in "
                      f"name with a learnt prior, a learnt-prior file or a file from `brdfkit fit --method ipca`")
 
@@ -366,8 +417,9 @@ def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, se
     Parameters
     ----------
     model
-        The PCA basis, as :func:`plan_basis` takes it (a built-in name, a basis or
-        learnt-prior file, an :class:`~brdfkit.methods.ipca.IpcaModel`); ``None``: the
+        The fit to plan for, as :func:`plan_target` takes it (a built-in name, a basis or
+        learnt-prior file, an :class:`~brdfkit.methods.ipca.IpcaModel` or a learnt-prior
+        model, or what :func:`plan_target` returned); ``None``: the
         default built-in's for a design that needs one, none for ``uniform`` (whose plan
         then has no condition number).
     n
@@ -378,7 +430,9 @@ def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, se
         Seeds everything random in the design.
     options
         The design's options (``nielsen``: ``evaluations``, :data:`DEFAULT_EVALUATIONS`;
-        ``refine``, ``True``).
+        ``refine``, ``True``; ``render``: ``draws``,
+        :data:`~brdfkit.render_design.DEFAULT_DRAWS`; ``candidates``,
+        :data:`DEFAULT_CANDIDATES`).
 
     Returns
     -------
@@ -402,8 +456,8 @@ def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, se
     n = int(n)
     if n < 1:
         raise InputError(f"number of directions must be at least 1, got {n}")
-    basis, label = (None, None) if model is None and not d.needs_basis else plan_basis(model)
-    pool = _Pool.of(basis) if basis is not None and d.needs_basis else None
+    basis, label, likelihood = (None, None, None) if model is None and not d.needs_basis else plan_target(model)
+    pool = _Pool.of(basis, likelihood) if basis is not None and d.needs_basis else None
     cells = np.asarray(d.choose(pool, n, seed, **options), np.int64)
     th, td, pd = cell_angles(cells)
     directions = DirectionSet(th, td, pd, f"plan {design} N={n} seed={seed}")

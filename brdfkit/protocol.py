@@ -49,7 +49,7 @@ class SamplingProtocol:
     sampling
         A name of :data:`SAMPLINGS`.
     basis
-        ``planned``: the PCA basis to plan for, as :func:`brdfkit.planning.plan_basis`
+        ``planned``: the fit to plan for, as :func:`brdfkit.planning.plan_target`
         takes it (a built-in name, a basis or learnt-prior file, an
         :class:`~brdfkit.methods.ipca.IpcaModel`); loaded once. ``uniform``: ``None``.
     design
@@ -59,7 +59,7 @@ class SamplingProtocol:
     """
 
     def __init__(self, sampling: str = "uniform", basis=None, design: str | None = None):
-        from .planning import DEFAULT_DESIGN, DESIGNS, plan_basis
+        from .planning import DEFAULT_DESIGN, DESIGNS, plan_target
 
         if sampling not in SAMPLINGS:
             raise InputError(f"unknown sampling {sampling!r}; known: {', '.join(SAMPLINGS)}")
@@ -75,7 +75,8 @@ class SamplingProtocol:
             raise InputError(f"unknown design {self.design!r}; known: {', '.join(DESIGNS)}")
         if basis is None:
             raise InputError("planned sampling needs the PCA basis to plan for")
-        self.basis, self.basis_label = plan_basis(basis)
+        self._target = plan_target(basis)
+        self.basis, self.basis_label = self._target[:2]
 
     def plan(self, n: int, draw: int):
         """The :class:`~brdfkit.planning.Plan` of ``n`` directions for draw ``draw``
@@ -84,7 +85,7 @@ class SamplingProtocol:
 
         key = (int(n), int(draw))
         if key not in self._plans:
-            self._plans[key] = plan_directions(self.basis, int(n), design=self.design, seed=int(draw))
+            self._plans[key] = plan_directions(self._target, int(n), design=self.design, seed=int(draw))
         return self._plans[key]
 
     def samples(self, table, name: str, n: int, draw: int):

@@ -388,3 +388,28 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
     assert [n for n, m in METHODS.items() if m.fit_fn is not None] == ["hypernet", "ipca", "prior"]
     with pytest.raises(InputError, match="has no model to fit"):
         get_method("nbrdf").fit([], tmp_path / "x.safetensors")
+
+
+def test_ipca_weight_floor(library, tmp_path):
+    """A basis whose mapping weight is bounded below (``w_floor``, issue 22's grazing
+    angles): the weight it maps with, its file, and a held-out material's grazing cells
+    reconstructed no darker than Nielsen's mapping leaves them."""
+    from brdfkit.metrics import dark_at_grazing
+
+    train, held = library
+    floor = fit_ipca(train, n_components=4, w_floor=0.1)
+    plain = fit_ipca(train, n_components=4)
+    th = np.array([0.0, 1.45, 1.6])  # the last below the horizon
+    np.testing.assert_allclose(floor.weight(th, 0 * th, 0 * th), [1.0, 0.1, 0.0], atol=1e-12)
+    np.testing.assert_allclose(plain.weight(th[:2], 0 * th[:2], 0 * th[:2]), [1.0, np.cos(1.45) ** 2])
+    path = tmp_path / "floor.safetensors"
+    save_ipca(path, floor, half=True, phi_stride=2)
+    assert load_ipca(path).w_floor == 0.1 and load_ipca(tmp_path / "floor.safetensors").n_components == 4
+    save_ipca(tmp_path / "plain.safetensors", plain)
+    assert load_ipca(tmp_path / "plain.safetensors").w_floor == 0.0
+    samples = draw_samples(held, 2000, seed=0)
+    dark_floor = dark_at_grazing(floor.reconstruct(samples), held)
+    dark_plain = dark_at_grazing(plain.reconstruct(samples), held)
+    assert dark_floor <= dark_plain and dark_floor < 0.01, (dark_floor, dark_plain)
+    with pytest.raises(InputError, match=r"w_floor must be in \[0, 1\)"):
+        fit_ipca(train, n_components=2, w_floor=1.0)

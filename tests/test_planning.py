@@ -51,8 +51,8 @@ def shipped():
 # --- the designs ----------------------------------------------------------------------------
 
 def test_registry_names():
-    assert list(DESIGNS) == ["nielsen", "uniform"]
-    assert DESIGNS["nielsen"].needs_basis and not DESIGNS["uniform"].needs_basis
+    assert list(DESIGNS) == ["nielsen", "render", "uniform"]
+    assert DESIGNS["nielsen"].needs_basis and DESIGNS["render"].needs_basis and not DESIGNS["uniform"].needs_basis
 
 
 @pytest.mark.parametrize("n", [3, 12])  # fewer and more directions than the 5 components
@@ -129,7 +129,7 @@ def test_design_rows_leave_out_what_the_fit_leaves_out(small):
 
 
 @pytest.mark.parametrize("call, message", [
-    (dict(design="sobol"), "unknown design 'sobol'; known: nielsen, uniform"),
+    (dict(design="sobol"), "unknown design 'sobol'; known: nielsen, render, uniform"),
     (dict(n=0), "number of directions must be at least 1, got 0"),
     (dict(design="uniform", evaluations=3), "design 'uniform' takes no options, got evaluations"),
     (dict(tries=3), "design 'nielsen' takes the option(s) evaluations, refine, got tries"),
@@ -186,10 +186,11 @@ def test_plan_uniform_without_a_basis(tmp_path, capsys):
 
 @pytest.mark.parametrize("args, message", [
     (["-n", "0"], "Invalid value for '-n' / '--count': 0 is not in the range x>=1. (see 'brdfkit plan --help')"),
-    (["-n", "5", "--design", "sobol"], "Invalid value for '--design': 'sobol' is not one of 'nielsen', 'uniform'. "
+    (["-n", "5", "--design", "sobol"], "Invalid value for '--design': 'sobol' is not one of 'nielsen', 'render', 'uniform'. "
                                        "(see 'brdfkit plan --help')"),
-    (["-n", "5", "--design", "uniform", "--evaluations", "9"], "--evaluations apply to --design nielsen, not uniform"),
-    (["-n", "5", "--design", "uniform", "--no-refine"], "--refine apply to --design nielsen, not uniform"),
+    (["-n", "5", "--design", "uniform", "--evaluations", "9"], "--evaluations do not apply to --design uniform"),
+    (["-n", "5", "--design", "uniform", "--no-refine"], "--refine do not apply to --design uniform"),
+    (["-n", "5", "--draws", "3"], "--draws do not apply to --design nielsen"),
     (["-n", "5", "-m", "no-such-model"], "unknown model 'no-such-model'"),
     (["-n", "5", "-m", "{missing}"], "{missing}: no such file"),
     (["-n", "5", "-m", "{table}"], "{table}: not a PCA basis or a learnt-prior model file; planning needs a basis"),

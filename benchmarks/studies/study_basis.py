@@ -58,7 +58,7 @@ def fit(basis, samples, table, how: str, lam: float):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--proxies", required=True, help="folder of the 100 MERL proxy .binary tables")
-    ap.add_argument("--basis", nargs="+", required=True, help="K=FILE ipca model files")
+    ap.add_argument("--basis", nargs="+", required=True, help="LABEL=FILE ipca model files (LABEL: K, or any name)")
     ap.add_argument("--n", nargs="+", type=int, default=[40, 160, 400, 4000])
     ap.add_argument("--seeds", nargs="+", type=int, default=[0])
     ap.add_argument("--fits", nargs="+", default=list(FITS))
@@ -68,12 +68,12 @@ def main(argv=None):
 
     from brdfkit.merl import read_merl
     from brdfkit.methods.ipca import load_ipca
-    from brdfkit.metrics import brdf_log_rmse
+    from brdfkit.metrics import brdf_log_rmse, dark_at_grazing
     from brdfkit.render.screen import screen, screen_psnr
     from brdfkit.samples import draw_samples
 
     names = VALIDATION.read_text().split()
-    bases = {int(k): load_ipca(f) for k, f in (s.split("=", 1) for s in args.basis)}
+    bases = {k: load_ipca(f) for k, f in (s.split("=", 1) for s in args.basis)}
     sc = screen()
     rows, t0 = [], time.monotonic()
     for name in names:
@@ -89,9 +89,11 @@ def main(argv=None):
                         rec = basis.decode(fit(basis, s, table, how, args.lam))
                         rows.append({"material": name, "n": n, "seed": seed, "k": k, "fit": how,
                                      "psnr": screen_psnr(sc.render_table(np.nan_to_num(rec)), ref_img),
-                                     "log_rmse": float(brdf_log_rmse(rec, table))})
+                                     "log_rmse": float(brdf_log_rmse(rec, table)),
+                                     "dark_grazing": dark_at_grazing(rec, table)})
         print(f"{name} done, {time.monotonic() - t0:.0f} s", flush=True)
-    print("\nmean screen PSNR (dB) / log RMSE over the validation materials and draws")
+    print("\nmean screen PSNR (dB) / log RMSE / share of grazing cells below a tenth of the data, over the "
+          "validation materials and draws")
     print("| K | fit | " + " | ".join(f"N = {n}" for n in args.n) + " |")
     print("| --- | --- |" + " ---: |" * len(args.n))
     for k in bases:
@@ -100,7 +102,7 @@ def main(argv=None):
             for n in args.n:
                 r = [x for x in rows if x["k"] == k and x["fit"] == how and (x["n"] == n or how == "proj")]
                 cells.append(f"{np.mean([x['psnr'] for x in r]):.2f} / {np.mean([x['log_rmse'] for x in r]):.4f}"
-                             if r else "")
+                             f" / {np.mean([x['dark_grazing'] for x in r]):.3f}" if r else "")
             print(f"| {k} | {how} | " + " | ".join(cells) + " |")
     if args.json:
         pathlib.Path(args.json).write_text(json.dumps({"args": vars(args), "rows": rows}, indent=1))

@@ -53,8 +53,8 @@ class BenchConfig:
         fills them in).
     sampling, plan_model, plan_design
         The samplings every (material, N, seed) is run with (:data:`brdfkit.protocol.SAMPLINGS`:
-        ``uniform``, ``planned``); for ``planned``, the PCA basis to plan for (default:
-        ``ipca``'s) and the design (:data:`brdfkit.planning.DESIGNS`).
+        ``uniform``, ``planned``); for ``planned``, the fit to plan for (a built-in's learnt
+        prior, a learnt-prior or basis file; default: ``ipca``'s basis) and the design (:data:`brdfkit.planning.DESIGNS`).
     compression_models, compression_data
         Hypernetwork models to test on encode -> decode of every table in
         ``compression_data`` (plus the PCA basis, when ``ipca`` is given).
@@ -133,7 +133,7 @@ class BenchConfig:
         return dataclasses.replace(
             cfg, **{f: resolve_for(name, getattr(cfg, f)) for f, name in fields.items() if getattr(cfg, f)},
             models={m: resolve_for(m, p) if p else p for m, p in cfg.models.items()},
-            plan_model=resolve_for("ipca", cfg.plan_model) if cfg.plan_model else None,
+            plan_model=_plan_file(cfg.plan_model) if cfg.plan_model else None,
             compression_models=tuple(resolve_for("hypernet", p) for p in cfg.compression_models))
 
     def with_default_methods(self) -> "BenchConfig":
@@ -275,3 +275,11 @@ def sample_seed(seed: int, n: int, name: str) -> int:
     ``benchmarks/eval_sparse.py`` share."""
     return draw_seed(seed, n, name)
 
+
+
+def _plan_file(spec: str) -> str:
+    """The file ``--plan-model`` names: a built-in's learnt prior (its basis and the
+    likelihood the plan is for, :func:`brdfkit.planning.plan_target`), a path as it is."""
+    from ..methods.model_spec import resolve_for
+
+    return resolve_for("prior", spec)

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-_DESIGNS = ("nielsen", "uniform")  # brdfkit.planning.DESIGNS, not imported here: --help stays light
+_DESIGNS = ("nielsen", "render", "uniform")  # brdfkit.planning.DESIGNS, not imported here: --help stays light
 
 
 def _given(name: str) -> bool:
@@ -20,15 +20,20 @@ def _given(name: str) -> bool:
                    "learnt-prior file or a basis file from `brdfkit fit --method ipca`; default: the default "
                    "built-in's (none for --design uniform).")
 @click.option("--design", type=click.Choice(_DESIGNS), default="nielsen", show_default=True,
-              help="nielsen: minimum condition number of the basis rows (Nielsen et al. 2015); uniform: uniform "
+              help="nielsen: minimum condition number of the basis rows (Nielsen et al. 2015); render: minimum "
+                   "expected render error of the fit under the basis's prior (docs/planning.md); uniform: uniform "
                    "over the Rusinkiewicz angles, as `brdfkit sample -n` draws.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Seed of everything random in the design.")
 @click.option("--evaluations", type=click.IntRange(min=1), default=None,
               help="nielsen: cells evaluated per added direction [default: 2000].")
 @click.option("--refine/--no-refine", default=None,
               help="nielsen: move the chosen cells to better grid neighbours at the end [default: refine].")
+@click.option("--draws", type=click.IntRange(min=0), default=None,
+              help="render: materials drawn from the basis's prior to average the render error over [default: 16].")
+@click.option("--candidates", type=click.IntRange(min=1), default=None,
+              help="render: cells considered, drawn at random from the basis's [default: 100000].")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output directions CSV.")
-def command(n, model, design, seed, evaluations, refine, output):
+def command(n, model, design, seed, evaluations, refine, draws, candidates, output):
     """Write N measurement directions chosen for the reconstruction with a PCA basis.
 
     The CSV (docs/formats.md, "Directions CSV") gives each direction pair as the
@@ -44,9 +49,12 @@ def command(n, model, design, seed, evaluations, refine, output):
     from ..planning import plan_directions
 
     refuse_overwrite_of_inputs(output, [model] if model else [])
-    options = {k: v for k, v in (("evaluations", evaluations), ("refine", refine)) if _given(k)}
-    if options and design != "nielsen":
-        raise InputError(f"{' and '.join('--' + k for k in options)} apply to --design nielsen, not {design}")
+    given = {"nielsen": ("evaluations", "refine"), "render": ("draws", "candidates")}
+    values = {"evaluations": evaluations, "refine": refine, "draws": draws, "candidates": candidates}
+    options = {k: v for k, v in values.items() if _given(k)}
+    wrong = [k for k in options if k not in given.get(design, ())]
+    if wrong:
+        raise InputError(f"{' and '.join('--' + k for k in wrong)} do not apply to --design {design}")
     plan = plan_directions(model, n, design=design, seed=seed, **options)
     write_directions(output, plan.directions, comments=[
         f"brdfkit plan: {plan.describe()}",

@@ -66,6 +66,6 @@ def _describe(model, path):
 METHOD = Method("ipca", "PCA basis of log-mapped tables fitted by ridge regression (Nielsen et al. 2015)",
                 "PCA basis (.safetensors from `brdfkit fit --method ipca`)", options=IpcaOptions,
                 load_model=_load, reconstruct_fn=_reconstruct, fit_fn=fit_ipca_files,
-                fit_options=("components", "half", "phi_stride"), compress_fn=_compress, describe_fn=_describe,
+                fit_options=("components", "half", "phi_stride", "w_floor"), compress_fn=_compress, describe_fn=_describe,
                 bench_option="ipca")
 

@@ -66,7 +66,9 @@ def basis_tensors(basis: IpcaModel, *, half: bool = False, phi_stride: int = 1, 
                "sigma": np.ascontiguousarray(basis.sigma, dtype=np.float32)}
     meta = {"format": IPCA_FORMAT, "version": IPCA_VERSION,
             "n_components": str(basis.n_components), "eps": repr(EPS),
-            "weight": "cos_i*cos_o", "channels": "separate observations, shared basis",
+            "weight": "cos_i*cos_o" if not basis.w_floor else "max(cos_i*cos_o, w_floor)",
+            **({"w_floor": repr(float(basis.w_floor))} if basis.w_floor else {}),
+            "channels": "separate observations, shared basis",
             "phi_d_stride": str(int(phi_stride)), "dtype": "float16" if half else "float32",
             "materials": json.dumps(list(basis.materials))}
     return ({prefix + k: v for k, v in tensors.items()}, {prefix + k: v for k, v in meta.items()})
@@ -130,10 +132,16 @@ def read_ipca(f, path: str, prefix: str = "") -> IpcaModel:
     # found by benchmarks/fuzz_parsers.py: 'materials' = "5" raised a TypeError below
     if not isinstance(materials, list) or not all(isinstance(m, str) for m in materials):
         raise FormatError(path, "PCA basis metadata 'materials' is not a list of names")
+    try:
+        w_floor = float(meta.get("w_floor", "0"))
+    except ValueError:
+        raise FormatError(path, f"PCA basis metadata 'w_floor' is not a number: {meta.get('w_floor')!r}") from None
+    if not 0.0 <= w_floor < 1.0:
+        raise FormatError(path, f"PCA basis metadata 'w_floor' must be in [0, 1), got {w_floor!r}")
     cells = cells.astype(np.int64)
     per_cell = [t["reference"].astype(np.float32), t["mean"].astype(np.float32), comp.astype(np.float32)]
     if stride == "2":
         if ((cells % N_PHI_D) % 2).any():
             raise FormatError(path, "a half-phi_d PCA basis may hold only cells of even phi_d index")
         cells, per_cell = expand(cells, per_cell)
-    return IpcaModel(cells, *per_cell, t["sigma"].astype(np.float32), list(materials))
+    return IpcaModel(cells, *per_cell, t["sigma"].astype(np.float32), list(materials), w_floor)

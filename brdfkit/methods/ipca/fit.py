@@ -35,7 +35,7 @@ def _load_table(item) -> tuple[np.ndarray, str | None]:
 
 
 def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
-             names: Sequence[str] | None = None, chunk: int = 1 << 16) -> IpcaModel:
+             names: Sequence[str] | None = None, chunk: int = 1 << 16, w_floor: float = 0.0) -> IpcaModel:
     """Fit the PCA basis to training tables.
 
     Parameters
@@ -51,6 +51,9 @@ def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
         ``table-<i>`` for arrays).
     chunk
         Cells per block in the median and matrix-product passes.
+    w_floor
+        Lower bound of the mapping's cosine weight (:class:`IpcaModel`; 0, Nielsen's,
+        by default), in ``[0, 1)``.
 
     Returns
     -------
@@ -62,13 +65,16 @@ def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
     n_components = int(n_components)
     if n_components < 1:
         raise InputError(f"number of PCA components must be at least 1, got {n_components}")
+    w_floor = float(w_floor)
+    if not 0.0 <= w_floor < 1.0:
+        raise InputError(f"w_floor must be in [0, 1), got {w_floor!r}")
     rows = 3 * len(items)
     if n_components > rows - 1:
         raise InputError(f"{n_components} PCA components need at least {n_components + 1} training "
                          f"channel vectors (3 per material), got {len(items)} material(s)")
     w_all = grid_cosine_weight()
     cand = np.flatnonzero(w_all > 0)  # cells where both directions are above the horizon
-    w = w_all[cand].astype(np.float32)
+    w = np.maximum(w_all[cand], w_floor).astype(np.float32)
     data = np.empty((rows, cand.size), dtype=np.float32)
     materials = []
     for i, item in enumerate(items):
@@ -114,16 +120,18 @@ def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
         components[:, s:s + chunk] = proj @ data[:, s:s + chunk]
     del data
     sigma = np.sqrt(evals / max(rows - 1, 1)).astype(np.float32)
-    return IpcaModel(cand.astype(np.int64), reference, mean, components, sigma, materials)
+    return IpcaModel(cand.astype(np.int64), reference, mean, components, sigma, materials, w_floor)
 
 
 def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
-                   components: int = DEFAULT_COMPONENTS, half: bool = False, phi_stride: int = 1) -> str:
+                   components: int = DEFAULT_COMPONENTS, half: bool = False, phi_stride: int = 1,
+                   w_floor: float = 0.0) -> str:
     """Fit a basis to the MERL tables ``data`` (files or folders, as
     :func:`brdfkit.materials.collect_materials` reads them) less the materials named in
     ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``; ``half`` and
     ``phi_stride``, ``-O half=true -O phi_stride=2``, store it as the package ships
-    bases, :func:`~.file.basis_tensors`). Returns ``output``."""
+    bases, :func:`~.file.basis_tensors`; ``w_floor``, ``-O w_floor=0.05``, bounds the mapping's
+    weight, :class:`IpcaModel`). Returns ``output``."""
     import sys
 
     from ...materials import collect_materials
@@ -131,9 +139,10 @@ def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
     paths, names, _, unknown = collect_materials(data, exclude)
     if unknown:
         print(f"brdfkit: warning: excluded name(s) matched no input: {', '.join(unknown)}", file=sys.stderr)
-    if not isinstance(half, bool) or phi_stride not in (1, 2):
-        raise InputError(f"--method ipca: options half (true/false) and phi_stride (1 or 2), got "
-                         f"{half!r} and {phi_stride!r}")
-    save_ipca(output, fit_ipca(paths, components, names=names), half=half, phi_stride=phi_stride)
+    if not isinstance(half, bool) or phi_stride not in (1, 2) or isinstance(w_floor, bool) \
+            or not isinstance(w_floor, (int, float)) or not 0 <= w_floor < 1:
+        raise InputError(f"--method ipca: options half (true/false), phi_stride (1 or 2) and w_floor (in [0, 1)), "
+                         f"got {half!r}, {phi_stride!r} and {w_floor!r}")
+    save_ipca(output, fit_ipca(paths, components, names=names, w_floor=w_floor), half=half, phi_stride=phi_stride)
     print(f"wrote PCA basis ({components} components, {len(names)} materials) to {output}", file=sys.stderr)
     return output

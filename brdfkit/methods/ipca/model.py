@@ -17,6 +17,16 @@ material *and* channel, see below). This is deliberately not
 the reference towards 0, which throws away the dark half of the data a linear basis has
 to model. The inverse is ``rho = ((exp(x') (x_ref + eps) - eps) / w``, clamped at 0.
 
+A basis may bound the weight from below, ``w = max(cos_i cos_o, w_floor)`` (``brdfkit
+fit --method ipca -O w_floor=W``; Nielsen's mapping is ``w_floor = 0``). Why: ``eps`` is a
+floor of ``eps / w`` in BRDF units, which grows without bound towards grazing angles
+(``w`` about 5e-3 at ``theta_h = 86 deg``: 0.2 /sr), so there every value of a dark or
+diffuse material maps to nearly the same ``x'``; the basis cannot tell them apart, and the
+inverse turns a small error of ``x'`` into 0 (issue 22 measured reconstructions of 0
+where the data hold 4e-3 to 1e-2). The floor caps it at ``eps / w_floor``
+(``docs/generalisation.md`` measures it on renders). Cells on the horizon (``cos_i
+cos_o = 0``) stay outside the basis.
+
 Channels
 --------
 As in Nielsen et al., the three colour channels of a material are three separate
@@ -88,6 +98,8 @@ class IpcaModel:
         component.
     materials
         Names of the training materials.
+    w_floor
+        Lower bound of the mapping's cosine weight (module docstring; 0: Nielsen's).
     """
 
     cells: np.ndarray
@@ -96,6 +108,7 @@ class IpcaModel:
     components: np.ndarray
     sigma: np.ndarray
     materials: list = dataclasses.field(default_factory=list)
+    w_floor: float = 0.0
     _dense: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
 
     @property
@@ -115,6 +128,18 @@ class IpcaModel:
         leading components when this basis has more (the built-ins' basis has the 32 their
         learnt priors fit), else this basis."""
         return self.leading(DEFAULT_COMPONENTS) if self.n_components > DEFAULT_COMPONENTS else self
+
+    def weight(self, theta_h, theta_d, phi_d) -> np.ndarray:
+        """The mapping's weight at Rusinkiewicz angles (radians): :func:`cosine_weight`
+        raised to :attr:`w_floor` where it is positive (0 on and below the horizon)."""
+        w = cosine_weight(theta_h, theta_d, phi_d)
+        return np.where(w > 0, np.maximum(w, self.w_floor), 0.0)
+
+    def cell_weight(self, cells=None) -> np.ndarray:
+        """:meth:`weight` at the cells' own angles (flat MERL indices; default the basis's
+        cells), float64."""
+        w = grid_cosine_weight()[self.cells if cells is None else cells].astype(np.float64)
+        return np.where(w > 0, np.maximum(w, self.w_floor), 0.0)
 
     def _table(self) -> np.ndarray:
         """Dense ``(N_CELLS, K + 2)`` float32 ``[reference, mean, components...]``, NaN
@@ -145,7 +170,7 @@ class IpcaModel:
             raise InputError(f"{samples.source or 'samples'}: no samples to fit")
         at = lookup_trilinear(self._table().reshape(GRID_SHAPE + (-1,)),
                               samples.theta_h, samples.theta_d, samples.phi_d)
-        w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+        w = self.weight(samples.theta_h, samples.theta_d, samples.phi_d)
         # Samples no basis cell reaches, with no weight (on the horizon), or unmeasured
         # (NaN, MERL's convention) say nothing.
         measured = samples.measured()
@@ -171,7 +196,7 @@ class IpcaModel:
         ref = self.reference[:, None].astype(np.float64)
         # expm1 form of exp(x') (x_ref + eps) - eps: exact where x' ~ 0 and x_ref ~ 0.
         x = np.expm1(mapped.astype(np.float64)) * (ref + EPS) + ref
-        w = grid_cosine_weight()[self.cells]
+        w = self.cell_weight()
         out = np.full((N_CELLS, 3), np.nan)
         out[self.cells] = np.clip(x / w[:, None], 0.0, None)
         return out.reshape(GRID_SHAPE + (3,))
@@ -184,7 +209,7 @@ class IpcaModel:
         """Least-squares coefficients ``(K, 3)`` of a dense table over all basis cells it
         measures (no regulariser): the best this basis can do for that material."""
         flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[self.cells]
-        w = grid_cosine_weight()[self.cells]
+        w = self.cell_weight()
         ok = np.isfinite(flat).all(axis=1)
         b = np.log((np.clip(flat[ok], 0, None) * w[ok, None] + EPS) /
                    (self.reference[ok, None].astype(np.float64) + EPS)) - self.mean[ok, None]

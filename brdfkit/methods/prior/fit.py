@@ -154,7 +154,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     else:
         storage = {"half": False, "phi_stride": 1}
         say(f"fitting the {components}-component basis to {len(paths)} materials")
-        full = fit_ipca(paths, components, names=names)
+        full = fit_ipca(paths, components, names=names)  # Nielsen's mapping (w_floor 0): give -O basis= for another
     # Training cells: measured in every training table and covered by the basis.
     covered = np.zeros(N_CELLS, bool)
     covered[full.cells] = True
@@ -176,7 +176,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     for f in range(folds):
         say(f"fitting the basis of fold {f + 1} of {folds}")
         keep = [p for p, fo in zip(paths, fold_of) if fo != f]
-        fb = _as_stored(fit_ipca(keep, K), storage)
+        fb = _as_stored(fit_ipca(keep, K, w_floor=full.w_floor), storage)
         tab = fb._table()[cells].astype(np.float64)
         if not np.isfinite(tab).all():
             tab = np.nan_to_num(tab)  # a cell only the held-out fold measured: the reference
@@ -188,10 +188,10 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     fold_tab = torch.from_numpy(np.stack(tabs)).to(dev)
     fold_sig = torch.from_numpy(np.stack(sigmas)).to(dev)
     del tabs
-    from ...geometry import cos_theta_i, grid_angles, grid_cosine_weight, grid_hd
+    from ...geometry import cos_theta_i, grid_angles, grid_hd
     values = values.to(dev)
     hd_all = torch.from_numpy(np.ascontiguousarray(grid_hd()[cells], np.float32)).to(dev)
-    w_all = torch.from_numpy(np.clip(grid_cosine_weight()[cells], 1e-6, None).astype(np.float32)).to(dev)
+    w_all = torch.from_numpy(np.clip(full.cell_weight(cells), 1e-6, None).astype(np.float32)).to(dev)
     th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
     cos_all = torch.from_numpy(np.clip(cos_theta_i(th, td, pd).reshape(N_CELLS)[cells], 0, None)
                                .astype(np.float32)).to(dev)

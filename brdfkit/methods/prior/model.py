@@ -39,7 +39,7 @@ import numpy as np
 from ...errors import InputError
 from ...geometry import GRID_SHAPE
 from ...trilinear import lookup_trilinear
-from ..ipca import EPS, IpcaModel, cosine_weight
+from ..ipca import EPS, IpcaModel
 
 __all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF"]
 
@@ -125,7 +125,8 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
     rho
         ``(B, S, 3)`` BRDF values (1/sr, ``>= 0``).
     w, cos
-        ``(B, S)`` IPCA's cosine weight ``cos_i cos_o`` (``> 0``) and ``cos_i``.
+        ``(B, S)`` the basis's mapping weight (``cos_i cos_o``, ``> 0``, raised to the
+        basis's ``w_floor``: :meth:`IpcaModel.weight`) and ``cos_i``.
     sigma
         ``(B, K)`` the prior's standard deviations.
     mu
@@ -162,7 +163,7 @@ def sample_rows(basis: IpcaModel, samples):
 
     tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
                            samples.phi_d).astype(np.float64)
-    w = cosine_weight(samples.theta_h, samples.theta_d, samples.phi_d)
+    w = basis.weight(samples.theta_h, samples.theta_d, samples.phi_d)
     rgb = np.asarray(samples.rgb, np.float64)
     ok = np.isfinite(tab).all(1) & (w > 0) & samples.measured()
     cos = np.clip(cos_theta_i(samples.theta_h, samples.theta_d, samples.phi_d)[ok], 0, None)
