@@ -15,9 +15,13 @@ import os
 from brdfkit.bench import summarise
 from brdfkit.bench.summary import mean
 
-METHOD_ORDER = ("prior", "ipca", "nbrdf", "hypernet")
-DONE_N = (40, 400, 4000)
+METHOD_ORDER = ("prior", "prior (planned)", "ipca", "ipca (planned)", "nbrdf", "nbrdf (planned)", "hypernet",
+                "hypernet (planned)")
+DONE_N = (40, 160, 400, 2000, 4000)
 DONE_SEEDS = (0, 1, 2)
+DONE_MARGIN_DB = 1.0
+DONE_RMSE_RATIO = 0.8
+DONE_PLANNED = (20, 40)
 
 PAPER_SPARSE = {40: (29.58, 3.19), 160: (31.34, 2.68), 400: (32.74, 2.27), 2000: (34.53, 2.26), 4000: (33.17, 2.14)}
 """The paper's hypernetwork on MERL: ``{N: (PSNR dB, Delta E 2000)}``."""
@@ -27,7 +31,7 @@ PAPER_NPS = 46.13
 
 METHOD_TEXT = {
     "prior": "**prior**: `brdfkit sparse`'s default as shipped, the learnt prior of the built-in "
-             "`merl80-l40`: the 8-component PCA basis fitted to the samples in closed form around a "
+             "`merl80-l40`: its 32-component PCA basis fitted to the samples in closed form around a "
              "prior mean of its coefficients that a set encoder predicts. Not the paper's architecture "
              "([generalisation.md](generalisation.md)).",
     "ipca": "**ipca**: the PCA baseline (Nielsen et al. 2015), a basis fitted on the same 80 training "
@@ -40,6 +44,9 @@ METHOD_TEXT = {
                 "weights, early-stopped on held-out samples; the paper does not refine; "
                 "[generalisation.md](generalisation.md), Lever 4).",
 }
+PLANNED_TEXT = ("**M (planned)**: method M from samples measured at the directions `brdfkit plan -n N -m "
+                "merl80-l40 --design render` chooses for the learnt prior ([planning.md](planning.md)); the same "
+                "directions for every material and method, another plan (seed) per draw.")
 _HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
 
 
@@ -96,52 +103,71 @@ def win_text(won, mats) -> str:
     return f"{k} / {t}"
 
 
+def with_sampling_labels(result) -> dict:
+    """``result`` with each planned-sampling sparse record's method named ``"M (planned)"``,
+    so that a table has a column per method and sampling (uniform keeps the bare name)."""
+    recs = [dict(r, method=f"{r['method']} (planned)") if r["kind"] == "sparse" and r.get("sampling") == "planned"
+            else r for r in result["records"]]
+    return dict(result, records=recs)
+
+
 def done_when(sparse) -> dict:
-    """Issue 12's check: does ``prior`` have a lower mean BRDF log RMSE and a higher mean
-    PSNR than ``ipca`` at each N of :data:`DONE_N`, over draws :data:`DONE_SEEDS`? Means
-    over the (material, draw) pairs both methods finished."""
-    ok = {(r["method"], r["n"], r["material"], r.get("seed")): r for r in ok_records(sparse, "sparse")
-          if r.get("seed") in DONE_SEEDS}
-    rows, verdicts = [], []
-    for n in DONE_N:
-        pairs = [(mat, s) for (meth, k, mat, s) in ok if meth == "prior" and k == n and ("ipca", n, mat, s) in ok]
+    """Issue 22's check, over draws :data:`DONE_SEEDS` and the (material, draw) pairs both
+    methods of a comparison finished: at each N of :data:`DONE_N`, the default (``prior``,
+    uniform samples) against ``ipca`` (PSNR at least IPCA's + :data:`DONE_MARGIN_DB` (0 dB
+    at the first N), log RMSE at most :data:`DONE_RMSE_RATIO` of IPCA's); and ``prior`` from
+    :data:`DONE_PLANNED` planned directions against ``prior`` from as many uniform samples as
+    the second number (PSNR at least as high)."""
+    ok = {(r["method"], r.get("sampling", "uniform"), r["n"], r["material"], r.get("seed")): r
+          for r in ok_records(sparse, "sparse") if r.get("seed") in DONE_SEEDS}
+
+    def compare(a, b):
+        pairs = [(mat, s) for (meth, smp, k, mat, s) in ok if (meth, smp, k) == a and (*b, mat, s) in ok]
         if not pairs:
-            rows.append({"n": n, "measured": False})
-            verdicts.append(None)
+            return None
+        rs = {key: [ok[(*key, mat, s)] for mat, s in pairs] for key in (a, b)}
+        means = {key: {m: mean([r[m] for r in v]) for m in ("psnr", "log_rmse")} for key, v in rs.items()}
+        return {"materials": len({m for m, _ in pairs}), "seeds": sorted({s for _, s in pairs}),
+                "a": means[a], "b": means[b]}
+
+    rows = []
+    for i, n in enumerate(DONE_N):
+        c = compare(("prior", "uniform", n), ("ipca", "uniform", n))
+        margin = 0.0 if i == 0 else DONE_MARGIN_DB
+        if c is None:
+            rows.append({"what": f"N = {n}", "measured": False})
             continue
-        summ = {r["method"]: r for r in summarise([ok[(m, n, mat, s)] for m in ("prior", "ipca")
-                                                   for mat, s in pairs])["sparse"]}
-        p, i = summ["prior"], summ["ipca"]
-        row = {"n": n, "measured": True, "materials": len({m for m, _ in pairs}),
-               "seeds": sorted({s for _, s in pairs}), "prior_rmse": p["log_rmse"], "ipca_rmse": i["log_rmse"],
-               "prior_psnr": p["psnr"], "ipca_psnr": i["psnr"]}
-        row["lower"] = row["prior_rmse"] < row["ipca_rmse"]
-        row["higher"] = row["prior_psnr"] > row["ipca_psnr"]
-        rows.append(row)
-        verdicts += [row["lower"], row["higher"]]
+        ratio = c["a"]["log_rmse"] / c["b"]["log_rmse"]
+        rows.append({"what": f"N = {n}", "measured": True, **c, "margin": margin, "ratio": ratio,
+                     "met": [c["a"]["psnr"] >= c["b"]["psnr"] + margin, ratio <= DONE_RMSE_RATIO]})
+    planned, uniform = DONE_PLANNED
+    c = compare(("prior", "planned", planned), ("prior", "uniform", uniform))
+    rows.append({"what": f"{planned} planned against {uniform} uniform", "measured": c is not None,
+                 **(c or {}), "planned": True, "met": [c["a"]["psnr"] >= c["b"]["psnr"]] if c else []})
     complete = all(r["measured"] and r["seeds"] == list(DONE_SEEDS) for r in rows)
-    if any(v is False for v in verdicts):
-        verdict = "no"
-    elif complete:
-        verdict = "yes"
-    else:
-        verdict = "not established (the run lacks some of N = 40, 400, 4000 or draws 0, 1, 2)"
+    verdicts = [v for r in rows for v in r.get("met", [])]
+    verdict = ("no" if not all(verdicts) else "yes" if complete else
+               "not established (the run lacks some N, sampling or draws 0, 1, 2)")
     return {"rows": rows, "verdict": verdict, "complete": complete}
 
 
 def done_lines(check) -> list[str]:
     """The check as plain lines (printed by the script and put on the page)."""
-    yn = {True: "yes", False: "no"}
+    yn = {True: "met", False: "**missed**"}
     out = []
     for r in check["rows"]:
         if not r["measured"]:
-            out.append(f"N = {r['n']}: not measured")
+            out.append(f"{r['what']}: not measured")
             continue
-        draws = ", ".join(map(str, r["seeds"]))
-        out.append(f"N = {r['n']}: prior log RMSE lower than ipca: {yn[r['lower']]} "
-                   f"({r['prior_rmse']:.4f} vs {r['ipca_rmse']:.4f}); PSNR higher: {yn[r['higher']]} "
-                   f"({r['prior_psnr']:.2f} vs {r['ipca_psnr']:.2f} dB); {plural(r['materials'], 'material')}, "
-                   f"draws {draws}")
+        tail = f"{plural(r['materials'], 'material')}, draws {', '.join(map(str, r['seeds']))}"
+        if r.get("planned"):
+            out.append(f"{r['what']}: prior PSNR {r['a']['psnr']:.2f} vs {r['b']['psnr']:.2f} dB, at least as "
+                       f"high: {yn[r['met'][0]]}; {tail}")
+            continue
+        out.append(f"{r['what']}: prior PSNR {r['a']['psnr']:.2f} vs ipca {r['b']['psnr']:.2f} dB (target "
+                   f"ipca + {r['margin']:g}): {yn[r['met'][0]]}; log RMSE {r['a']['log_rmse']:.4f} vs "
+                   f"{r['b']['log_rmse']:.4f}, ratio {r['ratio']:.2f} (target <= {DONE_RMSE_RATIO:g}): "
+                   f"{yn[r['met'][1]]}; {tail}")
     out.append(f"Done when met: {check['verdict']}")
     return out
 

@@ -1,5 +1,5 @@
 """``benchmarks/results.py``, the generator of ``docs/results.md``: the page from two real
-(tiny) bench results with ``--skip-run``, issue 12's done-when check, the links folder.
+(tiny) bench results with ``--skip-run``, issue 22's done-when check, the links folder.
 
 The bench results are real runs on a tiny budget: one synthetic material, N = 40, one
 draw, 16-pixel renders, untrained tiny models (a hypernetwork, a learnt prior, a
@@ -93,7 +93,7 @@ def test_page_from_bench_results(runs, tmp_path):
     proc = _script("--proxies", proxies, "--runs", rdir, "--skip-run", "--out", out)
     assert proc.returncode == 0, proc.stderr
     page = out.read_text()
-    for title in ("## What differs from the paper", "## Issue 12's done-when check", "#### PSNR (dB)",
+    for title in ("## What differs from the paper", "## Issue 22's done-when check", "#### PSNR (dB)",
                   "#### Delta E 2000", "#### SSIM", "#### BRDF log RMSE", "#### Run time per reconstruction",
                   "#### The learnt prior against each other method", "## Compression", "## How to regenerate"):
         assert title in page, title
@@ -101,12 +101,13 @@ def test_page_from_bench_results(runs, tmp_path):
     assert "| 40 | 29.58 |" in page and "| 40 | 3.19 |" in page
     assert "prior PSNR higher than hypernet" in page
     # the done-when lines, on the page and printed, from the numbers
-    assert "* N = 40: prior log RMSE lower than ipca: " in page and "draws 0" in page
+    assert "* N = 40: prior PSNR " in page and "draws 0" in page
     assert "* N = 400: not measured" in page and "* N = 4000: not measured" in page
+    assert "* 20 planned against 40 uniform: not measured" in page
     assert re.search(r"\* Done when met: (no|not established)", page)  # never "yes" without N = 400, 4000
     assert "the learnt prior 2, the IPCA basis 2; the same set: yes; test materials among them: 0" in page
     assert "**Coverage: 1 of the 2 test materials** of `test.txt` (missing: mat-z)" in page
-    assert "N = 40: prior log RMSE lower than ipca: " in proc.stdout and "Done when met:" in proc.stdout
+    assert "N = 40: prior PSNR " in proc.stdout and "Done when met:" in proc.stdout
     # compression: all, MERL and RGL rows of each model, the paper's figure on the IPCA row
     assert "| hypernet 7-D (hyp) | all | 2 |" in page and "| hypernet 7-D (hyp) | RGL | 1 |" in page
     assert "| ipca 3 components | MERL | 1 | 100.00 | 29.89 |" in page
@@ -131,23 +132,35 @@ def test_missing_bench_is_one_line(tmp_path):
 def test_done_when_verdicts():
     def recs(shift):
         out = []
-        for n in (40, 400, 4000):
+        for n in (20, 40, 160, 400, 2000, 4000):
             for s in (0, 1, 2):
                 for mat in ("a", "b"):
-                    for m, rmse, psnr in (("prior", 0.1, 40.0), ("ipca", 0.2 + shift, 39.0)):
+                    rows = [("prior", "uniform", 0.1, 41.0), ("ipca", "uniform", 0.2 + shift, 39.0)]
+                    if n == 20:
+                        rows = [("prior", "planned", 0.1, 41.5)]
+                    for m, smp, rmse, psnr in rows:
                         out.append({"kind": "sparse", "material": mat, "method": m, "n": n, "seed": s,
-                                    "log_rmse": rmse, "psnr": psnr, "delta_e": 1.0, "ssim": 0.9, "time_s": 1.0})
+                                    "sampling": smp, "log_rmse": rmse, "psnr": psnr, "delta_e": 1.0, "ssim": 0.9,
+                                    "time_s": 1.0})
         return out
 
     check = results_page.done_when({"records": recs(0.0)})
-    assert check["verdict"] == "yes" and all(r["lower"] and r["higher"] for r in check["rows"])
+    assert check["verdict"] == "yes" and all(all(r["met"]) for r in check["rows"])
+    assert check["rows"][-1]["a"]["psnr"] == 41.5 and check["rows"][-1]["b"]["psnr"] == 41.0
     worse = recs(0.0)
     for r in worse:
         if r["method"] == "prior" and r["n"] == 400:
-            r["log_rmse"] = 0.3
+            r["log_rmse"] = 0.17  # 0.85 of IPCA's: above 0.8
     check = results_page.done_when({"records": worse})
-    assert check["verdict"] == "no" and not check["rows"][1]["lower"] and check["rows"][1]["higher"]
-    assert results_page.done_lines(check)[1].startswith("N = 400: prior log RMSE lower than ipca: no (0.3000 vs")
+    assert check["verdict"] == "no" and check["rows"][2]["met"] == [True, False]
+    assert results_page.done_lines(check)[2].startswith(
+        "N = 400: prior PSNR 41.00 vs ipca 39.00 dB (target ipca + 1): met; log RMSE 0.1700 vs 0.2000, ratio 0.85")
+    planned_worse = [dict(r, psnr=40.0) if r["sampling"] == "planned" else r for r in recs(0.0)]
+    check = results_page.done_when({"records": planned_worse})
+    assert check["verdict"] == "no" and check["rows"][-1]["met"] == [False]
+    assert "**missed**" in results_page.done_lines(check)[-2]
+    labelled = results_page.with_sampling_labels({"records": recs(0.0)})
+    assert {r["method"] for r in labelled["records"]} == {"prior", "ipca", "prior (planned)"}
 
 
 def test_links_folder(tmp_path):
@@ -174,6 +187,6 @@ def test_run_order(runs, tmp_path, monkeypatch, capsys):
     assert results.main(["--proxies", str(proxies), "--runs", str(rdir), "--jobs", "1", "--test-list",
                          str(test_list), "--out", str(tmp_path / "results.md")]) == 0
     cmds = results.plan(str(proxies), str(rdir), str(test_list), 1)
-    assert ran == [cmds["fit80"], cmds["sparse"], cmds["fit151"], cmds["compression"]]
+    assert ran == [cmds["fit80"], cmds["planned"], cmds["uniform"], cmds["sparse"], cmds["fit151"], cmds["compression"]]
     assert sorted(os.listdir(rdir / "all151")) == ["mat-a.binary", "rgl_b_rgb.binary"]
     assert "Done when met:" in capsys.readouterr().out and (tmp_path / "results.md").exists()
