@@ -189,14 +189,50 @@ def test_half_stride_two_file_round_trip(basis, tmp_path):
         assert np.abs(got[..., ~even] - orig[..., ~even]).max() < 0.05 * scale, name
 
 
-@pytest.mark.parametrize("half,stride", [(True, 2), (True, 1), (False, 2)])
-def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, half, stride):
+def test_int8_storage(basis, tmp_path):
+    """int8 components with a scale per block of cells: each value within half a step
+    (1/254) of the largest in its block, in half the bytes of float16; the
+    reference and mean as in float16 storage."""
+    from brdfkit.methods.ipca.storage import INT8_BLOCK, dequantize, quantize
+
+    q, scale = quantize(basis.components)
+    assert q.dtype == np.int8 and scale.shape == (3, -(-basis.cells.size // INT8_BLOCK))
+    back = dequantize(q, scale)
+    step = np.repeat(scale, INT8_BLOCK, axis=1)[:, :basis.cells.size]
+    assert (np.abs(back - basis.components) <= 0.5 * step * (1 + 1e-4)).all()  # float32 rounding of q * scale
+    assert np.array_equal(quantize(np.zeros((2, 10)))[0], np.zeros((2, 10), np.int8))  # no 0 / 0
+
+    f16, i8 = tmp_path / "f16.safetensors", tmp_path / "i8.safetensors"
+    save_ipca(f16, basis, half=True, phi_stride=2)
+    save_ipca(i8, basis, half=True, phi_stride=2, int8=True)
+    # the components take half the bytes (the scales 1/128 of that again)
+    assert f16.stat().st_size - i8.stat().st_size > 0.49 * _raw(f16)[0]["components"].nbytes
+    tensors, meta = _raw(i8)
+    assert meta["dtype"] == "int8" and tensors["components"].dtype == np.int8
+    a, b = load_ipca(f16), load_ipca(i8)
+    np.testing.assert_array_equal(a.cells, b.cells)
+    np.testing.assert_array_equal(a.reference, b.reference)
+    np.testing.assert_array_equal(a.mean, b.mean)
+    assert np.abs(a.components - b.components).max() < 0.01 * np.abs(a.components).max()
+    with pytest.raises(ValueError, match="int8 storage of a basis goes with half"):
+        save_ipca(tmp_path / "x.safetensors", basis, int8=True)
+    for broken in ({k: v for k, v in tensors.items() if k != "component_scales"},
+                   {**tensors, "component_scales": tensors["component_scales"][:, :-1]},
+                   {**tensors, "component_scales": np.full_like(tensors["component_scales"], np.nan)}):
+        _save_raw(tmp_path / "bad.safetensors", broken, meta)
+        with pytest.raises(FormatError, match="bad.safetensors: .*(component_scales|scales)"):
+            load_ipca(tmp_path / "bad.safetensors")
+
+
+@pytest.mark.parametrize("half,stride,int8", [(True, 2, False), (True, 1, False), (False, 2, False),
+                                              (True, 2, True)])
+def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, half, stride, int8):
     """What ``brdfkit.methods.prior.fit`` relies on: a basis read back from compact storage and stored the
     same way again is bit-identical, so a model trained on it sees what it ships with."""
     first, second = tmp_path / "a.safetensors", tmp_path / "b.safetensors"
-    save_ipca(first, basis, half=half, phi_stride=stride)
+    save_ipca(first, basis, half=half, phi_stride=stride, int8=int8)
     back = load_ipca(first)
-    save_ipca(second, back, half=half, phi_stride=stride)
+    save_ipca(second, back, half=half, phi_stride=stride, int8=int8)
     t1, m1 = _raw(first)
     t2, m2 = _raw(second)
     assert m1 == m2 and sorted(t1) == sorted(t2)
@@ -207,7 +243,7 @@ def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, ha
     for k in _TENSORS:
         np.testing.assert_array_equal(getattr(again, k), getattr(back, k))
     # The same through the prefixed tensors a learnt-prior file stores inside itself.
-    pt, pm = basis_tensors(back, half=half, phi_stride=stride, prefix="basis.")
+    pt, pm = basis_tensors(back, half=half, phi_stride=stride, int8=int8, prefix="basis.")
     assert sorted(pt) == sorted("basis." + k for k in t1)
     for k in t1:
         np.testing.assert_array_equal(pt["basis." + k], t1[k])

@@ -23,13 +23,13 @@ import numpy as np
 
 from ...errors import InputError
 from ..method import Method, MethodOptions
-from .file import IPCA_FORMAT, IPCA_VERSION, basis_tensors, load_ipca, read_ipca, save_ipca
+from .file import IPCA_FORMAT, IPCA_VERSION, basis_tensors, load_ipca, read_ipca, save_ipca, storage_of
 from .fit import fit_ipca, fit_ipca_files
 from .model import DEFAULT_COMPONENTS, DEFAULT_LAMBDA, EPS, IpcaModel, cosine_weight
 
 __all__ = ["IpcaModel", "IpcaOptions", "fit_ipca", "fit_ipca_files", "load_ipca", "save_ipca", "METHOD",
            "IPCA_FORMAT", "IPCA_VERSION", "read_ipca", "basis_tensors", "EPS", "DEFAULT_LAMBDA",
-           "DEFAULT_COMPONENTS", "cosine_weight"]
+           "DEFAULT_COMPONENTS", "cosine_weight", "storage_of"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -66,6 +66,6 @@ def _describe(model, path):
 METHOD = Method("ipca", "PCA basis of log-mapped tables fitted by ridge regression (Nielsen et al. 2015)",
                 "PCA basis (.safetensors from `brdfkit fit --method ipca`)", options=IpcaOptions,
                 load_model=_load, reconstruct_fn=_reconstruct, fit_fn=fit_ipca_files,
-                fit_options=("components", "half", "phi_stride", "w_floor"), compress_fn=_compress, describe_fn=_describe,
+                fit_options=("components", "half", "phi_stride", "w_floor", "int8"), compress_fn=_compress, describe_fn=_describe,
                 bench_option="ipca")
 

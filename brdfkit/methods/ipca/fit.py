@@ -125,13 +125,14 @@ def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
 
 def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
                    components: int = DEFAULT_COMPONENTS, half: bool = False, phi_stride: int = 1,
-                   w_floor: float = 0.0) -> str:
+                   w_floor: float = 0.0, int8: bool = False) -> str:
     """Fit a basis to the MERL tables ``data`` (files or folders, as
     :func:`brdfkit.materials.collect_materials` reads them) less the materials named in
     ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``; ``half`` and
     ``phi_stride``, ``-O half=true -O phi_stride=2``, store it as the package ships
     bases, :func:`~.file.basis_tensors`; ``w_floor``, ``-O w_floor=0.05``, bounds the mapping's
-    weight, :class:`IpcaModel`). Returns ``output``."""
+    weight, :class:`IpcaModel`; ``int8``, ``-O int8=true`` with ``half``, stores the components in
+    int8, :func:`~.storage.quantize`). Returns ``output``."""
     import sys
 
     from ...materials import collect_materials
@@ -140,9 +141,11 @@ def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
     if unknown:
         print(f"brdfkit: warning: excluded name(s) matched no input: {', '.join(unknown)}", file=sys.stderr)
     if not isinstance(half, bool) or phi_stride not in (1, 2) or isinstance(w_floor, bool) \
-            or not isinstance(w_floor, (int, float)) or not 0 <= w_floor < 1:
-        raise InputError(f"--method ipca: options half (true/false), phi_stride (1 or 2) and w_floor (in [0, 1)), "
-                         f"got {half!r}, {phi_stride!r} and {w_floor!r}")
-    save_ipca(output, fit_ipca(paths, components, names=names, w_floor=w_floor), half=half, phi_stride=phi_stride)
+            or not isinstance(w_floor, (int, float)) or not 0 <= w_floor < 1 or not isinstance(int8, bool) \
+            or (int8 and not half):
+        raise InputError(f"--method ipca: options half (true/false), phi_stride (1 or 2), w_floor (in [0, 1)) and "
+                         f"int8 (true/false, with half=true), got {half!r}, {phi_stride!r}, {w_floor!r} and {int8!r}")
+    save_ipca(output, fit_ipca(paths, components, names=names, w_floor=w_floor), half=half, phi_stride=phi_stride,
+              int8=int8)
     print(f"wrote PCA basis ({components} components, {len(names)} materials) to {output}", file=sys.stderr)
     return output

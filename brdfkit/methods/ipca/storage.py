@@ -21,9 +21,11 @@ import numpy as np
 from ...errors import InputError
 from ...geometry import N_PHI_D, N_THETA_D, N_THETA_H, grid_cosine_weight
 
-__all__ = ["compact", "expand", "check_half"]
+__all__ = ["compact", "expand", "check_half", "quantize", "dequantize", "INT8_BLOCK"]
 
 _HALF_MAX = 65504.0
+INT8_BLOCK = 256
+"""Cells per scale of the int8 storage of a basis's components (:func:`quantize`)."""
 
 
 def compact(cells: np.ndarray, arrays: list, stride: int) -> tuple[np.ndarray, list]:
@@ -82,3 +84,27 @@ def check_half(path: str | os.PathLike, arrays: list) -> None:
         if np.abs(np.asarray(a)).max(initial=0.0) > _HALF_MAX:
             raise InputError(f"{os.fspath(path)}: a basis value exceeds float16's range (65504); "
                              f"store it in float32")
+
+
+def quantize(components: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """int8 storage of ``(K, P)`` components: blocks of :data:`INT8_BLOCK` consecutive
+    cells of one component share a float32 scale (their largest magnitude over 127), so
+    each value is kept to 0.4% of the largest in its block. A component is large only
+    near the specular peak and small elsewhere; one scale per component would round the
+    small values away, one per block keeps them. Returns ``(int8 (K, P), float32 (K, B))``."""
+    c = np.asarray(components, np.float32)
+    k, p = c.shape
+    nb = -(-p // INT8_BLOCK)
+    padded = np.zeros((k, nb * INT8_BLOCK), np.float32)
+    padded[:, :p] = c
+    blocks = padded.reshape(k, nb, INT8_BLOCK)
+    scale = np.abs(blocks).max(axis=2) / 127.0
+    q = np.rint(blocks / np.where(scale > 0, scale, 1.0)[..., None]).astype(np.int8)
+    return np.ascontiguousarray(q.reshape(k, -1)[:, :p]), scale.astype(np.float32)
+
+
+def dequantize(q: np.ndarray, scale: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`quantize`: float32 ``(K, P)``."""
+    k, p = q.shape
+    idx = np.arange(p) // INT8_BLOCK
+    return q.astype(np.float32) * np.asarray(scale, np.float32)[:, idx]

@@ -23,7 +23,7 @@ import numpy as np
 from ...atomic import atomic_path, check_input_file
 from ...digest import file_digest
 from ...errors import FormatError, InputError
-from ..ipca import basis_tensors, load_ipca, read_ipca, save_ipca
+from ..ipca import basis_tensors, load_ipca, read_ipca, save_ipca, storage_of
 from .model import PriorConfig, PriorModel, prior_net
 
 __all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior"]
@@ -49,12 +49,12 @@ def _fingerprint(net_digest: str, basis_digest: str, config: str) -> str:
 
 
 def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False, phi_stride: int = 1,
-               basis_file: str | None = None) -> str:
+               int8: bool = False, basis_file: str | None = None) -> str:
     """Write ``model`` atomically; returns its fingerprint.
 
     Parameters
     ----------
-    half, phi_stride
+    half, phi_stride, int8
         How the basis is stored (:func:`~brdfkit.methods.ipca.file.basis_tensors`); the network stays float32
         (it is 60k numbers).
     basis_file
@@ -69,7 +69,8 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             "config": json.dumps(dataclasses.asdict(model.cfg), sort_keys=True)}
     meta.update({k: json.dumps(v) for k, v in model.meta.items()})
     if basis_file is None:
-        btens, bmeta = basis_tensors(model.basis, half=half, phi_stride=phi_stride, prefix="basis.", where=path)
+        btens, bmeta = basis_tensors(model.basis, half=half, phi_stride=phi_stride, int8=int8, prefix="basis.",
+                                     where=path)
         tensors = {**net, **btens}
         meta.update(bmeta)
         basis_digest = _digest(btens)
@@ -78,14 +79,14 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             raise InputError(f"basis_file {basis_file!r}: give a bare file name (it lives beside the model)")
         where = os.path.join(os.path.dirname(os.path.abspath(path)), basis_file)
         if not os.path.exists(where):
-            save_ipca(where, model.basis, half=half, phi_stride=phi_stride)
+            save_ipca(where, model.basis, half=half, phi_stride=phi_stride, int8=int8)
         else:  # shared with another model: it must be this model's basis as stored
             other = load_ipca(where)
             same = (np.array_equal(other.cells, model.basis.cells)
                     and np.array_equal(other.components, model.basis.components))
             if not same and (half or phi_stride != 1):  # the file holds it rounded: compare as stored
-                same = (_digest(basis_tensors(other, half=half, phi_stride=phi_stride)[0])
-                        == _digest(basis_tensors(model.basis, half=half, phi_stride=phi_stride)[0]))
+                how = dict(half=half, phi_stride=phi_stride, int8=int8)
+                same = _digest(basis_tensors(other, **how)[0]) == _digest(basis_tensors(model.basis, **how)[0])
             if not same:
                 raise InputError(f"{where}: holds another basis than this model's")
         tensors = net
@@ -187,5 +188,5 @@ def pack_prior(src: str | os.PathLike, dst: str | os.PathLike, basis_file: str) 
     if "basis_file" in meta:
         with open_safetensors(os.path.join(os.path.dirname(os.path.abspath(src)), meta["basis_file"])) as f:
             meta = {f"basis.{k}": v for k, v in (f.metadata() or {}).items()}
-    storage = {"half": meta.get("basis.dtype") == "float16", "phi_stride": int(meta.get("basis.phi_d_stride", "1"))}
+    storage = storage_of(meta, "basis.")
     return save_prior(dst, model, basis_file=basis_file, **storage)

@@ -36,7 +36,7 @@ import numpy as np
 
 from ...errors import InputError
 from ...geometry import N_CELLS, N_PHI_D, N_THETA_D
-from ..ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca, save_ipca
+from ..ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca, save_ipca, storage_of
 from .model import PriorConfig, PriorModel, prior_net, solve
 
 __all__ = ["fit_prior", "FIT_OPTIONS"]
@@ -50,12 +50,12 @@ def _storage(path: str) -> dict:
 
     with open_safetensors(path) as f:
         meta = f.metadata() or {}
-    return {"half": meta.get("dtype") == "float16", "phi_stride": int(meta.get("phi_d_stride", "1"))}
+    return storage_of(meta)
 
 
 def _as_stored(basis: IpcaModel, storage: dict) -> IpcaModel:
     """The basis as a file with ``storage`` gives it back."""
-    if not storage["half"] and storage["phi_stride"] == 1:
+    if not storage["half"] and storage["phi_stride"] == 1 and not storage.get("int8"):
         return basis
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "basis.safetensors")
@@ -152,7 +152,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
         full = load_ipca(bpath)
         components = full.n_components
     else:
-        storage = {"half": False, "phi_stride": 1}
+        storage = {"half": False, "phi_stride": 1, "int8": False}
         say(f"fitting the {components}-component basis to {len(paths)} materials")
         full = fit_ipca(paths, components, names=names)  # Nielsen's mapping (w_floor 0): give -O basis= for another
     # Training cells: measured in every training table and covered by the basis.
