@@ -3,8 +3,9 @@
 The models are trained by the ``brdfkit fit`` commands listed in ``docs/models.md``
 (recorded again in each manifest entry); this script only re-saves them for shipping:
 hypernetworks in float16 with one shared reference file (they were all trained against
-the reference of ``merl80-l40``, ``-O reference=``), learnt priors with the one shared
-basis file they were trained on. Validation figures come from
+the reference of ``merl80-l40``, ``-O reference=``), learnt priors each with the basis
+file it was trained on (``merl80-basis`` fitted on the 80 training materials of
+``merl80-l40``, ``merl-rgl-basis`` on all 151). Validation figures come from
 ``benchmarks/eval_sparse.py --json`` or ``brdfkit bench``'s ``bench.json`` (held-out
 materials only: the learnt prior's mean log RMSE per N).
 
@@ -21,8 +22,12 @@ import shutil
 
 _PAPER = ("brdfkit fit PROXIES/merl PROXIES/rgl {latent}-O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
           "-o {name}-paper.safetensors")
-_PRIOR = ("brdfkit fit --method prior {data} -O basis=merl80-basis.safetensors -O weight=energy -O s2=0.03 "
+_BASIS = ("brdfkit fit --method ipca {data} --components 32 -O half=true -O phi_stride=2 -O int8=true -O w_floor=0.1 "
+          "-o {basis}")
+_PRIOR = ("brdfkit fit --method prior {data} -O basis={basis} -O weight=energy -O s2=0.03 "
           "--steps 3000 --seed 0 -o {name}.safetensors")
+_MERL80 = "PROXIES/merl --exclude-list merl-test.txt"
+_ALL = "PROXIES/merl PROXIES/rgl"
 # The tuning's stages (brdfkit tune, docs/training.md): each a --resume of the last with
 # its learning rates; --steps is the stage's last step (the first two stages ran to a
 # time limit, and stopped there).
@@ -35,19 +40,22 @@ def _tuned(name, ends):
                      f"--steps {end}" + (" --resume" if i else "") + _STAGES[i] for i, end in enumerate(ends))
 
 
-MODELS = [  # name, hypernetwork file, learnt-prior file, materials list, fit commands
-    ("merl-rgl-l40", "merl-rgl-l40.safetensors", "merl-rgl-prior.safetensors", "MERL + RGL (151)",
+MODELS = [  # name, hypernetwork file, learnt-prior file, its basis file, materials list, fit commands
+    ("merl-rgl-l40", "merl-rgl-l40.safetensors", "merl-rgl-prior.safetensors", "merl-rgl-basis.safetensors",
+     "MERL + RGL (151)",
      _PAPER.format(name="merl-rgl-l40", latent="") + "; " + _tuned("merl-rgl-l40", (8965, 13633, 19735, 27242))
-     + "; " + _PRIOR.format(data="PROXIES/merl PROXIES/rgl", name="merl-rgl-prior")),
-    ("merl80-l40", "merl80-l40.safetensors", "merl80-prior.safetensors", "MERL less merl-test.txt (80)",
+     + "; " + _BASIS.format(data=_ALL, basis="merl-rgl-basis.safetensors")
+     + "; " + _PRIOR.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-prior")),
+    ("merl80-l40", "merl80-l40.safetensors", "merl80-prior.safetensors", "merl80-basis.safetensors",
+     "MERL less merl-test.txt (80)",
      "brdfkit fit PROXIES/merl --exclude-list merl-test.txt --minutes 14 --seed 0 -o merl80-l40.safetensors; "
-     "brdfkit fit --method ipca PROXIES/merl --exclude-list merl-test.txt --components 32 -O half=true -O phi_stride=2 "
-     "-o merl80-basis.safetensors; " + _PRIOR.format(data="PROXIES/merl --exclude-list merl-test.txt", name="merl80-prior")),
-    ("merl-rgl-l7", "merl-rgl-l7.safetensors", None, "MERL + RGL (151)",
+     + _BASIS.format(data=_MERL80, basis="merl80-basis.safetensors") + "; "
+     + _PRIOR.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-prior")),
+    ("merl-rgl-l7", "merl-rgl-l7.safetensors", None, None, "MERL + RGL (151)",
      _PAPER.format(name="merl-rgl-l7", latent="--latent-dim 7 ") + "; " + _tuned("merl-rgl-l7", (9710, 14495, 20283))),
 ]
 REFERENCE = "merl80-reference.safetensors"
-BASIS = "merl80-basis.safetensors"
+BASES = sorted({m[3] for m in MODELS if m[3]})
 
 
 def _tune_record(path):
@@ -77,13 +85,14 @@ def main():
                                           / sum(1 for r in recs if r["n"] == n), 4)
                             for n in sorted({r["n"] for r in recs})}
     os.makedirs(args.dst, exist_ok=True)
-    for stale in (REFERENCE, BASIS):
+    for stale in (REFERENCE, *BASES):
         if os.path.exists(os.path.join(args.dst, stale)):
             os.remove(os.path.join(args.dst, stale))
-    shutil.copyfile(os.path.join(args.src, BASIS), os.path.join(args.dst, BASIS))
+    for basis in BASES:
+        shutil.copyfile(os.path.join(args.src, basis), os.path.join(args.dst, basis))
     entries = []
     # merl80-l40 first: its reference is the one the others were trained against.
-    for name, hyper, prior, mats, command in sorted(MODELS, key=lambda m: m[0] != "merl80-l40"):
+    for name, hyper, prior, basis, mats, command in sorted(MODELS, key=lambda m: m[0] != "merl80-l40"):
         dst = os.path.join(args.dst, hyper)
         pack_model(os.path.join(args.src, hyper), dst, half=True, reference_file=REFERENCE)
         entry = manifest_entry(dst, name, command=command, validation=validation.get(name, {}),
@@ -94,7 +103,7 @@ def main():
             entry["train_seconds"] = round(entry["train_seconds"] + float(tuned["wall_time_s"]), 1)
         if prior:
             entry["prior"] = prior
-            entry["prior_fingerprint"] = pack_prior(os.path.join(args.src, prior), os.path.join(args.dst, prior), BASIS)
+            entry["prior_fingerprint"] = pack_prior(os.path.join(args.src, prior), os.path.join(args.dst, prior), basis)
         entries.append(entry)
         print(f"{name}: {os.path.getsize(dst) / 1e6:.2f} MB" + (f" + prior {os.path.getsize(os.path.join(args.dst, prior)) / 1e6:.2f} MB" if prior else ""))
     order = [m[0] for m in MODELS]

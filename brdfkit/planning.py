@@ -73,7 +73,8 @@ from .trilinear import lookup_trilinear
 __all__ = ["Plan", "Design", "DESIGNS", "DEFAULT_DESIGN", "DEFAULT_EVALUATIONS", "DEFAULT_CANDIDATES",
            "plan_directions", "plan_basis", "plan_target", "design_rows", "condition_number"]
 
-DEFAULT_DESIGN = "nielsen"
+DEFAULT_DESIGN = "render"
+"""The design `brdfkit plan` and planned samples use unless told: chosen by renders (docs/planning.md)."""
 DEFAULT_EVALUATIONS = 2000
 """Cells evaluated per added direction: Nielsen et al. evaluate 500; 2,000 cost 5 to 8 ms
 per direction on the 2-core development machine under load (a batch of ``K x K``
@@ -127,23 +128,13 @@ class Plan:
 
 @dataclasses.dataclass(frozen=True)
 class Design:
-    """One way of choosing directions.
-
-    Attributes
-    ----------
-    name
-        Registry key (``brdfkit plan --design``).
-    summary
-        One line for help texts.
-    choose
-        ``choose(pool, n, seed, **options) -> cells``: int64 ``(n,)`` flat cell indices;
-        ``pool`` is the basis's candidate cells and rows (``None`` without a basis) and
-        ``seed`` seeds everything random in it.
-    needs_basis
-        Whether it cannot run without a PCA basis.
-    options
-        Names of the options ``choose`` takes.
-    """
+    """One way of choosing directions, registered in :data:`DESIGNS` under its ``name``
+    (``brdfkit plan --design``) with a one-line ``summary`` for help texts. It is the
+    function ``choose(pool, n, seed, **options) -> cells`` (int64 ``(n,)`` flat cell
+    indices), where ``pool`` holds the basis's candidate cells, their rows, the basis and
+    the fit's likelihood (``None`` without a basis) and ``seed`` seeds everything random;
+    ``needs_basis`` says it cannot run without a PCA basis, ``options`` names the
+    keywords ``choose`` takes."""
 
     name: str
     summary: str

@@ -57,9 +57,9 @@ def test_registry_names():
 
 @pytest.mark.parametrize("n", [3, 12])  # fewer and more directions than the 5 components
 def test_nielsen_plan_is_deterministic_distinct_and_measurable(small, n):
-    a = plan_directions(small["basis"], n, seed=0)
-    b = plan_directions(small["basis"], n, seed=0)
-    c = plan_directions(small["basis"], n, seed=1)
+    a = plan_directions(small["basis"], n, design="nielsen", seed=0)
+    b = plan_directions(small["basis"], n, design="nielsen", seed=0)
+    c = plan_directions(small["basis"], n, design="nielsen", seed=1)
     np.testing.assert_array_equal(a.cells, b.cells)
     assert not np.array_equal(a.cells, c.cells)
     assert len(a) == n and np.unique(a.cells).size == n
@@ -77,14 +77,14 @@ def test_nielsen_plan_is_deterministic_distinct_and_measurable(small, n):
 
 def test_refinement_only_lowers_the_condition_number(small):
     for n in (4, 10, 30):
-        greedy = plan_directions(small["basis"], n, seed=2, refine=False)
-        refined = plan_directions(small["basis"], n, seed=2, refine=True)
+        greedy = plan_directions(small["basis"], n, design="nielsen", seed=2, refine=False)
+        refined = plan_directions(small["basis"], n, design="nielsen", seed=2, refine=True)
         assert refined.condition_number <= greedy.condition_number * (1 + 1e-9)
 
 
 def test_nielsen_beats_uniform_draws_on_the_small_basis(small):
     for n in (10, 20, 40):
-        planned = plan_directions(small["basis"], n, seed=0).condition_number
+        planned = plan_directions(small["basis"], n, design="nielsen", seed=0).condition_number
         for seed in range(3):
             assert planned < plan_directions(small["basis"], n, design="uniform", seed=seed).condition_number
 
@@ -92,7 +92,7 @@ def test_nielsen_beats_uniform_draws_on_the_small_basis(small):
 def test_nielsen_beats_uniform_draws_on_the_shipped_basis(shipped):
     """The claim of docs/planning.md, on the basis of merl80-l40 (and of merl-rgl-l40)."""
     for n in (10, 20, 40):
-        planned = plan_directions(shipped, n, seed=0)
+        planned = plan_directions(shipped, n, design="nielsen", seed=0)
         uniform = [plan_directions(shipped, n, design="uniform", seed=s).condition_number for s in range(5)]
         assert planned.condition_number < min(uniform), (n, planned.condition_number, uniform)
 
@@ -132,7 +132,8 @@ def test_design_rows_leave_out_what_the_fit_leaves_out(small):
     (dict(design="sobol"), "unknown design 'sobol'; known: nielsen, render, uniform"),
     (dict(n=0), "number of directions must be at least 1, got 0"),
     (dict(design="uniform", evaluations=3), "design 'uniform' takes no options, got evaluations"),
-    (dict(tries=3), "design 'nielsen' takes the option(s) evaluations, refine, got tries"),
+    (dict(tries=3), "design 'render' takes the option(s) draws, candidates, got tries"),
+    (dict(design="nielsen", tries=3), "design 'nielsen' takes the option(s) evaluations, refine, got tries"),
 ])
 def test_plan_directions_refuses(small, call, message):
     call = {"n": 5, **call}
@@ -152,11 +153,12 @@ def test_no_basis_and_no_default_built_in():
 def test_plan_sample_sparse_round_trip(small, tmp_path, capsys):
     """What a lab does: plan, measure there, reconstruct (docs/planning.md)."""
     plan, samples, out = tmp_path / "plan.csv", tmp_path / "s.csv", tmp_path / "r.binary"
-    code, _, err = run_cli(capsys, ["plan", "-n", "12", "-m", small["basis"], "--seed", "4", "-o", plan])
+    code, _, err = run_cli(capsys, ["plan", "-n", "12", "-m", small["basis"], "--seed", "4", "--draws", "1",
+                                    "--candidates", "5000", "-o", plan])
     assert code == 0, err
     said = " ".join(err.split())
-    want = plan_directions(small["basis"], 12, seed=4)
-    assert f"wrote 12 directions to {plan} (design nielsen, N = 12, seed 4; basis of basis.safetensors: " \
+    want = plan_directions(small["basis"], 12, seed=4, draws=1, candidates=5000)
+    assert f"wrote 12 directions to {plan} (design render, N = 12, seed 4; basis of basis.safetensors: " \
            f"5 components, condition number {want.condition_number:.4g})" in said
     text = plan.read_text().splitlines()
     assert text[0] == f"# brdfkit plan: {want.describe()}" and text[1].startswith("# ")
@@ -190,7 +192,7 @@ def test_plan_uniform_without_a_basis(tmp_path, capsys):
                                        "(see 'brdfkit plan --help')"),
     (["-n", "5", "--design", "uniform", "--evaluations", "9"], "--evaluations do not apply to --design uniform"),
     (["-n", "5", "--design", "uniform", "--no-refine"], "--refine do not apply to --design uniform"),
-    (["-n", "5", "--draws", "3"], "--draws do not apply to --design nielsen"),
+    (["-n", "5", "--design", "nielsen", "--draws", "3"], "--draws do not apply to --design nielsen"),
     (["-n", "5", "-m", "no-such-model"], "unknown model 'no-such-model'"),
     (["-n", "5", "-m", "{missing}"], "{missing}: no such file"),
     (["-n", "5", "-m", "{table}"], "{table}: not a PCA basis or a learnt-prior model file; planning needs a basis"),
@@ -214,7 +216,7 @@ def test_plan_refuses_to_overwrite_its_basis(small, tmp_path, capsys):
     basis = tmp_path / "basis.safetensors"
     shutil.copy(small["basis"], basis)
     before = basis.read_bytes()
-    code, _, err = run_cli(capsys, ["plan", "-n", "5", "-m", basis, "-o", basis])
+    code, _, err = run_cli(capsys, ["plan", "-n", "5", "-m", basis, "--design", "nielsen", "-o", basis])
     assert code == 2 and "output path is also an input" in one_error_line(err)
     assert basis.read_bytes() == before
 
@@ -224,10 +226,11 @@ def test_plan_output_is_atomic(small, tmp_path, capsys):
     # file stays behind.
     out = tmp_path / "plan.csv"
     out.write_text("old\n")
-    code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", small["basis"], "-o", out])
+    code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", small["basis"], "--design", "nielsen", "-o", out])
     assert code == 0, err
     assert len(read_directions(out)) == 6 and not tmp_leftovers(tmp_path)
-    code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", small["basis"], "-o", tmp_path / "nope" / "p.csv"])
+    code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", small["basis"], "--design", "nielsen", "-o",
+                                    tmp_path / "nope" / "p.csv"])
     assert code == 2 and "does not exist" in one_error_line(err)
     assert len(read_directions(out)) == 6 and not tmp_leftovers(tmp_path)
 
@@ -238,10 +241,11 @@ def test_plan_with_a_built_in_name(shipped, tmp_path, monkeypatch, capsys):
     monkeypatch.delenv("BRDFKIT_BUILTIN_MODELS", raising=False)
     if not any(m.name == "merl80-l40" for m in read_manifest(models_folder()).installed()):
         pytest.skip("merl80-l40 is not installed in this checkout")
-    code, _, err = run_cli(capsys, ["plan", "-n", "20", "-m", "merl80-l40", "-o", tmp_path / "p.csv"])
+    code, _, err = run_cli(capsys, ["plan", "-n", "20", "-m", "merl80-l40", "--design", "nielsen", "-o",
+                                    tmp_path / "p.csv"])
     assert code == 0, err
     np.testing.assert_array_equal(read_directions(tmp_path / "p.csv").theta_h,
-                                  plan_directions(shipped, 20).directions.theta_h)
+                                  plan_directions(shipped, 20, design="nielsen").directions.theta_h)
 
 
 @pytest.mark.slow
@@ -255,8 +259,8 @@ def test_plan_for_a_learnt_prior_file_is_the_plan_for_its_basis(tmp_path, capsys
                  ["fit", "--method", "prior", tmp_path / "lib", "-O", f"basis={basis}", "--steps", "3", "-o", prior]):
         code, _, err = run_cli(capsys, args)
         assert code == 0, err
-    code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", prior, "-o", tmp_path / "p.csv"])
+    code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", prior, "--design", "nielsen", "-o", tmp_path / "p.csv"])
     assert code == 0, err
     assert "basis of p.safetensors: 3 components" in " ".join(err.split())
     np.testing.assert_array_equal(read_directions(tmp_path / "p.csv").theta_h,
-                                  plan_directions(basis, 6).directions.theta_h)
+                                  plan_directions(basis, 6, design="nielsen").directions.theta_h)

@@ -54,10 +54,10 @@ def test_uniform_is_the_bench_draw(lib):
 
 
 def test_planned_is_the_table_at_the_plan(lib):
-    protocol = SamplingProtocol("planned", lib["basis"])
+    protocol = SamplingProtocol("planned", lib["basis"], "nielsen")
     tables = [read_merl(lib["lib"] / f"{n}.binary") for n in lib["names"][:2]]
     (a, info), (b, _) = [protocol.samples(t, n, 12, 1) for t, n in zip(tables, lib["names"])]
-    plan = plan_directions(lib["basis"], 12, seed=1)
+    plan = plan_directions(lib["basis"], 12, design="nielsen", seed=1)
     np.testing.assert_array_equal(a.theta_h, plan.directions.theta_h)  # the same directions for every material
     np.testing.assert_array_equal(b.theta_h, plan.directions.theta_h)
     np.testing.assert_array_equal(a.rgb, measure_samples(tables[0], plan.directions).rgb)
@@ -70,7 +70,7 @@ def test_planned_is_the_table_at_the_plan(lib):
 @pytest.mark.parametrize("args, message", [
     (("sobol",), "unknown sampling 'sobol'; known: uniform, planned"),
     (("planned",), "planned sampling needs the PCA basis to plan for"),
-    (("planned", "{basis}", "sobol"), "unknown design 'sobol'; known: nielsen, uniform"),
+    (("planned", "{basis}", "sobol"), "unknown design 'sobol'; known: nielsen, render, uniform"),
     (("uniform", "{basis}"), "uniform sampling takes no basis and no design"),
 ])
 def test_protocol_refuses(lib, args, message):
@@ -114,7 +114,7 @@ def test_bench_cli_planned_and_uniform_rows(lib, tmp_path):
 
     out = tmp_path / "out"
     cmd = [*brdfkit_command(), "bench", "--data", lib["lib"], "--test-list", lib["test"], "--methods", "ipca",
-           "--plan-model", lib["basis"], "--ipca", lib["basis"], "--n", "9,20", "--seeds", "1",
+           "--plan-model", lib["basis"], "--plan-design", "nielsen", "--ipca", lib["basis"], "--n", "9,20", "--seeds", "1",
            "--sampling", "uniform,planned", "--resolution", "8", "--threads", "1", "-o", out]
     proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=300, env=quiet_env())
     assert proc.returncode == 0, proc.stderr[-3000:]

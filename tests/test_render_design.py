@@ -11,6 +11,8 @@ from brdfkit.errors import InputError
 from brdfkit.planning import plan_directions, plan_target
 from brdfkit.render_design import Likelihood, cell_precision, greedy_render, render_metric
 
+from test_planning import small  # noqa: F401  (the module fixture: a 5-component basis of 4 synthetic tables)
+
 
 def _expected_error(rows, q, metric, chosen):
     k = rows.shape[1]
@@ -38,18 +40,6 @@ def test_greedy_takes_the_best_next_direction_by_brute_force():
 def test_greedy_refuses_more_directions_than_candidates():
     with pytest.raises(InputError, match="5 directions asked for, but the basis covers only 4"):
         greedy_render(np.ones((4, 2)), np.ones(4), np.eye(2), 5)
-
-
-@pytest.fixture(scope="module")
-def small(tmp_path_factory):
-    from brdfkit.methods.ipca import fit_ipca, save_ipca
-    from brdfkit.synthetic import write_library
-
-    root = tmp_path_factory.mktemp("render-design")
-    write_library(root / "lib", 4, seed=5, stiff=False)
-    tables = sorted((root / "lib").glob("*.binary"))
-    save_ipca(root / "basis.safetensors", fit_ipca(tables, n_components=5))
-    return {"tables": tables, "basis": root / "basis.safetensors"}
 
 
 def test_metric_is_the_jacobian_of_the_displayed_screen(small):

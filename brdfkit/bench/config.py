@@ -88,7 +88,7 @@ class BenchConfig:
     methods: tuple | None = None
     sampling: tuple = ("uniform",)
     plan_model: str | None = None
-    plan_design: str = "nielsen"
+    plan_design: str = "render"
     compression_models: tuple = ()
     compression_data: str | None = None
     resolution: int = DEFAULT_RESOLUTION

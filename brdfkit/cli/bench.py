@@ -52,7 +52,7 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--plan-model", default=None, metavar="NAME|FILE",
               help="PCA basis planned samples are planned for (a built-in with a learnt prior, a basis or "
                    "learnt-prior file) [default: the --ipca basis].")
-@click.option("--plan-design", default="nielsen", show_default=True,
+@click.option("--plan-design", default="render", show_default=True,
               help="Design of the planned samples (`brdfkit plan --design`).")
 @click.option("--compression-models", default=None,
               help="Hypernetwork models (files or built-in names) to test on encode -> decode, comma-separated "

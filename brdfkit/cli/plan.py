@@ -19,7 +19,7 @@ def _given(name: str) -> bool:
               help="The PCA basis to plan for: a built-in with a learnt prior (`brdfkit models`; its basis), a "
                    "learnt-prior file or a basis file from `brdfkit fit --method ipca`; default: the default "
                    "built-in's (none for --design uniform).")
-@click.option("--design", type=click.Choice(_DESIGNS), default="nielsen", show_default=True,
+@click.option("--design", type=click.Choice(_DESIGNS), default="render", show_default=True,
               help="nielsen: minimum condition number of the basis rows (Nielsen et al. 2015); render: minimum "
                    "expected render error of the fit under the basis's prior (docs/planning.md); uniform: uniform "
                    "over the Rusinkiewicz angles, as `brdfkit sample -n` draws.")
