@@ -89,11 +89,21 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path):
 
 
 def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped):
-    """The learnt priors fit the shared 32-component basis (issue 22); `--method ipca`
-    with a built-in's name stays the baseline of Nielsen et al., its leading 8."""
+    """Each learnt prior fits a 32-component basis of its model's training materials with
+    the mapping's floor at grazing angles (issue 22); `--method ipca` with a built-in's
+    name takes its leading 8, Nielsen et al.'s count."""
     from brdfkit.methods import get_method
+    from brdfkit.model.builtin import read_manifest
 
-    prior = get_method("prior").load("merl80-l40", "cpu")
-    ipca = get_method("ipca").load("merl80-l40", "cpu")
-    assert prior.basis.n_components == 32 and ipca.n_components == 8
-    np.testing.assert_array_equal(ipca.sigma, prior.basis.sigma[:8])
+    bases = {}
+    for name, count in (("merl80-l40", 80), ("merl-rgl-l40", 151)):
+        prior = get_method("prior").load(name, "cpu")
+        ipca = get_method("ipca").load(name, "cpu")
+        assert prior.basis.n_components == 32 and ipca.n_components == 8
+        assert prior.basis.w_floor == 0.1 and len(prior.basis.materials) == count
+        np.testing.assert_array_equal(ipca.sigma, prior.basis.sigma[:8])
+        bases[name] = prior.basis
+    # merl80-l40's basis was fitted on its model's 80 training materials: no test material
+    model = set(get_method("hypernet").load("merl80-l40", "cpu").meta.get("materials") or ())
+    assert set(bases["merl80-l40"].materials) == model and len(model) == 80
+    assert next(m for m in read_manifest().models if m.name == "merl80-l40").materials == 80
