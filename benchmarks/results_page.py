@@ -241,7 +241,8 @@ def sparse_section(sparse) -> list[str]:
                      + "".join(f" {fmt((rows.get((m, n)) or {}).get('time_s'), 2)} |" for m in methods))
     lines.append("")
     if "prior" in methods and len(methods) > 1:
-        others = [m for m in methods if m != "prior"]
+        # each against the same samples: the uniform rows here; planned against uniform is the done-when's
+        others = [m for m in methods if m != "prior" and not m.endswith("(planned)")]
         pm = {metric: per_material(recs, metric) for metric in ("psnr", "log_rmse")}
         lines += ["#### The learnt prior against each other method, per material (mean over the draws)", "",
                   "| N |" + "".join(f" prior PSNR higher than {m} |" for m in others)
@@ -275,7 +276,7 @@ def sparse_findings(sparse) -> list[str]:
     if "prior" in methods:
         pm = {metric: per_material(recs, metric) for metric in ("psnr", "log_rmse")}
         for m in methods:
-            if m == "prior":
+            if m == "prior" or m.endswith("(planned)"):  # prior's uniform samples against the same samples
                 continue
             hi = [n for n in ns if None not in (get("prior", n, "psnr"), get(m, n, "psnr"))
                   and get("prior", n, "psnr") > get(m, n, "psnr")]
@@ -287,10 +288,11 @@ def sparse_findings(sparse) -> list[str]:
                        f"log RMSE at N = {_n_list(lo)}; lower log RMSE per material at N = {_n_list(ns)}: "
                        f"{', '.join(per)}.")
     for m in methods:
-        first, last = ns[0], ns[-1]
+        own = [n for n in ns if get(m, n, "psnr") is not None] or ns
+        first, last = own[0], own[-1]
         out.append(f"* {m}: log RMSE {fmt(get(m, first, 'log_rmse'), 4)} (N = {first}) to "
                    f"{fmt(get(m, last, 'log_rmse'), 4)} (N = {last}), PSNR {fmt(get(m, first, 'psnr'), 2)} to "
-                   f"{fmt(get(m, last, 'psnr'), 2)} dB; CPU time {_range([get(m, n, 'cpu_s') for n in ns], 2)} s "
+                   f"{fmt(get(m, last, 'psnr'), 2)} dB; CPU time {_range([get(m, n, 'cpu_s') for n in own], 2)} s "
                    f"per reconstruction.")
     out.append("")
     return out
