@@ -7,10 +7,12 @@ the reference of ``merl80-l40``, ``-O reference=``), learnt priors each with the
 file it was trained on (``merl80-basis`` fitted on the 80 training materials of
 ``merl80-l40``, ``merl-rgl-basis`` on all 151). Validation figures come from
 ``benchmarks/eval_sparse.py --json`` or ``brdfkit bench``'s ``bench.json`` (held-out
-materials only: the learnt prior's mean log RMSE per N).
+materials only: the learnt prior's mean log RMSE per N, from uniform samples).
 
     python benchmarks/pack_builtin.py --src /work/models --dst brdfkit/models \
-        --validation merl80-l40=bench-uniform/bench.json
+        --validation merl80-l40=bench-sparse/bench.json
+    python benchmarks/pack_builtin.py --dst brdfkit/models --validation-only \
+        --validation merl80-l40=bench-sparse/bench.json     # the manifest's figures alone
 """
 
 from __future__ import annotations
@@ -67,11 +69,15 @@ def _tune_record(path):
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--src", required=True, help="folder of the trained model files")
+    ap.add_argument("--src", help="folder of the trained model files")
     ap.add_argument("--dst", required=True, help="the built-in folder (brdfkit/models)")
     ap.add_argument("--validation", nargs="*", default=[], metavar="NAME=JSON",
                     help="eval_sparse.py --json output of a model's held-out materials")
+    ap.add_argument("--validation-only", action="store_true",
+                    help="only set the manifest's validation figures; no model file is touched")
     args = ap.parse_args()
+    if not args.validation_only and not args.src:
+        ap.error("--src is required (unless --validation-only)")
 
     from brdfkit.methods.prior.file import pack_prior
     from brdfkit.model.builtin import manifest_entry, pack_model, write_manifest
@@ -80,10 +86,20 @@ def main():
     for item in args.validation:
         name, path = item.split("=", 1)
         with open(path) as f:
-            recs = [r for r in json.load(f)["records"] if r["method"] == "prior"]
+            recs = [r for r in json.load(f)["records"] if r["method"] == "prior"
+                    and r.get("sampling", "uniform") == "uniform" and r.get("log_rmse") is not None]
         validation[name] = {str(n): round(sum(r["log_rmse"] for r in recs if r["n"] == n)
                                           / sum(1 for r in recs if r["n"] == n), 4)
                             for n in sorted({r["n"] for r in recs})}
+    if args.validation_only:
+        with open(os.path.join(args.dst, "manifest.json")) as f:
+            doc = json.load(f)
+        for entry in doc["models"]:
+            if entry["name"] in validation:
+                entry["validation"] = validation[entry["name"]]
+        write_manifest(args.dst, doc["models"], default=doc["default"])
+        print(f"set the validation of {', '.join(sorted(validation)) or 'no model'} in {args.dst}/manifest.json")
+        return
     os.makedirs(args.dst, exist_ok=True)
     for stale in (REFERENCE, *BASES):
         if os.path.exists(os.path.join(args.dst, stale)):

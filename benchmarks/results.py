@@ -162,13 +162,27 @@ def same_materials_line(sparse: dict) -> str:
     same materials, and none of the test materials, from their files' headers."""
     cfg = sparse["config"]
     prior, ipca = (training_materials(p) if p and os.path.isfile(p) else None
-                   for p in ((cfg.get("models") or {}).get("prior"), cfg.get("ipca")))
+                   for p in (_prior_file((cfg.get("models") or {}).get("prior")), cfg.get("ipca")))
     if prior is None or ipca is None:
         return "Training materials of the learnt prior and the IPCA basis: unknown (files not readable here)."
     test = set(sparse["materials"]["sparse"])
     return (f"Training materials (from the model files): the learnt prior {len(prior)}, the IPCA basis "
             f"{len(ipca)}; the same set: {'yes' if prior == ipca else 'no'}; test materials among them: "
             f"{len(test & (prior | ipca))}.")
+
+
+def _prior_file(spec):
+    """The learnt-prior file a bench's ``prior`` model names: a file as given, a built-in's
+    name resolved (``--model-file prior=merl80-l40``); ``None`` if neither."""
+    from brdfkit.errors import BrdfkitError
+    from brdfkit.model.builtin import resolve_prior
+
+    if not spec or os.path.isfile(spec):
+        return spec
+    try:
+        return resolve_prior(spec)
+    except BrdfkitError:
+        return None
 
 
 def _header(path) -> dict:
