@@ -541,6 +541,17 @@ def _one_line(err):
     return lines[0]
 
 
+def test_cli_fit_prior_with_a_learnt_spread_and_a_context_range(data, capsys, tmp_path):
+    """``-O spread=true -O context_min=5 -O context_max=20`` train (the spread through the
+    closed form), and the file records both."""
+    out = tmp_path / "spread.safetensors"
+    code, _, err = run_cli(capsys, _tiny_args(data, out, spread="true", context_min=5, context_max=20))
+    assert code == 0, err
+    model = load_prior(out)
+    assert model.cfg.spread is True and model.meta["training"]["context"] == [5, 20]
+    assert model.net.head[-1].out_features == 6 * model.cfg.n_components
+
+
 @pytest.mark.parametrize("change,extra,message", [
     ({"folds": 1}, [], "folds = 1 is out of range"),
     ({"mixup": 2}, [], "mixup = 2 is out of range"),
@@ -550,6 +561,9 @@ def _one_line(err):
     ({"lambda_w": -1}, [], "lambda_w = -1 is out of range"),
     ({"weight": "bright"}, [], "weight = 'bright' is out of range"),
     ({"s2": 0}, [], "s2 = 0 is out of range"),
+    ({"spread": "yes"}, [], "spread = 'yes' is out of range"),
+    ({"context_min": 0}, [], "context_min = 0 is out of range"),
+    ({"context_min": 100, "context_max": 50}, [], "context_max = 50 is out of range"),
     ({"no_such_key": 1}, [], "takes only .*not no_such_key"),
     ({}, ["--resume"], "takes only .*not resume"),
     ({"folds": 3}, [], "needs at least 6 training materials .*got 4"),
@@ -608,3 +622,62 @@ def test_a_config_the_fit_cannot_use_is_refused():
         with pytest.raises(ValueError):
             PriorConfig(**bad)
     assert PriorConfig().weight == "metric"  # model files from before the option read as they were
+
+
+def test_solve_takes_a_prior_spread_per_channel():
+    """A ``(B, 3, K)`` ``sigma`` (the learnt spread) is each channel's own ridge, and one
+    that repeats the basis's ``sigma`` is the ``(B, K)`` fit."""
+    import torch
+
+    rng = np.random.default_rng(4)
+    s, k = 40, 3
+    tab = np.c_[rng.uniform(0.01, 0.5, s), rng.normal(0, 0.3, s), rng.normal(0, 1, (s, k))]
+    rho, w, cos = rng.uniform(0, 3, (s, 3)), rng.uniform(0.05, 1, s), rng.uniform(0.05, 1, s)
+    sigma, mu = np.array([2.0, 1.0, 0.5]), rng.normal(0, 1, (3, k))
+    sd = sigma * np.exp(rng.normal(0, 1, (3, k)))
+    T = lambda a: torch.from_numpy(np.asarray(a, np.float64))[None]  # noqa: E731
+    args = (T(tab), T(rho), T(w), T(cos))
+    same, _ = solve(*args, T(np.tile(sigma, (3, 1))), 0.03, 0.1, mu=T(mu), weight="energy")
+    flat, _ = solve(*args, T(sigma), 0.03, 0.1, mu=T(mu), weight="energy")
+    np.testing.assert_allclose(same.numpy(), flat.numpy(), rtol=1e-6)
+    c, _ = solve(*args, T(sd), 0.03, 0.1, mu=T(mu), weight="energy")
+    for ch in range(3):
+        want, _ = solve(*args, T(sd[ch]), 0.03, 0.1, mu=T(mu), weight="energy")
+        np.testing.assert_allclose(c[0, ch].numpy(), want[0, ch].numpy(), rtol=1e-6)
+    assert not np.allclose(c.numpy(), flat.numpy(), atol=1e-3)
+
+
+def test_a_model_with_a_learnt_spread_round_trips_and_starts_as_the_plain_fit(basis, tables, tmp_path):
+    """``spread=True``: an untrained head keeps ``sigma`` (the plain fit); a trained one
+    changes the fit; the file keeps the option and reconstructs the same to the bit. Files
+    without it record no ``spread`` (their fingerprints stay as they were)."""
+    import torch
+    from safetensors import safe_open
+
+    from brdfkit.methods.prior.model import SPREAD_LOG_BOUND
+
+    cfg = dataclasses.replace(CFG, spread=True)
+    net = prior_net(cfg).eval()
+    model = PriorModel(basis, net, cfg, {"materials": list(basis.materials)})
+    samples = draw_samples(tables[8], 200, seed=2)
+    np.testing.assert_array_equal(model.coefficients(samples), model.coefficients(samples, use_prior=False))
+    with torch.no_grad():
+        net.head[-1].bias[3 * cfg.n_components:] = 2 * SPREAD_LOG_BOUND  # beyond the bound: clipped
+    sig = torch.ones(1, cfg.n_components)
+    with torch.no_grad():
+        _, sd, _, raw = net(torch.zeros(1, 5, 6), torch.zeros(1, 5, 3), torch.zeros(1, 3, cfg.n_components), sig, 5)
+    assert raw.shape == (1, 6, cfg.n_components)
+    np.testing.assert_allclose(sd.numpy(), np.exp(SPREAD_LOG_BOUND), rtol=1e-6)
+    loose = model.coefficients(samples)
+    assert not np.allclose(loose, model.coefficients(samples, use_prior=False))
+    path = tmp_path / "spread.safetensors"
+    save_prior(path, model)
+    back = load_prior(path)
+    assert back.cfg.spread is True
+    np.testing.assert_array_equal(back.coefficients(samples), loose)
+    plain = tmp_path / "plain.safetensors"
+    save_prior(plain, _model(basis))
+    with safe_open(str(plain), "np") as f:
+        assert "spread" not in json.loads(f.metadata()["config"])
+    with pytest.raises(ValueError):
+        PriorConfig(spread="yes")

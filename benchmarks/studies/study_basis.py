@@ -15,7 +15,12 @@ materials:
 * fits: ``ipca`` (the basis's own ridge fit, :meth:`IpcaModel.coefficients`), ``solve``
   (the learnt prior's closed form :func:`~brdfkit.methods.prior.model.solve` without a
   network, the likelihood ``weight``/``s2``/``lam``), ``proj`` (least squares on the whole
-  table: the ceiling).
+  table: the ceiling), ``prior`` (a learnt-prior file's own fit, its network included;
+  ``--basis LABEL=PRIOR_FILE``, trained with ``brdfkit fit --method prior`` on the same 64:
+  the other fits then use its basis; ``LABEL=F1+F2+...``: an ensemble of priors on one
+  basis, their prior means averaged), ``joint:S2`` (the closed form with the energy
+  likelihood and a joint prior over the three channels of each component: its ``3 x 3``
+  second moments over the basis's training materials, projected onto the basis).
 
     python benchmarks/studies/study_basis.py --proxies /work/proxies \
         --basis 8=b8.safetensors 16=b16.safetensors 32=b32.safetensors --n 40 160 400 4000 --seeds 0 1
@@ -33,15 +38,20 @@ import numpy as np
 HERE = pathlib.Path(__file__).resolve().parent
 VALIDATION = HERE.parent / "validation.txt"
 
-FITS = ("ipca", "proj", "energy:0.01", "energy:0.03", "energy:0.1", "metric:0.03")
+FITS = ("ipca", "proj", "energy:0.01", "energy:0.03", "energy:0.1", "metric:0.03", "prior", "joint:0.03")
 
 
-def fit(basis, samples, table, how: str, lam: float):
-    """Coefficients ``(K, 3)`` of one fit (module docstring)."""
+def fit(basis, samples, table, how: str, lam: float, prior=None):
+    """Coefficients ``(K, 3)`` of one fit (module docstring); ``prior`` the learnt-prior
+    models ``basis`` came from (``prior``) or the channel moments (``joint:``)."""
     import torch
 
     from brdfkit.methods.prior.model import sample_rows, solve
 
+    if how == "prior":
+        return ensemble_coefficients(prior, samples)
+    if how.startswith("joint:"):
+        return joint_fit(basis, samples, float(how.split(":")[1]), lam, prior)
     if how == "ipca":
         return basis.coefficients(samples)
     if how == "proj":
@@ -53,6 +63,61 @@ def fit(basis, samples, table, how: str, lam: float):
     with torch.no_grad():
         c, _ = solve(T(tab), T(rho), T(w), T(cos), sig, float(s2), lam, weight=weight)
     return c[0].double().numpy().T
+
+
+def ensemble_coefficients(models, samples):
+    """Coefficients ``(K, 3)`` of learnt priors on one basis, their prior means averaged
+    (the posterior is linear in the mean: the average of the members' fits)."""
+    import torch
+
+    from brdfkit.methods.prior.model import sample_rows, solve
+
+    if len(models) == 1:
+        return models[0].coefficients(samples)
+    basis, cfg = models[0].basis, models[0].cfg
+    ok, tab, w, cos, rho, hd = sample_rows(basis, samples)
+    T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
+    sig = torch.from_numpy(basis.sigma.astype(np.float32))[None]
+    args = (T(tab), T(rho), T(w), T(cos), sig, cfg.s2, cfg.lam)
+    with torch.no_grad():
+        c, b = solve(*args, weight=cfg.weight)
+        resid = b - torch.einsum("bck,blk->bcl", T(tab)[..., 2:], c)
+        mu = sum(m.net(T(hd), resid, c, sig, int(ok.sum()))[0] for m in models) / len(models)
+        c, _ = solve(*args, mu=mu, weight=cfg.weight)
+    return c[0].double().numpy().T
+
+
+def joint_fit(basis, samples, s2: float, lam: float, moments):
+    """The energy likelihood's closed form with a joint Gaussian prior over each component's
+    three channel coefficients, covariance ``moments (K, 3, 3)`` (module docstring)."""
+    from brdfkit.methods.ipca import EPS
+    from brdfkit.methods.prior.model import sample_rows
+
+    ok, tab, w, cos, rho, _ = sample_rows(basis, samples)
+    k = basis.n_components
+    b = np.log((rho * w[:, None] + EPS) / (tab[:, :1] + EPS)) - tab[:, 1:2]
+    q = cos[:, None] * (rho + EPS / w[:, None]) / (1 + rho * cos[:, None]) / s2 + 1.0 / lam
+    a = tab[:, 2:]
+    lhs, rhs = np.zeros((3 * k, 3 * k)), np.zeros(3 * k)
+    for ch in range(3):
+        lhs[ch * k:(ch + 1) * k, ch * k:(ch + 1) * k] = a.T @ (q[:, ch:ch + 1] * a)
+        rhs[ch * k:(ch + 1) * k] = a.T @ (q[:, ch] * b[:, ch])
+    for j in range(k):
+        idx = [j, k + j, 2 * k + j]
+        lhs[np.ix_(idx, idx)] += np.linalg.inv(moments[j])
+    return np.linalg.solve(lhs, rhs).reshape(3, k).T
+
+
+def channel_moments(basis, proxies):
+    """``(K, 3, 3)`` second moments of the channel coefficients of the basis's training
+    materials (each table projected onto the basis), scaled so that their mean diagonal is
+    ``sigma ** 2``."""
+    from brdfkit.merl import read_merl
+
+    c = np.stack([basis.project(read_merl(pathlib.Path(proxies) / f"{m}.binary")) for m in basis.materials])
+    m2 = np.einsum("mka,mkb->kab", c, c) / len(c)
+    scale = basis.sigma.astype(np.float64) ** 2 / (np.trace(m2, axis1=1, axis2=2) / 3)
+    return m2 * scale[:, None, None]
 
 
 def main(argv=None):
@@ -68,12 +133,22 @@ def main(argv=None):
 
     from brdfkit.merl import read_merl
     from brdfkit.methods.ipca import load_ipca
+    from brdfkit.methods.prior.file import is_prior_file as _is_prior
+    from brdfkit.methods.prior.file import load_prior
     from brdfkit.metrics import brdf_log_rmse, dark_at_grazing
     from brdfkit.render.screen import screen, screen_psnr
     from brdfkit.samples import draw_samples
 
     names = VALIDATION.read_text().split()
-    bases = {k: load_ipca(f) for k, f in (s.split("=", 1) for s in args.basis)}
+    bases, priors, moments = {}, {}, {}
+    for k, f in (s.split("=", 1) for s in args.basis):
+        if _is_prior(f.split("+")[0]):
+            priors[k] = [load_prior(x) for x in f.split("+")]
+            bases[k] = priors[k][0].basis
+        else:
+            bases[k] = load_ipca(f)
+        if any(h.startswith("joint:") for h in args.fits):
+            moments[k] = channel_moments(bases[k], args.proxies)
     sc = screen()
     rows, t0 = [], time.monotonic()
     for name in names:
@@ -84,9 +159,11 @@ def main(argv=None):
                 s = draw_samples(table, n, seed=seed, source=name)
                 for k, basis in bases.items():
                     for how in args.fits:
-                        if how == "proj" and (n != args.n[0] or seed != args.seeds[0]):
+                        if (how == "proj" and (n != args.n[0] or seed != args.seeds[0])) or \
+                                (how == "prior" and k not in priors):
                             continue
-                        rec = basis.decode(fit(basis, s, table, how, args.lam))
+                        rec = basis.decode(fit(basis, s, table, how, args.lam,
+                                               moments.get(k) if how.startswith("joint:") else priors.get(k)))
                         rows.append({"material": name, "n": n, "seed": seed, "k": k, "fit": how,
                                      "psnr": screen_psnr(sc.render_table(np.nan_to_num(rec)), ref_img),
                                      "log_rmse": float(brdf_log_rmse(rec, table)),

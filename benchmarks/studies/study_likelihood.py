@@ -195,7 +195,7 @@ def main():
                             c0, b0 = tsolve(T(tab[m]), T(rho[m]), T(w[m]), T(cos[m]), sig_t, prior.cfg.s2,
                                             prior.cfg.lam)
                             resid = b0 - torch.einsum("bck,blk->bcl", T(tab[m])[..., 2:], c0)
-                            mu, _, _ = prior.net(T(hd[m]), resid, c0, sig_t, int(m.sum()))
+                            mu, _, _, _ = prior.net(T(hd[m]), resid, c0, sig_t, int(m.sum()))
                         return mu[0].double().numpy()
 
                     mu = prior_mu(np.ones(len(rho), bool))

@@ -13,7 +13,6 @@ the basis alone, and are read as they were.
 
 from __future__ import annotations
 
-import dataclasses
 import hashlib
 import json
 import os
@@ -66,7 +65,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
     path = os.fspath(path)
     net = {f"net.{k}": v.detach().cpu().float().numpy() for k, v in model.net.state_dict().items()}
     meta = {"format": PRIOR_FORMAT, "version": PRIOR_VERSION,
-            "config": json.dumps(dataclasses.asdict(model.cfg), sort_keys=True)}
+            "config": json.dumps(model.cfg.record(), sort_keys=True)}
     meta.update({k: json.dumps(v) for k, v in model.meta.items()})
     if basis_file is None:
         btens, bmeta = basis_tensors(model.basis, half=half, phi_stride=phi_stride, int8=int8, prefix="basis.",

@@ -13,8 +13,8 @@ on the validation split (``docs/generalisation.md``):
   so that a coefficient means the same in all of them, and stored as the main basis is
   stored (float16, half ``phi_d``) so that it is as coarse as what ships.
 - **Batches**: ``batch_materials`` materials a step, each with a context of ``N``
-  samples (one ``N`` a step, log-uniform in [40, 4000], cells drawn with the density of
-  uniform Rusinkiewicz angles) and ``query_size`` query cells uniform over the grid.
+  samples (one ``N`` a step, log-uniform in [``context_min``, ``context_max``], by
+  default [40, 4000], cells drawn with the density of uniform Rusinkiewicz angles) and ``query_size`` query cells uniform over the grid.
   With probability ``mixup`` a material is mixed with another of its fold, linearly in
   IPCA's mapped space at a uniform ratio.
 - **Loss**: the evaluation metric itself, the mean square of
@@ -42,7 +42,8 @@ from .model import PriorConfig, PriorModel, prior_net, solve
 __all__ = ["fit_prior", "FIT_OPTIONS"]
 
 FIT_OPTIONS = ("latent_dim", "steps", "minutes", "seed", "device", "batch_materials", "components", "basis",
-               "folds", "mixup", "query_size", "lr", "lambda_w", "lambda_z", "ema", "width", "s2", "lam", "weight")
+               "folds", "mixup", "query_size", "lr", "lambda_w", "lambda_z", "ema", "width", "s2", "lam", "weight",
+               "spread", "context_min", "context_max")
 
 
 def _storage(path: str) -> dict:
@@ -74,7 +75,8 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
               components: int = DEFAULT_COMPONENTS, basis: str | None = None, folds: int = 5, mixup: float = 0.5,
               query_size: int = 4096, lr: float = 1e-3, lambda_w: float = 1e-3, lambda_z: float = 1e-3,
               ema: float = 0.999, width: int = 128, s2: float = PriorConfig.s2, lam: float = PriorConfig.lam,
-              weight: str = PriorConfig.weight) -> str:
+              weight: str = PriorConfig.weight, spread: bool = PriorConfig.spread, context_min: int = 40,
+              context_max: int = 4000) -> str:
     """Train a learnt-prior model on MERL tables and save it to ``output``.
 
     Parameters
@@ -96,6 +98,10 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     s2, lam, weight
         The closed-form fit's likelihood (:class:`PriorConfig`), in training and in the
         saved model.
+    spread
+        Whether the network also predicts the prior's spread (:class:`PriorConfig`).
+    context_min, context_max
+        The range of the training contexts' sample counts (log-uniform).
 
     Returns
     -------
@@ -131,7 +137,11 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
                            ("latent_dim", latent_dim, count(latent_dim)), ("width", width, count(width)),
                            ("components", components, count(components)),
                            ("s2", s2, real(s2) and s2 > 0), ("lam", lam, real(lam) and lam > 0),
-                           ("weight", weight, weight in ("metric", "energy"))):
+                           ("weight", weight, weight in ("metric", "energy")),
+                           ("spread", spread, isinstance(spread, bool)),
+                           ("context_min", context_min, count(context_min)),
+                           ("context_max", context_max, count(context_max) and count(context_min)
+                            and context_max >= context_min)):
         if not ok:
             raise InputError(f"--method prior: option {key} = {value!r} is out of range")
     t0 = time.monotonic()
@@ -203,7 +213,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     members = [torch.from_numpy(np.flatnonzero(fold_of == f)).to(dev) for f in range(folds)]
 
     cfg = PriorConfig(n_components=K, latent_dim=latent_dim, width=width, s2=float(s2), lam=float(lam),
-                      weight=weight)
+                      weight=weight, spread=spread)
     net = prior_net(cfg).to(dev)
     opt = torch.optim.Adam(net.parameters(), lr=lr)
     avg = torch.optim.swa_utils.AveragedModel(net, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(ema))
@@ -216,7 +226,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
         return torch.rand(shape, generator=g, device=dev, dtype=dtype)
 
     while (steps is None or step < steps) and (budget is None or time.monotonic() - t_train < budget):
-        n_ctx = int(round(math.exp(math.log(40) + float(rand()) * math.log(100))))
+        n_ctx = int(round(math.exp(math.log(context_min) + float(rand()) * math.log(context_max / context_min))))
         mats = torch.randint(0, len(paths), (batch_materials,), generator=g, device=dev)
         folds_b = mat_fold[mats]
         c_pos = torch.searchsorted(cdf, rand(batch_materials, n_ctx, dtype=torch.float64)).clamp_(max=P - 1)
@@ -237,8 +247,8 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
         c, b = solve(*args, weight=weight)
         with torch.no_grad():
             resid = b - torch.einsum("bck,blk->bcl", ctab[..., 2:], c)
-        mu, z, dc = net(hd_all[c_pos], resid, c, sig, n_ctx)
-        c, _ = solve(*args, mu=mu, weight=weight)
+        mu, sd, z, dc = net(hd_all[c_pos], resid, c, sig, n_ctx)
+        c, _ = solve(*args[:4], sd, *args[5:], mu=mu, weight=weight)
         ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
         mapped = mean + torch.einsum("bqk,blk->bql", comp, c)
         x = (torch.expm1(mapped.clamp(max=30)) * (ref + EPS) + ref) / w_all[q_pos][..., None]
@@ -269,6 +279,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     meta = {"materials": names, "steps": step, "wall_time_s": round(wall, 1), "seed": seed,
             "training": {"folds": folds, "mixup": mixup, "batch_materials": batch_materials, "query_size": query_size,
                          "lr": lr, "lambda_w": lambda_w, "lambda_z": lambda_z, "ema": ema,
+                         "context": [context_min, context_max],
                          "basis": os.path.basename(str(basis)) if basis else None}}
     save_prior(output, PriorModel(full, final, cfg, meta), **storage)
     say(f"wrote learnt-prior model ({step} steps, {wall / 60:.1f} min, loss {np.mean(losses[-200:]):.5f}) "

@@ -27,6 +27,17 @@ With ``weight = "energy"`` the metric's term is ``g_s / s2`` instead: a residual
 in proportion to the sample's saturating energy ``rho cos_i / (1 + rho cos_i)`` rather
 than its square, so that the bright samples of a glossy lobe outweigh the diffuse body
 less (``benchmarks/studies/study_likelihood.py`` ranks the choices by render PSNR).
+
+A learnt spread (``PriorConfig.spread``)
+----------------------------------------
+The prior's standard deviations are the training coefficients' ``sigma``, the same for
+every material and sample count. With ``spread`` the head also predicts a factor on each
+(``exp`` of its output, clipped to ``[e^-3, e^3]``; a zero output keeps ``sigma``), per
+channel and component: where the samples leave the network sure of a coefficient the
+fit is held to its prior mean more tightly, where they do not it is let loose. Trained
+through the closed form like the mean. Off by default and in the built-ins: on the
+validation split it fitted the training materials better and rendered worse at every N
+(``docs/generalisation.md``, Lever 8).
 """
 
 from __future__ import annotations
@@ -41,7 +52,7 @@ from ...geometry import GRID_SHAPE
 from ...trilinear import lookup_trilinear
 from ..ipca import EPS, IpcaModel
 
-__all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF"]
+__all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF", "SPREAD_LOG_BOUND"]
 
 N_REF = 4000
 """The sample count the network's count feature is scaled by (``ln N / ln N_REF``)."""
@@ -61,6 +72,9 @@ class PriorConfig:
         Noise variances of the metric's and of IPCA's likelihood in :func:`solve`.
     weight
         ``"metric"`` or ``"energy"``: the metric's term in :func:`solve`.
+    spread
+        Whether the head also predicts the prior's spread (module docstring); files from
+        before the option have none.
     """
 
     n_components: int = 8
@@ -69,11 +83,22 @@ class PriorConfig:
     s2: float = 1e-2
     lam: float = 0.1
     weight: str = "metric"
+    spread: bool = False
 
     def __post_init__(self):
         # A model file's config arrives as JSON: refuse what the fit cannot use.
         if self.weight not in ("metric", "energy") or not (self.s2 > 0 and self.lam > 0):
             raise ValueError(f"invalid likelihood: weight {self.weight!r}, s2 {self.s2!r}, lam {self.lam!r}")
+        if not isinstance(self.spread, bool):
+            raise ValueError(f"invalid spread: {self.spread!r}")
+
+    def record(self) -> dict:
+        """The config as a model file records it: without ``spread`` when it is off, so a
+        file from before the option is saved again as it was (same fingerprint)."""
+        d = dataclasses.asdict(self)
+        if not self.spread:
+            del d["spread"]
+        return d
 
 
 def _mlp(*sizes):
@@ -85,10 +110,14 @@ def _mlp(*sizes):
     return torch.nn.Sequential(*layers[:-1])
 
 
+SPREAD_LOG_BOUND = 3.0
+"""The learnt spread's factor on ``sigma`` lies in ``[e^-3, e^3]``."""
+
+
 def prior_net(cfg: PriorConfig):
     """The network: ``encoder`` (9 -> width -> width -> latent, mean-pooled) and ``head``
-    (latent + 3 K + 1 -> width -> width -> 3 K), the head's last layer zero (an untrained
-    model is the plain basis fit)."""
+    (latent + 3 K + 1 -> width -> width -> 3 K, or 6 K with ``cfg.spread``), the head's
+    last layer zero (an untrained model is the plain basis fit)."""
     import torch
 
     class PriorNet(torch.nn.Module):
@@ -96,21 +125,26 @@ def prior_net(cfg: PriorConfig):
             super().__init__()
             k = cfg.n_components
             self.encoder = _mlp(9, cfg.width, cfg.width, cfg.latent_dim)
-            self.head = _mlp(cfg.latent_dim + 3 * k + 1, cfg.width, cfg.width, 3 * k)
+            self.head = _mlp(cfg.latent_dim + 3 * k + 1, cfg.width, cfg.width, (6 if cfg.spread else 3) * k)
             with torch.no_grad():
                 self.head[-1].weight.zero_()
                 self.head[-1].bias.zero_()
 
         def forward(self, hd, resid, c, sigma, n):
-            """Prior mean ``(B, 3, K)`` from the samples' ``hd (B, S, 6)``, residuals
-            ``(B, S, 3)``, plain-fit coefficients ``c (B, 3, K)``, the basis's ``sigma
-            (B, K)`` and the sample count ``n``; also the latent and the raw output."""
+            """The prior from the samples' ``hd (B, S, 6)``, residuals ``(B, S, 3)``,
+            plain-fit coefficients ``c (B, 3, K)``, the basis's ``sigma (B, K)`` and the
+            sample count ``n``: its mean ``(B, 3, K)`` and standard deviations ``(B, 3,
+            K)`` (``sigma`` itself without ``cfg.spread``); also the latent and the raw
+            output ``(B, 3, K)`` or ``(B, 6, K)``."""
             z = self.encoder(torch.cat([hd, resid], -1)).mean(1)
             b, k = c.shape[0], c.shape[-1]
             feats = torch.cat([z, (c / sigma[:, None]).reshape(b, -1),
                                torch.full((b, 1), math.log(max(n, 1)) / math.log(N_REF), dtype=z.dtype)], -1)
-            dc = self.head(feats).view(b, 3, k)
-            return dc * sigma[:, None], z, dc
+            raw = self.head(feats).view(b, -1, k)
+            sd = sigma[:, None].expand(b, 3, k)
+            if cfg.spread:
+                sd = sd * torch.exp(raw[:, 3:].clamp(-SPREAD_LOG_BOUND, SPREAD_LOG_BOUND))
+            return raw[:, :3] * sigma[:, None], sd, z, raw
 
     return PriorNet()
 
@@ -128,7 +162,8 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
         ``(B, S)`` the basis's mapping weight (``cos_i cos_o``, ``> 0``, raised to the
         basis's ``w_floor``: :meth:`IpcaModel.weight`) and ``cos_i``.
     sigma
-        ``(B, K)`` the prior's standard deviations.
+        ``(B, K)`` the prior's standard deviations, or ``(B, 3, K)`` per channel (a
+        learnt spread).
     mu
         ``(B, 3, K)`` prior mean, or ``None`` (zero).
     weight
@@ -146,11 +181,12 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
     b = torch.log((rho * w[..., None] + EPS) / (ref + EPS)) - mean
     g = cos[..., None] * (rho + EPS / w[..., None]) / (1 + rho * cos[..., None])
     q = ((g if weight == "energy" else g ** 2) / s2 + 1.0 / lam).double()
+    sig = sigma.double() if sigma.dim() == 3 else sigma.double()[:, None]  # (B, 3 or 1, K)
     lhs = torch.einsum("bck,bcj,bcl->blkj", comp, comp, q)
-    lhs = lhs + torch.diag_embed(1.0 / sigma.double() ** 2)[:, None]
+    lhs = lhs + torch.diag_embed(1.0 / sig ** 2)
     rhs = torch.einsum("bck,bcl->blk", comp, q * b.double())
     if mu is not None:
-        rhs = rhs + mu.double() / sigma.double()[:, None] ** 2
+        rhs = rhs + mu.double() / sig ** 2
     return torch.linalg.solve(lhs, rhs).float(), b
 
 
@@ -215,8 +251,8 @@ class PriorModel:
             c, b = solve(*args, weight=self.cfg.weight)
             if use_prior:
                 resid = b - torch.einsum("bck,blk->bcl", T(tab)[..., 2:], c)
-                mu, _, _ = self.net(T(hd), resid, c, sig, int(ok.sum()))
-                c, _ = solve(*args, mu=mu, weight=self.cfg.weight)
+                mu, sd, _, _ = self.net(T(hd), resid, c, sig, int(ok.sum()))
+                c, _ = solve(*args[:4], sd, *args[5:], mu=mu, weight=self.cfg.weight)
         if not torch.isfinite(c).all():
             raise InputError(f"{samples.source or 'samples'}: the fit did not give finite coefficients")
         return c[0].double().numpy().T
