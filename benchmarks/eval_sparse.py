@@ -7,7 +7,8 @@ samples of each (material, N, draw) are those of the benchmarks' one sampling pr
 :class:`brdfkit.protocol.SamplingProtocol` (``docs/bench.md``, "Sampling"), the samples
 ``brdfkit bench`` reconstructs for the same material, N and seed: uniform over the
 angles, and/or (``--sampling planned``) the table measured at ``brdfkit plan``'s
-directions for the basis (``--plan-model``, default the prior's or ``--ipca``'s). Mean
+directions for the basis (``--plan-model``, default the prior's or ``--ipca``'s; the
+design ``--plan-design``, as ``brdfkit bench`` takes it). Mean
 over the materials and draws. The quick check behind the built-in models' validation
 figures (``docs/models.md``); the full comparison with renders is ``brdfkit bench``.
 
@@ -40,6 +41,8 @@ def main():
                     help="samplings of the protocol (brdfkit.protocol)")
     ap.add_argument("--plan-model", default=None,
                     help="basis planned samples are planned for (default: the prior's, or --ipca)")
+    ap.add_argument("--plan-design", default=None,
+                    help="design of the planned samples (brdfkit plan --design; default the protocol's, render)")
     ap.add_argument("--json", default=None, help="also write the per-material records here")
     ap.add_argument("--render", type=int, default=0, metavar="PX",
                     help="also render each reconstruction in the reference scene at PX pixels and report PSNR")
@@ -58,7 +61,8 @@ def main():
 
     prior = get_method("prior").load(args.prior) if args.prior else None
     basis = prior.basis if prior else get_method("ipca").load(args.ipca)
-    protocols = {s: SamplingProtocol(s, args.plan_model or basis) if s == "planned" else SamplingProtocol(s)
+    protocols = {s: SamplingProtocol(s, args.plan_model or basis, args.plan_design) if s == "planned"
+                 else SamplingProtocol(s)
                  for s in dict.fromkeys(args.sampling)}
     if prior and (args.s2 is not None or args.lam is not None):
         import dataclasses

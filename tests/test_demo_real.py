@@ -26,7 +26,7 @@ from brdfkit.merl import read_merl
 from brdfkit.model import builtin
 from brdfkit.nbrdf_tables import DEMO_WEIGHTS, LAYERS, load_nbrdf_weights, nbrdf_table
 
-from conftest import TINY_CONFIG, brdfkit_command, quiet_env
+from conftest import TINY_CONFIG, brdfkit_command, quiet_env, run_cli
 from helpers_model import make_model, material_table
 
 SHARED = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "..", "shared")
@@ -282,7 +282,7 @@ def _interrupted_sheet(monkeypatch, seen):
     monkeypatch.setattr(brdfkit.sheet, "comparison_sheet", sheet)
 
 
-def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, tmp_path):
+def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, capsys, tmp_path):
     """The sheet's six inputs are named by their tiles' labels (the sheet labels its tiles
     with the file stems): the reference, the default method from both sample counts and
     the three compressions, in-sample and unseen. Without --keep-tables they go to a
@@ -311,15 +311,19 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, t
         else:
             assert sorted(os.listdir(out)) == ["embeddings", "plot-teflon.png", "samples"]
 
-    monkeypatch.undo()
+    monkeypatch.undo()  # the real sheet again, and the tiny shelf with a short refinement (as `quick`)
+    import brdfkit.demo_real
+
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(quick))
+    monkeypatch.setattr(brdfkit.demo_real, "COMPRESSION_BUDGET", 0.1)
     out = tmp_path / "e"
-    proc = _run(["--out", out, "--only", "teflon", "--resolution", "8"], quick)
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    code, stdout, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "teflon", "--resolution", "8"])
+    assert code == 0, stderr[-3000:]
     assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples", "sheet-teflon.png"]
-    assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", proc.stdout)
-    assert "dense tables stay in memory" in re.sub(r"\s+", " ", proc.stderr)
-    assert "rendering teflon and 5 reconstructions" in re.sub(r"\s+", " ", proc.stderr)
-    assert "comparison sheet (6 renders, 8 px)" in proc.stdout
+    assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", stdout)
+    assert "dense tables stay in memory" in re.sub(r"\s+", " ", stderr)
+    assert "rendering teflon and 5 reconstructions" in re.sub(r"\s+", " ", stderr)
+    assert "comparison sheet (6 renders, 8 px)" in stdout
 
 
 def test_no_builtin_models_is_one_line_pointing_at_train(tmp_path):

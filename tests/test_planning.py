@@ -253,10 +253,11 @@ def test_plan_for_a_learnt_prior_file_is_the_plan_for_its_basis(tmp_path, capsys
     """-m a learnt-prior file (`brdfkit fit --method prior`): its basis, as inside it."""
     from brdfkit.synthetic import write_library
 
-    write_library(tmp_path / "lib", 10, seed=2, stiff=False)  # the prior's fit needs 10
+    write_library(tmp_path / "lib", 4, seed=2, stiff=False)  # two folds of two: the fewest the prior's fit takes
     basis, prior = tmp_path / "b.safetensors", tmp_path / "p.safetensors"
     for args in (["fit", "--method", "ipca", tmp_path / "lib", "--components", "3", "-o", basis],
-                 ["fit", "--method", "prior", tmp_path / "lib", "-O", f"basis={basis}", "--steps", "3", "-o", prior]):
+                 ["fit", "--method", "prior", tmp_path / "lib", "-O", f"basis={basis}", "-O", "folds=2",
+                  "--steps", "3", "-o", prior]):
         code, _, err = run_cli(capsys, args)
         assert code == 0, err
     code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", prior, "--design", "nielsen", "-o", tmp_path / "p.csv"])

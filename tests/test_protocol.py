@@ -84,11 +84,12 @@ def test_bench_and_eval_sparse_reconstruct_the_same_samples(lib, tmp_path):
     same samples (digests) and so the same IPCA reconstruction (log RMSE)."""
     cfg = BenchConfig(output=str(tmp_path / "bench"), data=str(lib["lib"]), test_list=str(lib["test"]),
                       ipca=str(lib["basis"]), methods=("ipca",), n=(9, 20), seeds=2,
-                      sampling=("uniform", "planned"), resolution=8, threads=1)
+                      sampling=("uniform", "planned"), plan_design="nielsen", resolution=8, threads=1)
     bench = [r for r in run_bench(cfg, progress=False)["records"] if r["kind"] == "sparse"]
     proc = subprocess.run([sys.executable, EVAL_SPARSE, "--ipca", str(lib["basis"]), "--data", str(lib["lib"]),
                            "--list", str(lib["test"]), "--n", "9", "20", "--seeds", "0", "1",
-                           "--sampling", "uniform", "planned", "--json", str(tmp_path / "eval.json")],
+                           "--sampling", "uniform", "planned", "--plan-design", "nielsen",
+                           "--json", str(tmp_path / "eval.json")],
                           capture_output=True, text=True, timeout=300, env=quiet_env(), cwd=REPO)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert "ipca (planned)" in proc.stdout
@@ -103,14 +104,15 @@ def test_bench_and_eval_sparse_reconstruct_the_same_samples(lib, tmp_path):
         assert r["samples_digest"] == e["samples_digest"]
         assert r["log_rmse"] == pytest.approx(e["log_rmse"], rel=1e-12)
         if r["sampling"] == "planned":
+            assert r["design"] == e["design"] == "nielsen"
             assert r["plan_seed"] == e["plan_seed"] == r["seed"]
             assert r["condition_number"] == e["condition_number"]
         else:
             assert r["sample_seed"] == e["sample_seed"] == draw_seed(r["seed"], r["n"], r["material"])
 
 
-def test_bench_cli_planned_and_uniform_rows(lib, tmp_path):
-    from conftest import brdfkit_command
+def test_bench_cli_planned_and_uniform_rows(lib, tmp_path, capsys):
+    from conftest import brdfkit_command, run_cli
 
     out = tmp_path / "out"
     cmd = [*brdfkit_command(), "bench", "--data", lib["lib"], "--test-list", lib["test"], "--methods", "ipca",
@@ -127,19 +129,15 @@ def test_bench_cli_planned_and_uniform_rows(lib, tmp_path):
     assert f"`brdfkit plan -n N -m {lib['basis'].name} --design nielsen --seed DRAW`" in md
 
     # Merging: a planned run and a uniform run of the same seeds are two samplings, not
-    # duplicates.
+    # duplicates (the second run and the merge in this process: the first ran as users run it).
     other = tmp_path / "other"
-    cmd2 = [str(c) for c in cmd[:-1]] + [str(other)]
-    cmd2[cmd2.index("uniform,planned")] = "uniform"
-    cmd2[cmd2.index("--seeds") + 1] = "1"
-    cmd2[cmd2.index("--n") + 1] = "9"
-    cmd2 += ["--first-seed", "1"]
-    proc = subprocess.run(cmd2, capture_output=True, text=True, timeout=300, env=quiet_env())
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    proc = subprocess.run([*map(str, brdfkit_command()), "bench", "--merge", str(out), "--merge", str(other),
-                           "-o", str(tmp_path / "merged")], capture_output=True, text=True, timeout=300,
-                          env=quiet_env())
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    args = [str(c) for c in cmd[len(brdfkit_command()):-1]] + [str(other)]
+    args[args.index("uniform,planned")] = "uniform"
+    args[args.index("--n") + 1] = "9"
+    for argv in (args + ["--first-seed", "1"], ["bench", "--merge", str(out), "--merge", str(other),
+                                                "-o", str(tmp_path / "merged")]):
+        code, _, err = run_cli(capsys, argv)
+        assert code == 0, err[-3000:]
     merged = json.loads((tmp_path / "merged" / "bench.json").read_text())
     assert merged["config"]["sampling"] == ["uniform", "planned"]
     assert len(merged["records"]) == 2 * (4 + 1)
