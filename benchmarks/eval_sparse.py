@@ -21,6 +21,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 
 import numpy as np
@@ -127,4 +128,10 @@ def main():
 
 
 if __name__ == "__main__":
-    main()
+    from brdfkit.errors import BrdfkitError
+
+    try:
+        main()
+    except BrdfkitError as e:  # bad input (a model, list or design): one line, exit code 2
+        print(f"eval_sparse.py: error: {e}", file=sys.stderr)
+        sys.exit(2)

@@ -84,16 +84,22 @@ def main():
 
     validation = {}
     for item in args.validation:
-        name, path = item.split("=", 1)
-        with open(path) as f:
-            recs = [r for r in json.load(f)["records"] if r["method"] == "prior"
-                    and r.get("sampling", "uniform") == "uniform" and r.get("log_rmse") is not None]
+        name, _, path = item.partition("=")
+        try:
+            with open(path) as f:
+                recs = [r for r in json.load(f)["records"] if r["method"] == "prior"
+                        and r.get("sampling", "uniform") == "uniform" and r.get("log_rmse") is not None]
+        except (OSError, ValueError, KeyError, TypeError) as e:
+            ap.error(f"--validation {item}: not a readable bench.json or eval_sparse.py --json record ({e})")
         validation[name] = {str(n): round(sum(r["log_rmse"] for r in recs if r["n"] == n)
                                           / sum(1 for r in recs if r["n"] == n), 4)
                             for n in sorted({r["n"] for r in recs})}
     if args.validation_only:
-        with open(os.path.join(args.dst, "manifest.json")) as f:
-            doc = json.load(f)
+        try:
+            with open(os.path.join(args.dst, "manifest.json")) as f:
+                doc = json.load(f)
+        except (OSError, ValueError) as e:
+            ap.error(f"--dst {args.dst}: no readable manifest.json ({e})")
         for entry in doc["models"]:
             if entry["name"] in validation:
                 entry["validation"] = validation[entry["name"]]

@@ -29,6 +29,7 @@ materials:
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import pathlib
 import time
@@ -66,25 +67,20 @@ def fit(basis, samples, table, how: str, lam: float, prior=None):
 
 
 def ensemble_coefficients(models, samples):
-    """Coefficients ``(K, 3)`` of learnt priors on one basis, their prior means averaged
+    """Coefficients ``(K, 3)`` of learnt priors on one basis, their prior means (and
+    spreads) averaged: the first model's fit with a network that averages the members'
     (the posterior is linear in the mean: the average of the members' fits)."""
-    import torch
-
-    from brdfkit.methods.prior.model import sample_rows, solve
-
     if len(models) == 1:
         return models[0].coefficients(samples)
-    basis, cfg = models[0].basis, models[0].cfg
-    ok, tab, w, cos, rho, hd = sample_rows(basis, samples)
-    T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
-    sig = torch.from_numpy(basis.sigma.astype(np.float32))[None]
-    args = (T(tab), T(rho), T(w), T(cos), sig, cfg.s2, cfg.lam)
-    with torch.no_grad():
-        c, b = solve(*args, weight=cfg.weight)
-        resid = b - torch.einsum("bck,blk->bcl", T(tab)[..., 2:], c)
-        mu = sum(m.net(T(hd), resid, c, sig, int(ok.sum()))[0] for m in models) / len(models)
-        c, _ = solve(*args, mu=mu, weight=cfg.weight)
-    return c[0].double().numpy().T
+
+    import torch
+
+    class MeanNet(torch.nn.Module):
+        def forward(self, *inputs):
+            outs = [m.net(*inputs) for m in models]
+            return (*(sum(o[i] for o in outs) / len(outs) for i in (0, 1)), *outs[0][2:])
+
+    return dataclasses.replace(models[0], net=MeanNet()).coefficients(samples)
 
 
 def joint_fit(basis, samples, s2: float, lam: float, moments):

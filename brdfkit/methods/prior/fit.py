@@ -14,7 +14,8 @@ on the validation split (``docs/generalisation.md``):
   stored (float16, half ``phi_d``) so that it is as coarse as what ships.
 - **Batches**: ``batch_materials`` materials a step, each with a context of ``N``
   samples (one ``N`` a step, log-uniform in [``context_min``, ``context_max``], by
-  default [40, 4000], cells drawn with the density of uniform Rusinkiewicz angles) and ``query_size`` query cells uniform over the grid.
+  default [40, 4000], cells drawn with the density of uniform Rusinkiewicz angles) and
+  ``query_size`` query cells uniform over the grid.
   With probability ``mixup`` a material is mixed with another of its fold, linearly in
   IPCA's mapped space at a uniform ratio.
 - **Loss**: the evaluation metric itself, the mean square of
@@ -243,12 +244,12 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
                 mixed = (torch.exp(t * torch.log(rho * w + EPS) + (1 - t) * torch.log(other * w + EPS)) - EPS) / w
                 rho.copy_(mixed.clamp(min=0))
         ctab, qtab, sig = fold_tab[folds_b[:, None], c_pos], fold_tab[folds_b[:, None], q_pos], fold_sig[folds_b]
-        args = (ctab, crho, w_all[c_pos], cos_all[c_pos], sig, cfg.s2, cfg.lam)
-        c, b = solve(*args, weight=weight)
+        rows = (ctab, crho, w_all[c_pos], cos_all[c_pos])
+        c, b = solve(*rows, sig, cfg.s2, cfg.lam, weight=weight)
         with torch.no_grad():
             resid = b - torch.einsum("bck,blk->bcl", ctab[..., 2:], c)
         mu, sd, z, dc = net(hd_all[c_pos], resid, c, sig, n_ctx)
-        c, _ = solve(*args[:4], sd, *args[5:], mu=mu, weight=weight)
+        c, _ = solve(*rows, sd, cfg.s2, cfg.lam, mu=mu, weight=weight)
         ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
         mapped = mean + torch.einsum("bqk,blk->bql", comp, c)
         x = (torch.expm1(mapped.clamp(max=30)) * (ref + EPS) + ref) / w_all[q_pos][..., None]

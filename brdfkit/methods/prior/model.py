@@ -246,13 +246,13 @@ class PriorModel:
             raise InputError(f"{samples.source or 'samples'}: {what}")
         T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
         sig = torch.from_numpy(self.basis.sigma.astype(np.float32))[None]
-        args = (T(tab), T(rho), T(w), T(cos), sig, self.cfg.s2, self.cfg.lam)
+        rows = (T(tab), T(rho), T(w), T(cos))
         with torch.no_grad():
-            c, b = solve(*args, weight=self.cfg.weight)
+            c, b = solve(*rows, sig, self.cfg.s2, self.cfg.lam, weight=self.cfg.weight)
             if use_prior:
-                resid = b - torch.einsum("bck,blk->bcl", T(tab)[..., 2:], c)
+                resid = b - torch.einsum("bck,blk->bcl", rows[0][..., 2:], c)
                 mu, sd, _, _ = self.net(T(hd), resid, c, sig, int(ok.sum()))
-                c, _ = solve(*args[:4], sd, *args[5:], mu=mu, weight=self.cfg.weight)
+                c, _ = solve(*rows, sd, self.cfg.s2, self.cfg.lam, mu=mu, weight=self.cfg.weight)
         if not torch.isfinite(c).all():
             raise InputError(f"{samples.source or 'samples'}: the fit did not give finite coefficients")
         return c[0].double().numpy().T
