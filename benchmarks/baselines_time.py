@@ -8,8 +8,8 @@ Measures, on MERL tables (real files or the NBRDF proxies of ``../shared``):
 * ``nbrdf``: per sample set the time of fitting the network to the samples and of the
   dense decode (``to_table``);
 
-at N = 40, 400 and 4000 samples (``brdfkit.samples.draw_samples``, seeds 0, 1, ...), with
-``brdfkit.metrics.brdf_log_rmse`` against the full table. Prints a Markdown table (the
+at N = 40, 400 and 4000 samples (``brdfkit.acquisition.sampling.draw_samples``, seeds 0, 1, ...), with
+``brdfkit.evaluation.metrics.brdf_log_rmse`` against the full table. Prints a Markdown table (the
 one in ``docs/baselines.md``) and, with ``--json``, writes every measurement.
 
 Example (the figures in docs/baselines.md)::
@@ -48,9 +48,9 @@ def main(argv=None) -> int:
 
     from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
     from brdfkit.methods.nbrdf import DEFAULT_STEPS, fit_nbrdf
-    from brdfkit.merl import read_merl
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.samples import draw_samples
+    from brdfkit.io.merl import read_merl
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.acquisition.sampling import draw_samples
 
     test = [ln.strip() for ln in open(args.test_list) if ln.strip() and not ln.startswith("#")]
     files = sorted(f for f in os.listdir(args.data) if f.endswith(".binary"))

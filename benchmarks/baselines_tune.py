@@ -35,9 +35,9 @@ def _training(args):
 
 def tune_lambda(args) -> None:
     from brdfkit.methods.ipca import fit_ipca
-    from brdfkit.merl import read_merl
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.samples import draw_samples
+    from brdfkit.io.merl import read_merl
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.acquisition.sampling import draw_samples
 
     train = _training(args)
     val = train[::4]
@@ -63,9 +63,9 @@ def tune_nbrdf(args) -> None:
     import torch
 
     from brdfkit.methods.nbrdf import fit_nbrdf
-    from brdfkit.merl import read_merl
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.samples import draw_samples
+    from brdfkit.io.merl import read_merl
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.acquisition.sampling import draw_samples
 
     torch.set_num_threads(1)
     val = _training(args)[2::16]

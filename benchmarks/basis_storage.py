@@ -1,4 +1,4 @@
-"""What the compact storage of a PCA basis costs (``brdfkit.methods.ipca.storage``).
+"""What the compact storage of a PCA basis costs (``brdfkit.methods.ipca.basis_storage``).
 
 Fits the 8-component basis to the MERL training proxies less the fixed validation split,
 stores it as shipped (float16, every other ``phi_d`` cell) and as float32, reads both
@@ -19,7 +19,7 @@ import numpy as np
 
 from brdfkit.geometry import N_CELLS
 from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
-from brdfkit.samples import draw_samples
+from brdfkit.acquisition.sampling import draw_samples
 
 import common
 from studies.study_data import load_library, validation_materials
@@ -34,7 +34,7 @@ def main():
                     help="also the mean PSNR of the IPCA fits in the reference scene at PX pixels")
     args = ap.parse_args()
     if args.render:
-        from brdfkit.metrics import psnr
+        from brdfkit.evaluation.metrics import psnr
         img = common.table_renderer(args.render)
     lib = load_library(args.proxies)
     val = validation_materials()

@@ -65,8 +65,8 @@ def main(argv=None):
     p.add_argument("--json", default=None)
     args = p.parse_args(argv)
 
-    from brdfkit import synthetic
-    from brdfkit.merl import write_merl
+    from brdfkit.materials import synthetic
+    from brdfkit.io.merl import write_merl
 
     env = {k: v for k, v in os.environ.items() if k not in ("BRDFKIT_MODEL",)}
     rows, results = [], []

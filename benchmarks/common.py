@@ -181,7 +181,7 @@ def table_renderer(px: int):
     """``img(table)``: the quadrature render of a ``(90, 90, 180, 3)`` table (1/sr) in the
     reference scene at ``px`` pixels square, float32 ``(px, px, 3)``, on the CPU: what
     the benchmarks' and studies' render PSNRs compare."""
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.envmap import reference_envmap
     from brdfkit.render.quadrature import render
     from brdfkit.render.scene import Scene
@@ -232,9 +232,10 @@ def untrained_model(tmpdir: str, latent_dim: int = 40, device="cpu", config: dic
     """
     import torch
 
-    from brdfkit import api, synthetic
-    from brdfkit.model.network import HyperBRDF, HyperConfig
-    from brdfkit.model.file import save_model
+    from brdfkit import api
+    from brdfkit.materials import synthetic
+    from brdfkit.hypernet.network import HyperBRDF, HyperConfig
+    from brdfkit.hypernet.model_file import save_model
 
     table = synthetic.table(synthetic.STIFF[2])
     torch.manual_seed(0)

@@ -10,7 +10,7 @@ Issue 7, item 1. By default measures, per torch thread count:
 * ``write_merl`` alone;
 * the **bound**: a plain ``torch.mm`` chain with the hyponet's shapes (``6 -> 60 x 4 ->
   3``, hence the same FLOP count) over the same cells in the same cache-sized blocks
-  (:data:`brdfkit.model.kernels.DECODE_BLOCK`), nothing else: no bias, ReLU, mapping or table;
+  (:data:`brdfkit.hypernet.kernels.DECODE_BLOCK`), nothing else: no bias, ReLU, mapping or table;
 * for context: the same chain unblocked (one ``(60, 1.1 M)`` activation: memory-bound)
   and the fp32 rate of a cache-resident 256^3 ``mm``.
 
@@ -65,7 +65,7 @@ def main(argv=None):
     if args.repeat is None:
         args.repeat = 9 if args.per_operation else 7
 
-    from brdfkit.model import kernels
+    from brdfkit.hypernet import kernels
 
     if args.decode_block:
         kernels.DECODE_BLOCK = args.decode_block
@@ -76,7 +76,8 @@ def main(argv=None):
     threads = [int(t) for t in args.threads.split(",") if t]
     with tempfile.TemporaryDirectory() as tmp:
         if args.model:
-            from brdfkit import api, synthetic
+            from brdfkit import api
+            from brdfkit.materials import synthetic
 
             model, table = api.load_model(args.model, device=args.device), synthetic.table(synthetic.STIFF[2])
         else:
@@ -89,7 +90,7 @@ def main(argv=None):
 def _embedding(model):
     import numpy as np
 
-    from brdfkit.embedding import Embedding
+    from brdfkit.io.embedding import Embedding
 
     rng = np.random.default_rng(0)
     return Embedding((0.1 * rng.normal(size=model.cfg.latent_dim)).astype(np.float32), model.fingerprint)
@@ -99,10 +100,10 @@ def against_bound(model, thread_counts, args, tmp) -> int:
     import numpy as np
 
     from brdfkit import api
-    from brdfkit.model import kernels
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.model.network import hyponet_shapes
-    from brdfkit.merl import write_merl
+    from brdfkit.hypernet import kernels
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.hypernet.network import hyponet_shapes
+    from brdfkit.io.merl import write_merl
 
     rows, results = [], []
     emb = _embedding(model)
@@ -157,8 +158,8 @@ def per_operation(model, table, thread_counts, repeat) -> int:
     import torch
 
     from brdfkit import api
-    from brdfkit.model import kernels
-    from brdfkit.model.brdf import NeuralBRDF
+    from brdfkit.hypernet import kernels
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
     def timed(fn):
         fn()  # warm-up: caches, allocator, lazy init

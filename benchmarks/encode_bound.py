@@ -17,7 +17,7 @@ rounds, one torch thread unless ``--threads``:
 
 Then the command line, as a user runs it (``brdfkit sparse S.csv -m M -o out.binary``,
 400 samples, untrained default model): whole-process wall time, best of
-``--cli-repeat``, with the thread choice of :mod:`brdfkit.threads` and with torch's
+``--cli-repeat``, with the thread choice of :mod:`brdfkit.runtime` and with torch's
 default of one thread per core (``OMP_NUM_THREADS=<cores>``, the behaviour before it);
 and ``python -X importtime`` of the same command: total import time and the largest
 top-level packages.
@@ -42,7 +42,7 @@ NS = (40, 100, 400, 1000, 4000)
 
 
 def _decoder_shapes(cfg):
-    from brdfkit.model.network import hyponet_shapes
+    from brdfkit.hypernet.network import hyponet_shapes
 
     hidden = [cfg.decoder_hidden] * cfg.decoder_layers
     nets = []
@@ -86,9 +86,10 @@ def main(argv=None):
 
     common.set_threads(args.threads)
     from brdfkit import api
-    from brdfkit.model import kernels
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.samples import draw_samples, write_samples
+    from brdfkit.hypernet import kernels
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.io.samples import write_samples
+    from brdfkit.acquisition.sampling import draw_samples
 
     rows, results = [], []
     with tempfile.TemporaryDirectory() as tmp:
@@ -144,7 +145,7 @@ def main(argv=None):
         cmd = ["sparse", csv, "-m", model_path, "-o", os.path.join(tmp, "out.binary")]
         env = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")}
         cpus = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
-        from brdfkit.threads import threads_for_load
+        from brdfkit.runtime import threads_for_load
         chosen = threads_for_load(cpus, os.getloadavg()[0])
         cli = {"auto_threads_s": _process_time([exe, *cmd], env, args.cli_repeat),
                "auto_threads_would_choose": chosen, "cpus": cpus}

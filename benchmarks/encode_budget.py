@@ -1,7 +1,7 @@
 """Compression error against encode time: `brdfkit encode`'s refinement budget (issue 21).
 
 For each material (MERL tables of ``--proxies``, every ``--every``-th by name) and each
-model, the table is compressed by :func:`brdfkit.compression.compress_table` with each
+model, the table is compressed by :func:`brdfkit.hypernet.refine_on_screen.compress_table` with each
 ``--budgets`` value (0: the paper's encoder pass), decoded densely and rendered in the
 reference scene at ``--px`` pixels (quadrature) beside the table itself: PSNR and Delta E
 2000 of the renders, the BRDF log RMSE, the render-aligned error's held-out PSNR, and the
@@ -43,12 +43,12 @@ def main():
     from common import load_average, machine
 
     from brdfkit.api import load_model
-    from brdfkit.compression import CompressConfig, compress_table
-    from brdfkit.merl import read_merl
-    from brdfkit.metrics import brdf_log_rmse, delta_e_2000, psnr
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.model.encoding import encode_table
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+    from brdfkit.io.merl import read_merl
+    from brdfkit.evaluation.metrics import brdf_log_rmse, delta_e_2000, psnr
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.hypernet.encoding import encode_table
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.quadrature import render
     from brdfkit.render.scene import Scene
 

@@ -42,9 +42,9 @@ def _compressor(spec):
 
 def _encode(model, table, name, kind, config):
     """``brdfkit encode``'s embedding, with ``config`` (``--config``) overriding the
-    refinement's :class:`~brdfkit.compression.CompressConfig` fields."""
+    refinement's :class:`~brdfkit.hypernet.refine_on_screen.CompressConfig` fields."""
     from brdfkit import api
-    from brdfkit.compression import CompressConfig, compress_table
+    from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
 
     if kind != "hypernet" or not config:
         return api.encode(model, table, source=name, refine=kind == "hypernet")
@@ -57,10 +57,10 @@ def _work(args):
 
     torch.set_num_threads(threads)
     from brdfkit import api
-    from brdfkit.merl import read_merl
+    from brdfkit.io.merl import read_merl
     from brdfkit.methods import METHODS
-    from brdfkit.metrics import brdf_log_rmse, delta_e_2000, psnr
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.evaluation.metrics import brdf_log_rmse, delta_e_2000, psnr
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.quadrature import render_many
     from brdfkit.render.scene import Scene
 

@@ -4,7 +4,7 @@ For a learnt-prior model (a file or a built-in name): the learnt prior, the plai
 fit (the network unused) and IPCA's ridge fit with the same basis; or, with ``--ipca``
 alone, IPCA's fit with that basis; optionally a hypernetwork model beside them. The
 samples of each (material, N, draw) are those of the benchmarks' one sampling protocol,
-:class:`brdfkit.protocol.SamplingProtocol` (``docs/bench.md``, "Sampling"), the samples
+:class:`brdfkit.acquisition.protocol.SamplingProtocol` (``docs/bench.md``, "Sampling"), the samples
 ``brdfkit bench`` reconstructs for the same material, N and seed: uniform over the
 angles, and/or (``--sampling planned``) the table measured at ``brdfkit plan``'s
 directions for the basis (``--plan-model``, default the prior's or ``--ipca``'s; the
@@ -39,7 +39,7 @@ def main():
     ap.add_argument("--n", type=int, nargs="+", default=[40, 400, 4000])
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2], help="draw indices")
     ap.add_argument("--sampling", nargs="+", default=["uniform"], choices=["uniform", "planned"],
-                    help="samplings of the protocol (brdfkit.protocol)")
+                    help="samplings of the protocol (brdfkit.acquisition.protocol)")
     ap.add_argument("--plan-model", default=None,
                     help="basis planned samples are planned for (default: the prior's, or --ipca)")
     ap.add_argument("--plan-design", default=None,
@@ -54,11 +54,11 @@ def main():
     if (args.prior is None) == (args.ipca is None):
         ap.error("give --prior (the learnt prior, its basis fit and IPCA) or --ipca (IPCA alone)")
 
-    from brdfkit.materials import read_exclude_list
-    from brdfkit.merl import read_merl
+    from brdfkit.io.folders import read_exclude_list
+    from brdfkit.io.merl import read_merl
     from brdfkit.methods import get_method
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.protocol import SamplingProtocol
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.acquisition.protocol import SamplingProtocol
 
     prior = get_method("prior").load(args.prior) if args.prior else None
     basis = prior.basis if prior else get_method("ipca").load(args.ipca)
@@ -71,7 +71,7 @@ def main():
                                                       if v is not None})
     psnr_of = None
     if args.render:
-        from brdfkit.metrics import psnr
+        from brdfkit.evaluation.metrics import psnr
         img = common.table_renderer(args.render)
 
         def psnr_of(pred, ref_img):
@@ -83,7 +83,7 @@ def main():
     variants["ipca"] = lambda s: ipca.reconstruct(s)
     if args.hypernet:
         from brdfkit import api
-        from brdfkit.model.builtin import load_builtin
+        from brdfkit.hypernet.packing import load_builtin
         hyper = load_builtin(args.hypernet, device="cpu")
         variants["hypernet"] = lambda s: api.sparse(hyper, s)[0]
     rows = [(k, s) for k in variants for s in protocols]  # one table row per method and sampling

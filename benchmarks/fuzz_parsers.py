@@ -3,7 +3,7 @@
     python benchmarks/fuzz_parsers.py --minutes 3            # every parser, 3 minutes each
     python benchmarks/fuzz_parsers.py --minutes 1 load_model read_embedding
 
-Same inputs as ``tests/test_fuzz.py`` (:mod:`brdfkit.fuzzing`): random bytes and
+Same inputs as ``tests/test_fuzz.py`` (:mod:`brdfkit.testing.fuzzing`): random bytes and
 mutated valid files. Only brdfkit's own one-line errors may escape; the first other
 outcome (another exception, a multi-line message, anything printed by a C library or a
 warning, a parse over 30 s) is printed with hypothesis' shrunk example, and the exit code
@@ -22,7 +22,7 @@ import traceback
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from brdfkit.fuzzing import PARSERS, check_parser, draw_input
+from brdfkit.testing.fuzzing import PARSERS, check_parser, draw_input
 
 
 def fuzz(name: str, seconds: float, folder: str, chunk: int = 100) -> tuple[dict, str | None]:

@@ -1,14 +1,14 @@
 #!/usr/bin/env python3
 """Per-pair cost of a table render's BRDF evaluations, against the same code at another git
-revision, in one process: the trilinear lookup (:class:`brdfkit.trilinear.TrilinearTable`)
-and the whole :meth:`brdfkit.render.brdf.TableBRDF.eval_dirs` (directions -> Rusinkiewicz
+revision, in one process: the trilinear lookup (:class:`brdfkit.geometry.trilinear.TrilinearTable`)
+and the whole :meth:`brdfkit.render.renderable.TableBRDF.eval_dirs` (directions -> Rusinkiewicz
 angles -> lookup; issue 14 item 1, ``docs/performance.md``).
 
 The direction pairs are those the quadrature evaluates in the reference scene at
 ``--resolution``, in its blocks and column-major as it hands them over (every
 ``--stride``-th block, at most ``--max-pairs``), the table the synthetic ``stiff-white``
-(``--brdf``: a MERL file). The other revision's ``brdfkit/geometry.py`` (and
-``brdfkit/trilinear.py`` where it has one; the lookup moved there from ``geometry.py``) is
+(``--brdf``: a MERL file). The other revision's ``brdfkit/geometry/grid.py`` (and
+``brdfkit/geometry/trilinear.py`` where it has one; the lookup moved there from ``geometry.py``) is
 loaded from git as a package of its own, and its ``eval_dirs`` is ``TableBRDF.eval_dirs``
 as it was up to this lookup's change
 (``half_diff_from_io``, the lookup, ``torch.where`` over the horizon). Both sides are timed
@@ -44,9 +44,11 @@ def main(argv=None) -> int:
     common.set_threads(args.threads)
     import torch
 
-    from brdfkit import geometry, synthetic, trilinear
-    from brdfkit.merl import read_merl
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit import geometry
+    from brdfkit.materials import synthetic
+    from brdfkit.geometry import trilinear
+    from brdfkit.io.merl import read_merl
+    from brdfkit.render.renderable import TableBRDF
 
     table = read_merl(args.brdf) if args.brdf else synthetic.table(synthetic.STIFF[2])
     wi, wo = _render_pairs(args.resolution, args.stride, args.max_pairs)
@@ -129,7 +131,7 @@ def _render_pairs(resolution, stride, max_pairs):
 
 def _revision_lookup(rev: str, folder: str):
     """The lookup of git revision ``rev``: its ``lookup_trilinear``, ``TrilinearTable`` and
-    ``half_diff_from_io``, from its ``brdfkit/geometry.py`` and ``brdfkit/trilinear.py``
+    ``half_diff_from_io``, from its ``brdfkit/geometry/grid.py`` and ``brdfkit/geometry/trilinear.py``
     imported as the package ``brdfkit_<rev>`` from files written into ``folder`` (each name
     from ``trilinear`` where the revision has it there, else from ``geometry``)."""
     package = "brdfkit_" + "".join(c if c.isalnum() else "_" for c in rev)
@@ -142,7 +144,7 @@ def _revision_lookup(rev: str, folder: str):
             with open(os.path.join(folder, package, name), "w") as f:
                 f.write(text.stdout)
         elif name == "geometry.py":
-            raise SystemExit(f"lookup.py: git show {rev}:brdfkit/geometry.py failed: {text.stderr.strip()}")
+            raise SystemExit(f"lookup.py: git show {rev}:brdfkit/geometry/grid.py failed: {text.stderr.strip()}")
     sys.path.insert(0, folder)
     modules = [importlib.import_module(package + ".geometry")]
     if os.path.exists(os.path.join(folder, package, "trilinear.py")):

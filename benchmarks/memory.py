@@ -89,7 +89,7 @@ def main(argv=None):
 
     import numpy as np
 
-    from brdfkit.embedding import Embedding, write_embedding
+    from brdfkit.io.embedding import Embedding, write_embedding
 
     fits = fit_processes()
     with tempfile.TemporaryDirectory() as tmp:
@@ -100,10 +100,10 @@ def main(argv=None):
         out = os.path.join(tmp, "m.binary")
         decode = child_peak("import sys; from brdfkit.cli import main; "
                             f"main(['decode', {emb_path!r}, '-m', {model_path!r}, '-o', {out!r}])")
-        floor = child_peak("import torch, brdfkit.api, brdfkit.model.brdf, brdfkit.merl")
+        floor = child_peak("import torch, brdfkit.api, brdfkit.hypernet.neural_brdf, brdfkit.io.merl")
         # load_model + grid_hd + to_table without the write: where the decode's memory goes.
         decode_only = child_peak(
-            "import brdfkit.api as a; from brdfkit.embedding import read_embedding; "
+            "import brdfkit.api as a; from brdfkit.io.embedding import read_embedding; "
             f"m = a.load_model({model_path!r}); a.decode(m, read_embedding({emb_path!r}))")
 
     per_material_expanded = CELLS * 9 * 4

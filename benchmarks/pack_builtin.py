@@ -79,8 +79,9 @@ def main():
     if not args.validation_only and not args.src:
         ap.error("--src is required (unless --validation-only)")
 
-    from brdfkit.methods.prior.file import pack_prior
-    from brdfkit.model.builtin import manifest_entry, pack_model, write_manifest
+    from brdfkit.methods.prior.prior_file import pack_prior
+    from brdfkit.models.builtin import write_manifest
+    from brdfkit.hypernet.packing import manifest_entry, pack_model
 
     validation = {}
     for item in args.validation:

@@ -3,8 +3,8 @@
 the quadrature renderer and Mitsuba with the ``brdfkit`` plugin; or the quadrature's error.
 
 Issue 7, item 4, and docs/render.md. For each BRDF: a dense table
-(:class:`~brdfkit.render.brdf.TableBRDF`, synthetic ``stiff-white``) and a neural BRDF
-(:class:`~brdfkit.model.brdf.NeuralBRDF` of an untrained default model: the hyponet costs the
+(:class:`~brdfkit.render.renderable.TableBRDF`, synthetic ``stiff-white``) and a neural BRDF
+(:class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF` of an untrained default model: the hyponet costs the
 same whatever its weights), or the one file given with ``--brdf``:
 
 * ``render``: :func:`brdfkit.render.quadrature.render` of the reference scene at
@@ -16,7 +16,7 @@ same whatever its weights), or the one file given with ``--brdf``:
   process, e.g. the bench's);
 * the **bound**: ``eval_dirs`` on that many random direction pairs, in blocks of
   262,144: what the render would cost if the quadrature itself were free;
-* ``mitsuba``: :func:`brdfkit.render.mitsuba_plugin.render_reference` at ``--spp``
+* ``mitsuba``: :func:`brdfkit.render.mitsuba3.scenes.render_reference` at ``--spp``
   samples per pixel, seconds per spp and per sample per pixel, beside ``eval_dirs`` on
   ``resolution^2 x spp`` pairs (``--skip-mitsuba`` leaves it out).
 
@@ -69,9 +69,10 @@ def main(argv=None) -> int:
     import numpy as np
 
     common.set_threads(args.threads)
-    from brdfkit.embedding import Embedding
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.render.brdf import TableBRDF, load_brdf
+    from brdfkit.io.embedding import Embedding
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.brdf_file import load_brdf
     from brdfkit.render.scene import Scene
 
     scene = Scene(resolution=args.resolution)
@@ -179,7 +180,7 @@ def measure(brdf, scene, args) -> dict:
          "us_per_evaluation_bound": 1e6 * q["bound_s"] / max(1, n),
          "evaluations_per_s": n / q["min_s"]}
     if not args.skip_mitsuba:
-        from brdfkit.render.mitsuba_plugin import render_reference
+        from brdfkit.render.mitsuba3.scenes import render_reference
 
         render_reference(brdf, Scene(resolution=16), spp=args.spp)  # warm-up: JIT, plugin
         m = args.resolution ** 2 * args.spp
@@ -207,7 +208,7 @@ class _Analytic:
     def eval_dirs(self, wi, wo):
         import torch
 
-        from brdfkit.synthetic import evaluate
+        from brdfkit.materials.synthetic import evaluate
 
         return torch.from_numpy(evaluate(self.m, wi.double().numpy(), wo.double().numpy())).float()
 
@@ -219,7 +220,7 @@ def _brute_force(material, normal, env, n=800):
 
     from brdfkit.render.envmap import uv_to_direction
     from brdfkit.render.nodes import _frames
-    from brdfkit.synthetic import evaluate
+    from brdfkit.materials.synthetic import evaluate
 
     t, b = (a[0].numpy() for a in _frames(torch.tensor(normal[None], dtype=torch.float64)))
     wo = np.array([t[2], b[2], normal[2]])
@@ -240,9 +241,10 @@ def accuracy(threads: int) -> dict:
 
     import numpy as np
 
-    from brdfkit import metrics, synthetic
+    from brdfkit.evaluation import metrics
+    from brdfkit.materials import synthetic
     from brdfkit.render import quadrature
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.envmap import reference_envmap
     from brdfkit.render.scene import REFERENCE, Scene
 

@@ -133,7 +133,7 @@ def read_bench(folder: str) -> dict:
 
 def builtin_entry(path):
     """The manifest entry whose hypernetwork or learnt prior is ``path`` (or ``None``)."""
-    from brdfkit.model.builtin import read_manifest
+    from brdfkit.models.builtin import read_manifest
 
     if not path:
         return None
@@ -175,7 +175,7 @@ def _prior_file(spec):
     """The learnt-prior file a bench's ``prior`` model names: a file as given, a built-in's
     name resolved (``--model-file prior=merl80-l40``); ``None`` if neither."""
     from brdfkit.errors import BrdfkitError
-    from brdfkit.model.builtin import resolve_prior
+    from brdfkit.models.builtin import resolve_prior
 
     if not spec or os.path.isfile(spec):
         return spec
@@ -285,7 +285,7 @@ def compose(sparse: dict, comp: dict, proxies: str, cmds: dict, one: str, figure
 
 
 def regenerate(sparse, comp, cmds, one, proxies) -> list[str]:
-    from brdfkit.model.builtin import read_manifest
+    from brdfkit.models.builtin import read_manifest
 
     lines = ["## How to regenerate every number", "",
              "From the repository root (`../shared` beside it), with the proxies made first (`docs/data.md`):",

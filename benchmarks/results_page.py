@@ -174,7 +174,7 @@ def done_lines(check) -> list[str]:
 
 def _listed(path) -> list[str]:
     """The names of a test list (empty when it cannot be read here)."""
-    from brdfkit.materials import read_exclude_list
+    from brdfkit.io.folders import read_exclude_list
 
     try:
         return list(read_exclude_list(path)) if path and os.path.isfile(path) else []

@@ -29,7 +29,7 @@ SECTIONS = ["tables", "mapping", "encode", "csv", "config", "train", "extrapolat
 
 
 def materials():
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
 
     silver = synthetic.METALS["silver"]
     return {"mirror": synthetic.Material(**MIRROR, ior=silver[0], k=silver[1]),
@@ -41,7 +41,7 @@ _tables = {}
 
 
 def tables():
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
 
     if not _tables:
         for name, m in materials().items():
@@ -56,7 +56,7 @@ def section_tables():
 
 
 def section_mapping():
-    from brdfkit.mapping import from_mapped, to_mapped
+    from brdfkit.hypernet.mapping import from_mapped, to_mapped
 
     t = tables()
     for ref_name, ref in (("white", t["white"]), ("mirror", t["mirror"]), ("0", 0.0), ("1e4", 1e4)):
@@ -85,7 +85,7 @@ def _traced(fn):
 
 def section_encode(folder):
     from brdfkit import api
-    from brdfkit.samples import draw_samples
+    from brdfkit.acquisition.sampling import draw_samples
 
     for label, config in (("tiny", common.TINY_CONFIG), ("paper (latent 40)", {})):
         model, _, _ = common.untrained_model(folder, config=config,
@@ -100,7 +100,8 @@ def section_encode(folder):
 
 def section_csv(folder):
     from brdfkit.errors import FormatError
-    from brdfkit.samples import draw_samples, read_samples, write_samples
+    from brdfkit.io.samples import read_samples, write_samples
+    from brdfkit.acquisition.sampling import draw_samples
 
     path = os.path.join(folder, "million.csv")
     write_samples(path, draw_samples(tables()["mirror"], 1_000_000, seed=3))
@@ -131,7 +132,7 @@ def section_csv(folder):
 
 def section_config(folder):
     from brdfkit.errors import FormatError
-    from brdfkit.model.file import load_model
+    from brdfkit.hypernet.model_file import load_model
 
     _, path, _ = common.untrained_model(folder, config=common.TINY_CONFIG, name="m.safetensors")
     raw = open(path, "rb").read()
@@ -157,8 +158,8 @@ def section_config(folder):
 
 def _fit(folder, out, steps, **opts):
     from brdfkit import api
-    from brdfkit.merl import write_merl
-    from brdfkit.training import fit
+    from brdfkit.io.merl import write_merl
+    from brdfkit.hypernet.training.loop import fit
 
     data = os.path.join(folder, "stiff-lib")
     if not os.path.isdir(data):
@@ -188,10 +189,10 @@ def section_extrapolate(folder, steps=300):
     import torch
 
     from brdfkit import api
-    from brdfkit.mapping import RHO_MAX
+    from brdfkit.hypernet.mapping import RHO_MAX
     from brdfkit.geometry import grid_hd
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.samples import draw_samples
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.acquisition.sampling import draw_samples
 
     model, _ = _fit(folder, os.path.join(folder, "x.safetensors"), steps)
     a = api.encode(model, draw_samples(tables()["mirror"], 400, seed=4))

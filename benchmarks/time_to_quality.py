@@ -2,13 +2,13 @@
 wall time.
 
 Issue 7, item 3 (second half). Writes a small synthetic library
-(:func:`brdfkit.synthetic.write_library`: GGX + Lambert, stiff cases included), holds
+(:func:`brdfkit.materials.synthetic.write_library`: GGX + Lambert, stiff cases included), holds
 out ``--held-out`` of its random materials, and runs the real command line
 ``brdfkit fit LIB --exclude ... --minutes M --checkpoint-minutes C`` in a subprocess.
 This process watches the checkpoint file (written atomically every ``C`` minutes) and
 evaluates each new one as the user would use the model: per held-out material,
-``--n`` samples (:func:`brdfkit.samples.draw_samples`, seed 0) -> encode -> dense decode
--> :func:`brdfkit.metrics.brdf_log_rmse` against the material's own table. The curve
+``--n`` samples (:func:`brdfkit.acquisition.sampling.draw_samples`, seed 0) -> encode -> dense decode
+-> :func:`brdfkit.evaluation.metrics.brdf_log_rmse` against the material's own table. The curve
 (training seconds from the checkpoint's own clock, step, mean held-out log-RMSE) is
 printed with the time at which it *stops improving*: the first evaluation after which no
 later one is more than ``--tol`` (relative) better than the best so far.
@@ -65,16 +65,17 @@ def main(argv=None):
     import torch
 
     torch.set_num_threads(1)
-    from brdfkit import api, synthetic
-    from brdfkit.checkpoint import load_checkpoint
+    from brdfkit import api
+    from brdfkit.materials import synthetic
+    from brdfkit.hypernet.training.checkpoint import load_checkpoint
     from brdfkit.errors import BrdfkitError
-    from brdfkit.model.network import HyperBRDF, HyperConfig
-    from brdfkit.merl import read_merl
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.model.file import weights_fingerprint
-    from brdfkit.model.loaded import NeuralModel
-    from brdfkit.samples import draw_samples
-    from brdfkit.mapping import median_reference
+    from brdfkit.hypernet.network import HyperBRDF, HyperConfig
+    from brdfkit.io.merl import read_merl
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.hypernet.model_file import weights_fingerprint
+    from brdfkit.hypernet.loaded import NeuralModel
+    from brdfkit.acquisition.sampling import draw_samples
+    from brdfkit.hypernet.mapping import median_reference
 
     curve = []
     with tempfile.TemporaryDirectory() as tmp:

@@ -1,9 +1,9 @@
 """Training throughput of ``fit``'s step against the GEMM rate of the same shapes.
 
-Issue 7, item 3 (first half). One training step as :func:`brdfkit.training.fit` runs it
+Issue 7, item 3 (first half). One training step as :func:`brdfkit.hypernet.training.loop.fit` runs it
 (``BatchSampler.draw``, forward, ``hyper_loss``, backward, gradient clipping, Adam; the
-lines below mirror the loop body of ``brdfkit/training.py``) on an in-memory
-:class:`~brdfkit.trainset.TrainingSet` of synthetic materials, default options (8
+lines below mirror the loop body of ``brdfkit/hypernet/training/loop.py``) on an in-memory
+:class:`~brdfkit.hypernet.training.dataset.TrainingSet` of synthetic materials, default options (8
 materials x 4096 query cells per step) and the default architecture, with the context
 size fixed at 860 (the mean of the default log-uniform draw over 40 ... 4000) so that
 every step does the same work.
@@ -34,7 +34,7 @@ def gemm_bound(cfg, batch, context, query):
     ``mm``/``bmm`` calls with preallocated outputs."""
     import torch
 
-    from brdfkit.model.network import hyponet_shapes
+    from brdfkit.hypernet.network import hyponet_shapes
 
     g = torch.Generator().manual_seed(0)
     ops = []  # (kind, A, B, out)
@@ -80,12 +80,12 @@ def main(argv=None):
     import numpy as np
     import torch
 
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
     from brdfkit.geometry import N_CELLS
-    from brdfkit.mapping import median_reference, to_mapped
-    from brdfkit.model import network as hypernet
-    from brdfkit.training import TrainOptions
-    from brdfkit.trainset import BatchSampler, TrainingSet
+    from brdfkit.hypernet.mapping import median_reference, to_mapped
+    from brdfkit.hypernet import network as hypernet
+    from brdfkit.hypernet.training.loop import TrainOptions
+    from brdfkit.hypernet.training.dataset import BatchSampler, TrainingSet
 
     opts = TrainOptions()
     cfg = hypernet.HyperConfig()
@@ -114,7 +114,7 @@ def main(argv=None):
         batch = sampler.draw(0)
 
         def step():
-            # Mirrors the loop body of brdfkit/training.py (one process, no DDP).
+            # Mirrors the loop body of brdfkit/hypernet/training/loop.py (one process, no DDP).
             ctx_hd, ctx_val, q_hd, q_val, q_cos = sampler.draw(state["step"])
             opt.zero_grad(set_to_none=True)
             pred, weights, z = net(ctx_hd, ctx_val, q_hd)

@@ -21,9 +21,9 @@ import os
 
 import numpy as np
 
-from .embedding import Embedding
-from .errors import InputError, ModelMismatchError
-from .geometry import TABLE_SHAPE
+from brdfkit.io.embedding import Embedding
+from brdfkit.errors import InputError, ModelMismatchError
+from brdfkit.geometry import TABLE_SHAPE
 
 __all__ = ["load_model", "encode", "decode", "sparse", "interpolate", "fit"]
 
@@ -35,7 +35,7 @@ def load_model(path: str | os.PathLike, device=None):
     Parameters
     ----------
     path
-        File written by ``brdfkit fit`` / :func:`brdfkit.model.file.save_model`, or the
+        File written by ``brdfkit fit`` / :func:`brdfkit.hypernet.model_file.save_model`, or the
         name of an installed built-in model (``brdfkit models``; ``docs/models.md``: a
         value is a file when it exists, holds a path separator or ends in
         ``.safetensors``), its file checked against the manifest's fingerprint.
@@ -44,10 +44,10 @@ def load_model(path: str | os.PathLike, device=None):
 
     Returns
     -------
-    brdfkit.model.loaded.NeuralModel
+    brdfkit.hypernet.loaded.NeuralModel
     """
-    from .model.builtin import resolve_model
-    from .model.file import load_model as _load
+    from brdfkit.models.builtin import resolve_model
+    from brdfkit.hypernet.model_file import load_model as _load
 
     return _load(resolve_model(path), device)
 
@@ -55,7 +55,7 @@ def load_model(path: str | os.PathLike, device=None):
 def _load_input(obj, source: str):
     """A ``SampleSet`` or a dense table from what :func:`encode` accepts, and a source
     name for provenance."""
-    from .samples import SampleSet
+    from brdfkit.io.samples import SampleSet
 
     if isinstance(obj, SampleSet):
         return obj, source or obj.source
@@ -63,9 +63,9 @@ def _load_input(obj, source: str):
         path = os.fspath(obj)
         name = source or os.path.basename(path)
         if path.lower().endswith(".csv"):
-            from .samples import read_samples
+            from brdfkit.io.samples import read_samples
             return read_samples(path), name
-        from .merl import read_merl
+        from brdfkit.io.merl import read_merl
         return read_merl(path), name
     if isinstance(obj, np.ndarray) or hasattr(obj, "__array__"):
         arr = np.asarray(obj, dtype=np.float64)
@@ -84,16 +84,16 @@ def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
     A dense table is compressed by the set encoder's pass over all its measured cells
     (Gokbudak et al. 2024), then, by default, that latent is refined on screen for
     ``budget`` seconds: descended on the render-aligned error and kept only where
-    held-out pixels agree (:func:`brdfkit.compression.compress_table`; never worse there
+    held-out pixels agree (:func:`brdfkit.hypernet.refine_on_screen.compress_table`; never worse there
     than the encoder's pass). A sample set is encoded by the encoder's pass alone
     (``brdfkit sparse --method hypernet`` refines on samples).
 
     Parameters
     ----------
     model
-        :class:`~brdfkit.model.loaded.NeuralModel` (from :func:`load_model`).
+        :class:`~brdfkit.hypernet.loaded.NeuralModel` (from :func:`load_model`).
     samples_or_table
-        A :class:`~brdfkit.samples.SampleSet` (any ``N >= 1``), a dense table
+        A :class:`~brdfkit.io.samples.SampleSet` (any ``N >= 1``), a dense table
         ``(90, 90, 180, 3)`` in 1/sr with NaN where unmeasured (all measured cells are
         used), or the path of a MERL ``.binary`` or a ``.csv`` sample set.
     source
@@ -102,7 +102,7 @@ def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
     refine
         Refine a table's latent on screen (``False``: the paper's single pass).
     budget
-        Seconds of that refinement (default :data:`brdfkit.compression.DEFAULT_BUDGET`).
+        Seconds of that refinement (default :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_BUDGET`).
 
     Returns
     -------
@@ -110,14 +110,14 @@ def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
         float32 latent of the model's size, with the model's fingerprint and the number
         of samples averaged.
     """
-    from .model.encoding import encode_samples, encode_table
+    from brdfkit.hypernet.encoding import encode_samples, encode_table
 
     data, name = _load_input(samples_or_table, source)
     if not isinstance(data, np.ndarray):
         return encode_samples(model, data, name)
     if not refine:
         return encode_table(model, data, name)
-    from .compression import DEFAULT_BUDGET, CompressConfig, compress_table
+    from brdfkit.hypernet.refine_on_screen import DEFAULT_BUDGET, CompressConfig, compress_table
 
     cfg = CompressConfig(budget=DEFAULT_BUDGET if budget is None else budget)
     return compress_table(model, data, cfg, name).embedding
@@ -142,11 +142,11 @@ def decode(model, embedding, *, source: str = "") -> np.ndarray:
         float64 ``(90, 90, 180, 3)``, 1/sr, NaN where the model's reference table is
         unmeasured (below the horizon).
     """
-    from .model.brdf import NeuralBRDF
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
     name = source
     if isinstance(embedding, (str, os.PathLike)):
-        from .embedding import read_embedding
+        from brdfkit.io.embedding import read_embedding
         name = source or os.fspath(embedding)
         embedding = read_embedding(embedding)
     return NeuralBRDF.from_embedding(model, embedding, name).to_table()
@@ -158,7 +158,7 @@ def sparse(model, samples, *, source: str = ""):
     Parameters
     ----------
     samples
-        :class:`~brdfkit.samples.SampleSet` or the path of a ``.csv`` sample set.
+        :class:`~brdfkit.io.samples.SampleSet` or the path of a ``.csv`` sample set.
 
     Returns
     -------
@@ -209,7 +209,7 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
 
 
 def fit(*args, **kwargs):
-    """Train a hypernetwork; see :func:`brdfkit.training.fit` (imported on first use)."""
-    from .training import fit as _fit
+    """Train a hypernetwork; see :func:`brdfkit.hypernet.training.loop.fit` (imported on first use)."""
+    from brdfkit.hypernet.training.loop import fit as _fit
 
     return _fit(*args, **kwargs)

@@ -13,7 +13,7 @@ import os
 import secrets
 from typing import IO, Iterable, Iterator
 
-from .errors import InputError
+from brdfkit.errors import InputError
 
 __all__ = ["atomic_path", "atomic_open", "refuse_overwrite_of_inputs", "check_input_file"]
 

@@ -12,7 +12,7 @@ given model (from ``brdfkit fit`` or ``brdfkit demo``):
 3. reconstructs a dense table from 400 sparse samples;
 4. blends two materials' embeddings and evaluates the blend at a few direction pairs.
 
-It prints the BRDF-space error (``brdfkit.metrics.brdf_log_rmse``) of each
+It prints the BRDF-space error (``brdfkit.evaluation.metrics.brdf_log_rmse``) of each
 reconstruction against the original table. With an untrained model the errors are large;
 the point is the calls, which are the same for a trained one.
 """
@@ -32,9 +32,9 @@ def main(argv: list[str]) -> int:
     import torch
 
     import brdfkit
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.synthetic import write_library
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.materials.synthetic import write_library
 
     # The library leaves torch's thread pool as it is; size it to the idle cores first, as
     # the command line does (on a busy machine torch's default of one thread per core made

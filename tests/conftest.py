@@ -74,8 +74,8 @@ def good(tmp_path_factory):
     """The good files of the bad-input tests: a folder with a tiny model, another model,
     a MERL table, a sample CSV, two embeddings of the model and one of the other."""
     from brdfkit import api
-    from brdfkit.embedding import write_embedding
-    from brdfkit.samples import draw_samples
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.acquisition.sampling import draw_samples
 
     from helpers_model import make_model, material_table, write_inputs
 
@@ -122,7 +122,7 @@ def bad_embs(good, tmp_path_factory):
 def installed(shelf, monkeypatch):
     """The test module's ``shelf`` fixture, ``(folder, inputs)``, with its folder of
     built-in models as ``$BRDFKIT_BUILTIN_MODELS``."""
-    from brdfkit.model import builtin
+    from brdfkit.models import builtin
 
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf[0]))
     return shelf

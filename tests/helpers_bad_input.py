@@ -118,8 +118,8 @@ def bad_model_files(folder, good_model: bytes) -> dict:
 
     import torch
 
-    from brdfkit.mapping import save_reference
-    from brdfkit.merl import write_merl
+    from brdfkit.hypernet.mapping import save_reference
+    from brdfkit.io.merl import write_merl
 
     def put(name, data):
         (folder / name).write_bytes(data)

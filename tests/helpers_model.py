@@ -2,7 +2,7 @@
 
 Not a conftest: plain functions imported by the test modules that need them. Models are
 untrained (the tests check plumbing, invariances and formats, not accuracy), saved with
-the real :func:`brdfkit.model.file.save_model` and loaded with the real loader.
+the real :func:`brdfkit.hypernet.model_file.save_model` and loaded with the real loader.
 """
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ def material_table(index: int = 0) -> np.ndarray:
     ``0``: the stiff white dielectric, used as the models' reference table;
     ``1``: a random GGX material of ``synthetic.library(seed=3)``.
     """
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
 
     mat = synthetic.STIFF[2] if index == 0 else synthetic.library(2, seed=3, stiff=False)[index - 1]
     t = synthetic.table(mat)
@@ -34,8 +34,8 @@ def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) ->
     paper's default architecture) and return its fingerprint."""
     import torch
 
-    from brdfkit.model.network import HyperBRDF, HyperConfig
-    from brdfkit.model.file import save_model
+    from brdfkit.hypernet.network import HyperBRDF, HyperConfig
+    from brdfkit.hypernet.model_file import save_model
 
     torch.manual_seed(seed)
     cfg = HyperConfig(**(TINY_CONFIG if config is None else config))
@@ -47,8 +47,9 @@ def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) ->
 def write_inputs(folder, samples: str = "s.csv", n: int = 200):
     """``folder`` with the inputs of the command tests: ``mat.binary``
     (:func:`material_table` 1) and ``n`` samples of it (seed 0) named ``samples``."""
-    from brdfkit.merl import write_merl
-    from brdfkit.samples import draw_samples, write_samples
+    from brdfkit.io.merl import write_merl
+    from brdfkit.io.samples import write_samples
+    from brdfkit.acquisition.sampling import draw_samples
 
     write_merl(folder / "mat.binary", material_table(1))
     write_samples(folder / samples, draw_samples(material_table(1), n, seed=0))
@@ -60,13 +61,13 @@ def pack_tiny_builtins(src, folder, names, command=None, **entry) -> list:
     ``src``), sharing ``tiny.reference.safetensors``: one manifest entry each, for the
     ``(name, seed)`` pairs ``names``; ``command`` (default ``brdfkit fit (NAME)``) and
     ``entry`` (``validation=``, ``materials_list=`` ...) go into the entries."""
-    from brdfkit.model import builtin
+    from brdfkit.hypernet import packing
 
     entries = []
     for name, seed in names:
         make_model(src / f"{name}.safetensors", seed=seed)
-        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+        packing.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
                            reference_file="tiny.reference.safetensors")
-        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name,
+        entries.append(packing.manifest_entry(folder / f"{name}.safetensors", name,
                                               command=command or f"brdfkit fit ({name})", **entry))
     return entries

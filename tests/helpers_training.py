@@ -9,13 +9,13 @@ from pathlib import Path
 
 import numpy as np
 
-from brdfkit.merl import is_merl_file
+from brdfkit.io.merl import is_merl_file
 
 
 def tiny_library(tmp_path_factory, n: int = 3) -> Path:
     """A folder of ``n`` synthetic MERL tables (random GGX materials, seed 1), written once
     per test session and shared by the test modules."""
-    from brdfkit.synthetic import write_library
+    from brdfkit.materials.synthetic import write_library
 
     folder = tmp_path_factory.getbasetemp() / f"training-lib-{n}"
     names = [f"synth-{i:03d}.binary" for i in range(n)]
@@ -33,10 +33,10 @@ def mapped_mse_and_log_rmse(net, rho_ref, table, n_samples=200, n_cells=100_000,
     import torch
 
     from brdfkit.geometry import N_CELLS, cell_angles, cell_index, hd_vectors
-    from brdfkit.model.network import hyponet_forward
-    from brdfkit.mapping import from_mapped, to_mapped
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.samples import draw_samples
+    from brdfkit.hypernet.network import hyponet_forward
+    from brdfkit.hypernet.mapping import from_mapped, to_mapped
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.acquisition.sampling import draw_samples
 
     flat = table.reshape(N_CELLS, 3)
     ref = np.asarray(rho_ref, np.float64).reshape(N_CELLS, 3)

@@ -13,14 +13,15 @@ import torch
 
 import brdfkit
 from brdfkit import api
-from brdfkit.embedding import Embedding
+from brdfkit.io.embedding import Embedding
 from brdfkit.errors import InputError, ModelMismatchError
 from brdfkit.geometry import N_CELLS, cell_angles, io_from_half_diff
-from brdfkit.mapping import from_mapped
-from brdfkit.merl import write_merl
+from brdfkit.hypernet.mapping import from_mapped
+from brdfkit.io.merl import write_merl
 from brdfkit.geometry import grid_hd
-from brdfkit.model.brdf import NeuralBRDF
-from brdfkit.samples import SampleSet, draw_samples, write_samples
+from brdfkit.hypernet.neural_brdf import NeuralBRDF
+from brdfkit.io.samples import SampleSet, write_samples
+from brdfkit.acquisition.sampling import draw_samples
 
 from helpers_model import make_model, material_table
 
@@ -64,7 +65,7 @@ def test_any_number_of_samples(models, table, n):
 
 def test_encoder_matches_model_definition(models, table):
     """The chunked sum / N equals HyperBRDF.encode (the mean the model was trained with)."""
-    from brdfkit.mapping import to_mapped
+    from brdfkit.hypernet.mapping import to_mapped
 
     m = models["default"]
     s = draw_samples(table, 300, seed=5)
@@ -77,7 +78,7 @@ def test_encoder_matches_model_definition(models, table):
 
 
 def test_chunking_does_not_change_the_embedding(models, table, monkeypatch):
-    import brdfkit.model.kernels as neural
+    import brdfkit.hypernet.kernels as neural
 
     m = models["tiny"]
     s = draw_samples(table, 5000, seed=2)
@@ -165,7 +166,7 @@ def test_decode_shape_nan_pattern_non_negative(models, table):
 
 def test_decode_matches_model_definition(models, table):
     """The blocked 2-D addmm decode equals network.hyponet_forward (batched baddbmm)."""
-    from brdfkit.model.network import hyponet_forward
+    from brdfkit.hypernet.network import hyponet_forward
 
     m = models["default"]
     e = api.encode(m, draw_samples(table, 500, seed=4))
@@ -212,7 +213,7 @@ def test_decode_refuses_other_models_embedding(models, table):
 
 
 def test_decode_from_emb_path(models, table, tmp_path):
-    from brdfkit.embedding import write_embedding
+    from brdfkit.io.embedding import write_embedding
 
     m = models["tiny"]
     e = api.encode(m, draw_samples(table, 10))

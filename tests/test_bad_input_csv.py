@@ -14,9 +14,9 @@ import tracemalloc
 
 import pytest
 
-from brdfkit import samples as samples_mod
+from brdfkit.io import samples as samples_mod
 from brdfkit.errors import FormatError
-from brdfkit.samples import read_samples
+from brdfkit.io.samples import read_samples
 
 from conftest import one_error_line, run_cli
 from helpers_bad_input import error_lines, nothing_written

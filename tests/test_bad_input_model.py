@@ -23,11 +23,11 @@ from helpers_model import material_table
 
 def test_model_whose_header_length_starts_with_0x80_loads(tmp_path):
     # Regression: a safetensors header length with low byte 0x80 (one file in 32) was
-    # refused as a pickle; brdfkit.training had to pad its metadata to avoid it.
+    # refused as a pickle; brdfkit.hypernet.training.loop had to pad its metadata to avoid it.
     import torch
 
-    from brdfkit.model.network import HyperBRDF, HyperConfig
-    from brdfkit.model.file import load_model, save_model
+    from brdfkit.hypernet.network import HyperBRDF, HyperConfig
+    from brdfkit.hypernet.model_file import load_model, save_model
 
     torch.manual_seed(0)
     net = HyperBRDF(HyperConfig(latent_dim=3, encoder_hidden=(4,), hypo_hidden=4, hypo_layers=1,
@@ -99,7 +99,7 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
     import json
     import re
 
-    from brdfkit.model.file import load_model
+    from brdfkit.hypernet.model_file import load_model
 
     def edit(header):
         cfg = json.loads(header["__metadata__"]["config"])
@@ -117,7 +117,7 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
 
 def test_ipca_basis_with_materials_not_a_list(tmp_path):
     # Found by benchmarks/fuzz_parsers.py: metadata materials = "5" raised a TypeError.
-    from brdfkit.fuzzing import ipca_seed
+    from brdfkit.testing.fuzzing import ipca_seed
     from brdfkit.methods.ipca import load_ipca
 
     for bad in ("5", "null", '{"a": 1}', "[1, 2]"):
@@ -132,8 +132,8 @@ def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
     # and a safetensors header key with a line break (quoted by the parser's error), gave
     # two-line messages. BrdfkitError now prints every non-printable character as a space.
     from brdfkit.errors import FormatError
-    from brdfkit.mapping import load_reference, save_reference
-    from brdfkit.model.file import load_model
+    from brdfkit.hypernet.mapping import load_reference, save_reference
+    from brdfkit.hypernet.model_file import load_model
 
     from conftest import run_brdfkit
 

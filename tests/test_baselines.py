@@ -10,13 +10,14 @@ import sys
 import numpy as np
 import pytest
 
-from brdfkit import synthetic
+from brdfkit.materials import synthetic
 from brdfkit.methods import METHODS, get_method
 from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import HALF_PI, io_from_half_diff, valid_mask
-from brdfkit.metrics import brdf_log_rmse
-from brdfkit.samples import SampleSet, draw_samples
+from brdfkit.evaluation.metrics import brdf_log_rmse
+from brdfkit.io.samples import SampleSet
+from brdfkit.acquisition.sampling import draw_samples
 
 from conftest import one_error_line, run_cli
 
@@ -151,7 +152,7 @@ def test_ipca_load_refuses_other_files(basis, tmp_path):
     cut.write_bytes(good.read_bytes()[:100000])
     with pytest.raises(FormatError, match="cut.safetensors"):
         load_ipca(cut)
-    from brdfkit.mapping import save_reference
+    from brdfkit.hypernet.mapping import save_reference
     ref = tmp_path / "ref.safetensors"
     save_reference(ref, np.zeros((90, 90, 180, 3), np.float32))
     with pytest.raises(FormatError, match="not a brdfkit PCA basis"):
@@ -276,8 +277,8 @@ def test_baselines_import_no_torch():
 
 @pytest.fixture(scope="module")
 def cli_files(tmp_path_factory, library):
-    from brdfkit.merl import write_merl
-    from brdfkit.samples import write_samples
+    from brdfkit.io.merl import write_merl
+    from brdfkit.io.samples import write_samples
 
     train, held = library
     d = tmp_path_factory.mktemp("baselines-cli")
@@ -291,8 +292,8 @@ def cli_files(tmp_path_factory, library):
 
 
 def test_cli_fit_ipca_then_sparse(cli_files, capsys, monkeypatch):
-    from brdfkit.merl import read_merl
-    from brdfkit.samples import read_samples
+    from brdfkit.io.merl import read_merl
+    from brdfkit.io.samples import read_samples
 
     monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
     d = cli_files
@@ -322,7 +323,7 @@ def test_cli_fit_ipca_then_sparse(cli_files, capsys, monkeypatch):
 
 
 def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library):
-    from brdfkit.merl import read_merl
+    from brdfkit.io.merl import read_merl
 
     d = cli_files
     # $BRDFKIT_MODEL (a hypernetwork) is not meant for nbrdf and must not get in the way.
@@ -340,7 +341,7 @@ def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library
 
 def test_registry_hypernet_is_api_sparse(library, tmp_path):
     """The registry's ``hypernet`` entry without refinement is exactly
-    ``brdfkit.api.sparse``, and refined it is :func:`brdfkit.model.refine.refine` (an
+    ``brdfkit.api.sparse``, and refined it is :func:`brdfkit.hypernet.refine_on_samples.refine` (an
     untrained tiny model is enough to check the plumbing)."""
     from brdfkit import api
 
@@ -351,7 +352,7 @@ def test_registry_hypernet_is_api_sparse(library, tmp_path):
     model = method.load(tmp_path / "model.safetensors", device="cpu")
     samples = draw_samples(library[1], 100, seed=0)
     np.testing.assert_array_equal(method.reconstruct(samples, model, refine=False), api.sparse(model, samples)[0])
-    from brdfkit.model.refine import RefineConfig, refine
+    from brdfkit.hypernet.refine_on_samples import RefineConfig, refine
 
     np.testing.assert_array_equal(method.reconstruct(samples, model),
                                   refine(model, samples, config=RefineConfig(target="weights")).brdf.to_table())
@@ -394,7 +395,7 @@ def test_ipca_weight_floor(library, tmp_path):
     """A basis whose mapping weight is bounded below (``w_floor``, issue 22's grazing
     angles): the weight it maps with, its file, and a held-out material's grazing cells
     reconstructed no darker than Nielsen's mapping leaves them."""
-    from brdfkit.metrics import dark_at_grazing
+    from brdfkit.evaluation.metrics import dark_at_grazing
 
     train, held = library
     floor = fit_ipca(train, n_components=4, w_floor=0.1)

@@ -1,4 +1,4 @@
-"""Compact storage of a PCA basis (:mod:`brdfkit.methods.ipca.storage`) and the
+"""Compact storage of a PCA basis (:mod:`brdfkit.methods.ipca.basis_storage`) and the
 version-2 basis file that uses it (float16, every other ``phi_d`` cell), with version-1
 files still read."""
 
@@ -11,7 +11,7 @@ import pytest
 
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
-from brdfkit.methods.ipca.storage import check_half, compact, expand
+from brdfkit.methods.ipca.basis_storage import check_half, compact, expand
 from brdfkit.methods.ipca import IPCA_VERSION, IpcaModel, basis_tensors, load_ipca, save_ipca
 
 _TENSORS = ("cells", "reference", "mean", "components", "sigma")
@@ -193,7 +193,7 @@ def test_int8_storage(basis, tmp_path):
     """int8 components with a scale per block of cells: each value within half a step
     (1/254) of the largest in its block, in half the bytes of float16; the
     reference and mean as in float16 storage."""
-    from brdfkit.methods.ipca.storage import INT8_BLOCK, dequantize, quantize
+    from brdfkit.methods.ipca.basis_storage import INT8_BLOCK, dequantize, quantize
 
     q, scale = quantize(basis.components)
     assert q.dtype == np.int8 and scale.shape == (3, -(-basis.cells.size // INT8_BLOCK))

@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from brdfkit.bench import BenchConfig, run_bench, sample_seed, summarise
-from brdfkit.merl import read_merl
+from brdfkit.io.merl import read_merl
 
 from conftest import TINY, brdfkit_command, quiet_env
 
@@ -21,8 +21,8 @@ RES = 16
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
     from brdfkit.methods.ipca import fit_ipca, save_ipca
-    from brdfkit.synthetic import write_library
-    from brdfkit.training import fit
+    from brdfkit.materials.synthetic import write_library
+    from brdfkit.hypernet.training.loop import fit
 
     root = tmp_path_factory.mktemp("bench")
     lib = root / "lib"
@@ -69,8 +69,8 @@ def test_bench_cli_end_to_end(setup, tmp_path):
 
     # A record is what the library computes from the same draw (IPCA is deterministic).
     from brdfkit.methods import get_method
-    from brdfkit.metrics import brdf_log_rmse
-    from brdfkit.samples import draw_samples
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.acquisition.sampling import draw_samples
 
     rec = next(r for r in sparse if r["method"] == "ipca" and r["n"] == 160)
     table = read_merl(setup["lib"] / f"{rec['material']}.binary")
@@ -91,7 +91,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     assert {(r["material"], r["trained_on"]) for r in comp_recs} == {(setup["names"][1], True), ("alias", False)}
 
     # The cached reference render is the reference-scene render of the table itself.
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.image import read_exr
     from brdfkit.render.quadrature import render
     from brdfkit.render.scene import Scene
@@ -249,5 +249,5 @@ def test_renderer_digest_covers_every_module_a_reference_render_reads():
         renderer_digest()
     finally:
         builtins.open = real_open
-    assert {"quadrature.py", "scene.py", "envmap.py", "brdf.py", "geometry.py", "trilinear.py", "nodes.py",
-            "pairs.py"} <= set(read)
+    assert {"quadrature.py", "scene.py", "envmap.py", "renderable.py", "coordinates.py", "grid.py", "trilinear.py",
+            "nodes.py", "pairs.py"} <= set(read)

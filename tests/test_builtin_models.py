@@ -1,11 +1,11 @@
-"""Built-in models (``brdfkit.model.builtin``, ``brdfkit models``, ``-m NAME``) and the
+"""Built-in models (``brdfkit.models.builtin``, ``brdfkit models``, ``-m NAME``) and the
 compact model files they ship as (``save_model(compact=True, half=True,
 reference_file=...)``).
 
 The built-in folder of every test is a temporary one named by ``$BRDFKIT_BUILTIN_MODELS``
 (conftest points it at an empty folder by default), holding tiny untrained models packed
-with the real :func:`brdfkit.model.builtin.pack_model` and a manifest written with the
-real :func:`~brdfkit.model.builtin.write_manifest`.
+with the real :func:`brdfkit.hypernet.packing.pack_model` and a manifest written with the
+real :func:`~brdfkit.models.builtin.write_manifest`.
 """
 
 from __future__ import annotations
@@ -20,12 +20,13 @@ import pytest
 import torch
 
 from brdfkit import api
-from brdfkit.embedding import read_embedding, write_embedding
+from brdfkit.io.embedding import read_embedding, write_embedding
 from brdfkit.errors import FormatError, InputError
-from brdfkit.merl import read_merl, write_merl
-from brdfkit.model import builtin
-from brdfkit.model.file import load_model, save_model, state_fingerprint
-from brdfkit.model.network import HyperBRDF, HyperConfig
+from brdfkit.io.merl import read_merl, write_merl
+from brdfkit.models import builtin
+from brdfkit.hypernet import packing
+from brdfkit.hypernet.model_file import load_model, save_model, state_fingerprint
+from brdfkit.hypernet.network import HyperBRDF, HyperConfig
 
 from conftest import TINY_CONFIG, one_error_line, quiet_env, run_brdfkit, run_cli
 from helpers_model import make_model, material_table, pack_tiny_builtins, write_inputs
@@ -172,7 +173,7 @@ def test_listing_and_resolution(installed):
     assert a.validation == {40: 0.3, 400: 0.2} and a.command == "brdfkit fit (tiny-a)"
     assert builtin.resolve_model("tiny-b") == str(folder / "tiny-b.safetensors")
     assert builtin.default_model() == str(folder / "tiny-a.safetensors")
-    assert builtin.load_builtin("tiny-a", device="cpu").fingerprint == a.fingerprint
+    assert packing.load_builtin("tiny-a", device="cpu").fingerprint == a.fingerprint
     # Paths stay paths, even missing ones, when they look like paths.
     for spec in ("x.safetensors", "dir/x", str(folder / "tiny-a.safetensors")):
         assert builtin.resolve_model(spec) == spec

@@ -15,9 +15,10 @@ import pytest
 
 from brdfkit.atomic import atomic_open, atomic_path, refuse_overwrite_of_inputs
 from brdfkit.errors import InputError
-from brdfkit.merl import is_merl_file, read_merl, write_merl
-from brdfkit.samples import draw_samples, read_samples
-from brdfkit.synthetic import STIFF, library, table
+from brdfkit.io.merl import is_merl_file, read_merl, write_merl
+from brdfkit.io.samples import read_samples
+from brdfkit.acquisition.sampling import draw_samples
+from brdfkit.materials.synthetic import STIFF, library, table
 
 from conftest import brdfkit_command, run_brdfkit, tmp_leftovers
 from helpers_foundation import measured_mask, random_table

@@ -14,8 +14,8 @@ import pytest
 import torch
 
 from brdfkit import api
-from brdfkit.embedding import read_embedding, write_embedding
-from brdfkit.merl import MERL_FILE_SIZE, read_merl
+from brdfkit.io.embedding import read_embedding, write_embedding
+from brdfkit.io.merl import MERL_FILE_SIZE, read_merl
 
 from conftest import one_error_line, run_brdfkit, run_cli
 from helpers_model import make_model, material_table, write_inputs
@@ -154,7 +154,7 @@ def test_sparse(files, tmp_path, capsys):
     m = api.load_model(files / "model.safetensors", "cpu")
     # With --emb the refinement stops at the latent, so that the embedding decodes to the table.
     from brdfkit.methods import get_method
-    from brdfkit.samples import read_samples
+    from brdfkit.io.samples import read_samples
 
     table, e = get_method("hypernet").sparse(read_samples(files / "samples.csv"), m, refine_target="latent")
     np.testing.assert_allclose(read_merl(out), table, rtol=1e-12, equal_nan=True)
@@ -255,11 +255,11 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
     from PIL import Image
 
     from brdfkit.errors import InputError
-    from brdfkit.metrics import display_encode
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.render.files import reference_scene
+    from brdfkit.render.display import display_encode
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.render.file_render import reference_scene
     from brdfkit.render.quadrature import render
-    from brdfkit.strip import interpolation_strip
+    from brdfkit.figures.interpolation_strip import interpolation_strip
 
     sheet = tmp_path / "strip.png"
     code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--steps", "3",

@@ -1,6 +1,6 @@
 """The render-aligned error (:mod:`brdfkit.render.screen`), compression refined on screen
-(:mod:`brdfkit.compression`, ``brdfkit encode --budget/--no-refine``) and screen tuning
-(:mod:`brdfkit.tuning`, ``brdfkit tune``): the small render is the reference scene's,
+(:mod:`brdfkit.hypernet.refine_on_screen`, ``brdfkit encode --budget/--no-refine``) and screen tuning
+(:mod:`brdfkit.hypernet.tuning`, ``brdfkit tune``): the small render is the reference scene's,
 refinement is never worse than the encoder's pass on held-out pixels, and bad settings
 are one-line errors."""
 
@@ -13,7 +13,7 @@ import pytest
 import torch
 
 from brdfkit import api
-from brdfkit.compression import CompressConfig, compress_table
+from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
 from brdfkit.errors import InputError
 from brdfkit.render import screen as screen_mod
 
@@ -31,8 +31,8 @@ def tiny(tmp_path_factory):
 def test_screen_renders_what_the_quadrature_renders(tiny):
     """The small render is the reference scene's quadrature, to float32 rounding, for a
     table and for a hyponet (evaluated at the pairs only)."""
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.quadrature import render
     from brdfkit.render.scene import Scene
 
@@ -48,7 +48,7 @@ def test_screen_renders_what_the_quadrature_renders(tiny):
 
 
 def test_screen_error_is_the_metrics_psnr_and_has_gradients(tiny):
-    from brdfkit.metrics import psnr
+    from brdfkit.evaluation.metrics import psnr
 
     _, m = tiny
     sc = screen_mod.screen(resolution=12)
@@ -107,8 +107,8 @@ def test_bad_compress_settings_are_input_errors(kw):
 
 
 def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tmp_path):
-    from brdfkit.embedding import read_embedding
-    from brdfkit.merl import write_merl
+    from brdfkit.io.embedding import read_embedding
+    from brdfkit.io.merl import write_merl
 
     d, m = tiny
     write_merl(tmp_path / "mat.binary", material_table(1))
@@ -128,8 +128,8 @@ def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tm
 
 
 def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
-    from brdfkit.merl import write_merl
-    from brdfkit.tuning import TuneOptions, tune
+    from brdfkit.io.merl import write_merl
+    from brdfkit.hypernet.tuning import TuneOptions, tune
 
     d, m = tiny
     data = tmp_path / "data"
@@ -166,7 +166,7 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
 ])
 def test_tune_cli_bad_options(tiny, tmp_path, args, message):
     d, _ = tiny
-    from brdfkit.merl import write_merl
+    from brdfkit.io.merl import write_merl
 
     write_merl(tmp_path / "a.binary", material_table(1))
     extra = [] if not args or args[0] != "-O" else ["--steps", "1"]

@@ -10,9 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from brdfkit.merl import read_merl
-from brdfkit.model.file import load_model
-from brdfkit.mapping import median_reference
+from brdfkit.io.merl import read_merl
+from brdfkit.hypernet.model_file import load_model
+from brdfkit.hypernet.mapping import median_reference
 
 from conftest import brdfkit_command, quiet_env, tiny_cli_options, tmp_leftovers
 from helpers_training import tiny_library

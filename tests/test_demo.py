@@ -10,10 +10,10 @@ import numpy as np
 import pytest
 from rich.console import Console
 
-from brdfkit.demo import choose_holdout, render_psnr, write_demo_library
-from brdfkit.embedding import read_embedding
-from brdfkit.merl import read_merl
-from brdfkit.model.file import load_model
+from brdfkit.demos.synthetic_training import choose_holdout, render_psnr, write_demo_library
+from brdfkit.io.embedding import read_embedding
+from brdfkit.io.merl import read_merl
+from brdfkit.hypernet.model_file import load_model
 
 from conftest import brdfkit_command, quiet_env, tiny_cli_options
 
@@ -25,7 +25,7 @@ def test_holdout_spreads_over_random_materials():
 
 
 def test_render_psnr_through_the_reference_renderer():
-    from brdfkit.synthetic import STIFF, table
+    from brdfkit.materials.synthetic import STIFF, table
 
     score = render_psnr(resolution=12)
     if score is None:
@@ -74,7 +74,7 @@ def test_demo_runs_end_to_end(tmp_path):
 
 
 def test_demo_keep_tables_writes_library_and_decoded(tmp_path):
-    from brdfkit.demo import run_demo
+    from brdfkit.demos.synthetic_training import run_demo
 
     from conftest import TINY
 

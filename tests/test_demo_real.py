@@ -1,5 +1,5 @@
-"""``brdfkit demo`` on the shipped real materials (``brdfkit.demo_real``) and their NBRDF
-decode (``brdfkit.nbrdf_tables``).
+"""``brdfkit demo`` on the shipped real materials (``brdfkit.demos.real_materials``) and their NBRDF
+decode (``brdfkit.materials.nbrdf_networks``).
 
 The built-in folder is a temporary one (``$BRDFKIT_BUILTIN_MODELS``) holding untrained
 tiny models under the names the demo asks for: ``merl80-l40`` (a hypernetwork of latent
@@ -21,10 +21,11 @@ import numpy as np
 import pytest
 
 from brdfkit.cli import main
-from brdfkit.embedding import read_embedding
-from brdfkit.merl import read_merl
-from brdfkit.model import builtin
-from brdfkit.nbrdf_tables import DEMO_WEIGHTS, LAYERS, load_nbrdf_weights, nbrdf_table
+from brdfkit.io.embedding import read_embedding
+from brdfkit.io.merl import read_merl
+from brdfkit.models import builtin
+from brdfkit.hypernet import packing
+from brdfkit.materials.nbrdf_networks import DEMO_WEIGHTS, LAYERS, load_nbrdf_weights, nbrdf_table
 
 from conftest import TINY_CONFIG, brdfkit_command, quiet_env, run_cli
 from helpers_model import make_model, material_table
@@ -47,7 +48,7 @@ def shelf(tmp_path_factory):
     import torch
 
     from brdfkit.methods.ipca import fit_ipca
-    from brdfkit.methods.prior.file import save_prior
+    from brdfkit.methods.prior.prior_file import save_prior
     from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
     src = tmp_path_factory.mktemp("trained")
@@ -55,9 +56,9 @@ def shelf(tmp_path_factory):
     entries = []
     for name, latent, seed in SHELF:
         make_model(src / f"{name}.safetensors", {**TINY_CONFIG, "latent_dim": latent}, seed=seed)
-        builtin.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+        packing.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
                            reference_file="tiny.reference.safetensors")
-        entries.append(builtin.manifest_entry(folder / f"{name}.safetensors", name, command="brdfkit fit (tiny)",
+        entries.append(packing.manifest_entry(folder / f"{name}.safetensors", name, command="brdfkit fit (tiny)",
                                               validation={40: 0.3}))
     basis = fit_ipca([material_table(0), material_table(1)], n_components=3, names=["stiff-white", "ggx"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
@@ -74,10 +75,10 @@ def shelf(tmp_path_factory):
 def quick(monkeypatch, shelf):
     """The tiny shelf installed in this process, and a short refinement (0.1 s a table):
     in-process runs read the demo's budget when called."""
-    import brdfkit.demo_real
+    import brdfkit.demos.real_materials
 
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
-    monkeypatch.setattr(brdfkit.demo_real, "COMPRESSION_BUDGET", 0.1)
+    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_BUDGET", 0.1)
     return shelf
 
 
@@ -220,7 +221,7 @@ def test_real_demo_end_to_end(shelf, tmp_path):
 
 def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
     import brdfkit.api
-    from brdfkit.demo_real import run_real_demo
+    from brdfkit.demos.real_materials import run_real_demo
 
     calls = []
     encode = brdfkit.api.encode
@@ -261,7 +262,7 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
 
 
 def test_compression_labels():
-    from brdfkit.demo_real import compression_labels
+    from brdfkit.demos.real_materials import compression_labels
 
     assert [c[2:] for c in compression_labels({"merl-rgl-l40": 40, "merl-rgl-l7": 7, "merl80-l40": 40})] == \
         list(zip(LABELS, TILES))
@@ -272,14 +273,14 @@ def test_compression_labels():
 
 
 def _interrupted_sheet(monkeypatch, seen):
-    import brdfkit.sheet
+    import brdfkit.figures.comparison_sheet
 
     def sheet(ref, preds, output, **kw):
         seen.extend([ref, *preds])
         seen.append({p: read_merl(p) for p in [ref, *preds]})
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(brdfkit.sheet, "comparison_sheet", sheet)
+    monkeypatch.setattr(brdfkit.figures.comparison_sheet, "comparison_sheet", sheet)
 
 
 def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, capsys, tmp_path):
@@ -288,7 +289,7 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
     the three compressions, in-sample and unseen. Without --keep-tables they go to a
     temporary folder in OUT that is removed at the end, and on Ctrl-C during the sheet
     too; with it, they are links to the kept tables, in a temporary folder likewise."""
-    from brdfkit.demo_real import run_real_demo
+    from brdfkit.demos.real_materials import run_real_demo
 
     tiles = ["teflon.binary", "prior, 40 samples.binary", "prior, 400 samples.binary",
              *(f"{t}.binary" for t in TILES)]
@@ -312,10 +313,10 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
             assert sorted(os.listdir(out)) == ["embeddings", "plot-teflon.png", "samples"]
 
     monkeypatch.undo()  # the real sheet again, and the tiny shelf with a short refinement (as `quick`)
-    import brdfkit.demo_real
+    import brdfkit.demos.real_materials
 
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(quick))
-    monkeypatch.setattr(brdfkit.demo_real, "COMPRESSION_BUDGET", 0.1)
+    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_BUDGET", 0.1)
     out = tmp_path / "e"
     code, stdout, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "teflon", "--resolution", "8"])
     assert code == 0, stderr[-3000:]
@@ -344,7 +345,7 @@ def test_bad_options_are_one_line(shelf, monkeypatch, capsys, tmp_path):
             main(["demo", "--out", str(tmp_path / "d"), *args])
         err = capsys.readouterr().err
         assert e.value.code == 2 and words in err and len(err.strip().splitlines()) == 1, err
-    from brdfkit.demo_real import run_real_demo
+    from brdfkit.demos.real_materials import run_real_demo
     from brdfkit.errors import InputError
 
     with pytest.raises(InputError, match="budget must be a finite number of seconds >= 0"):

@@ -1,11 +1,11 @@
-"""brdfkit.device.resolve_device: the one device rule of the library."""
+"""brdfkit.runtime.resolve_device: the one device rule of the library."""
 
 from __future__ import annotations
 
 import pytest
 import torch
 
-from brdfkit.device import resolve_device
+from brdfkit.runtime import resolve_device
 from brdfkit.errors import InputError
 
 

@@ -1,19 +1,20 @@
-"""Measurement directions (``brdfkit.directions``) and ``brdfkit sample --at``: the
+"""Measurement directions (``brdfkit.io.directions``) and ``brdfkit sample --at``: the
 directions CSV read and written, its bad forms refused in one line, and a table
-measured at given directions (``brdfkit.samples.measure_samples``)."""
+measured at given directions (``brdfkit.acquisition.sampling.measure_samples``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from brdfkit.directions import AGREEMENT_TOLERANCE, ANGLE_COLUMNS, VECTOR_COLUMNS, DirectionSet, \
+from brdfkit.io.directions import AGREEMENT_TOLERANCE, ANGLE_COLUMNS, VECTOR_COLUMNS, DirectionSet, \
     pair_disagreement, read_directions, write_directions
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import N_CELLS, cell_angles, valid_cells
-from brdfkit.trilinear import lookup_trilinear
-from brdfkit.merl import read_merl, write_merl
-from brdfkit.samples import draw_samples, measure_samples, read_samples
+from brdfkit.geometry.trilinear import lookup_trilinear
+from brdfkit.io.merl import read_merl, write_merl
+from brdfkit.io.samples import read_samples
+from brdfkit.acquisition.sampling import draw_samples, measure_samples
 
 from conftest import tmp_leftovers
 from conftest import one_error_line, run_cli

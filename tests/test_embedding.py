@@ -8,7 +8,7 @@ import types
 import numpy as np
 import pytest
 
-from brdfkit.embedding import Embedding, check_compatible, read_embedding, write_embedding
+from brdfkit.io.embedding import Embedding, check_compatible, read_embedding, write_embedding
 from brdfkit.errors import FormatError, ModelMismatchError
 
 from conftest import format_error

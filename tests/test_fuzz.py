@@ -15,7 +15,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from brdfkit.fuzzing import PARSERS, check_parser, draw_input
+from brdfkit.testing.fuzzing import PARSERS, check_parser, draw_input
 
 EXAMPLES = int(os.environ.get("BRDFKIT_FUZZ_EXAMPLES", "60"))
 

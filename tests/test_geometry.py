@@ -11,8 +11,8 @@ from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 
 from brdfkit import geometry as g
-from brdfkit.merl import read_merl
-from brdfkit.trilinear import lookup_trilinear
+from brdfkit.io.merl import read_merl
+from brdfkit.geometry.trilinear import lookup_trilinear
 
 from helpers_foundation import measured_mask, proxy_material
 
@@ -325,6 +325,6 @@ def test_grid_caches_are_the_per_cell_definitions():
 
 
 def test_merl_table_shape_is_the_geometry_constant():
-    from brdfkit import merl
+    from brdfkit.io import merl
 
     assert merl.TABLE_SHAPE is g.TABLE_SHAPE == (90, 90, 180, 3)

@@ -13,10 +13,10 @@ import torch
 
 from brdfkit import api
 from brdfkit.errors import InputError
-from brdfkit.mapping import to_mapped
-from brdfkit.model.network import HyperBRDF, HyperConfig
-from brdfkit.samples import draw_samples
-from brdfkit.training import TrainOptions, fit
+from brdfkit.hypernet.mapping import to_mapped
+from brdfkit.hypernet.network import HyperBRDF, HyperConfig
+from brdfkit.acquisition.sampling import draw_samples
+from brdfkit.hypernet.training.loop import TrainOptions, fit
 
 from conftest import TINY, TINY_CONFIG, TINY_LATENT
 from helpers_model import make_model, material_table
@@ -50,7 +50,7 @@ def test_attention_pooling_is_a_set_function(attention_model):
     m = attention_model
     s = draw_samples(material_table(1), 300, seed=1)
     perm = np.random.default_rng(0).permutation(300)
-    from brdfkit.samples import SampleSet
+    from brdfkit.io.samples import SampleSet
 
     shuffled = SampleSet(s.theta_h[perm], s.theta_d[perm], s.phi_d[perm], s.rgb[perm])
     np.testing.assert_allclose(api.encode(m, s).latent, api.encode(m, shuffled).latent, atol=1e-6)
@@ -110,7 +110,7 @@ def test_bad_lever_options(tmp_path_factory, tmp_path, bad):
 
 
 def test_mixup_mixes_two_materials_and_leaves_the_default_batches(tmp_path_factory):
-    from brdfkit.trainset import BatchSampler, TrainingSet
+    from brdfkit.hypernet.training.dataset import BatchSampler, TrainingSet
 
     lib = tiny_library(tmp_path_factory)
     paths = sorted(str(p) for p in lib.glob("*.binary"))

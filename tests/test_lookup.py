@@ -1,10 +1,15 @@
-"""The prepared table of the render's lookup (:class:`brdfkit.trilinear.TrilinearTable`)
-gives exactly what :func:`brdfkit.trilinear.lookup_trilinear` gives on the plain table,
+"""The trilinear lookup (:func:`brdfkit.geometry.trilinear.lookup_trilinear`) against an
+independent oracle, and the prepared table of the render's lookup
+(:class:`brdfkit.geometry.trilinear.TrilinearTable`) against the plain one, bit for bit,
 NaN semantics included (issue 14 item 1).
 
-The reference below is the plain-table lookup as it was before the prepared table
-existed (eight corner gathers, each corner's NaN left out and the weights renormalised),
-copied here so that a change to the library's plain path cannot move the reference too.
+The oracle (:func:`oracle_lookup`) computes the interpolation another way: the grid's
+continuous coordinates from their documented definitions (``DEVELOPERS.md``), each
+cell's weight a tent ``max(0, 1 - |u - i|)`` along each axis (a circular distance along
+``phi_d``), over the cells around the nearest one, without the library's floors,
+fractions and clamped corner indices (issue 27 item 7). It agrees with the library to
+rounding (``test_plain_lookup_agrees_with_the_oracle``); the prepared table must then
+give the plain lookup's very bits (``reference_lookup``).
 """
 
 from __future__ import annotations
@@ -16,42 +21,48 @@ import pytest
 import torch
 
 from brdfkit import geometry as g
-from brdfkit.trilinear import TrilinearTable, lookup_prepared_many, lookup_trilinear
+from brdfkit.geometry.trilinear import TrilinearTable, lookup_prepared_many, lookup_trilinear
 
 from helpers_foundation import measured_mask
 
 
 def reference_lookup(table, theta_h, theta_d, phi_d, fill=float("nan")):
-    u_h, u_d, u_p = g.fractional_indices(theta_h, theta_d, phi_d)
-    xp = torch if isinstance(u_h, torch.Tensor) else np
-    flat = table.reshape(g.N_CELLS, -1)
-    if xp is np:
-        u_h, u_d, u_p = np.broadcast_arrays(u_h, u_d, u_p)
-        floor = lambda a: np.floor(a).astype(np.int64)  # noqa: E731
-    else:
-        u_h, u_d, u_p = torch.broadcast_tensors(u_h, u_d, u_p)
-        floor = lambda a: torch.floor(a).long()  # noqa: E731
-    i0, j0, k0 = floor(u_h), floor(u_d), floor(u_p)
-    fh, fd, fp = u_h - i0, u_d - j0, u_p - k0
-    i0 = xp.clip(i0, 0, 89)
-    j0 = xp.clip(j0, 0, 89)
-    i1 = xp.clip(i0 + 1, 0, 89)
-    j1 = xp.clip(j0 + 1, 0, 89)
-    k0 = k0 % 180
-    k1 = (k0 + 1) % 180
-    acc = wsum = None
-    for ii, wh in ((i0, 1 - fh), (i1, fh)):
-        for jj, wd in ((j0, 1 - fd), (j1, fd)):
-            for kk, wp in ((k0, 1 - fp), (k1, fp)):
-                v = flat[kk + 180 * (jj + 90 * ii)]
+    """The plain-table lookup, whose bits the prepared table must give."""
+    return lookup_trilinear(table, theta_h, theta_d, phi_d, fill=fill)
+
+
+def oracle_lookup(table, theta_h, theta_d, phi_d, fill=float("nan"), weights=False):
+    """Trilinear interpolation by tent weights (module docstring), float64 NumPy; with
+    ``weights``, also the summed weight of the measured corners ``(..., C)`` and whether
+    the point lies on a grid plane ``(...)`` (within 1e-7 of a cell along some axis)."""
+    table = np.asarray(table, np.float64)
+    th, td, pd = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in (theta_h, theta_d, phi_d)))
+    # The documented grid: theta_h cell i at (i / 90)^2 pi/2, theta_d cell j at j/90 pi/2,
+    # phi_d cell k at k/180 pi, phi_d folded into [0, pi); beyond the last cell, the last.
+    u_h = np.minimum(90 * np.sqrt(np.clip(th, 0, math.pi / 2) / (math.pi / 2)), 89.0)
+    u_d = np.minimum(90 * np.clip(td, 0, math.pi / 2) / (math.pi / 2), 89.0)
+    u_p = 180 * np.mod(pd, math.pi) / math.pi
+    num = np.zeros(th.shape + (table.shape[-1],))
+    den = np.zeros(th.shape + (table.shape[-1],))
+    nh, nd, n_p = np.rint(u_h).astype(int), np.rint(u_d).astype(int), np.rint(u_p).astype(int)
+    for oh in (-1, 0, 1):
+        i = np.clip(nh + oh, 0, 89)
+        wh = np.maximum(0.0, 1.0 - np.abs(u_h - i)) * (nh + oh == i)  # a clipped index is no cell
+        for od in (-1, 0, 1):
+            j = np.clip(nd + od, 0, 89)
+            wd = np.maximum(0.0, 1.0 - np.abs(u_d - j)) * (nd + od == j)
+            for op in (-1, 0, 1):
+                k = np.mod(n_p + op, 180)
+                dist = np.abs(u_p - k)
+                wp = np.maximum(0.0, 1.0 - np.minimum(dist, 180 - dist))
                 w = (wh * wd * wp)[..., None]
-                ok = ~xp.isnan(v)
-                wv = w * xp.where(ok, v, xp.zeros_like(v))
-                wk = xp.where(ok, w, xp.zeros_like(w))
-                acc = wv if acc is None else acc + wv
-                wsum = wk if wsum is None else wsum + wk
-    out = acc / xp.where(wsum > 0, wsum, 1 + 0 * wsum)
-    return xp.where(wsum > 0, out, fill + 0 * out)
+                v = table[i, j, k]
+                ok = ~np.isnan(v)
+                num += np.where(ok, w * np.where(ok, v, 0.0), 0.0)
+                den += np.where(ok, w, 0.0)
+    out = np.where(den > 0, num / np.where(den > 0, den, 1.0), fill)
+    on_plane = np.min([np.abs(u - np.rint(u)) for u in (u_h, u_d, u_p)], axis=0) < 1e-7
+    return (out, den, on_plane) if weights else out
 
 
 def _angles(n, seed):
@@ -95,6 +106,40 @@ def _same(a, b):
     np.testing.assert_array_equal(np.isnan(a), np.isnan(b))
     np.testing.assert_array_equal(a[~np.isnan(a)], b[~np.isnan(b)])
     np.testing.assert_array_equal(np.signbit(a), np.signbit(b))  # -0.0 is not +0.0
+
+
+@pytest.mark.parametrize("kind", ["merl", "holes", "per_channel", "all_nan"])
+def test_plain_lookup_agrees_with_the_oracle(kind):
+    """The library's trilinear lookup is the oracle's interpolation, to rounding: the
+    same NaN pattern (``fill`` where no corner is measured), the same values, on the grid's
+    own angles, at the ``phi_d`` wrap, beyond the clamps and between cells."""
+    table = _tables(4)[kind]
+    th, td, pd = _angles(6000, 5)
+    for fill in (float("nan"), -7.0):
+        got = lookup_trilinear(table, th, td, pd, fill=fill)
+        want, weight, on_plane = oracle_lookup(table, th, td, pd, fill=fill, weights=True)
+        # Where every measured corner's weight is a rounding error (a point on a plane of
+        # cells, next to unmeasured ones), whether it counts depends on the last bit of
+        # the coordinates.
+        clear = ((weight == 0) & ~on_plane[:, None]) | (weight > 1e-9)
+        assert clear.mean() > 0.5  # a third of the points are on grid planes on purpose (_angles)
+        np.testing.assert_array_equal(np.isnan(got)[clear], np.isnan(want)[clear])
+        ok = clear & ~np.isnan(got)
+        np.testing.assert_allclose(got[ok], want[ok], rtol=1e-8, atol=1e-10)
+        np.testing.assert_array_equal(got[clear & (weight == 0)], want[clear & (weight == 0)])
+
+
+def test_oracle_interpolates_a_linear_function_exactly():
+    """The oracle itself, on a table linear in the grid's coordinates away from the
+    edges: trilinear interpolation reproduces it, so the oracle is no copy of a bug."""
+    i, j, k = np.meshgrid(np.arange(90.0), np.arange(90.0), np.arange(180.0), indexing="ij")
+    table = (2.0 * i - 3.0 * j + 0.5 * k)[..., None]
+    rng = np.random.default_rng(0)
+    u_h, u_d, u_p = rng.uniform(1, 88, 500), rng.uniform(1, 88, 500), rng.uniform(1, 178, 500)
+    th = (u_h / 90) ** 2 * (math.pi / 2)
+    td = u_d / 90 * (math.pi / 2)
+    pd = u_p / 180 * math.pi
+    np.testing.assert_allclose(oracle_lookup(table, th, td, pd)[:, 0], 2 * u_h - 3 * u_d + 0.5 * u_p, atol=1e-9)
 
 
 @pytest.mark.parametrize("kind", ["merl", "holes", "per_channel", "all_nan"])
@@ -152,7 +197,7 @@ def test_shapes_broadcast_like_the_plain_table():
 def test_table_brdf_renders_through_the_prepared_table(prepare_after):
     """The renderer's BRDF gives what the plain lookup gives at its directions, with the
     prepared table (a render's many pairs) or without (a tiny render's few)."""
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
 
     table = _tables(5)["merl"]
     brdf = TableBRDF(table, device="cpu")
@@ -172,7 +217,7 @@ def test_table_brdf_renders_through_the_prepared_table(prepare_after):
 def test_neural_brdf_reference_through_the_prepared_table(tmp_path):
     """A neural BRDF's ``rho_ref`` at its directions is the plain lookup's."""
     from brdfkit import api
-    from brdfkit.model.loaded import interp_reference
+    from brdfkit.hypernet.loaded import interp_reference
 
     from helpers_model import make_model
 
@@ -255,7 +300,7 @@ def test_tables_looked_up_together_are_each_alone(block):
 def test_table_stack_brdf_is_each_table_alone(prepare_after):
     """:class:`TableStackBRDF`: the member tables' ``eval_dirs`` side by side, to the bit,
     prepared or not."""
-    from brdfkit.render.brdf import TableBRDF, TableStackBRDF
+    from brdfkit.render.renderable import TableBRDF, TableStackBRDF
 
     ts = _tables(14)
     alone = [TableBRDF(ts[k], name=k, device="cpu") for k in ("merl", "holes")]

@@ -14,8 +14,8 @@ from hypothesis import strategies as st
 
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE
-from brdfkit.mapping import EPS, from_mapped, load_reference, median_reference, save_reference, to_mapped
-from brdfkit.merl import write_merl
+from brdfkit.hypernet.mapping import EPS, from_mapped, load_reference, median_reference, save_reference, to_mapped
+from brdfkit.io.merl import write_merl
 
 from conftest import format_error, tmp_leftovers
 from helpers_foundation import measured_mask

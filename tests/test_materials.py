@@ -1,11 +1,11 @@
-"""brdfkit.materials: the one scanner of material folders (training and the benchmark)."""
+"""brdfkit.io.folders: the one scanner of material folders (training and the benchmark)."""
 
 from __future__ import annotations
 
 import pytest
 
 from brdfkit.errors import InputError
-from brdfkit.materials import list_materials, material_name, scan_folder
+from brdfkit.io.folders import list_materials, material_name, scan_folder
 
 
 def _folder(tmp_path, names):

@@ -11,8 +11,8 @@ import pytest
 from brdfkit.cli import main as cli_main
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS
-from brdfkit.merl import MERL_FILE_SIZE, MERL_SCALE, is_merl_file, read_merl, write_merl
-from brdfkit.samples import read_samples
+from brdfkit.io.merl import MERL_FILE_SIZE, MERL_SCALE, is_merl_file, read_merl, write_merl
+from brdfkit.io.samples import read_samples
 
 from conftest import run_brdfkit, tmp_leftovers
 from helpers_foundation import measured_mask, merl_bytes, proxy_material, random_stored, random_table

@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from brdfkit import metrics
+from brdfkit.evaluation import metrics
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE, cos_theta_i, grid_angles, valid_mask
 

@@ -11,11 +11,11 @@ import shutil
 
 import numpy as np
 
-from brdfkit.compare import FileLoader, compare_files
-from brdfkit.merl import write_merl
-from brdfkit.metrics import score
+from brdfkit.evaluation.comparison import FileLoader, compare_files
+from brdfkit.io.merl import write_merl
+from brdfkit.evaluation.metrics import score
 from brdfkit.render import quadrature
-from brdfkit.render.brdf import TableBRDF
+from brdfkit.render.renderable import TableBRDF
 from brdfkit.render.scene import Scene
 
 from helpers_model import make_model, material_table
@@ -30,9 +30,9 @@ def _same(a, b):
 
 def test_one_pass_equals_separate_renders_table_and_neural(tmp_path):
     from brdfkit import api
-    from brdfkit.embedding import write_embedding
-    from brdfkit.render.brdf import load_brdf
-    from brdfkit.samples import draw_samples
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.brdf_file import load_brdf
+    from brdfkit.acquisition.sampling import draw_samples
 
     make_model(tmp_path / "m.safetensors", seed=0)
     model = api.load_model(tmp_path / "m.safetensors", "cpu")
@@ -104,7 +104,7 @@ def test_the_same_file_twice_is_rendered_once(tmp_path):
 
 def test_sheet_renders_all_brdfs_in_one_pass_with_the_same_scores(tmp_path):
     """``brdfkit compare`` of a table against two tables: the scores of ``metrics``."""
-    from brdfkit.sheet import comparison_sheet
+    from brdfkit.figures.comparison_sheet import comparison_sheet
 
     ref, a, b = tmp_path / "ref.binary", tmp_path / "a.binary", tmp_path / "b.binary"
     write_merl(ref, material_table(0))
@@ -120,14 +120,14 @@ def test_sheet_renders_all_brdfs_in_one_pass_with_the_same_scores(tmp_path):
 def test_each_table_is_read_once_for_a_pair(tmp_path, monkeypatch):
     """The check, the render and the BRDF-space error of ``metrics a b`` share one read
     of each table (it was three: 1 s of the command for two MERL files)."""
-    import brdfkit.merl
+    import brdfkit.io.merl
 
     a, b = tmp_path / "a.binary", tmp_path / "b.binary"
     write_merl(a, material_table(0))
     write_merl(b, material_table(1))
     reads = []
-    real = brdfkit.merl.read_merl
-    monkeypatch.setattr(brdfkit.merl, "read_merl", lambda p, *k, **kw: reads.append(str(p)) or real(p, *k, **kw))
+    real = brdfkit.io.merl.read_merl
+    monkeypatch.setattr(brdfkit.io.merl, "read_merl", lambda p, *k, **kw: reads.append(str(p)) or real(p, *k, **kw))
     r = compare_files(FileLoader(resolution=RES, progress=False), str(a), str(b))
     assert sorted(reads) == sorted([str(a), str(b)])
     assert np.isfinite(r["brdf_log_rmse"]) and r["brdf_log_rmse"] > 0
@@ -138,8 +138,8 @@ def test_two_tables_stacked_in_one_pass_equal_separate_renders(monkeypatch):
     corners once, through the prepared tables here), a neural BRDF between them apart;
     each image is its separate render to the bit, NaN semantics included (one table
     unmeasured outside MERL's region and in holes, where its corners are skipped or 0)."""
-    from brdfkit.render import brdf as brdf_mod
-    from brdfkit.render.brdf import TableStackBRDF, stack_tables
+    from brdfkit.render import renderable as brdf_mod
+    from brdfkit.render.renderable import TableStackBRDF, stack_tables
 
     from helpers_foundation import measured_mask
 

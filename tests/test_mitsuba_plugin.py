@@ -20,7 +20,7 @@ torch = pytest.importorskip("torch")
 
 
 def test_missing_libllvm_is_a_clear_error(monkeypatch):
-    from brdfkit.render import mitsuba_plugin as mp
+    from brdfkit.render.mitsuba3 import loader as mp
 
     monkeypatch.setenv("DRJIT_LIBLLVM_PATH", "/nonexistent/libLLVM.so")
     with pytest.raises(BrdfkitError, match="apt-get install -y libllvm19"):
@@ -35,7 +35,7 @@ def test_missing_libllvm_is_a_clear_error(monkeypatch):
 
 @pytest.fixture(scope="module")
 def mi():
-    from brdfkit.render import mitsuba_plugin as mp
+    from brdfkit.render.mitsuba3 import loader as mp
 
     try:
         mp.ensure_libllvm()
@@ -50,7 +50,7 @@ def mi():
 
 @pytest.fixture(scope="module")
 def lambert_file(tmp_path_factory):
-    from brdfkit.merl import write_merl
+    from brdfkit.io.merl import write_merl
 
     folder = tmp_path_factory.mktemp("mitsuba")
     write_merl(folder / "lambert.binary", lambert_table([0.6, 0.5, 0.4]))
@@ -77,7 +77,7 @@ def _centre(img):
 
 
 def test_plugin_from_xml_string(mi, lambert_file):
-    from brdfkit.render.mitsuba_plugin import render_scene
+    from brdfkit.render.mitsuba3.scenes import render_scene
 
     xml = _furnace_xml(f'<bsdf type="brdfkit"><string name="filename" value="{lambert_file}"/></bsdf>')
     img = render_scene(mi.load_string(xml), 64)
@@ -87,8 +87,9 @@ def test_plugin_from_xml_string(mi, lambert_file):
 
 
 def test_plugin_from_dict_with_registered_source(mi):
-    from brdfkit.render.brdf import TableBRDF
-    from brdfkit.render.mitsuba_plugin import register_source, render_scene
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.render.mitsuba3.scenes import render_scene
+    from brdfkit.render.mitsuba3.bsdf import register_source
 
     key = register_source(TableBRDF(lambert_table([0.3, 0.3, 0.9]), device="cpu"))
     scene = mi.load_string(_furnace_xml(f'<bsdf type="brdfkit"><string name="source" value="{key}"/></bsdf>'))
@@ -111,10 +112,10 @@ def test_quadrature_agrees_with_mitsuba(mi):
     lies within Monte Carlo noise of the path-traced one."""
     import dataclasses
 
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
     from brdfkit.render import quadrature
-    from brdfkit.render.brdf import TableBRDF
-    from brdfkit.render.mitsuba_plugin import render_reference
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.render.mitsuba3.scenes import render_reference
     from brdfkit.render.scene import Scene
 
     mat = synthetic.Material("copper", "conductor", 0.08, ior=synthetic.METALS["copper"][0],
@@ -136,9 +137,10 @@ def test_quadrature_agrees_with_mitsuba(mi):
 
 
 def test_near_mirror_renders_finite(mi):
-    from brdfkit import synthetic
-    from brdfkit.render.brdf import TableBRDF
-    from brdfkit.render.mitsuba_plugin import estimate_alpha, render_reference
+    from brdfkit.materials import synthetic
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.render.mitsuba3.scenes import render_reference
+    from brdfkit.render.mitsuba3.bsdf import estimate_alpha
     from brdfkit.render.scene import Scene
 
     brdf = TableBRDF(synthetic.table(synthetic.STIFF[0]), "stiff-mirror", device="cpu")
@@ -151,8 +153,8 @@ def test_neural_brdf_in_mitsuba(mi, tmp_path):
     from helpers_model import make_model, material_table
 
     from brdfkit.api import encode, load_model
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.render.mitsuba_plugin import render_reference
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.render.mitsuba3.scenes import render_reference
     from brdfkit.render.scene import Scene
 
     make_model(tmp_path / "m.safetensors")

@@ -12,8 +12,8 @@ import pytest
 import torch
 
 from brdfkit.errors import FormatError, InputError
-from brdfkit.model.network import HyperBRDF, HyperConfig
-from brdfkit.model.file import MODEL_FORMAT, load_model, save_model, weights_fingerprint
+from brdfkit.hypernet.network import HyperBRDF, HyperConfig
+from brdfkit.hypernet.model_file import MODEL_FORMAT, load_model, save_model, weights_fingerprint
 
 from conftest import TINY_CONFIG, format_error
 from helpers_model import make_model, material_table
@@ -76,7 +76,7 @@ def test_default_device_and_metadata(model_path):
 def test_mapping_is_recorded(model_path):
     # The model decodes correctly only with the mapping it was trained with (eq. 1,
     # eps = 0.002): the file says which, and the loaded model carries it.
-    from brdfkit.mapping import EPS, mapping_record
+    from brdfkit.hypernet.mapping import EPS, mapping_record
 
     _, meta = _raw(model_path)
     rec = json.loads(meta["mapping"])
@@ -86,7 +86,7 @@ def test_mapping_is_recorded(model_path):
 
 def test_file_without_mapping_loads_as_the_papers(model_path, tmp_path):
     # Files written before the mapping was recorded were all trained with the paper's.
-    from brdfkit.mapping import mapping_record
+    from brdfkit.hypernet.mapping import mapping_record
 
     old = _resave(model_path, tmp_path / "old.safetensors", edit_meta=lambda m: m.pop("mapping"))
     _, meta = _raw(old)
@@ -181,7 +181,7 @@ def test_not_safetensors(tmp_path, content):
 
 
 def test_other_safetensors_refused(tmp_path):
-    from brdfkit.mapping import save_reference
+    from brdfkit.hypernet.mapping import save_reference
 
     path = tmp_path / "ref.safetensors"
     save_reference(path, material_table(0))
@@ -238,7 +238,7 @@ def test_missing_file(tmp_path):
 
 
 def test_merl_table_given_as_model(tmp_path):
-    from brdfkit.merl import write_merl
+    from brdfkit.io.merl import write_merl
 
     path = tmp_path / "teflon.binary"
     write_merl(path, material_table(0))

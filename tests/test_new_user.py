@@ -89,7 +89,7 @@ def test_atomic_output_replaced_by_its_writer_keeps_the_umask_mode(tmp_path, uma
 
 
 def test_reference_tables_are_0644_under_umask_022(tmp_path, umask_022):
-    from brdfkit.mapping import save_reference
+    from brdfkit.hypernet.mapping import save_reference
 
     save_reference(tmp_path / "ref.safetensors", np.ones((90, 90, 180, 3)))
     assert _mode(tmp_path / "ref.safetensors") == 0o644
@@ -125,7 +125,7 @@ def test_mitsuba_tests_skip_with_the_reason_without_libllvm(env):
 
 def test_llvm_advice_names_19_and_refuses_14_and_15(tmp_path, monkeypatch):
     from brdfkit.errors import BrdfkitError
-    from brdfkit.render import mitsuba_plugin as mp
+    from brdfkit.render.mitsuba3 import loader as mp
 
     for name in ("libLLVM-15.so.1", "libLLVM-14.so"):
         lib = tmp_path / name
@@ -141,7 +141,7 @@ def test_llvm_advice_names_19_and_refuses_14_and_15(tmp_path, monkeypatch):
 
 def test_llvm_auto_detection_picks_only_19(monkeypatch):
     from brdfkit.errors import BrdfkitError
-    from brdfkit.render import mitsuba_plugin as mp
+    from brdfkit.render.mitsuba3 import loader as mp
 
     assert all("19" in p for p in mp.LIBLLVM_CANDIDATES + mp.LIBLLVM_PATTERNS)
     monkeypatch.delenv("DRJIT_LIBLLVM_PATH", raising=False)
@@ -166,7 +166,7 @@ def test_fuzz_seeds_leave_nothing_in_the_temporary_folder(tmp_path):
     """The fuzz tests' valid seed files (a model, a reference table, ...) are built in the
     temporary folder and removed once read."""
     pytest.importorskip("hypothesis")
-    code = ("from brdfkit import fuzzing\n"
+    code = ("from brdfkit.testing import fuzzing\n"
             "for p in fuzzing.PARSERS.values(): p.seed()\n")
     tmp = tmp_path / "tmp"
     tmp.mkdir()
@@ -198,7 +198,7 @@ def _csv_blocks(text: str) -> list[str]:
 
 @pytest.mark.parametrize("doc", ["README.md", "docs/data.md"])
 def test_your_data_example_csv_is_a_valid_sample_set(doc, tmp_path):
-    from brdfkit.samples import read_samples
+    from brdfkit.io.samples import read_samples
 
     blocks = _csv_blocks((REPO / doc).read_text())
     assert blocks, f"{doc}: no sample CSV example"
@@ -251,9 +251,9 @@ def test_demo_render_writes_its_images(tmp_path):
     pytest.importorskip("torch")
     from PIL import Image
 
-    from brdfkit.demo import render_psnr
+    from brdfkit.demos.synthetic_training import render_psnr
     from brdfkit.render.image import read_exr
-    from brdfkit.synthetic import STIFF, table
+    from brdfkit.materials.synthetic import STIFF, table
 
     white = table(STIFF[2])
     save = (str(tmp_path / "white-half"), str(tmp_path / "white"))

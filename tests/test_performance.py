@@ -19,7 +19,7 @@ def test_grid_hd_is_the_per_cell_definition_bit_for_bit():
 
 
 def test_threads_follow_the_idle_cores():
-    from brdfkit.threads import threads_for_load
+    from brdfkit.runtime import threads_for_load
 
     assert threads_for_load(2, 0.0) == 2
     assert threads_for_load(2, 0.9) == 1
@@ -28,7 +28,7 @@ def test_threads_follow_the_idle_cores():
 
 
 def test_thread_choice_leaves_a_user_setting_alone(monkeypatch):
-    from brdfkit import threads
+    from brdfkit import runtime as threads
 
     env = {"OMP_NUM_THREADS": "7"}
     assert threads.set_default_threads(env) is None and env == {"OMP_NUM_THREADS": "7"}
@@ -43,7 +43,7 @@ def test_thread_choice_leaves_a_user_setting_alone(monkeypatch):
 
 def test_a_finished_command_does_not_hold_threads_back(monkeypatch):
     """Load average 1.0 left by the previous command, nothing runnable now: both cores."""
-    from brdfkit import threads
+    from brdfkit import runtime as threads
 
     monkeypatch.setattr(threads, "_cpus", lambda: 2)
     monkeypatch.setattr(threads.os, "getloadavg", lambda: (1.0, 1.0, 1.0))
@@ -56,20 +56,20 @@ def test_a_finished_command_does_not_hold_threads_back(monkeypatch):
 
 
 def test_running_others_reads_this_machine():
-    from brdfkit import threads
+    from brdfkit import runtime as threads
 
     n = threads.running_others()
     assert n is None or n >= 0
 
 
 def test_fast_encoder_and_decoder_equal_the_model_definition(tmp_path):
-    """The inference paths of brdfkit.model (bias folded into the matrices, last encoder
+    """The inference paths of brdfkit.hypernet (bias folded into the matrices, last encoder
     layer applied to the mean, the ten decoder MLPs stacked) against HyperBRDF itself."""
     import torch
 
     from brdfkit import api
-    from brdfkit.model import kernels
-    from brdfkit.samples import draw_samples
+    from brdfkit.hypernet import kernels
+    from brdfkit.acquisition.sampling import draw_samples
 
     from helpers_model import make_model, material_table
 
@@ -81,7 +81,7 @@ def test_fast_encoder_and_decoder_equal_the_model_definition(tmp_path):
         s = draw_samples(material_table(1), 500, seed=2)
         emb = api.encode(model, s)
         ref = model.reference_at(s.theta_h, s.theta_d, s.phi_d)
-        from brdfkit.mapping import to_mapped
+        from brdfkit.hypernet.mapping import to_mapped
 
         x = np.concatenate([s.hd(), to_mapped(np.asarray(s.rgb, np.float64), ref)], axis=1)
         with torch.no_grad():

@@ -1,4 +1,4 @@
-"""``brdfkit plan`` and ``brdfkit.planning``: measurement directions chosen for a PCA
+"""``brdfkit plan`` and ``brdfkit.acquisition.planning``: measurement directions chosen for a PCA
 basis (Nielsen et al. 2015) or drawn uniformly; a plan measured (``sample --at``) and
 reconstructed (``sparse``); bad inputs refused in one line. Real files throughout: a
 small basis fitted here on synthetic tables, and the basis the package ships."""
@@ -11,12 +11,14 @@ import numpy as np
 import pytest
 
 import brdfkit
-from brdfkit.directions import read_directions
+from brdfkit.io.directions import read_directions
 from brdfkit.errors import InputError
 from brdfkit.geometry import N_CELLS, cell_angles, grid_cosine_weight, valid_cells
-from brdfkit.merl import read_merl, write_merl
-from brdfkit.planning import DESIGNS, condition_number, design_rows, plan_directions
-from brdfkit.samples import draw_samples, read_samples
+from brdfkit.io.merl import read_merl, write_merl
+from brdfkit.acquisition.planning import condition_number, design_rows, plan_directions
+from brdfkit.acquisition.designs import DESIGNS
+from brdfkit.io.samples import read_samples
+from brdfkit.acquisition.sampling import draw_samples
 
 from conftest import tmp_leftovers
 from conftest import one_error_line, run_cli
@@ -30,7 +32,7 @@ SHIPPED_BASIS = os.path.join(os.path.dirname(brdfkit.__file__), "models", "merl8
 def small(tmp_path_factory):
     """Four synthetic GGX tables and a 5-component basis fitted to them."""
     from brdfkit.methods.ipca import fit_ipca, save_ipca
-    from brdfkit.synthetic import write_library
+    from brdfkit.materials.synthetic import write_library
 
     root = tmp_path_factory.mktemp("planning")
     write_library(root / "lib", 4, seed=5, stiff=False)
@@ -116,7 +118,7 @@ def test_condition_number_of_fewer_rows_than_components():
 
 
 def test_design_rows_leave_out_what_the_fit_leaves_out(small):
-    from brdfkit.directions import DirectionSet
+    from brdfkit.io.directions import DirectionSet
     from brdfkit.methods.ipca import load_ipca
 
     basis = load_ipca(small["basis"])
@@ -236,7 +238,7 @@ def test_plan_output_is_atomic(small, tmp_path, capsys):
 
 
 def test_plan_with_a_built_in_name(shipped, tmp_path, monkeypatch, capsys):
-    from brdfkit.model.builtin import models_folder, read_manifest
+    from brdfkit.models.builtin import models_folder, read_manifest
 
     monkeypatch.delenv("BRDFKIT_BUILTIN_MODELS", raising=False)
     if not any(m.name == "merl80-l40" for m in read_manifest(models_folder()).installed()):
@@ -251,7 +253,7 @@ def test_plan_with_a_built_in_name(shipped, tmp_path, monkeypatch, capsys):
 @pytest.mark.slow
 def test_plan_for_a_learnt_prior_file_is_the_plan_for_its_basis(tmp_path, capsys):
     """-m a learnt-prior file (`brdfkit fit --method prior`): its basis, as inside it."""
-    from brdfkit.synthetic import write_library
+    from brdfkit.materials.synthetic import write_library
 
     write_library(tmp_path / "lib", 4, seed=2, stiff=False)  # two folds of two: the fewest the prior's fit takes
     basis, prior = tmp_path / "b.safetensors", tmp_path / "p.safetensors"

@@ -1,4 +1,4 @@
-"""``brdfkit plot`` and :mod:`brdfkit.plot`: lobes and slices of tables and embeddings."""
+"""``brdfkit plot`` and :mod:`brdfkit.figures.brdf_plot`: lobes and slices of tables and embeddings."""
 
 from __future__ import annotations
 
@@ -10,10 +10,10 @@ import sys
 import numpy as np
 import pytest
 
-from brdfkit import synthetic
+from brdfkit.materials import synthetic
 from brdfkit.geometry import GRID_SHAPE, valid_mask
-from brdfkit.merl import write_merl
-from brdfkit.plot import inplane_lobe, plot_figure
+from brdfkit.io.merl import write_merl
+from brdfkit.figures.brdf_plot import inplane_lobe, plot_figure
 
 from conftest import quiet_env
 from conftest import run_brdfkit as _run_brdfkit
@@ -139,7 +139,7 @@ def test_each_view_alone(tables, tmp_path, view):
 def test_table_and_embedding_side_by_side(tables, tmp_path):
     pytest.importorskip("torch")
     from brdfkit import api
-    from brdfkit.embedding import write_embedding
+    from brdfkit.io.embedding import write_embedding
 
     from helpers_model import make_model
 

@@ -1,5 +1,5 @@
 """The learnt-prior method (``prior``): the closed-form fit around a prior mean
-(:mod:`brdfkit.methods.prior.model`), its model file (:mod:`brdfkit.methods.prior.file`)
+(:mod:`brdfkit.methods.prior.model`), its model file (:mod:`brdfkit.methods.prior.prior_file`)
 and its training (:mod:`brdfkit.methods.prior.fit`, ``brdfkit fit --method prior``).
 
 Tables are cheap analytic ones (a Lambertian base and a Gaussian lobe in ``theta_h``
@@ -23,9 +23,10 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, HALF_PI, grid_angles, valid_mask
 from brdfkit.methods import get_method
 from brdfkit.methods.ipca import EPS, fit_ipca, load_ipca, save_ipca
-from brdfkit.methods.prior.file import is_prior_file, load_prior, save_prior
+from brdfkit.methods.prior.prior_file import is_prior_file, load_prior, save_prior
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, sample_rows, solve
-from brdfkit.samples import SampleSet, draw_samples
+from brdfkit.io.samples import SampleSet
+from brdfkit.acquisition.sampling import draw_samples
 
 from conftest import run_cli
 
@@ -302,7 +303,7 @@ def test_the_fingerprint_covers_the_likelihood_in_the_config(noisy, tmp_path):
     a fingerprint of the weights and the basis alone) still loads."""
     import hashlib
 
-    from brdfkit.methods.prior.file import _digest
+    from brdfkit.methods.prior.prior_file import _digest
     from helpers_bad_input import rewrite_header
 
     path = tmp_path / "prior.safetensors"
@@ -479,7 +480,7 @@ TINY_FIT = dict(folds=2, steps=3, components=2, latent_dim=4, width=8, query_siz
 @pytest.fixture(scope="module")
 def data(make_table, tmp_path_factory):
     """Four tiny training tables as MERL files, and a compact basis fitted to them."""
-    from brdfkit.merl import write_merl
+    from brdfkit.io.merl import write_merl
 
     d = tmp_path_factory.mktemp("prior-fit")
     (d / "data").mkdir()

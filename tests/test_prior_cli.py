@@ -1,5 +1,5 @@
 """The learnt prior as part of a built-in model: ``brdfkit sparse``'s method ``auto``
-(``brdfkit.methods.model_spec``), ``-m NAME`` for every method, ``brdfkit models``,
+(``brdfkit.methods.choice``), ``-m NAME`` for every method, ``brdfkit models``,
 ``brdfkit bench`` with built-in names, ``brdfkit.load_model(NAME)``.
 
 The built-in folder is a temporary one (``$BRDFKIT_BUILTIN_MODELS``): ``tiny-p`` (the
@@ -18,11 +18,12 @@ import numpy as np
 import pytest
 
 from brdfkit import api
-from brdfkit.embedding import read_embedding
-from brdfkit.merl import read_merl
+from brdfkit.io.embedding import read_embedding
+from brdfkit.io.merl import read_merl
 from brdfkit.methods import get_method
-from brdfkit.model import builtin
-from brdfkit.samples import draw_samples, read_samples, write_samples
+from brdfkit.models import builtin
+from brdfkit.io.samples import read_samples, write_samples
+from brdfkit.acquisition.sampling import draw_samples
 
 from conftest import one_error_line, run_cli
 from helpers_model import material_table, pack_tiny_builtins, write_inputs
@@ -37,7 +38,7 @@ def _pack_prior(path, tables) -> str:
     import torch
 
     from brdfkit.methods.ipca import fit_ipca
-    from brdfkit.methods.prior.file import save_prior
+    from brdfkit.methods.prior.prior_file import save_prior
     from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
     basis = fit_ipca(tables, n_components=3, names=["stiff-white", "ggx"])

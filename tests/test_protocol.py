@@ -1,4 +1,4 @@
-"""The benchmarks' one sampling protocol (``brdfkit.protocol``, issue 22 item 4):
+"""The benchmarks' one sampling protocol (``brdfkit.acquisition.protocol``, issue 22 item 4):
 ``brdfkit bench`` and ``benchmarks/eval_sparse.py`` reconstruct the same samples for the
 same material, N and draw, uniform or planned; ``brdfkit bench --sampling planned``."""
 
@@ -14,10 +14,10 @@ import pytest
 
 from brdfkit.bench import BenchConfig, run_bench, sample_seed
 from brdfkit.errors import InputError
-from brdfkit.merl import read_merl
-from brdfkit.planning import plan_directions
-from brdfkit.protocol import SamplingProtocol, draw_seed
-from brdfkit.samples import draw_samples, measure_samples
+from brdfkit.io.merl import read_merl
+from brdfkit.acquisition.planning import plan_directions
+from brdfkit.acquisition.protocol import SamplingProtocol, draw_seed
+from brdfkit.acquisition.sampling import draw_samples, measure_samples
 
 from conftest import quiet_env
 
@@ -29,7 +29,7 @@ EVAL_SPARSE = os.path.join(REPO, "benchmarks", "eval_sparse.py")
 def lib(tmp_path_factory):
     """Three synthetic tables, a 4-component basis fitted to them, a test list of two."""
     from brdfkit.methods.ipca import fit_ipca, save_ipca
-    from brdfkit.synthetic import write_library
+    from brdfkit.materials.synthetic import write_library
 
     root = tmp_path_factory.mktemp("protocol")
     write_library(root / "lib", 3, seed=7, stiff=False)

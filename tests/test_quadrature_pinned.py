@@ -23,7 +23,7 @@ RES = 24
 
 
 def _materials():
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
 
     copper = synthetic.Material("copper-0.05", "conductor", 0.05, ior=synthetic.METALS["copper"][0],
                                 k=synthetic.METALS["copper"][1])
@@ -47,9 +47,10 @@ def _pinned(new, old, new_stats, old_stats):
 
 @pytest.mark.parametrize("index", range(4), ids=lambda i: _materials()[i].name)
 def test_synthetic_tables_match_the_old_renderer(index):
-    from brdfkit import metrics, synthetic
+    from brdfkit.evaluation import metrics
+    from brdfkit.materials import synthetic
     from brdfkit.render import quadrature
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.envmap import reference_envmap
 
     m = _materials()[index]
@@ -65,7 +66,7 @@ def test_synthetic_tables_match_the_old_renderer(index):
 
 def test_uniform_environment_no_light_nodes_and_supersampling_match():
     from brdfkit.render import quadrature
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.envmap import uniform_envmap
 
     brdf = TableBRDF(lambert_table([0.2, 0.5, 0.8]), device="cpu")
@@ -77,9 +78,9 @@ def test_uniform_environment_no_light_nodes_and_supersampling_match():
 
 
 def test_kept_pairs_give_the_same_image_and_are_bounded(monkeypatch):
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
     from brdfkit.render import quadrature
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.scene import Scene
 
     brdf = TableBRDF(synthetic.table(synthetic.STIFF[0]), device="cpu")

@@ -1,4 +1,4 @@
-"""Test-time refinement of a hypernetwork's reconstruction (:mod:`brdfkit.model.refine`)
+"""Test-time refinement of a hypernetwork's reconstruction (:mod:`brdfkit.hypernet.refine_on_samples`)
 and ``brdfkit sparse --refine``: it fits the samples, declines when the held-out samples
 say so, is deterministic, leaves the model untouched, and its CLI refuses what makes no
 sense with a one-line error."""
@@ -12,11 +12,12 @@ import torch
 from brdfkit import api
 from brdfkit.cli import main
 from brdfkit.errors import InputError
-from brdfkit.embedding import read_embedding
-from brdfkit.merl import read_merl
-from brdfkit.metrics import brdf_log_rmse
-from brdfkit.model.refine import RefineConfig, refine
-from brdfkit.samples import SampleSet, draw_samples, write_samples
+from brdfkit.io.embedding import read_embedding
+from brdfkit.io.merl import read_merl
+from brdfkit.evaluation.metrics import brdf_log_rmse
+from brdfkit.hypernet.refine_on_samples import RefineConfig, refine
+from brdfkit.io.samples import SampleSet, write_samples
+from brdfkit.acquisition.sampling import draw_samples
 
 from helpers_model import make_model, material_table
 
@@ -48,7 +49,7 @@ def test_latent_refinement_fits_the_samples_and_the_material(setup):
     assert held_after < held_before
     # The samples' own error must fall (an untrained tiny decoder moves little with its
     # latent: the margin is small but real; the weights stage below has the freedom).
-    from brdfkit.model.brdf import NeuralBRDF
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
     assert _sample_mse(model, r.brdf, samples) < _sample_mse(model, NeuralBRDF.from_embedding(model, emb), samples)
     assert np.isfinite(before).any()
@@ -126,7 +127,7 @@ def test_cli_refine(setup, tmp_path, capsys):
     assert code == 0, err
     refined, plain = read_merl(tmp_path / "r.binary"), read_merl(tmp_path / "p.binary")
     from brdfkit.methods import get_method
-    from brdfkit.samples import read_samples
+    from brdfkit.io.samples import read_samples
 
     table, emb = get_method("hypernet").sparse(read_samples(d / "samples.csv"), model, refine_target="latent")
     np.testing.assert_allclose(refined, table, rtol=1e-12, equal_nan=True)

@@ -30,7 +30,7 @@ class _Analytic:
         self.m = material
 
     def eval_dirs(self, wi, wo):
-        from brdfkit.synthetic import evaluate
+        from brdfkit.materials.synthetic import evaluate
 
         return torch.from_numpy(evaluate(self.m, wi.double().numpy(), wo.double().numpy())).float()
 
@@ -81,7 +81,7 @@ def test_envmap_exr_cached(tmp_path):
 
 def test_lambert_uniform_environment_closed_form():
     from brdfkit.render import quadrature
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.envmap import uniform_envmap
     from brdfkit.render.scene import Scene
 
@@ -99,7 +99,7 @@ def test_lambert_uniform_environment_closed_form():
 def _albedo_reference(material, theta_o, n=500):
     """Directional albedo by a fine midpoint rule in half-vector space (independent of
     the renderer's nodes and weights)."""
-    from brdfkit.synthetic import evaluate
+    from brdfkit.materials.synthetic import evaluate
 
     wo = np.array([math.sin(theta_o), 0.0, math.cos(theta_o)])
     t = (np.arange(n) + 0.5) / n
@@ -120,7 +120,7 @@ def _albedo_reference(material, theta_o, n=500):
 def test_quadrature_matches_independent_integral(which):
     """Glossy and near-mirror GGX under a uniform environment: the rendered radiance is the
     directional albedo, computed here by a separate fine integration."""
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
     from brdfkit.render import quadrature
     from brdfkit.render.envmap import uniform_envmap
 
@@ -134,9 +134,9 @@ def test_quadrature_matches_independent_integral(which):
 
 
 def test_quadrature_deterministic_and_mirror_finite():
-    from brdfkit import synthetic
+    from brdfkit.materials import synthetic
     from brdfkit.render import quadrature
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.scene import Scene
 
     brdf = TableBRDF(synthetic.table(synthetic.STIFF[0]), "stiff-mirror", device="cpu")
@@ -175,7 +175,7 @@ def test_exr_round_trip_and_png(tmp_path):
     write_png(tmp_path / "a.png", img)
     png = np.asarray(Image.open(tmp_path / "a.png"))
     assert png.shape == (7, 9, 3) and png.dtype == np.uint8
-    from brdfkit.metrics import display_encode
+    from brdfkit.render.display import display_encode
 
     np.testing.assert_array_equal(png, np.round(display_encode(img) * 255).astype(np.uint8))
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".brdfkit-tmp")]
@@ -199,7 +199,7 @@ def test_bad_images(tmp_path):
 
 
 def test_render_package_is_lazy():
-    code = ("import sys, brdfkit.render, brdfkit.metrics; "
+    code = ("import sys, brdfkit.render, brdfkit.evaluation.metrics; "
             "print(any(m in sys.modules for m in ('torch', 'mitsuba', 'colour')))")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
     assert out.stdout.strip() == "False"
@@ -210,7 +210,7 @@ def test_render_package_is_lazy():
 
 @pytest.fixture(scope="module")
 def lambert_file(tmp_path_factory):
-    from brdfkit.merl import write_merl
+    from brdfkit.io.merl import write_merl
 
     folder = tmp_path_factory.mktemp("brdfs")
     write_merl(folder / "lambert.binary", lambert_table([0.6, 0.5, 0.4]))
@@ -298,8 +298,8 @@ def test_cli_render_embedding(tmp_path):
     from helpers_model import make_model, material_table
 
     from brdfkit.api import encode, load_model
-    from brdfkit.embedding import write_embedding
-    from brdfkit.model.brdf import NeuralBRDF
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.render import quadrature
     from brdfkit.render.image import read_exr
     from brdfkit.render.scene import Scene

@@ -1,4 +1,4 @@
-"""The ``render`` design of ``brdfkit plan`` (:mod:`brdfkit.render_design`): the greedy
+"""The ``render`` design of ``brdfkit plan`` (:mod:`brdfkit.acquisition.optimal_design`): the greedy
 choice against a brute-force minimum of the expected render error, the metric against
 finite differences of the screen render, and plans on a small basis fitted here."""
 
@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from brdfkit.errors import InputError
-from brdfkit.planning import plan_directions, plan_target
-from brdfkit.render_design import Likelihood, cell_precision, greedy_render, render_metric
+from brdfkit.acquisition.planning import plan_directions, plan_target
+from brdfkit.acquisition.optimal_design import Likelihood, cell_precision, greedy_render, render_metric
 
 from test_planning import small  # noqa: F401  (the module fixture: a 5-component basis of 4 synthetic tables)
 
@@ -48,7 +48,8 @@ def test_metric_is_the_jacobian_of_the_displayed_screen(small):
     import torch
 
     from brdfkit.methods.ipca import load_ipca
-    from brdfkit.render.screen import _display, screen
+    from brdfkit.render.display import display_encode_torch as _display
+    from brdfkit.render.screen import screen
 
     basis = load_ipca(small["basis"])
     m = render_metric(basis, draws=0, scenes=(0.0,))
@@ -79,7 +80,7 @@ def test_precision_is_the_ridge_alone_for_ipca_and_grows_with_the_metric_term(sm
 
 
 def test_render_plan_is_deterministic_distinct_and_lowers_the_expected_error(small):
-    from brdfkit.planning import _Pool
+    from brdfkit.acquisition.designs import CandidatePool as _Pool
 
     basis, label, lik = plan_target(small["basis"])
     opts = dict(design="render", draws=2, candidates=20_000)
@@ -105,7 +106,7 @@ def test_render_design_options_are_checked(small):
 
 
 def test_plan_render_command(small, tmp_path, capsys):
-    from brdfkit.directions import read_directions
+    from brdfkit.io.directions import read_directions
 
     from conftest import run_cli
 

@@ -17,7 +17,7 @@ import sys
 
 import pytest
 
-from brdfkit.merl import write_merl
+from brdfkit.io.merl import write_merl
 
 from conftest import quiet_env
 from helpers_model import make_model, material_table
@@ -34,7 +34,7 @@ def _prior(path, tables) -> None:
     import torch
 
     from brdfkit.methods.ipca import fit_ipca
-    from brdfkit.methods.prior.file import save_prior
+    from brdfkit.methods.prior.prior_file import save_prior
     from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
     basis = fit_ipca(tables, n_components=3, names=["a", "b"])

@@ -10,11 +10,12 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from brdfkit import samples as samples_mod
+from brdfkit.io import samples as samples_mod
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, cell_index
-from brdfkit.merl import read_merl
-from brdfkit.samples import ANGLE_COLUMNS, VECTOR_COLUMNS, SampleSet, draw_samples, read_samples, write_samples
+from brdfkit.io.merl import read_merl
+from brdfkit.io.samples import ANGLE_COLUMNS, VECTOR_COLUMNS, SampleSet, read_samples, write_samples
+from brdfkit.acquisition.sampling import draw_samples
 
 from conftest import tmp_leftovers
 from helpers_foundation import measured_mask, merl_bytes, random_stored, random_table

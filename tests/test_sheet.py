@@ -1,4 +1,4 @@
-"""``brdfkit compare`` and :mod:`brdfkit.sheet`: the comparison sheet."""
+"""``brdfkit compare`` and :mod:`brdfkit.figures.comparison_sheet`: the comparison sheet."""
 
 from __future__ import annotations
 
@@ -8,8 +8,8 @@ import os
 import numpy as np
 import pytest
 
-from brdfkit import synthetic
-from brdfkit.merl import write_merl
+from brdfkit.materials import synthetic
+from brdfkit.io.merl import write_merl
 
 from conftest import quiet_env
 from conftest import run_brdfkit as _run_brdfkit
@@ -30,7 +30,7 @@ def materials(tmp_path_factory):
 
 
 def test_delta_e_map_is_what_the_mean_delta_e_averages():
-    from brdfkit.metrics import delta_e_2000, delta_e_2000_map
+    from brdfkit.evaluation.metrics import delta_e_2000, delta_e_2000_map
 
     rng = np.random.default_rng(0)
     a, b = rng.random((8, 9, 3)) * 1.3, rng.random((8, 9, 3))
@@ -45,8 +45,8 @@ def test_sheet_scores_are_those_of_brdfkit_metrics(materials, tmp_path):
     pytest.importorskip("torch")
     from PIL import Image
 
-    from brdfkit.compare import FileLoader, compare_files
-    from brdfkit.sheet import comparison_sheet
+    from brdfkit.evaluation.comparison import FileLoader, compare_files
+    from brdfkit.figures.comparison_sheet import comparison_sheet
 
     ref, *preds = [str(p) for p in materials]
     rows = comparison_sheet(ref, preds + [ref], tmp_path / "s.png", resolution=16, progress=False)

@@ -14,7 +14,7 @@ import subprocess
 import numpy as np
 import pytest
 
-from brdfkit.model.builtin import models_folder, read_manifest
+from brdfkit.models.builtin import models_folder, read_manifest
 
 NAMES = ("merl-rgl-l40", "merl80-l40", "merl-rgl-l7")
 
@@ -48,7 +48,7 @@ def test_the_three_models_are_listed_installed_and_intact(shipped, tmp_path):
     assert {by_name[n]["latent_dim"] for n in NAMES} == {40, 7}
     assert by_name["merl80-l40"]["prior"] and by_name["merl-rgl-l40"]["prior"]
     # The benchmark's model never saw a test material.
-    from brdfkit.model.builtin import load_builtin
+    from brdfkit.hypernet.packing import load_builtin
     test = set(open(os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "merl-test.txt")).read().split()) \
         if os.path.exists(os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "merl-test.txt")) else set()
     mats = set(load_builtin("merl80-l40", device="cpu").meta.get("materials") or ())
@@ -62,9 +62,10 @@ def test_the_package_is_within_its_size_budget(shipped):
 
 
 def test_sparse_encode_decode_without_m(shipped, tmp_path):
-    from brdfkit.merl import write_merl
-    from brdfkit.samples import draw_samples, write_samples
-    from brdfkit.synthetic import library, table
+    from brdfkit.io.merl import write_merl
+    from brdfkit.io.samples import write_samples
+    from brdfkit.acquisition.sampling import draw_samples
+    from brdfkit.materials.synthetic import library, table
 
     ref = table(library(6, seed=3, stiff=False)[5])
     write_merl(tmp_path / "ref.binary", ref)
@@ -80,8 +81,8 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path):
     assert len(embs) == 1
     r = _run("decode", os.path.join("emb", embs[0]), "-o", "dec.binary", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
-    from brdfkit.merl import read_merl
-    from brdfkit.metrics import brdf_log_rmse
+    from brdfkit.io.merl import read_merl
+    from brdfkit.evaluation.metrics import brdf_log_rmse
     out = read_merl(tmp_path / "out.binary")
     assert np.isfinite(out[np.isfinite(ref)]).all()
     # The learnt prior from 400 samples is a useful reconstruction of an unseen material.
@@ -93,7 +94,7 @@ def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped
     the mapping's floor at grazing angles (issue 22); `--method ipca` with a built-in's
     name takes its leading 8, Nielsen et al.'s count."""
     from brdfkit.methods import get_method
-    from brdfkit.model.builtin import read_manifest
+    from brdfkit.models.builtin import read_manifest
 
     bases = {}
     for name, count in (("merl80-l40", 80), ("merl-rgl-l40", 151)):

@@ -1,6 +1,6 @@
 """Numerical stability on stiff materials and extreme inputs (issue 6, docs/stability.md).
 
-Stiff materials are built with :class:`brdfkit.synthetic.Material`: a silver GGX mirror
+Stiff materials are built with :class:`brdfkit.materials.synthetic.Material`: a silver GGX mirror
 with ``alpha = 0.002`` (values up to 6.5e7 1/sr) and a black Lambertian (albedo 1e-3,
 3.2e-4 1/sr everywhere). Every path a user runs on them (fit, encode, decode, sparse,
 interpolate, metrics; render in ``test_render``-style checks where the renderer is
@@ -19,15 +19,17 @@ import numpy as np
 import pytest
 import torch
 
-from brdfkit import api, synthetic
-from brdfkit.embedding import Embedding
+from brdfkit import api
+from brdfkit.materials import synthetic
+from brdfkit.io.embedding import Embedding
 from brdfkit.errors import InputError
 from brdfkit.geometry import hd_vectors
-from brdfkit.mapping import RHO_MAX, from_mapped, to_mapped
-from brdfkit.metrics import brdf_log_rmse
+from brdfkit.hypernet.mapping import RHO_MAX, from_mapped, to_mapped
+from brdfkit.evaluation.metrics import brdf_log_rmse
 from brdfkit.geometry import grid_hd
-from brdfkit.model.brdf import NeuralBRDF
-from brdfkit.samples import SampleSet, draw_samples
+from brdfkit.hypernet.neural_brdf import NeuralBRDF
+from brdfkit.io.samples import SampleSet
+from brdfkit.acquisition.sampling import draw_samples
 
 from helpers_model import make_model
 
@@ -105,8 +107,8 @@ FIT_STEPS = 300
 def trained(stiff, tmp_path_factory):
     """A tiny hypernetwork trained on the mirror, the black and the white material, every
     batch holding all three (``conftest.TINY``; ~15 s on one core)."""
-    from brdfkit.merl import write_merl
-    from brdfkit.training import fit
+    from brdfkit.io.merl import write_merl
+    from brdfkit.hypernet.training.loop import fit
 
     from conftest import TINY, TINY_LATENT
 
@@ -164,8 +166,8 @@ def test_interpolation_and_extrapolation_stay_finite(trained, stiff):
 
 def test_extrapolation_through_the_cli(trained, tmp_path, capsys):
     from brdfkit.cli import main
-    from brdfkit.embedding import write_embedding
-    from brdfkit.merl import read_merl
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.io.merl import read_merl
 
     model, folder = trained
     write_embedding(tmp_path / "a.emb", api.encode(model, folder / "mirror.binary"))
@@ -283,8 +285,8 @@ def _image_ok(img):
 
 
 def test_render_and_image_metrics_on_stiff(trained, stiff, small_scene):
-    from brdfkit.metrics import image_metrics
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.evaluation.metrics import image_metrics
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.quadrature import render
 
     model, _ = trained
@@ -303,8 +305,9 @@ def test_render_and_image_metrics_on_stiff(trained, stiff, small_scene):
 
 def test_mitsuba_render_of_the_mirror(stiff, small_scene):
     from brdfkit.errors import BrdfkitError
-    from brdfkit.render.brdf import TableBRDF
-    from brdfkit.render.mitsuba_plugin import ensure_libllvm, render_reference
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.render.mitsuba3.scenes import render_reference
+    from brdfkit.render.mitsuba3.loader import ensure_libllvm
 
     try:
         ensure_libllvm()
@@ -321,9 +324,9 @@ def test_mitsuba_render_of_the_mirror(stiff, small_scene):
 def test_proxy_mirror_and_black(trained, tmp_path_factory, small_scene, name):
     """The most mirror-like and a near-black MERL material (NBRDF proxies) through the
     mapping, encode, decode, sparse, metrics and rendering."""
-    from brdfkit.merl import read_merl
-    from brdfkit.metrics import image_metrics
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.io.merl import read_merl
+    from brdfkit.evaluation.metrics import image_metrics
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.quadrature import render
 
     from helpers_foundation import proxy_material

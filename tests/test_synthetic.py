@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from brdfkit import synthetic as syn
+from brdfkit.materials import synthetic as syn
 from brdfkit.geometry import GRID_SHAPE
 
 from helpers_foundation import measured_mask

@@ -15,14 +15,14 @@ import numpy as np
 import pytest
 import torch
 
-from brdfkit.model import network as hypernet
-from brdfkit.checkpoint import load_checkpoint
+from brdfkit.hypernet import network as hypernet
+from brdfkit.hypernet.training.checkpoint import load_checkpoint
 from brdfkit.errors import FormatError, InputError
-from brdfkit.merl import read_merl
-from brdfkit.model.file import load_model, weights_fingerprint
-from brdfkit.training import TrainingError, fit
-from brdfkit.mapping import median_reference
-from brdfkit.materials import collect_materials, read_exclude_list
+from brdfkit.io.merl import read_merl
+from brdfkit.hypernet.model_file import load_model, weights_fingerprint
+from brdfkit.hypernet.training.loop import TrainingError, fit
+from brdfkit.hypernet.mapping import median_reference
+from brdfkit.io.folders import collect_materials, read_exclude_list
 
 from conftest import TINY, TINY_LATENT, popen_brdfkit, tiny_cli_options, tmp_leftovers
 from helpers_training import mapped_mse_and_log_rmse, tiny_library
@@ -68,7 +68,7 @@ def test_reference_is_median_of_training_materials(lib, tmp_path):
     assert model.meta["materials"] == ["synth-000", "synth-001"]
     assert model.meta["excluded"] == ["synth-002"]
     tables = [read_merl(lib / f"synth-00{i}.binary") for i in (0, 1)]
-    from brdfkit.mapping import median_reference
+    from brdfkit.hypernet.mapping import median_reference
     np.testing.assert_array_equal(model.rho_ref, median_reference(tables))
 
 
@@ -262,9 +262,9 @@ def test_bad_inputs_are_clear_errors(lib, tmp_path):
 
 
 def test_options_and_the_schedule():
-    # brdfkit.trainoptions holds them; brdfkit.training still offers TrainOptions.
-    from brdfkit import training
-    from brdfkit.trainoptions import TrainOptions, lr_factor, parse_options
+    # brdfkit.hypernet.training.options holds them; brdfkit.hypernet.training.loop still offers TrainOptions.
+    from brdfkit.hypernet.training import loop as training
+    from brdfkit.hypernet.training.options import TrainOptions, lr_factor, parse_options
 
     assert training.TrainOptions is TrainOptions
     cos = TrainOptions(warmup_steps=10, lr_schedule="cosine", lr_final=0.1)

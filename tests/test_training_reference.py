@@ -14,12 +14,13 @@ import pytest
 from brdfkit.cli import main
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import N_CELLS, TABLE_SHAPE
-from brdfkit.mapping import median_reference, to_mapped
-from brdfkit.merl import read_merl
-from brdfkit.model import builtin
-from brdfkit.model.file import load_model
-from brdfkit.trainset import TrainingSet
-from brdfkit.training import fit
+from brdfkit.hypernet.mapping import median_reference, to_mapped
+from brdfkit.io.merl import read_merl
+from brdfkit.models import builtin
+from brdfkit.hypernet import packing
+from brdfkit.hypernet.model_file import load_model
+from brdfkit.hypernet.training.dataset import TrainingSet
+from brdfkit.hypernet.training.loop import fit
 
 from conftest import TINY, TINY_LATENT, tiny_cli_options
 from helpers_model import make_model
@@ -100,27 +101,27 @@ def test_models_on_other_materials_share_one_reference_file(lib, tmp_path, monke
     tiny_fit(lib, first, exclude=["synth-002"])
     shelf = tmp_path / "shelf"
     shelf.mkdir()
-    builtin.pack_model(first, shelf / "two.safetensors", reference_file="ref.safetensors")
-    entry = builtin.manifest_entry(shelf / "two.safetensors", "two", command="fit", validation={})
+    packing.pack_model(first, shelf / "two.safetensors", reference_file="ref.safetensors")
+    entry = packing.manifest_entry(shelf / "two.safetensors", "two", command="fit", validation={})
     builtin.write_manifest(shelf, [entry], default="two")
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
     tiny_fit(lib, second, reference="two")
     assert load_model(second, "cpu").meta["reference_from"] == entry["fingerprint"]
-    builtin.pack_model(second, shelf / "three.safetensors", reference_file="ref.safetensors")
+    packing.pack_model(second, shelf / "three.safetensors", reference_file="ref.safetensors")
     a, b = (load_model(shelf / f"{n}.safetensors", "cpu") for n in ("two", "three"))
     assert a.rho_ref.tobytes() == b.rho_ref.tobytes()
     # Without the option the reference is the median of 3 materials, and cannot be shared.
     tiny_fit(lib, tmp_path / "own.safetensors")
     with pytest.raises(ValueError, match="another reference table") as e:
-        builtin.pack_model(tmp_path / "own.safetensors", shelf / "own.safetensors", reference_file="ref.safetensors")
+        packing.pack_model(tmp_path / "own.safetensors", shelf / "own.safetensors", reference_file="ref.safetensors")
     assert "-O reference=MODEL" in str(e.value) and "same materials" not in str(e.value)
 
 
 def test_checkpoint_keys_are_documented(lib, source, tmp_path):
-    """Every key a training checkpoint holds is listed in brdfkit.checkpoint's docstring."""
+    """Every key a training checkpoint holds is listed in brdfkit.hypernet.training.checkpoint's docstring."""
     import re
 
-    from brdfkit import checkpoint
+    from brdfkit.hypernet.training import checkpoint
 
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, reference=str(source[0]))

@@ -10,7 +10,7 @@ materials:
 
 * bases fitted on the 64 MERL training materials outside ``benchmarks/validation.txt``
   (``brdfkit fit --method ipca PROXIES --exclude-list TEST+VALIDATION --components K``), scored on the 16 validation ones;
-* samples: :func:`brdfkit.samples.draw_samples` (uniform over the Rusinkiewicz angles),
+* samples: :func:`brdfkit.acquisition.sampling.draw_samples` (uniform over the Rusinkiewicz angles),
   draws ``--seeds``;
 * fits: ``ipca`` (the basis's own ridge fit, :meth:`IpcaModel.coefficients`), ``solve``
   (the learnt prior's closed form :func:`~brdfkit.methods.prior.model.solve` without a
@@ -108,7 +108,7 @@ def channel_moments(basis, proxies):
     """``(K, 3, 3)`` second moments of the channel coefficients of the basis's training
     materials (each table projected onto the basis), scaled so that their mean diagonal is
     ``sigma ** 2``."""
-    from brdfkit.merl import read_merl
+    from brdfkit.io.merl import read_merl
 
     c = np.stack([basis.project(read_merl(pathlib.Path(proxies) / f"{m}.binary")) for m in basis.materials])
     m2 = np.einsum("mka,mkb->kab", c, c) / len(c)
@@ -127,13 +127,13 @@ def main(argv=None):
     ap.add_argument("--json", default=None)
     args = ap.parse_args(argv)
 
-    from brdfkit.merl import read_merl
+    from brdfkit.io.merl import read_merl
     from brdfkit.methods.ipca import load_ipca
-    from brdfkit.methods.prior.file import is_prior_file as _is_prior
-    from brdfkit.methods.prior.file import load_prior
-    from brdfkit.metrics import brdf_log_rmse, dark_at_grazing
+    from brdfkit.methods.prior.prior_file import is_prior_file as _is_prior
+    from brdfkit.methods.prior.prior_file import load_prior
+    from brdfkit.evaluation.metrics import brdf_log_rmse, dark_at_grazing
     from brdfkit.render.screen import screen, screen_psnr
-    from brdfkit.samples import draw_samples
+    from brdfkit.acquisition.sampling import draw_samples
 
     names = VALIDATION.read_text().split()
     bases, priors, moments = {}, {}, {}

@@ -15,7 +15,7 @@ import time
 import numpy as np
 
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, cos_theta_i, grid_angles
-from brdfkit.merl import read_merl
+from brdfkit.io.merl import read_merl
 
 BENCHMARKS = pathlib.Path(__file__).resolve().parent.parent
 SHARED = BENCHMARKS.parent.parent / "shared"
@@ -60,7 +60,7 @@ class Library:
         return out.reshape(GRID_SHAPE + (3,))
 
     def log_rmse(self, name: str, pred_flat: np.ndarray) -> float:
-        """:func:`brdfkit.metrics.brdf_log_rmse` on ``cells`` (pred ``(P, 3)``)."""
+        """:func:`brdfkit.evaluation.metrics.brdf_log_rmse` on ``cells`` (pred ``(P, 3)``)."""
         c = self.cos_i[:, None].astype(np.float64)
         ref = self.values[self.index(name)].astype(np.float64)
         return float(np.sqrt(np.mean((np.log1p(np.asarray(pred_flat, np.float64) * c)

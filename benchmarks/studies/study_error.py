@@ -2,7 +2,7 @@
 
 A refinement, a compression or a model choice is only as good as the error it is judged
 by, and the judges of brdfkit are renders (reference-scene PSNR and Delta E 2000,
-:mod:`brdfkit.metrics`). This study asks which cheap error orders reconstructions of one
+:mod:`brdfkit.evaluation.metrics`). This study asks which cheap error orders reconstructions of one
 material the way 128 px renders do, on the reference scene and on a second scene nothing
 was tuned on (the environment turned half a turn, :func:`brdfkit.render.screen.rotated_envmap`).
 
@@ -17,7 +17,7 @@ Reconstructions, per material (the 20 test materials of ``merl-test.txt`` by def
 * compression of the full table (in-sample: ``merl-rgl-*`` were trained on these
   materials) with ``merl-rgl-l40`` and ``merl-rgl-l7``: the encoder's pass
   (:func:`brdfkit.api.encode` / :func:`brdfkit.api.decode`), or with ``--compress-budget
-  S > 0`` :func:`brdfkit.compression.compress_table` refined on screen for ``S`` seconds
+  S > 0`` :func:`brdfkit.hypernet.refine_on_screen.compress_table` refined on screen for ``S`` seconds
   (``compress-MODEL``; the encoder pass it starts from is then scored too, as
   ``compress-MODEL-enc``, unless the refinement kept the encoder's latent).
 
@@ -27,11 +27,11 @@ that of the reference table, on the reference scene (``ref``) and the rotated on
 
 Candidate errors, each signed so that higher is better before ranking:
 
-* ``log_rmse``: :func:`brdfkit.metrics.brdf_log_rmse` (the paper's and NBRDF's metric);
+* ``log_rmse``: :func:`brdfkit.evaluation.metrics.brdf_log_rmse` (the paper's and NBRDF's metric);
 * ``train_loss``: the paper's training loss in mapped space without its regularisers,
   ``mean((cos_i (to_mapped(pred, rho_ref) - to_mapped(ref, rho_ref)))^2)`` over the cells
   and channels measured in the table, the reconstruction and ``rho_ref`` (``merl80-l40``'s
-  reference), ``cos_i`` at the grid angles (:func:`brdfkit.metrics._grid_cos_i`);
+  reference), ``cos_i`` at the grid angles (:func:`brdfkit.evaluation.metrics._grid_cos_i`);
 * ``screen_psnr``: the render-aligned error of :mod:`brdfkit.render.screen` (32 px
   reference scene, trilinear table lookups at its quadrature pairs, display-encoded MSE
   as a PSNR);
@@ -45,7 +45,7 @@ Candidate errors, each signed so that higher is better before ranking:
   Lambertian ``rho = 1 / pi`` (so a Lambertian ``a / pi`` gives exactly ``a``, and the
   unmeasured grazing cells drop out of both). Both colours are divided by
   ``max(1, max(reference albedo))`` so the reference is never clipped, then compared as
-  1x1 linear-sRGB images by :func:`brdfkit.metrics.delta_e_2000`.
+  1x1 linear-sRGB images by :func:`brdfkit.evaluation.metrics.delta_e_2000`.
 
 Score: per material, the Spearman rank correlation (``scipy.stats.spearmanr``; ties
 averaged) between each candidate and each judge over that material's reconstructions;
@@ -144,8 +144,8 @@ class Candidates:
 
     def __init__(self, table, rho_ref, sc):
         from brdfkit.geometry import N_CELLS
-        from brdfkit.mapping import to_mapped
-        from brdfkit.metrics import _grid_cos_i
+        from brdfkit.hypernet.mapping import to_mapped
+        from brdfkit.evaluation.metrics import _grid_cos_i
 
         self.table = table
         self.flat = table.reshape(N_CELLS, 3)
@@ -161,8 +161,8 @@ class Candidates:
 
     def __call__(self, pred):
         from brdfkit.geometry import N_CELLS
-        from brdfkit.mapping import to_mapped
-        from brdfkit.metrics import brdf_log_rmse, delta_e_2000
+        from brdfkit.hypernet.mapping import to_mapped
+        from brdfkit.evaluation.metrics import brdf_log_rmse, delta_e_2000
         from brdfkit.render.screen import screen_psnr
 
         out, secs = {}, {}
@@ -206,7 +206,7 @@ def reconstructions(name, table, args, models):
     from brdfkit.api import decode, encode
     from brdfkit.bench.config import sample_seed
     from brdfkit.methods import get_method, reconstruct
-    from brdfkit.samples import draw_samples
+    from brdfkit.acquisition.sampling import draw_samples
 
     for n in args.n:
         for seed in args.seeds:
@@ -224,8 +224,8 @@ def reconstructions(name, table, args, models):
         model = models["compress:" + mname]
         t = time.perf_counter()
         if args.compress_budget > 0:
-            from brdfkit.compression import CompressConfig, compress_table
-            from brdfkit.model.brdf import NeuralBRDF
+            from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+            from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
             res = compress_table(model, table, CompressConfig(budget=args.compress_budget), source=name)
             pred = NeuralBRDF.from_embedding(model, res.embedding, name).to_table()
@@ -306,12 +306,12 @@ def main():
 
     from brdfkit.api import load_model
     from brdfkit.atomic import atomic_open
-    from brdfkit.materials import read_exclude_list
-    from brdfkit.merl import read_merl
+    from brdfkit.io.folders import read_exclude_list
+    from brdfkit.io.merl import read_merl
     from brdfkit.methods import get_method
-    from brdfkit.methods.model_spec import choose
-    from brdfkit.metrics import PSNR_CAP, delta_e_2000, psnr
-    from brdfkit.render.brdf import TableBRDF
+    from brdfkit.methods.choice import choose
+    from brdfkit.evaluation.metrics import PSNR_CAP, delta_e_2000, psnr
+    from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.quadrature import render
     from brdfkit.render.scene import Scene
     from brdfkit.render.screen import rotated_envmap, screen

@@ -12,7 +12,7 @@ render PSNR (and log RMSE) of held-out materials, never touching the 20 test mat
   basis of a prior trained without them (``--val-prior``, whose network also gives the
   learnt variant for those 16);
 * samples ``draw_samples(table, N, seed)``, reference-scene renders at ``--px`` pixels,
-  :func:`brdfkit.metrics.psnr` against the render of the proxy table itself.
+  :func:`brdfkit.evaluation.metrics.psnr` against the render of the proxy table itself.
 
 Choices of ``h`` (``e = rho cos_i``, the sample's share of a pixel's integrand):
 
@@ -141,13 +141,13 @@ def main():
 
     import torch
 
-    from brdfkit.merl import read_merl
+    from brdfkit.io.merl import read_merl
     from brdfkit.methods import get_method
     from brdfkit.methods.ipca import IpcaModel
     from brdfkit.methods.prior.model import sample_rows
     from brdfkit.methods.prior.model import solve as tsolve
-    from brdfkit.metrics import brdf_log_rmse, psnr
-    from brdfkit.samples import draw_samples
+    from brdfkit.evaluation.metrics import brdf_log_rmse, psnr
+    from brdfkit.acquisition.sampling import draw_samples
     import common
     from study_data import load_library, record_progress, validation_materials
 

@@ -16,7 +16,7 @@ import torch
 
 from brdfkit.methods.ipca import EPS, cosine_weight, fit_ipca
 from brdfkit.geometry import N_CELLS, cell_index, cos_theta_i
-from brdfkit.samples import draw_samples
+from brdfkit.acquisition.sampling import draw_samples
 
 from study_data import load_library, validation_materials
 
@@ -41,7 +41,7 @@ def refine(model, samples, c0, s2=1e-3, steps=60, density=False, ipca_term=False
 
     Minimises ``sum wt_s (ln(1 + rho_hat cos_i) - ln(1 + rho cos_i))^2 / s2 + |c / sigma|^2``
     over the samples (LBFGS from the IPCA ridge solution ``c0``): a Gaussian likelihood in
-    the space of :func:`brdfkit.metrics.brdf_log_rmse` with noise variance ``s2`` and the
+    the space of :func:`brdfkit.evaluation.metrics.brdf_log_rmse` with noise variance ``s2`` and the
     basis's Gaussian prior. ``density`` weights each sample by ``theta_h^-1/2``, the density
     of MERL cells per radian of ``theta_h``, so the samples (uniform over angles) count as
     the metric's cells do. ``ipca_term`` adds IPCA's own likelihood

@@ -5,8 +5,8 @@ materials are never loaded), BRDF log RMSE and optionally the reference-scene re
 PSNR of
 
 * ``encode``: the hypernetwork's one-pass reconstruction (the paper's method);
-* refinement variants (:func:`brdfkit.model.refine.refine`), ``NAME:target[:key=value...]``
-  with the keys of :class:`~brdfkit.model.refine.RefineConfig`;
+* refinement variants (:func:`brdfkit.hypernet.refine_on_samples.refine`), ``NAME:target[:key=value...]``
+  with the keys of :class:`~brdfkit.hypernet.refine_on_samples.RefineConfig`;
 * ``ipca`` and ``prior``: the learnt prior's basis fitted with IPCA's ridge, and the learnt
   prior as shipped (``--prior``, trained without the validation materials too),
 
@@ -34,7 +34,7 @@ DEFAULT_VARIANTS = ["latent:latent", "weights:weights"]
 
 
 def parse_variant(spec):
-    from brdfkit.model.refine import RefineConfig
+    from brdfkit.hypernet.refine_on_samples import RefineConfig
 
     name, target, *kv = spec.split(":")
     given = {}
@@ -59,13 +59,13 @@ def main():
     import torch
 
     from brdfkit.api import load_model
-    from brdfkit.merl import read_merl
+    from brdfkit.io.merl import read_merl
     from brdfkit.methods import get_method
-    from brdfkit.metrics import brdf_log_rmse, psnr
-    from brdfkit.model.brdf import NeuralBRDF
-    from brdfkit.model.encoding import encode_samples
-    from brdfkit.model.refine import refine
-    from brdfkit.samples import draw_samples
+    from brdfkit.evaluation.metrics import brdf_log_rmse, psnr
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.hypernet.encoding import encode_samples
+    from brdfkit.hypernet.refine_on_samples import refine
+    from brdfkit.acquisition.sampling import draw_samples
     import common
     from study_data import record_progress, validation_materials
 

@@ -31,8 +31,8 @@ import torch
 
 from brdfkit.geometry import N_THETA_D, N_PHI_D, N_CELLS, grid_cosine_weight, grid_hd
 from brdfkit.methods.ipca import EPS, fit_ipca
-from brdfkit.model.network import HyperBRDF, HyperConfig, hyponet_forward
-from brdfkit.samples import draw_samples
+from brdfkit.hypernet.network import HyperBRDF, HyperConfig, hyponet_forward
+from brdfkit.acquisition.sampling import draw_samples
 
 from study_data import load_library, validation_materials
 from study_pca import gauss_newton, sample_rows

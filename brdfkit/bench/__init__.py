@@ -5,7 +5,7 @@ What is measured (Gokbudak et al. 2024, Sec. 4, on whatever tables are given)
 **Sparse reconstruction.** For every test material, every ``N`` in :data:`DEFAULT_N`,
 every seed ``s = 0 .. K-1`` and every sampling of ``BenchConfig.sampling``, ``N``
 samples are taken from the material's table by the benchmarks' one protocol
-(:class:`brdfkit.protocol.SamplingProtocol`, which ``benchmarks/eval_sparse.py`` uses
+(:class:`brdfkit.acquisition.protocol.SamplingProtocol`, which ``benchmarks/eval_sparse.py`` uses
 too: uniform over the Rusinkiewicz angles with the seed derived from ``(s, N, material
 name)``, or the table measured at ``brdfkit plan``'s directions seeded by ``s``), so all
 methods see the *same* samples, and every
@@ -17,8 +17,8 @@ scored:
   ``(90, 90, 180, 3)`` table out: encode + dense decode for the hypernetwork, ridge fit +
   decode for IPCA, the whole per-material fit + decode for NBRDF); model files are loaded
   once beforehand and each method makes one untimed warm-up reconstruction per process;
-* ``log_rmse``: :func:`brdfkit.metrics.brdf_log_rmse` against the material's table;
-* ``psnr``, ``delta_e``, ``ssim``: :func:`brdfkit.metrics.image_metrics` between the
+* ``log_rmse``: :func:`brdfkit.evaluation.metrics.brdf_log_rmse` against the material's table;
+* ``psnr``, ``delta_e``, ``ssim``: :func:`brdfkit.evaluation.metrics.image_metrics` between the
   reference-scene renders (:func:`brdfkit.render.quadrature.render`, the deterministic
   quadrature renderer, at ``resolution`` pixels square, whole image) of the reconstruction
   and of the material's own table. The reference render of a material is made once and
@@ -29,7 +29,7 @@ the full table is encoded and decoded (:func:`brdfkit.api.encode`, :func:`brdfki
 and scored the same way (``time_s`` = encode + decode); with a PCA basis, its best
 reconstruction (:meth:`brdfkit.methods.ipca.IpcaModel.project` then ``decode``) too.
 
-Every reconstruction is scored by :func:`brdfkit.metrics.score`, the function
+Every reconstruction is scored by :func:`brdfkit.evaluation.metrics.score`, the function
 ``brdfkit metrics`` uses. A failure of one reconstruction (or of reading one material)
 is recorded with its message and left out of the means; the run goes on.
 
@@ -47,10 +47,10 @@ scoring), :mod:`.runner` (:func:`run_bench`, :func:`merge_results`), :mod:`.summ
 :mod:`.report` (``bench.md`` and the plots).
 """
 
-from .config import DEFAULT_METHODS, DEFAULT_N, DEFAULT_RESOLUTION, METRICS, BenchConfig, default_methods, sample_seed
-from .report import write_markdown, write_plots
-from .runner import merge_results, run_bench
-from .summary import summarise
+from brdfkit.bench.config import DEFAULT_METHODS, DEFAULT_N, DEFAULT_RESOLUTION, METRICS, BenchConfig, default_methods, sample_seed
+from brdfkit.bench.report import write_markdown, write_plots
+from brdfkit.bench.runner import merge_results, run_bench
+from brdfkit.bench.summary import summarise
 
 __all__ = ["BenchConfig", "run_bench", "merge_results", "summarise", "write_markdown", "write_plots",
            "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed", "default_methods"]

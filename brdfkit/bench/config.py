@@ -5,9 +5,9 @@ from __future__ import annotations
 import dataclasses
 import os
 
-from ..atomic import check_input_file
-from ..errors import InputError
-from ..protocol import SAMPLINGS, draw_seed
+from brdfkit.atomic import check_input_file
+from brdfkit.errors import InputError
+from brdfkit.acquisition.protocol import SAMPLINGS, draw_seed
 
 __all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed",
            "default_methods"]
@@ -52,9 +52,9 @@ class BenchConfig:
         prior first when ``model`` names a built-in that has one; :meth:`resolved`
         fills them in).
     sampling, plan_model, plan_design
-        The samplings every (material, N, seed) is run with (:data:`brdfkit.protocol.SAMPLINGS`:
+        The samplings every (material, N, seed) is run with (:data:`brdfkit.acquisition.protocol.SAMPLINGS`:
         ``uniform``, ``planned``); for ``planned``, the fit to plan for (a built-in's learnt
-        prior, a learnt-prior or basis file; default: ``ipca``'s basis) and the design (:data:`brdfkit.planning.DESIGNS`).
+        prior, a learnt-prior or basis file; default: ``ipca``'s basis) and the design (:data:`brdfkit.acquisition.designs.DESIGNS`).
     compression_models, compression_data
         Hypernetwork models to test on encode -> decode of every table in
         ``compression_data`` (plus the PCA basis, when ``ipca`` is given).
@@ -103,7 +103,7 @@ class BenchConfig:
     def model_file(self, method: str) -> str | None:
         """The model file of a method: :attr:`models`, else the field its
         ``bench_option`` names."""
-        from ..methods import get_method
+        from brdfkit.methods import get_method
 
         option = get_method(method).bench_option
         return self.models.get(method) or (getattr(self, option) if option else None)
@@ -116,7 +116,7 @@ class BenchConfig:
     def resolved(self) -> "BenchConfig":
         """This configuration with its default methods filled in
         (:meth:`with_default_methods`) and the built-in names among its model files replaced by
-        the files (:func:`brdfkit.methods.model_spec.resolve_for`: each method's part of
+        the files (:func:`brdfkit.methods.choice.resolve_for`: each method's part of
         the built-in, checked against the manifest); paths stay as given. :func:`run_bench`
         runs and records the resolved one.
 
@@ -125,8 +125,8 @@ class BenchConfig:
         InputError
             An unknown name, or a built-in without the part a method takes.
         """
-        from ..methods import METHODS
-        from ..methods.model_spec import resolve_for
+        from brdfkit.methods import METHODS
+        from brdfkit.methods.choice import resolve_for
 
         cfg = self.with_default_methods()
         fields = {m.bench_option: name for name, m in METHODS.items() if m.bench_option}
@@ -153,7 +153,7 @@ class BenchConfig:
         """``(method, model file)`` of the compression benchmark: the hypernetwork models
         of :attr:`compression_models`, then every other method that can compress and
         whose model file is given (the PCA basis: its best reconstruction)."""
-        from ..methods import METHODS
+        from brdfkit.methods import METHODS
 
         if not self.compression_models:
             return []
@@ -164,7 +164,7 @@ class BenchConfig:
 
     def method_options(self, method: str):
         """The options object of a method: its defaults and :attr:`options`."""
-        from ..methods import get_method
+        from brdfkit.methods import get_method
 
         return get_method(method).make_options(**self.options.get(method, {}))
 
@@ -173,7 +173,7 @@ class BenchConfig:
 
     def validate(self) -> None:
         """:class:`InputError` for a configuration that cannot run."""
-        from ..methods import get_method
+        from brdfkit.methods import get_method
 
         if self.methods is None:
             return self.with_default_methods().validate()
@@ -201,7 +201,7 @@ class BenchConfig:
             if len(set(self.sampling)) != len(self.sampling):
                 raise InputError(f"--sampling: a sampling is named twice ({','.join(self.sampling)})")
             if "planned" in self.sampling:
-                from ..planning import DESIGNS
+                from brdfkit.acquisition.designs import DESIGNS
 
                 if not self.plan_basis():
                     raise InputError("--sampling planned needs the PCA basis to plan for: --plan-model NAME|FILE "
@@ -244,7 +244,7 @@ def default_methods(model: str | None, prior: str | None = None) -> tuple[tuple,
     learnt prior they use.
 
     The learnt prior is ``brdfkit sparse``'s default method
-    (:func:`brdfkit.methods.model_spec.choose`, ``--method auto``), so it leads the list
+    (:func:`brdfkit.methods.choice.choose`, ``--method auto``), so it leads the list
     whenever there is one to run: ``prior`` (``--model-file prior=...``) when given, else
     that of the built-in ``model`` names (``-m merl80-l40``) when ``choose`` picks it.
     A model *file* given as ``-m`` is the hypernetwork's and adds nothing.
@@ -261,8 +261,8 @@ def default_methods(model: str | None, prior: str | None = None) -> tuple[tuple,
         ``model`` is neither a file nor an installed built-in.
     """
     if not prior and model:
-        from ..methods.model_spec import AUTO, choose
-        from ..model.builtin import is_path_spec
+        from brdfkit.methods.choice import AUTO, choose
+        from brdfkit.models.builtin import is_path_spec
 
         if not is_path_spec(model) and choose(AUTO, model).method == "prior":
             prior = model
@@ -271,7 +271,7 @@ def default_methods(model: str | None, prior: str | None = None) -> tuple[tuple,
 
 def sample_seed(seed: int, n: int, name: str) -> int:
     """Seed of the uniform draw of ``n`` samples of material ``name`` for repetition
-    ``seed``: :func:`brdfkit.protocol.draw_seed`, the protocol ``brdfkit bench`` and
+    ``seed``: :func:`brdfkit.acquisition.protocol.draw_seed`, the protocol ``brdfkit bench`` and
     ``benchmarks/eval_sparse.py`` share."""
     return draw_seed(seed, n, name)
 
@@ -279,7 +279,7 @@ def sample_seed(seed: int, n: int, name: str) -> int:
 
 def _plan_file(spec: str) -> str:
     """The file ``--plan-model`` names: a built-in's learnt prior (its basis and the
-    likelihood the plan is for, :func:`brdfkit.planning.plan_target`), a path as it is."""
-    from ..methods.model_spec import resolve_for
+    likelihood the plan is for, :func:`brdfkit.acquisition.planning.plan_target`), a path as it is."""
+    from brdfkit.methods.choice import resolve_for
 
     return resolve_for("prior", spec)

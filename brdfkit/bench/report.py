@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import os
 
-from ..atomic import atomic_open, atomic_path
-from .config import METRICS
-from .summary import mean
+from brdfkit.atomic import atomic_open, atomic_path
+from brdfkit.bench.config import METRICS
+from brdfkit.bench.summary import mean
 
 __all__ = ["write_markdown", "write_plots", "label"]
 

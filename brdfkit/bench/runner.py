@@ -14,13 +14,13 @@ import time
 
 import numpy as np
 
-from ..atomic import atomic_open, check_input_file
-from ..errors import InputError
-from ..materials import list_materials
-from .config import BenchConfig
-from .report import write_markdown, write_plots
-from .summary import summarise
-from .worker import Worker, error_text, failed_records, init_process, renderer_digest, run_task
+from brdfkit.atomic import atomic_open, check_input_file
+from brdfkit.errors import InputError
+from brdfkit.io.folders import list_materials
+from brdfkit.bench.config import BenchConfig
+from brdfkit.bench.report import write_markdown, write_plots
+from brdfkit.bench.summary import summarise
+from brdfkit.bench.worker import Worker, error_text, failed_records, init_process, renderer_digest, run_task
 
 __all__ = ["run_bench", "merge_results", "FORMAT_VERSION"]
 
@@ -29,7 +29,7 @@ FORMAT_VERSION = 1
 def _environment(cfg: BenchConfig) -> dict:
     import torch
 
-    from ..device import resolve_device
+    from brdfkit.runtime import resolve_device
 
     dev = str(resolve_device(cfg.device))
     threads = cfg.threads or (torch.get_num_threads() if cfg.jobs == 1 else max(1, (os.cpu_count() or 1) // cfg.jobs))
@@ -43,7 +43,7 @@ def _environment(cfg: BenchConfig) -> dict:
 def _method_defaults() -> dict:
     """The methods' default options in this code, recorded with every run (an option
     not given on the command line is one of these)."""
-    from ..methods import METHODS
+    from brdfkit.methods import METHODS
 
     return {name: m.defaults() for name, m in METHODS.items() if m.defaults()}
 
@@ -75,7 +75,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     dict
         The content of ``bench.json``: ``config``, ``environment``, ``materials``,
         ``records`` (one per reconstruction: material, method, N, seed, sampling and
-        how the samples were made (:meth:`brdfkit.protocol.SamplingProtocol.samples`),
+        how the samples were made (:meth:`brdfkit.acquisition.protocol.SamplingProtocol.samples`),
         metrics, ``time_s``, ``render_s``, or ``error``), ``summary`` (:func:`summarise`),
         ``outputs``.
 
@@ -94,7 +94,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     if cfg.data is not None:
         names = None
         if cfg.test_list:
-            from ..materials import read_exclude_list
+            from brdfkit.io.folders import read_exclude_list
 
             names = read_exclude_list(cfg.test_list)
         tasks += [("sparse", n, p) for n, p in list_materials(cfg.data, names)]
@@ -120,8 +120,8 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
         with atomic_open(json_path, "w", encoding="utf-8") as f:
             json.dump(_json_safe(result), f, indent=1)
 
-    from ..console import ProgressBar
-    from ..threads import torch_threads
+    from brdfkit.console import ProgressBar
+    from brdfkit.runtime import torch_threads
 
     total = sum(per_task[t[0]] for t in tasks)
     with ProgressBar("loading models", total=total, enabled=progress, count=True, transient=False) as bar:

@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from .config import METRICS
+from brdfkit.bench.config import METRICS
 
 __all__ = ["summarise", "mean", "family"]
 

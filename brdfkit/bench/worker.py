@@ -1,5 +1,5 @@
 """The work of one benchmark process: load the models once, reconstruct, render and
-score each material (:func:`brdfkit.metrics.score`), cache the reference renders."""
+score each material (:func:`brdfkit.evaluation.metrics.score`), cache the reference renders."""
 
 from __future__ import annotations
 
@@ -9,9 +9,9 @@ import json
 import os
 import time
 
-from ..digest import file_digest
-from ..errors import InputError
-from .config import BenchConfig
+from brdfkit.io.digest import file_digest
+from brdfkit.errors import InputError
+from brdfkit.bench.config import BenchConfig
 
 __all__ = ["Worker", "run_task", "init_process", "failed_records", "error_text", "renderer_digest"]
 
@@ -19,11 +19,11 @@ __all__ = ["Worker", "run_task", "init_process", "failed_records", "error_text",
 def renderer_digest() -> str:
     """SHA-256 of the source of the modules a reference render depends on, so a changed
     renderer never reuses a cached render."""
-    from .. import geometry, trilinear
-    from ..render import brdf, envmap, nodes, pairs, quadrature, scene
+    from brdfkit.geometry import coordinates, grid, trilinear
+    from brdfkit.render import envmap, nodes, pairs, quadrature, renderable, scene
 
     h = hashlib.sha256()
-    for mod in (quadrature, scene, envmap, brdf, geometry, trilinear, nodes, pairs):
+    for mod in (quadrature, scene, envmap, renderable, coordinates, grid, trilinear, nodes, pairs):
         with open(mod.__file__, "rb") as f:
             h.update(f.read())
     return h.hexdigest()
@@ -48,19 +48,19 @@ class Worker:
     """Everything one process needs: loaded models, the scene, the environment."""
 
     def __init__(self, cfg: BenchConfig):
-        from ..device import resolve_device
-        from ..methods import get_method
-        from ..render.envmap import reference_envmap
-        from ..render.scene import Scene
+        from brdfkit.runtime import resolve_device
+        from brdfkit.methods import get_method
+        from brdfkit.render.envmap import reference_envmap
+        from brdfkit.render.scene import Scene
 
         self.cfg = cfg
         self.device = resolve_device(cfg.device)
         self.scene = Scene(resolution=cfg.resolution)
         self.env = reference_envmap()
         self.methods, self.models, self.options = {}, {}, {}
-        self.protocols = {}  # sampling -> brdfkit.protocol.SamplingProtocol
+        self.protocols = {}  # sampling -> brdfkit.acquisition.protocol.SamplingProtocol
         if cfg.data is not None:
-            from ..protocol import SamplingProtocol
+            from brdfkit.acquisition.protocol import SamplingProtocol
 
             for sampling in cfg.sampling:
                 self.protocols[sampling] = (SamplingProtocol(sampling, cfg.plan_basis(), cfg.plan_design)
@@ -83,15 +83,15 @@ class Worker:
     # -- scoring
 
     def render(self, table):
-        from ..render.brdf import TableBRDF
-        from ..render.quadrature import render
+        from brdfkit.render.renderable import TableBRDF
+        from brdfkit.render.quadrature import render
 
         img, _ = render(TableBRDF(table, device=self.device), self.scene, env=self.env)
         return img
 
     def reference(self, name: str, path: str, table):
         """The cached reference render of a material (rendered on first use)."""
-        from ..render.image import read_exr, write_exr
+        from brdfkit.render.image import read_exr, write_exr
 
         cache = self.cfg.cache or os.path.join(self.cfg.output, "cache")
         # The key is the table's content and everything the render depends on (scene,
@@ -115,9 +115,9 @@ class Worker:
         return img
 
     def score(self, table, ref_table, ref_img) -> dict:
-        """:func:`brdfkit.metrics.score` of a reconstruction (rendered here, the render
+        """:func:`brdfkit.evaluation.metrics.score` of a reconstruction (rendered here, the render
         timed as ``render_s``); the BRDF log RMSE is recorded as ``log_rmse``."""
-        from ..metrics import score
+        from brdfkit.evaluation.metrics import score
 
         t0 = time.perf_counter()
         img = self.render(table)
@@ -152,7 +152,7 @@ class Worker:
         imports, allocator growth and cached grids, which no user pays twice."""
         if method in self.warm:
             return
-        from ..samples import draw_samples
+        from brdfkit.acquisition.sampling import draw_samples
 
         try:
             self.methods[method].reconstruct(draw_samples(table, 40, seed=12345), self.models[method],
@@ -163,9 +163,9 @@ class Worker:
 
     def sparse_material(self, name: str, path: str) -> list[dict]:
         """The records of one material: for each N, draw and sampling, the samples of
-        the protocol (:meth:`brdfkit.protocol.SamplingProtocol.samples`, what
+        the protocol (:meth:`brdfkit.acquisition.protocol.SamplingProtocol.samples`, what
         ``benchmarks/eval_sparse.py`` takes too), reconstructed by every method."""
-        from ..merl import read_merl
+        from brdfkit.io.merl import read_merl
 
         cfg = self.cfg
         base = {"kind": "sparse", "material": name}
@@ -193,7 +193,7 @@ class Worker:
         return records
 
     def compression_material(self, name: str, path: str) -> list[dict]:
-        from ..merl import read_merl
+        from brdfkit.io.merl import read_merl
 
         base = {"kind": "compression", "material": name}
         try:
@@ -214,7 +214,7 @@ class Worker:
 def _process_worker(cfg_json: str) -> Worker:
     """The :class:`Worker` of a pool process, built on its first task (one
     configuration per process)."""
-    from ..threads import set_torch_threads
+    from brdfkit.runtime import set_torch_threads
 
     cfg = BenchConfig(**json.loads(cfg_json))
     if cfg.threads is not None:

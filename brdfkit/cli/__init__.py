@@ -15,7 +15,7 @@ import sys
 
 import click
 
-from ..errors import BrdfkitError
+from brdfkit.errors import BrdfkitError
 
 # name -> one-line help, shown by ``brdfkit --help`` without importing the module.
 COMMANDS = {
@@ -77,7 +77,7 @@ def fail(message: str, code: int = 2):
 
 def main(argv=None):
     """Console-script entry point: runs the group and maps errors to exit codes."""
-    from ..threads import set_default_threads
+    from brdfkit.runtime import set_default_threads
 
     set_default_threads()  # before any command imports torch
     try:

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from ..errors import InputError
-from .common import parse_option
+from brdfkit.errors import InputError
+from brdfkit.cli.common import parse_option
 
 
 def _int_list(value: str, name: str) -> tuple:
@@ -100,8 +100,8 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
     import shlex
     import sys
 
-    from ..bench import BenchConfig, merge_results, run_bench
-    from ..console import console
+    from brdfkit.bench import BenchConfig, merge_results, run_bench
+    from brdfkit.console import console
 
     if merge:
         if data or compression_models:

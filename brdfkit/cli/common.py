@@ -6,7 +6,7 @@ import json
 
 import click
 
-from ..errors import InputError
+from brdfkit.errors import InputError
 
 MODEL_ENV = "BRDFKIT_MODEL"
 
@@ -23,7 +23,7 @@ def model_option(f):
 def optional_model(model_path: str | None) -> str | None:
     """The file a given ``-m`` value names (a built-in name resolved), or ``None`` when
     none was given: the library then picks a built-in for each embedding."""
-    from ..model.builtin import resolve_model
+    from brdfkit.models.builtin import resolve_model
 
     return resolve_model(model_path) if model_path else None
 
@@ -32,7 +32,7 @@ def require_model(model_path: str | None, fingerprint: str | None = None) -> str
     """The model file to use: ``-m`` / ``$BRDFKIT_MODEL`` (a file or a built-in name),
     else the built-in whose fingerprint is ``fingerprint`` (an embedding's), else the
     default built-in; else an error saying how to get one."""
-    from ..model.builtin import model_for_embedding, resolve_model
+    from brdfkit.models.builtin import model_for_embedding, resolve_model
 
     if model_path:
         return resolve_model(model_path)

@@ -6,8 +6,8 @@ import json
 
 import click
 
-from .common import model_option
-from .render import threads_option
+from brdfkit.cli.common import model_option
+from brdfkit.cli.render import threads_option
 
 
 @click.command("compare")
@@ -31,10 +31,10 @@ def command(ref, preds, model_path, sheet, resolution, as_json, threads, quiet):
     numbers of `brdfkit metrics`), and the per-pixel Delta E 2000 under each
     (docs/compare.md).
     """
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..errors import InputError
-    from ..sheet import comparison_sheet
-    from ..threads import set_torch_threads
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.errors import InputError
+    from brdfkit.figures.comparison_sheet import comparison_sheet
+    from brdfkit.runtime import set_torch_threads
 
     refuse_overwrite_of_inputs(sheet, [ref, *preds, model_path])
     if not sheet.lower().endswith(".png"):

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .common import model_option, require_model
+from brdfkit.cli.common import model_option, require_model
 
 
 @click.command("decode")
@@ -20,10 +20,10 @@ def command(embedding, model_path, output):
     """
     import os
 
-    from ..api import decode, load_model
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..embedding import read_embedding
-    from ..merl import write_merl
+    from brdfkit.api import decode, load_model
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.io.embedding import read_embedding
+    from brdfkit.io.merl import write_merl
 
     if output is None:
         output = os.path.splitext(embedding)[0] + ".binary"

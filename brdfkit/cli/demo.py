@@ -1,6 +1,6 @@
 """``brdfkit demo``: real MERL test materials through the built-in models
-(:func:`brdfkit.demo_real.run_real_demo`); ``--train``: train and try a small model on
-built-in synthetic data (:func:`brdfkit.demo.run_demo`). Prints the errors, times and
+(:func:`brdfkit.demos.real_materials.run_real_demo`); ``--train``: train and try a small model on
+built-in synthetic data (:func:`brdfkit.demos.synthetic_training.run_demo`). Prints the errors, times and
 files."""
 
 from __future__ import annotations
@@ -9,8 +9,8 @@ import os
 
 import click
 
-from ..demo_real import SHEET_RESOLUTION
-from .common import parse_option
+from brdfkit.demos.real_materials import SHEET_RESOLUTION
+from brdfkit.cli.common import parse_option
 
 # Options of one mode only (parameter name: flag): a training one selects --train.
 _TRAIN_ONLY = {"minutes": "--minutes", "steps": "--steps", "n_materials": "--materials",
@@ -28,7 +28,7 @@ def _mode(train: bool) -> bool:
     the real-material demo with it is refused."""
     from click.core import ParameterSource
 
-    from ..errors import InputError
+    from brdfkit.errors import InputError
 
     ctx = click.get_current_context()
 
@@ -116,8 +116,8 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
         return
     from rich.console import Console
 
-    from ..compression import DEFAULT_BUDGET
-    from ..demo_real import COMPRESSION_KINDS, INTERPOLATION_MODEL, SPARSE_MODEL, run_real_demo
+    from brdfkit.hypernet.refine_on_screen import DEFAULT_BUDGET
+    from brdfkit.demos.real_materials import COMPRESSION_KINDS, INTERPOLATION_MODEL, SPARSE_MODEL, run_real_demo
 
     res = run_real_demo(out_dir, only=[s.strip() for s in only.split(",") if s.strip()] if only else None,
                         seed=seed, device=device, render=do_render, resolution=resolution, keep_tables=keep_tables)
@@ -139,7 +139,7 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
                  f"({refined}) and decoded; "
                  + "; ".join(f"{kind} ({', '.join(ms)}): {COMPRESSION_KINDS.get(kind, kind)}"
                              for kind, ms in kinds.items())
-                 + ". brdf_log_rmse as in brdfkit.metrics.")
+                 + ". brdf_log_rmse as in brdfkit.evaluation.metrics.")
     report.print(_times_table(res.times))
     report.print(f"Files in {res.out_dir}:")
     folders = {}
@@ -170,7 +170,7 @@ def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rende
     from rich.console import Console
     from rich.table import Table
 
-    from ..demo import RENDER_RESOLUTION, SAMPLE_COUNTS, run_demo
+    from brdfkit.demos.synthetic_training import RENDER_RESOLUTION, SAMPLE_COUNTS, run_demo
 
     res = run_demo(out_dir, minutes=minutes, steps=steps, n_materials=n_materials, holdout=holdout, seed=seed,
                    device=device, render=do_render, options=dict(parse_option(o) for o in options),
@@ -179,7 +179,7 @@ def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_rende
     report.print(_error_table(f"Held-out materials: BRDF log RMSE (lower is better), latent {res.latent_dim}",
                               res.columns, res.errors))
     report.print("median reference: the training materials' per-cell median, used as the prediction "
-                 "(what the model must beat); brdf_log_rmse as in brdfkit.metrics.")
+                 "(what the model must beat); brdf_log_rmse as in brdfkit.evaluation.metrics.")
     if res.psnr:
         pt = Table(title="Rendered PSNR",
                    caption=f"reference scene at {RENDER_RESOLUTION} px, sphere pixels; the "

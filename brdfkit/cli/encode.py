@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import click
 
-from ..console import ProgressBar, console
-from .common import model_option, require_model
+from brdfkit.console import ProgressBar, console
+from brdfkit.cli.common import model_option, require_model
 
 
 @click.command("encode")
@@ -30,10 +30,10 @@ def command(inputs, model_path, output_dir, refine, budget):
     """
     import os
 
-    from ..api import encode, load_model
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..embedding import write_embedding
-    from ..errors import BrdfkitError, InputError
+    from brdfkit.api import encode, load_model
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.errors import BrdfkitError, InputError
 
     model_path = require_model(model_path)
     model = load_model(model_path)

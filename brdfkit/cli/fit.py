@@ -5,9 +5,9 @@ from __future__ import annotations
 import click
 from click.core import ParameterSource
 
-from ..errors import InputError
-from ..methods import METHODS
-from .common import parse_option
+from brdfkit.errors import InputError
+from brdfkit.methods import METHODS
+from brdfkit.cli.common import parse_option
 
 
 @click.command("fit")
@@ -50,11 +50,11 @@ def command(data, output, method, latent_dim, exclude_list, exclude_names, steps
     its share of the materials (DistributedDataParallel); only the first writes files.
     Ctrl-C saves a checkpoint; --resume continues from it.
     """
-    from ..atomic import refuse_overwrite_of_inputs
+    from brdfkit.atomic import refuse_overwrite_of_inputs
 
     exclude = list(exclude_names)
     if exclude_list:
-        from ..materials import read_exclude_list
+        from brdfkit.io.folders import read_exclude_list
         exclude += read_exclude_list(exclude_list)
     refuse_overwrite_of_inputs(output, list(data) + ([exclude_list] if exclude_list else []))
     chosen = METHODS[method]

@@ -5,16 +5,16 @@ from __future__ import annotations
 
 import click
 
-from ..console import console
-from ..strip import MAX_SIZE, MAX_STEPS, MIN_SIZE, SIZE, STEPS
-from .common import model_option, parse_float, require_model
+from brdfkit.console import console
+from brdfkit.figures.interpolation_strip import MAX_SIZE, MAX_STEPS, MIN_SIZE, SIZE, STEPS
+from brdfkit.cli.common import model_option, parse_float, require_model
 
 
 def _mode(t_text, output, binary, allow_extrapolation, sheet, steps, size) -> str:
     """``"blend"`` or ``"strip"``, or an InputError naming the options that do not go
     together: ``--t T -o OUT.emb`` writes one blend, ``--sheet FILE.png`` (with
     ``--steps``, ``--size``) draws the strip from t = 0 to 1."""
-    from ..errors import InputError
+    from brdfkit.errors import InputError
 
     blend_opts = [flag for flag, v in (("--t", t_text), ("-o", output), ("--binary", binary),
                                        ("--allow-extrapolation", allow_extrapolation)) if v]
@@ -58,9 +58,9 @@ def command(a, b, t_text, output, binary, allow_extrapolation, sheet, steps, siz
     to B (t = 1) in the reference scene and write them as one labelled strip, the
     paper's editing figure (docs/editing.md).
     """
-    from ..api import decode, interpolate, load_model
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..embedding import write_embedding
+    from brdfkit.api import decode, interpolate, load_model
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.io.embedding import write_embedding
 
     mode = _mode(t_text, output, binary, allow_extrapolation, sheet, steps, size)
     if mode == "strip":
@@ -68,7 +68,7 @@ def command(a, b, t_text, output, binary, allow_extrapolation, sheet, steps, siz
         return
     t = parse_float(t_text, "--t")
     if not allow_extrapolation and not 0.0 <= t <= 1.0:
-        from ..errors import InputError
+        from brdfkit.errors import InputError
 
         raise InputError(f"--t {t:g} is outside [0, 1]; add --allow-extrapolation to extrapolate")
     refuse_overwrite_of_inputs(output, [a, b, model_path])
@@ -81,14 +81,14 @@ def command(a, b, t_text, output, binary, allow_extrapolation, sheet, steps, siz
         table = decode(model, mix, source=output)
     write_embedding(output, mix)
     if table is not None:
-        from ..merl import write_merl
+        from brdfkit.io.merl import write_merl
 
         write_merl(binary, table)
     console().print(f"wrote {output}{f' and {binary}' if binary else ''} (t = {t:g})")
 
 
 def _read_named(a, b):
-    from ..embedding import read_embedding
+    from brdfkit.io.embedding import read_embedding
 
     ea, eb = read_embedding(a), read_embedding(b)
     # Named by their files: a mismatch message must say which file to fix (two embeddings
@@ -99,10 +99,10 @@ def _read_named(a, b):
 
 
 def _strip(a, b, sheet, steps, size, model_path):
-    from ..api import load_model
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..errors import InputError
-    from ..strip import check_strip, interpolation_strip
+    from brdfkit.api import load_model
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.errors import InputError
+    from brdfkit.figures.interpolation_strip import check_strip, interpolation_strip
 
     refuse_overwrite_of_inputs(sheet, [a, b, model_path])
     if not sheet.lower().endswith(".png"):

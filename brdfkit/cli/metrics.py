@@ -8,9 +8,9 @@ import sys
 
 import click
 
-from ..console import console
-from .common import model_option
-from .render import threads_option
+from brdfkit.console import console
+from brdfkit.cli.common import model_option
+from brdfkit.cli.render import threads_option
 
 
 def _fmt(v, digits):
@@ -57,7 +57,7 @@ def command(ctx, paths, model_path, as_json, resolution, threads, quiet):
 
     With no arguments, prints this help and exits with status 2.
     """
-    from ..errors import InputError
+    from brdfkit.errors import InputError
 
     if not paths:
         click.echo(ctx.get_help(), err=True)
@@ -65,8 +65,8 @@ def command(ctx, paths, model_path, as_json, resolution, threads, quiet):
     if len(paths) != 2:
         raise InputError(f"metrics: expected PRED REF, got {len(paths)} path(s)")
     pred, ref = paths
-    from ..compare import FileLoader, compare_files, compare_folders, mean_scores
-    from ..threads import set_torch_threads
+    from brdfkit.evaluation.comparison import FileLoader, compare_files, compare_folders, mean_scores
+    from brdfkit.runtime import set_torch_threads
 
     # Threads are set on the first render: two images are compared without torch.
     loader = FileLoader(model_path, resolution, progress=not quiet and not as_json,

@@ -57,13 +57,14 @@ def command(as_json, check):
     default (`brdfkit sparse`, docs/models.md). The folder is the package's
     brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
     """
-    from ..model.builtin import load_builtin, read_manifest
+    from brdfkit.models.builtin import read_manifest
+    from brdfkit.hypernet.packing import load_builtin
 
     man = read_manifest()
     installed = man.installed()
     if check:
-        from ..methods.prior.file import load_prior
-        from ..model.builtin import resolve_prior
+        from brdfkit.methods.prior.prior_file import load_prior
+        from brdfkit.models.builtin import resolve_prior
 
         for m in installed:
             # Resolving checks the file's recorded fingerprint against the manifest,

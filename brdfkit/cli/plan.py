@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-_DESIGNS = ("nielsen", "render", "uniform")  # brdfkit.planning.DESIGNS, not imported here: --help stays light
+_DESIGNS = ("nielsen", "render", "uniform")  # brdfkit.acquisition.designs.DESIGNS, not imported here: --help stays light
 
 
 def _given(name: str) -> bool:
@@ -42,11 +42,11 @@ def command(n, model, design, seed, evaluations, refine, draws, candidates, outp
     are set to. Measure there (or `brdfkit sample TABLE --at` it), then `brdfkit sparse`.
     See docs/planning.md.
     """
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..console import console
-    from ..errors import InputError
-    from ..directions import write_directions
-    from ..planning import plan_directions
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.console import console
+    from brdfkit.errors import InputError
+    from brdfkit.io.directions import write_directions
+    from brdfkit.acquisition.planning import plan_directions
 
     refuse_overwrite_of_inputs(output, [model] if model else [])
     given = {"nielsen": ("evaluations", "refine"), "render": ("draws", "candidates")}

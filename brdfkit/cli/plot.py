@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .common import model_option, parse_float
+from brdfkit.cli.common import model_option, parse_float
 
 
 def _angles(text: str, name: str) -> list[float]:
@@ -35,9 +35,9 @@ def command(paths, model_path, output, view, theta_i, phi_d, channel, cosine, li
     theta_h / theta_d slices at fixed phi_d on one shared log colour scale, each input
     named by its file stem. See docs/plot.md.
     """
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..errors import InputError
-    from ..plot import check_options, load_tables, plot_brdfs
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.errors import InputError
+    from brdfkit.figures.brdf_plot import check_options, load_tables, plot_brdfs
 
     refuse_overwrite_of_inputs(output, [*paths, model_path])
     if not output.lower().endswith(".png"):

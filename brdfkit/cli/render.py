@@ -7,8 +7,8 @@ import time
 
 import click
 
-from ..console import console
-from .common import model_option
+from brdfkit.console import console
+from brdfkit.cli.common import model_option
 
 
 def threads_option(f):
@@ -48,12 +48,12 @@ def command(brdf, model_path, output, png, mitsuba, scene_file, bsdf_id, spp, re
     BSDF plugin; --scene FILE.xml --bsdf-id NAME renders your own Mitsuba scene with
     the BRDF bound to the BSDF of that id.
     """
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..errors import InputError
-    from ..render.brdf import brdf_kind
-    from ..render.files import render_brdf_file
-    from ..threads import set_torch_threads
-    from ..render.image import write_exr, write_png
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.errors import InputError
+    from brdfkit.brdf_file import brdf_kind
+    from brdfkit.render.file_render import render_brdf_file
+    from brdfkit.runtime import set_torch_threads
+    from brdfkit.render.image import write_exr, write_png
 
     brdf_kind(brdf)
     if scene_file is not None and not bsdf_id:

@@ -4,9 +4,9 @@ from __future__ import annotations
 
 import click
 
-from ..atomic import refuse_overwrite_of_inputs
-from ..console import console
-from ..errors import InputError
+from brdfkit.atomic import refuse_overwrite_of_inputs
+from brdfkit.console import console
+from brdfkit.errors import InputError
 
 
 def _given(name: str) -> bool:
@@ -37,8 +37,9 @@ def command(brdf, n, at, seed, distribution, output):
     """
     import os
 
-    from ..merl import read_merl
-    from ..samples import draw_samples, measure_samples, write_samples
+    from brdfkit.io.merl import read_merl
+    from brdfkit.io.samples import write_samples
+    from brdfkit.acquisition.sampling import draw_samples, measure_samples
 
     if (n is None) == (at is None):
         raise InputError("give either -n N (random samples) or --at DIRECTIONS.csv, not " +
@@ -50,7 +51,7 @@ def command(brdf, n, at, seed, distribution, output):
     refuse_overwrite_of_inputs(output, [brdf] + ([at] if at else []))
     name = os.path.basename(brdf)
     if at is not None:
-        from ..directions import read_directions
+        from brdfkit.io.directions import read_directions
 
         directions = read_directions(at)  # before the table: a bad file is refused at once
         samples = measure_samples(read_merl(brdf), directions, source=name)

@@ -4,10 +4,10 @@ from __future__ import annotations
 
 import click
 
-from ..methods import METHODS
-from .common import model_option, require_model
+from brdfkit.methods import METHODS
+from brdfkit.cli.common import model_option, require_model
 
-_AUTO = "auto"  # brdfkit.methods.model_spec.AUTO, not imported here: --help stays light
+_AUTO = "auto"  # brdfkit.methods.choice.AUTO, not imported here: --help stays light
 
 
 def _model_from_env() -> bool:
@@ -40,12 +40,12 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     used (`brdfkit models`): its learnt prior (method prior) when it has one, else its
     hypernetwork. The message line says which method and model ran.
     """
-    from ..atomic import refuse_overwrite_of_inputs
-    from ..embedding import write_embedding
-    from ..errors import InputError
-    from ..merl import write_merl
-    from ..methods.model_spec import choose
-    from ..samples import read_samples
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.errors import InputError
+    from brdfkit.io.merl import write_merl
+    from brdfkit.methods.choice import choose
+    from brdfkit.io.samples import read_samples
 
     if method != _AUTO and not METHODS[method].needs_model and _model_from_env():
         model_path = None  # $BRDFKIT_MODEL names a model, not meant for this method

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from ..console import console
+from brdfkit.console import console
 
 
 @click.command("synth")
@@ -18,8 +18,8 @@ def command(folder, n, seed, no_stiff):
 
     Parameter ranges are documented in docs/synthetic.md.
     """
-    from ..synthetic import library, table
-    from ..merl import write_merl
+    from brdfkit.materials.synthetic import library, table
+    from brdfkit.io.merl import write_merl
     import os
 
     os.makedirs(folder, exist_ok=True)

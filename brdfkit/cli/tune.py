@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import click
 
-from .common import model_option, parse_option, require_model
+from brdfkit.cli.common import model_option, parse_option, require_model
 
 
 @click.command("tune")
@@ -31,15 +31,15 @@ def command(data, model_path, output, exclude_list, exclude_names, steps, minute
     one latent per material and the decoder fitted to the reference scene's renders, the
     set encoder trained to reach those latents. Ctrl-C saves a checkpoint; --resume
     continues from it."""
-    from ..console import console
-    from ..errors import InputError
-    from ..tuning import TuneOptions, tune
+    from brdfkit.console import console
+    from brdfkit.errors import InputError
+    from brdfkit.hypernet.tuning import TuneOptions, tune
 
     if steps is None and minutes is None:
         raise InputError("tune needs --steps or --minutes")
     exclude = list(exclude_names)
     if exclude_list:
-        from ..materials import read_exclude_list
+        from brdfkit.io.folders import read_exclude_list
         exclude += read_exclude_list(exclude_list)
     opts = TuneOptions.parse(dict(parse_option(o) for o in options))
     out = console()

@@ -24,7 +24,7 @@ Every method has the same interface (:class:`~.method.Method`), so ``brdfkit spa
 
 or in one call, ``reconstruct(samples, method="ipca", model="basis.safetensors")``.
 
-``reconstruct`` takes a :class:`brdfkit.samples.SampleSet` (BRDF in 1/sr) and returns a
+``reconstruct`` takes a :class:`brdfkit.io.samples.SampleSet` (BRDF in 1/sr) and returns a
 dense float64 ``(90, 90, 180, 3)`` table in 1/sr, ``>= 0``, NaN on the cells it does not
 cover. ``model`` is what :meth:`~.method.Method.load` returned, or a path (loaded on the
 spot); it is required when ``needs_model`` and must be ``None`` otherwise. ``seed``
@@ -38,9 +38,9 @@ A new method is one module defining ``METHOD = Method(...)`` and one line in
 
 from __future__ import annotations
 
-from ..errors import InputError
-from . import hypernet, ipca, nbrdf, prior
-from .method import Method, MethodOptions
+from brdfkit.errors import InputError
+from brdfkit.methods import hypernet, ipca, nbrdf, prior
+from brdfkit.methods.method import Method, MethodOptions
 
 __all__ = ["Method", "MethodOptions", "METHODS", "get_method", "reconstruct"]
 

@@ -1,16 +1,16 @@
 """The hypernetwork of Gokbudak et al. 2024 as a reconstruction method: encode the
 samples with the set encoder, optionally refine the result on the samples
-(:mod:`brdfkit.model.refine`), decode the hyponet on the whole grid; its model file
-comes from :func:`brdfkit.training.fit`."""
+(:mod:`brdfkit.hypernet.refine_on_samples`), decode the hyponet on the whole grid; its model file
+comes from :func:`brdfkit.hypernet.training.loop.fit`."""
 
 from __future__ import annotations
 
 import dataclasses
 import os
 
-from .. import api
-from ..errors import InputError
-from .method import Method, MethodOptions
+from brdfkit import api
+from brdfkit.errors import InputError
+from brdfkit.methods.method import Method, MethodOptions
 
 __all__ = ["METHOD", "HypernetOptions"]
 
@@ -22,7 +22,7 @@ def _load(path, device):
 @dataclasses.dataclass(frozen=True)
 class HypernetOptions(MethodOptions):
     """``refine``: fit the encoded material to its own samples, early-stopped on held-out
-    ones (:func:`brdfkit.model.refine.refine`; off: the paper's one encoder pass);
+    ones (:func:`brdfkit.hypernet.refine_on_samples.refine`; off: the paper's one encoder pass);
     ``refine_target``: ``latent`` or ``weights`` (the latent, then the hyponet's weights).
     On the validation split refining beat the encoder alone at every N, and ``weights``
     beat ``latent`` at N = 40 and 4000 and tied it at 400 (``docs/generalisation.md``,
@@ -43,7 +43,7 @@ def _reconstruct(samples, model, options, *, seed, device):
     emb = api.encode(model, samples)
     if not options.refine:
         return api.decode(model, emb), emb
-    from ..model.refine import RefineConfig, refine
+    from brdfkit.hypernet.refine_on_samples import RefineConfig, refine
 
     result = refine(model, samples, emb, config=RefineConfig(target=options.refine_target), seed=seed)
     # The weights stage changes the hyponet, which no latent decodes to: no embedding then.
@@ -51,7 +51,7 @@ def _reconstruct(samples, model, options, *, seed, device):
 
 
 def _fit(data, output, *, exclude=(), progress=True, **options):
-    from ..training import fit
+    from brdfkit.hypernet.training.loop import fit
 
     return fit(data, output, exclude=exclude, progress=progress, **options)
 

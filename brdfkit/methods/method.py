@@ -10,7 +10,7 @@ import dataclasses
 import os
 from typing import Callable
 
-from ..errors import InputError
+from brdfkit.errors import InputError
 
 __all__ = ["Method", "MethodOptions"]
 
@@ -121,7 +121,7 @@ class Method:
         Parameters
         ----------
         samples
-            :class:`brdfkit.samples.SampleSet`, BRDF in 1/sr.
+            :class:`brdfkit.io.samples.SampleSet`, BRDF in 1/sr.
         model
             What :meth:`load` returned, or a path (loaded on the spot); required when
             :attr:`needs_model`, ``None`` otherwise.

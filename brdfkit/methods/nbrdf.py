@@ -30,11 +30,11 @@ import time
 
 import numpy as np
 
-from ..device import resolve_device
-from ..errors import InputError
-from ..geometry import GRID_SHAPE, N_CELLS, grid_hd, valid_cells
-from ..threads import torch_threads
-from .method import Method, MethodOptions
+from brdfkit.runtime import resolve_device
+from brdfkit.errors import InputError
+from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_hd, valid_cells
+from brdfkit.runtime import torch_threads
+from brdfkit.methods.method import Method, MethodOptions
 
 __all__ = ["NbrdfModel", "NbrdfOptions", "fit_nbrdf", "METHOD", "DEFAULT_STEPS", "DEFAULT_LR",
            "DEFAULT_PATIENCE", "BATCH", "HIDDEN"]
@@ -140,7 +140,7 @@ def fit_nbrdf(samples, steps: int = DEFAULT_STEPS, seed: int = 0, lr: float = DE
     Parameters
     ----------
     samples
-        :class:`brdfkit.samples.SampleSet`, BRDF values in 1/sr.
+        :class:`brdfkit.io.samples.SampleSet`, BRDF values in 1/sr.
     steps
         Most optimiser steps (Adam).
     seed

@@ -1,22 +1,34 @@
-"""Rendering: the reference scene (deterministic quadrature) and a Mitsuba 3 plugin.
+"""Rendering: the reference scene (deterministic quadrature), the display encoding, the
+render-aligned error, and Mitsuba 3.
 
 Modules, one concept each:
 
 * :mod:`.scene`: the reference scene's constants (sphere, orthographic camera, resolution,
   samples, quadrature settings);
 * :mod:`.envmap`: the procedural HDR environment map;
-* :mod:`.brdf`: BRDFs a renderer can evaluate (dense tables, neural BRDFs) and
-  :func:`~.brdf.load_brdf`;
+* :mod:`.renderable`: BRDFs a renderer evaluates (dense tables, stacks of them; a neural
+  BRDF is :class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`);
+* :mod:`.nodes`, :mod:`.pairs`: the quadrature's node sets and its (pixel, node) pairs;
 * :mod:`.quadrature`: the noise-free reference renderer (torch, no path tracing);
-* :mod:`.mitsuba_plugin`: the ``brdfkit`` BSDF for Mitsuba 3 and path-traced renders;
-* :mod:`.image`: EXR and PNG files.
+* :mod:`.screen`: the render-aligned error, a small render of a table or, differentiably,
+  of a hyponet;
+* :mod:`.display`: the display encoding every image metric, PNG and error uses;
+* :mod:`.image`: EXR and PNG files;
+* :mod:`.file_render`: BRDF files rendered, in the reference scene or a Mitsuba scene;
+* :mod:`.mitsuba3`: the ``brdfkit`` BSDF for Mitsuba 3 and path-traced renders.
 
-Nothing here is imported by ``import brdfkit``; torch and Mitsuba load only when used.
+May import: the ground floor, :mod:`brdfkit.geometry` and :mod:`brdfkit.io`; a renderer
+evaluates any object with ``eval_dirs``, and a hyponet through its model's own methods,
+so the core imports nothing of the hypernetwork. ``file_render`` and ``mitsuba3`` open
+BRDF files through :mod:`brdfkit.brdf_file`, inside their functions. Nothing here is
+imported by ``import brdfkit``; torch and Mitsuba load only when used.
 """
 
 from __future__ import annotations
 
-__all__ = ["render", "TableBRDF", "load_brdf"]
+from brdfkit import lazy_attributes
+
+__all__ = ["render", "TableBRDF"]
 
 
 def render(brdf, scene=None, env=None, progress=None):
@@ -25,8 +37,8 @@ def render(brdf, scene=None, env=None, progress=None):
     Parameters
     ----------
     brdf
-        Object with ``eval_dirs`` (:class:`~brdfkit.render.brdf.TableBRDF`,
-        :class:`~brdfkit.model.brdf.NeuralBRDF`).
+        Object with ``eval_dirs`` (:class:`~brdfkit.render.renderable.TableBRDF`,
+        :class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF`).
     scene, env, progress
         As for :func:`brdfkit.render.quadrature.render` (default: the reference scene).
 
@@ -35,16 +47,26 @@ def render(brdf, scene=None, env=None, progress=None):
     numpy.ndarray
         float32 ``(R, R, 3)`` linear-sRGB radiance, background black
         (:func:`brdfkit.render.quadrature.render` also returns the object mask).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from brdfkit.render.renderable import TableBRDF
+    >>> from brdfkit.render.scene import REFERENCE
+    >>> import dataclasses
+    >>> small = dataclasses.replace(REFERENCE, resolution=8)
+    >>> img = render(TableBRDF(np.full((90, 90, 180, 3), 1 / np.pi)), scene=small)
+    >>> img.shape, bool(img.max() > 0)
+    ((8, 8, 3), True)
     """
-    from .quadrature import render as _render
-    from .scene import REFERENCE
+    from brdfkit.render.quadrature import render as _render
+    from brdfkit.render.scene import REFERENCE
 
     return _render(brdf, scene or REFERENCE, env=env, progress=progress)[0]
 
 
-def __getattr__(name):
-    if name in ("TableBRDF", "load_brdf"):
-        from . import brdf
+__getattr__, _dir = lazy_attributes(__name__, {"TableBRDF": "brdfkit.render.renderable"})
 
-        return getattr(brdf, name)
-    raise AttributeError(f"module 'brdfkit.render' has no attribute {name!r}")
+
+def __dir__():
+    return __all__

@@ -130,7 +130,7 @@ class EnvMap:
     def exr_path(self, folder: str | os.PathLike | None = None) -> str:
         """This map as an OpenEXR file for Mitsuba, written once (atomically) into a cache
         folder (``$BRDFKIT_CACHE`` or ``~/.cache/brdfkit``) and named by its hash."""
-        from .image import write_exr
+        from brdfkit.render.image import write_exr
 
         folder = os.fspath(folder or os.environ.get("BRDFKIT_CACHE")
                            or os.path.join(os.path.expanduser("~"), ".cache", "brdfkit"))

@@ -1,8 +1,8 @@
 """Image files: linear float32 OpenEXR and tone-mapped sRGB PNG.
 
 EXR holds scene-referred linear-sRGB radiance, float32, channels ``R, G, B`` (ZIP
-compression). PNG holds the display image of :func:`brdfkit.metrics.display_encode`:
-radiance times :data:`brdfkit.metrics.EXPOSURE` (1.0), clipped to ``[0, 1]``, sRGB OETF,
+compression). PNG holds the display image of :func:`brdfkit.render.display.display_encode`:
+radiance times :data:`brdfkit.render.display.EXPOSURE` (1.0), clipped to ``[0, 1]``, sRGB OETF,
 quantised to 8 bits; the same encoding the image metrics see, so a PNG shows what PSNR
 and SSIM compare. Both writers are atomic (:func:`brdfkit.atomic.atomic_path`).
 """
@@ -16,8 +16,8 @@ import tempfile
 
 import numpy as np
 
-from ..atomic import atomic_path, check_input_file
-from ..errors import FormatError, InputError
+from brdfkit.atomic import atomic_path, check_input_file
+from brdfkit.errors import FormatError, InputError
 
 __all__ = ["write_exr", "read_exr", "write_png", "is_exr_file"]
 
@@ -141,7 +141,7 @@ def write_png(path, image) -> None:
     (see the module docstring for the tone mapping)."""
     from PIL import Image
 
-    from ..metrics import display_encode
+    from brdfkit.render.display import display_encode
 
     img = _as_rgb(image, os.fspath(path))
     if not np.isfinite(img).all():

@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from .scene import Quadrature
+from brdfkit.render.scene import Quadrature
 
 __all__ = ["NodeSet", "half_share"]
 
@@ -50,7 +50,7 @@ class NodeSet:
     """
 
     def __init__(self, q: Quadrature, env):
-        from .envmap import uv_to_direction
+        from brdfkit.render.envmap import uv_to_direction
 
         self.q = q
         n = q.cosine_grid

@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from .nodes import NodeSet, _frames, _half_share_table
+from brdfkit.render.nodes import NodeSet, _frames, _half_share_table
 
 __all__ = ["Techniques", "block_pairs"]
 

@@ -64,9 +64,9 @@ import math
 
 import numpy as np
 
-from .nodes import NodeSet, half_share  # noqa: F401 (re-exported)
-from .pairs import Techniques, block_pairs
-from .scene import REFERENCE, Quadrature, Scene
+from brdfkit.render.nodes import NodeSet, half_share  # noqa: F401 (re-exported)
+from brdfkit.render.pairs import Techniques, block_pairs
+from brdfkit.render.scene import REFERENCE, Quadrature, Scene
 
 __all__ = ["NodeSet", "RenderStats", "clear_cache", "render", "render_many", "render_pixels"]
 
@@ -119,7 +119,7 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
     Parameters
     ----------
     brdf
-        Object with ``eval_dirs(wi, wo)`` (see :mod:`brdfkit.render.brdf`).
+        Object with ``eval_dirs(wi, wo)`` (see :mod:`brdfkit.render.renderable`).
     normals
         Array-like ``(P, 3)`` unit world normals.
     env
@@ -152,7 +152,7 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
 
     import torch
 
-    from .brdf import stack_tables
+    from brdfkit.render.renderable import stack_tables
 
     q = q or REFERENCE.quadrature
     devs = [getattr(b, "device", None) or torch.device("cpu") for b in brdfs]
@@ -214,8 +214,8 @@ def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: Rende
     Parameters
     ----------
     brdf
-        Object with ``eval_dirs`` (:class:`~brdfkit.render.brdf.TableBRDF`,
-        :class:`~brdfkit.model.brdf.NeuralBRDF`).
+        Object with ``eval_dirs`` (:class:`~brdfkit.render.renderable.TableBRDF`,
+        :class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF`).
     scene
         :class:`~brdfkit.render.scene.Scene` (resolution, quadrature).
     env
@@ -239,7 +239,7 @@ def render_many(brdfs, scene: Scene = REFERENCE, env=None, progress=None, stats:
     """Render the reference scene with each of ``brdfs`` in one pass (``brdfkit metrics``
     of two tables): the quadrature's nodes, shares and weights are computed once and every
     BRDF is evaluated at the same direction pairs, the tables among them together
-    (:class:`~brdfkit.render.brdf.TableStackBRDF`: the pairs' angles and the lookup's
+    (:class:`~brdfkit.render.renderable.TableStackBRDF`: the pairs' angles and the lookup's
     corners once for all), so each image equals :func:`render` of that BRDF alone, to
     the bit.
 
@@ -255,7 +255,7 @@ def render_many(brdfs, scene: Scene = REFERENCE, env=None, progress=None, stats:
     list
         ``(image, mask)`` per BRDF, as :func:`render` returns them.
     """
-    from .envmap import reference_envmap
+    from brdfkit.render.envmap import reference_envmap
 
     env = env if env is not None else reference_envmap()
     normals, inside = scene.pixel_normals()

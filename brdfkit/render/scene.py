@@ -1,7 +1,7 @@
 """The reference scene: one sphere, one camera, one environment, fixed settings.
 
 Every render that a metric compares is made in this scene, by either renderer
-(:mod:`brdfkit.render.quadrature`, :mod:`brdfkit.render.mitsuba_plugin`):
+(:mod:`brdfkit.render.quadrature`, :mod:`brdfkit.render.mitsuba3`):
 
 * a unit sphere at the origin, the material under test on its whole surface;
 * an **orthographic** camera on the ``+z`` axis looking down ``-z``, ``y`` up, seeing the

@@ -1,8 +1,8 @@
 """The render-aligned error: a small, differentiable render of the reference scene.
 
 Renders are what brdfkit is judged by (reference-scene PSNR and Delta E 2000,
-:mod:`brdfkit.metrics`), and a BRDF-space error ranks reconstructions differently: issue 21
-measured a latent refinement that cut :func:`~brdfkit.metrics.brdf_log_rmse` threefold and
+:mod:`brdfkit.evaluation.metrics`), and a BRDF-space error ranks reconstructions differently: issue 21
+measured a latent refinement that cut :func:`~brdfkit.evaluation.metrics.brdf_log_rmse` threefold and
 lost 3 dB on screen. This module makes the render itself the error.
 
 A render of the reference scene (:mod:`brdfkit.render.quadrature`) is *linear* in the
@@ -13,10 +13,10 @@ pixels on the sphere) once, as Rusinkiewicz angles, network inputs and weights, 
 * a table is rendered by a trilinear lookup at the pairs (:meth:`Screen.render_table`),
 * a hyponet is rendered by evaluating it at the pairs only, with gradients
   (:meth:`Screen.render_hyponet`): no dense table is made, and the render is what the
-  refinement of :mod:`brdfkit.compression` descends on,
+  refinement of :mod:`brdfkit.hypernet.refine_on_screen` descends on,
 
 and :func:`screen_error` compares two such images as the metrics do: exposure, clip to
-``[0, 1]``, sRGB OETF, mean squared difference (:func:`brdfkit.metrics.display_encode`),
+``[0, 1]``, sRGB OETF, mean squared difference (:func:`brdfkit.render.display.display_encode`),
 reported as a PSNR (:func:`screen_psnr`). ``benchmarks/studies/study_error.py`` measured
 how well it ranks reconstructions as the 128 px renders do, on the reference scene and on a
 second scene nothing was tuned on (the environment turned half a turn about the vertical,
@@ -32,7 +32,7 @@ import math
 
 import numpy as np
 
-from .scene import QUADRATURE, Quadrature, Scene
+from brdfkit.render.scene import QUADRATURE, Quadrature, Scene
 
 __all__ = ["SCREEN_RESOLUTION", "Screen", "rotated_envmap", "screen", "screen_error", "screen_psnr"]
 
@@ -45,7 +45,7 @@ def rotated_envmap(turn: float = 0.5):
     """The reference environment turned by ``turn`` of a full turn about the vertical
     (``u`` shifted): the sun and the window light the sphere from behind the camera's
     other side. The second scene of ``docs/render-error.md``, on which nothing was tuned."""
-    from .envmap import EnvMap, reference_envmap
+    from brdfkit.render.envmap import EnvMap, reference_envmap
 
     env = reference_envmap()
     w = env.image.shape[1]
@@ -95,10 +95,10 @@ class Screen:
 
     def lookup(self, table):
         """A ``(90, 90, 180, 3)`` table at the pairs, float64 torch ``(M, 3)`` (trilinear,
-        as :class:`~brdfkit.render.brdf.TableBRDF` renders it; unmeasured corners left out)."""
+        as :class:`~brdfkit.render.renderable.TableBRDF` renders it; unmeasured corners left out)."""
         import torch
 
-        from ..trilinear import lookup_trilinear
+        from brdfkit.geometry.trilinear import lookup_trilinear
 
         t = torch.as_tensor(np.ascontiguousarray(table, np.float32), device=self.hd.device)
         return lookup_trilinear(t, self.theta_h.float(), self.theta_d.float(), self.phi_d.float(), fill=0.0).double()
@@ -109,23 +109,21 @@ class Screen:
         return self._sum(self.lookup(table) if at_pairs is None else at_pairs)
 
     def reference(self, model):
-        """The model's ``rho_ref`` at the pairs, float32 ``(M, 3)`` (cached per model)."""
+        """The model's ``rho_ref`` at the pairs, float32 ``(M, 3)`` (cached per model;
+        ``model`` a :class:`~brdfkit.hypernet.loaded.NeuralModel`, or anything with its
+        ``cache``, ``reference_at_pairs`` and ``hyponet_values``)."""
         key = id(self)
         cache = model.cache.screen
         if key not in cache:
-            from ..model.loaded import interp_reference
-
-            fallback = model.reference_torch()[1]
-            ref = interp_reference(model.reference_trilinear(), fallback, self.theta_h.to(model.device),
-                                   self.theta_d.to(model.device), self.phi_d.to(model.device))
+            ref = model.reference_at_pairs(self.theta_h, self.theta_d, self.phi_d)
             if len(cache) >= 8:  # a few scenes per model (screen tuning turns three)
                 cache.clear()
-            cache[key] = ref.float()
+            cache[key] = ref
         return cache[key]
 
     def render_hyponet(self, model, weights, idx=None, scale=None):
         """Image ``(P, 3)`` float32 torch of hyponet ``weights`` (batch of one, as
-        :meth:`brdfkit.model.network.HyperBRDF.hyponet_weights` gives them), with
+        :meth:`brdfkit.hypernet.network.HyperBRDF.hyponet_weights` gives them), with
         gradients, evaluated at the pairs only.
 
         Parameters
@@ -138,29 +136,14 @@ class Screen:
         """
         import torch
 
-        from ..mapping import from_mapped
-        from ..model.network import hyponet_forward
-
         hd, ref, pix, rw = self.hd, self.reference(model), self.pix, self.rw
         if idx is not None:
             hd, ref, pix, rw = hd[idx], ref[idx], pix[idx], rw[idx]
         if scale is not None:
             rw = rw * scale[:, None]
-        rho = from_mapped(hyponet_forward(weights, hd[None])[0], ref)
+        rho = model.hyponet_values(weights, hd, ref)
         out = torch.zeros(self.pixels, 3, dtype=rho.dtype, device=rho.device)
         return out.index_add(0, pix, rho * rw)
-
-
-def _display(img):
-    """:func:`brdfkit.metrics.display_encode` in torch (differentiable where not clipped)."""
-    import torch
-
-    from ..metrics import EXPOSURE
-
-    x = torch.clamp(img * EXPOSURE, 0.0, 1.0)
-    lo = x * 12.92
-    hi = 1.055 * torch.clamp(x, min=0.0031308) ** (1 / 2.4) - 0.055
-    return torch.where(x <= 0.0031308, lo, hi)
 
 
 def screen_error(pred, ref, pixels=None):
@@ -168,7 +151,9 @@ def screen_error(pred, ref, pixels=None):
     encoding (torch, differentiable in ``pred``); over the pixel indices ``pixels`` only
     when given. The whole image of ``RESOLUTION^2`` pixels is not divided by: this is the
     mean over the object's pixels."""
-    a, b = _display(pred), _display(ref)
+    from brdfkit.render.display import display_encode_torch
+
+    a, b = display_encode_torch(pred), display_encode_torch(ref)
     if pixels is not None:
         a, b = a[pixels], b[pixels]
     return ((a - b) ** 2).mean()
@@ -200,10 +185,10 @@ def screen(device=None, resolution: int = SCREEN_RESOLUTION, env=None, q: Quadra
     """
     import torch
 
-    from ..geometry import half_diff_from_io, hd_vectors
-    from .envmap import reference_envmap
-    from .pairs import block_pairs
-    from .quadrature import _techniques
+    from brdfkit.geometry import half_diff_from_io, hd_vectors
+    from brdfkit.render.envmap import reference_envmap
+    from brdfkit.render.pairs import block_pairs
+    from brdfkit.render.quadrature import _techniques
 
     env = env if env is not None else reference_envmap()
     dev = torch.device(device) if device is not None else torch.device("cpu")

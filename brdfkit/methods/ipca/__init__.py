@@ -10,7 +10,7 @@ parts are
   mapping, the channels and the ridge fit are described there);
 - :mod:`.fit`: the basis fitted to training tables, ``brdfkit fit --method ipca``;
 - :mod:`.file`: its file (format ``brdfkit-ipca``), on its own or inside a learnt-prior
-  model file (:mod:`brdfkit.methods.prior.file`);
+  model file (:mod:`brdfkit.methods.prior.prior_file`);
 - :mod:`.storage`: the compact storage of the bases shipped with the package (float16,
   every other ``phi_d`` cell).
 """
@@ -21,11 +21,11 @@ import dataclasses
 
 import numpy as np
 
-from ...errors import InputError
-from ..method import Method, MethodOptions
-from .file import IPCA_FORMAT, IPCA_VERSION, basis_tensors, load_ipca, read_ipca, save_ipca, storage_of
-from .fit import fit_ipca, fit_ipca_files
-from .model import DEFAULT_COMPONENTS, DEFAULT_LAMBDA, EPS, IpcaModel, cosine_weight
+from brdfkit.errors import InputError
+from brdfkit.methods.method import Method, MethodOptions
+from brdfkit.methods.ipca.basis_file import IPCA_FORMAT, IPCA_VERSION, basis_tensors, load_ipca, read_ipca, save_ipca, storage_of
+from brdfkit.methods.ipca.fit import fit_ipca, fit_ipca_files
+from brdfkit.methods.ipca.model import DEFAULT_COMPONENTS, DEFAULT_LAMBDA, EPS, IpcaModel, cosine_weight
 
 __all__ = ["IpcaModel", "IpcaOptions", "fit_ipca", "fit_ipca_files", "load_ipca", "save_ipca", "METHOD",
            "IPCA_FORMAT", "IPCA_VERSION", "read_ipca", "basis_tensors", "EPS", "DEFAULT_LAMBDA",
@@ -44,7 +44,7 @@ class IpcaOptions(MethodOptions):
 
 
 def _load(path, device):
-    from ...model.builtin import is_path_spec, resolve_basis
+    from brdfkit.models.builtin import is_path_spec, resolve_basis
 
     basis = load_ipca(resolve_basis(path))
     # A built-in's basis has the components its learnt prior fits; a file is used whole.

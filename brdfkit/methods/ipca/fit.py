@@ -15,16 +15,16 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from ...errors import InputError
-from ...geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight
-from .file import save_ipca
-from .model import DEFAULT_COMPONENTS, EPS, IpcaModel
+from brdfkit.errors import InputError
+from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight
+from brdfkit.methods.ipca.basis_file import save_ipca
+from brdfkit.methods.ipca.model import DEFAULT_COMPONENTS, EPS, IpcaModel
 
 __all__ = ["fit_ipca", "fit_ipca_files"]
 
 
 def _load_table(item) -> tuple[np.ndarray, str | None]:
-    from ...merl import read_merl
+    from brdfkit.io.merl import read_merl
 
     if isinstance(item, (str, os.PathLike)):
         return read_merl(item), os.path.splitext(os.path.basename(os.fspath(item)))[0]
@@ -127,7 +127,7 @@ def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
                    components: int = DEFAULT_COMPONENTS, half: bool = False, phi_stride: int = 1,
                    w_floor: float = 0.0, int8: bool = False) -> str:
     """Fit a basis to the MERL tables ``data`` (files or folders, as
-    :func:`brdfkit.materials.collect_materials` reads them) less the materials named in
+    :func:`brdfkit.io.folders.collect_materials` reads them) less the materials named in
     ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``; ``half`` and
     ``phi_stride``, ``-O half=true -O phi_stride=2``, store it as the package ships
     bases, :func:`~.file.basis_tensors`; ``w_floor``, ``-O w_floor=0.05``, bounds the mapping's
@@ -135,7 +135,7 @@ def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
     int8, :func:`~.storage.quantize`). Returns ``output``."""
     import sys
 
-    from ...materials import collect_materials
+    from brdfkit.io.folders import collect_materials
 
     paths, names, _, unknown = collect_materials(data, exclude)
     if unknown:

@@ -12,7 +12,7 @@ published code (``MapBRDF`` of brdf.compute.dtu.dk)::
 
 with ``x_ref`` the per-cell median of the cosine-weighted training values (over every
 material *and* channel, see below). This is deliberately not
-:func:`brdfkit.mapping.to_mapped`, the hypernetwork paper's variant
+:func:`brdfkit.hypernet.mapping.to_mapped`, the hypernetwork paper's variant
 ``ln((rho + 0.002) / (rho_ref + 0.002) + 1)``: its ``+ 1`` flattens every value below
 the reference towards 0, which throws away the dark half of the data a linear basis has
 to model. The inverse is ``rho = ((exp(x') (x_ref + eps) - eps) / w``, clamped at 0.
@@ -42,7 +42,7 @@ components kept; the basis is stored in its own file (:mod:`.file`).
 Reconstruction
 --------------
 The mean, components and reference are interpolated trilinearly at each sample's angles
-(:func:`brdfkit.trilinear.lookup_trilinear`; a sample on a cell's own angles reads that
+(:func:`brdfkit.geometry.trilinear.lookup_trilinear`; a sample on a cell's own angles reads that
 cell exactly), the sample is mapped with its exact ``w``, and the coefficients solve::
 
     min_z || A diag(sigma) z - b ||^2 + lam ||z||^2,      c = sigma * z
@@ -61,9 +61,9 @@ import dataclasses
 
 import numpy as np
 
-from ...errors import InputError
-from ...geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff
-from ...trilinear import lookup_trilinear
+from brdfkit.errors import InputError
+from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff
+from brdfkit.geometry.trilinear import lookup_trilinear
 
 __all__ = ["IpcaModel", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
 
@@ -158,7 +158,7 @@ class IpcaModel:
         Parameters
         ----------
         samples
-            :class:`brdfkit.samples.SampleSet`; BRDF values in 1/sr.
+            :class:`brdfkit.io.samples.SampleSet`; BRDF values in 1/sr.
         lam
             Ridge weight (``>= 0``; default :data:`DEFAULT_LAMBDA`), on coefficients in
             units of the training standard deviations.

@@ -16,8 +16,8 @@ from __future__ import annotations
 import dataclasses
 import os
 
-from ..method import Method, MethodOptions
-from .fit import FIT_OPTIONS
+from brdfkit.methods.method import Method, MethodOptions
+from brdfkit.methods.prior.fit import FIT_OPTIONS
 
 __all__ = ["METHOD", "PriorOptions"]
 
@@ -31,8 +31,8 @@ class PriorOptions(MethodOptions):
 
 
 def _load(path, device):
-    from ...model.builtin import resolve_prior
-    from .file import load_prior
+    from brdfkit.models.builtin import resolve_prior
+    from brdfkit.methods.prior.prior_file import load_prior
 
     return load_prior(resolve_prior(path), device)
 
@@ -42,7 +42,7 @@ def _reconstruct(samples, model, options, *, seed, device):
 
 
 def _fit(data, output, *, exclude=(), progress=True, **options):
-    from .fit import fit_prior
+    from brdfkit.methods.prior.fit import fit_prior
 
     return fit_prior(data, output, exclude=exclude, progress=progress, **options)
 

@@ -35,10 +35,10 @@ import time
 
 import numpy as np
 
-from ...errors import InputError
-from ...geometry import N_CELLS, N_PHI_D, N_THETA_D
-from ..ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca, save_ipca, storage_of
-from .model import PriorConfig, PriorModel, prior_net, solve
+from brdfkit.errors import InputError
+from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D
+from brdfkit.methods.ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca, save_ipca, storage_of
+from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, solve
 
 __all__ = ["fit_prior", "FIT_OPTIONS"]
 
@@ -48,7 +48,7 @@ FIT_OPTIONS = ("latent_dim", "steps", "minutes", "seed", "device", "batch_materi
 
 
 def _storage(path: str) -> dict:
-    from ...tensorfile import open_safetensors
+    from brdfkit.io.tensorfile import open_safetensors
 
     with open_safetensors(path) as f:
         meta = f.metadata() or {}
@@ -66,7 +66,7 @@ def _as_stored(basis: IpcaModel, storage: dict) -> IpcaModel:
 
 
 def _resolve_basis(spec) -> str:
-    from ...model.builtin import resolve_basis
+    from brdfkit.models.builtin import resolve_basis
 
     return resolve_basis(spec)
 
@@ -83,7 +83,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     Parameters
     ----------
     data
-        ``.binary`` files or folders of them (:func:`brdfkit.materials.collect_materials`).
+        ``.binary`` files or folders of them (:func:`brdfkit.io.folders.collect_materials`).
     exclude
         Material names held out.
     steps, minutes
@@ -111,11 +111,11 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     """
     import torch
 
-    from ...atomic import refuse_overwrite_of_inputs
-    from ...device import resolve_device
-    from ...materials import collect_materials
-    from ...merl import read_merl
-    from .file import save_prior
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.runtime import resolve_device
+    from brdfkit.io.folders import collect_materials
+    from brdfkit.io.merl import read_merl
+    from brdfkit.methods.prior.prior_file import save_prior
 
     if steps is None and minutes is None:
         steps = 3000
@@ -199,7 +199,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     fold_tab = torch.from_numpy(np.stack(tabs)).to(dev)
     fold_sig = torch.from_numpy(np.stack(sigmas)).to(dev)
     del tabs
-    from ...geometry import cos_theta_i, grid_angles, grid_hd
+    from brdfkit.geometry import cos_theta_i, grid_angles, grid_hd
     values = values.to(dev)
     hd_all = torch.from_numpy(np.ascontiguousarray(grid_hd()[cells], np.float32)).to(dev)
     w_all = torch.from_numpy(np.clip(full.cell_weight(cells), 1e-6, None).astype(np.float32)).to(dev)

@@ -17,7 +17,7 @@ With the basis's mapped value of a sample ``b = ln((rho w + eps) / (x_ref + eps)
     min_c  sum_s q_s (A_s c - b_s)^2 + |(c - mu) / sigma|^2,
     q_s = g_s^2 / s2 + 1 / lam,      g_s = cos_i (rho + eps / w) / (1 + rho cos_i)
 
-the evaluation metric's likelihood (``ln(1 + rho cos_i)``, :func:`brdfkit.metrics.brdf_log_rmse`,
+the evaluation metric's likelihood (``ln(1 + rho cos_i)``, :func:`brdfkit.evaluation.metrics.brdf_log_rmse`,
 noise variance ``s2``) linearised around the observed values, plus IPCA's own likelihood
 (noise variance ``lam``), and the Gaussian prior of the training coefficients
 (standard deviations ``sigma``) centred on ``mu``. ``benchmarks/studies/study_pca.py``
@@ -47,10 +47,10 @@ import math
 
 import numpy as np
 
-from ...errors import InputError
-from ...geometry import GRID_SHAPE
-from ...trilinear import lookup_trilinear
-from ..ipca import EPS, IpcaModel
+from brdfkit.errors import InputError
+from brdfkit.geometry import GRID_SHAPE
+from brdfkit.geometry.trilinear import lookup_trilinear
+from brdfkit.methods.ipca import EPS, IpcaModel
 
 __all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF", "SPREAD_LOG_BOUND"]
 
@@ -195,7 +195,7 @@ def sample_rows(basis: IpcaModel, samples):
     ``(ok, tab (S, K + 2), w, cos_i, rho, hd (S, 6))``, ``ok`` the mask over the
     samples. The basis is read trilinearly at each sample's angles (exactly at a cell's
     own angles), as :meth:`IpcaModel.coefficients` reads it."""
-    from ...geometry import cos_theta_i
+    from brdfkit.geometry import cos_theta_i
 
     tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
                            samples.phi_d).astype(np.float64)
@@ -222,7 +222,7 @@ class PriorModel:
     meta
         Training record (``materials``, ``steps``, ``wall_time_s`` ...).
     fingerprint
-        sha256 hex of the weights and the basis (:mod:`brdfkit.methods.prior.file`).
+        sha256 hex of the weights and the basis (:mod:`brdfkit.methods.prior.prior_file`).
     """
 
     basis: IpcaModel

@@ -1,0 +1,236 @@
+"""Where to measure: N measurement directions chosen for a reconstruction.
+
+A lab that can afford N measurements of a material picks N direction pairs, measures
+there, and reconstructs the dense table from them (``docs/planning.md``). Which
+directions is a *design*; the designs are listed by name in
+:data:`brdfkit.acquisition.designs.DESIGNS` (``nielsen``, ``render``, ``uniform``), in the
+style of :data:`brdfkit.methods.METHODS`.
+
+A design is chosen for a *fit*: the PCA basis, and the precision the fit gives a sample
+(:class:`~brdfkit.acquisition.optimal_design.Likelihood`), which a learnt-prior model's config holds
+and a plain basis (IPCA's ridge fit) does not need. The ``render`` design uses both; the
+``nielsen`` design the basis alone.
+
+The designs themselves, and the Nielsen et al. design in detail, are
+:mod:`brdfkit.acquisition.designs`'.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+import numpy as np
+
+from brdfkit.acquisition.designs import DESIGNS, CandidatePool
+from brdfkit.errors import InputError
+from brdfkit.geometry import GRID_SHAPE, cell_angles
+from brdfkit.geometry.trilinear import lookup_trilinear
+from brdfkit.io.directions import DirectionSet
+
+__all__ = ["Plan", "DEFAULT_DESIGN", "plan_directions", "plan_basis", "plan_target", "design_rows",
+           "condition_number"]
+
+DEFAULT_DESIGN = "render"
+"""The design `brdfkit plan` and planned samples use unless told: chosen by renders (docs/planning.md)."""
+
+
+@dataclasses.dataclass
+class Plan:
+    """N measurement directions and how they were chosen.
+
+    Attributes
+    ----------
+    directions
+        :class:`~brdfkit.io.directions.DirectionSet`, each pair at its cell's own angles.
+    cells
+        int64 ``(N,)``, their flat MERL cell indices.
+    design, seed
+        The design's name (:data:`DESIGNS`) and the seed it ran with.
+    basis
+        The PCA basis the design used or was scored with, as named (``None``: none).
+    components
+        ``K``, the basis's number of components (``None`` without a basis).
+    condition_number
+        Of the basis rows at the directions (:func:`condition_number`), ``None`` without
+        a basis.
+    """
+
+    directions: DirectionSet
+    cells: np.ndarray
+    design: str
+    seed: int
+    basis: str | None = None
+    components: int | None = None
+    condition_number: float | None = None
+
+    def __len__(self) -> int:
+        return len(self.directions)
+
+    def describe(self) -> str:
+        """One line: the design, N, the seed, the basis and the condition number."""
+        text = f"design {self.design}, N = {len(self)}, seed {self.seed}"
+        if self.basis is not None:
+            text += (f"; basis of {self.basis}: {self.components} components, condition number "
+                     f"{self.condition_number:.4g}")
+        return text
+
+
+def plan_basis(spec: str | os.PathLike | None = None):
+    """The PCA basis a ``-m`` value names for planning, and its label: the first two of
+    :func:`plan_target`."""
+    basis, label, _ = plan_target(spec)
+    return basis, label
+
+
+def plan_target(spec=None):
+    """The fit a ``-m`` value names for planning: its PCA basis, a label and the
+    precision the fit gives a sample.
+
+    Parameters
+    ----------
+    spec
+        A built-in model's name (its learnt prior: the basis and the prior's likelihood),
+        a learnt-prior file (likewise), a PCA basis file (``brdfkit fit --method ipca``;
+        IPCA's ridge fit), an :class:`~brdfkit.methods.ipca.IpcaModel` or
+        :class:`~brdfkit.methods.prior.model.PriorModel`, or ``None`` (the default
+        built-in's learnt prior).
+
+    Returns
+    -------
+    tuple
+        ``(IpcaModel, label, Likelihood)``
+        (:class:`~brdfkit.acquisition.optimal_design.Likelihood`).
+
+    Raises
+    ------
+    InputError
+        An unknown name, a built-in or file without a basis (a hypernetwork), no default
+        built-in installed.
+    """
+    from brdfkit.atomic import check_input_file
+    from brdfkit.methods.ipca import DEFAULT_LAMBDA, IpcaModel, load_ipca
+    from brdfkit.methods.choice import file_method, resolve_for
+    from brdfkit.models.builtin import is_path_spec, read_manifest
+    from brdfkit.acquisition.optimal_design import Likelihood
+
+    def prior(path, label):
+        from brdfkit.methods import get_method
+
+        model = get_method("prior").load(path, "cpu")
+        return model.basis, label, Likelihood(model.cfg.weight, model.cfg.s2, model.cfg.lam)
+
+    ridge = Likelihood(None, lam=DEFAULT_LAMBDA)
+    if isinstance(spec, tuple) and len(spec) == 3 and isinstance(spec[0], IpcaModel):
+        return spec  # a target this function made: loaded once, planned for many times
+    if isinstance(spec, IpcaModel):
+        return spec, "the given basis", ridge
+    if hasattr(spec, "basis") and hasattr(spec, "cfg"):
+        return spec.basis, "the given learnt prior", Likelihood(spec.cfg.weight, spec.cfg.s2, spec.cfg.lam)
+    if spec is None:
+        entry = next((m for m in read_manifest().installed() if m.default), None)
+        if entry is None:
+            raise InputError("no PCA basis given: pass -m NAME (a built-in model with a learnt prior, "
+                             "`brdfkit models`) or -m BASIS.safetensors (`brdfkit fit --method ipca`); "
+                             "no default built-in model is installed")
+        return prior(resolve_for("prior", entry.name), f"{entry.name}, the default built-in")
+    spec = os.fspath(spec)
+    if not is_path_spec(spec):
+        return prior(resolve_for("prior", spec), spec)
+    check_input_file(spec)
+    kind = file_method(spec)
+    if kind == "ipca":
+        return load_ipca(spec), os.path.basename(spec), ridge
+    if kind == "prior":
+        return prior(spec, os.path.basename(spec))
+    raise InputError(f"{spec}: not a PCA basis or a learnt-prior model file; planning needs a basis: a built-in "
+                     f"name with a learnt prior, a learnt-prior file or a file from `brdfkit fit --method ipca`")
+
+
+def design_rows(basis, directions: DirectionSet) -> np.ndarray:
+    """The rows of the basis's design matrix at the directions the fit uses.
+
+    The components times ``sigma`` (the scaled columns of the ridge fit,
+    :meth:`IpcaModel.coefficients <brdfkit.methods.ipca.IpcaModel.coefficients>`),
+    interpolated trilinearly as the fit interpolates them; directions the fit leaves
+    out (no basis cell around them, or on the horizon: zero cosine weight) are left out.
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 ``(M, K)``, ``M <= N``.
+    """
+    from brdfkit.methods.ipca import cosine_weight
+
+    at = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), directions.theta_h, directions.theta_d,
+                          directions.phi_d)[:, 2:].astype(np.float64)
+    used = np.isfinite(at).all(axis=1) & (cosine_weight(directions.theta_h, directions.theta_d,
+                                                        directions.phi_d) > 0)
+    return at[used] * basis.sigma.astype(np.float64)[None, :]
+
+
+def condition_number(rows: np.ndarray) -> float:
+    """``sigma_1 / sigma_r`` of an ``(M, K)`` matrix, ``r = min(M, K)``: its largest
+    singular value over its smallest of the ``r`` that rows in general position have
+    (for ``M < K`` the non-zero ones); ``inf`` when that one is zero (dependent rows)
+    or there are no rows."""
+    rows = np.asarray(rows, np.float64)
+    if rows.size == 0:
+        return float("inf")
+    s = np.linalg.svd(rows, compute_uv=False)
+    low = s[min(rows.shape) - 1]
+    return float(s[0] / low) if low > 1e-12 * s[0] else float("inf")
+
+
+def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, seed: int = 0, **options) -> Plan:
+    """Choose ``n`` measurement directions with a design.
+
+    Parameters
+    ----------
+    model
+        The fit to plan for, as :func:`plan_target` takes it (a built-in name, a basis or
+        learnt-prior file, an :class:`~brdfkit.methods.ipca.IpcaModel` or a learnt-prior
+        model, or what :func:`plan_target` returned); ``None``: the
+        default built-in's for a design that needs one, none for ``uniform`` (whose plan
+        then has no condition number).
+    n
+        Number of directions, ``>= 1``.
+    design
+        A name of :data:`DESIGNS`.
+    seed
+        Seeds everything random in the design.
+    options
+        The design's options (``nielsen``: ``evaluations``, :data:`~brdfkit.acquisition.designs.DEFAULT_EVALUATIONS`;
+        ``refine``, ``True``; ``render``: ``draws``,
+        :data:`~brdfkit.acquisition.optimal_design.DEFAULT_DRAWS`; ``candidates``,
+        :data:`~brdfkit.acquisition.designs.DEFAULT_CANDIDATES`).
+
+    Returns
+    -------
+    Plan
+        Directions at the cells' own angles (``phi_h = 0``), their cells, and the
+        condition number of the basis rows there (with a basis).
+
+    Raises
+    ------
+    InputError
+        An unknown design or option, ``n < 1``, more directions than candidate cells, a
+        model that is no basis.
+    """
+    if design not in DESIGNS:
+        raise InputError(f"unknown design {design!r}; known: {', '.join(DESIGNS)}")
+    d = DESIGNS[design]
+    unknown = sorted(set(options) - set(d.options))
+    if unknown:
+        takes = f"the option(s) {', '.join(d.options)}" if d.options else "no options"
+        raise InputError(f"design {design!r} takes {takes}, got {', '.join(unknown)}")
+    n = int(n)
+    if n < 1:
+        raise InputError(f"number of directions must be at least 1, got {n}")
+    basis, label, likelihood = (None, None, None) if model is None and not d.needs_basis else plan_target(model)
+    pool = CandidatePool.of(basis, likelihood) if basis is not None and d.needs_basis else None
+    cells = np.asarray(d.choose(pool, n, seed, **options), np.int64)
+    th, td, pd = cell_angles(cells)
+    directions = DirectionSet(th, td, pd, f"plan {design} N={n} seed={seed}")
+    cond = None if basis is None else condition_number(design_rows(basis, directions))
+    return Plan(directions, cells, design, int(seed), label, None if basis is None else basis.n_components, cond)

@@ -1,0 +1,12 @@
+"""Evaluation: how far a reconstruction is from its reference.
+
+* :mod:`~brdfkit.evaluation.metrics`: BRDF-space and image errors (PSNR, Delta E 2000
+  from colour-science, SSIM), and :func:`~brdfkit.evaluation.metrics.score`, which
+  ``brdfkit metrics``, ``compare`` and ``bench`` all call.
+* :mod:`~brdfkit.evaluation.comparison`: files against files (``brdfkit metrics``): the
+  reading and rendering of each input once, folders matched by name.
+
+May import: everything below it (the ground floor, geometry, io, render, brdf_file and,
+through it, the hypernetwork). colour-science is imported inside the functions that
+need it.
+"""

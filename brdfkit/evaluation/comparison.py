@@ -1,0 +1,246 @@
+"""Errors of predicted BRDF files or images against references: the work of
+``brdfkit metrics``.
+
+A BRDF file (MERL ``.binary``, or ``.emb`` with its model) is rendered in the reference
+scene by the quadrature renderer (:func:`brdfkit.render.file_render.render_brdf_file`); an
+``.exr`` is taken as it is. Each pair is scored by :func:`brdfkit.evaluation.metrics.score`, the
+same function the benchmark uses. Two folders are compared file by file, matched by
+file stem.
+"""
+
+from __future__ import annotations
+
+import collections
+import dataclasses
+import hashlib
+import os
+
+from brdfkit.brdf_file import EmbeddingModel, read_table
+from brdfkit.errors import InputError
+from brdfkit.io.digest import file_digest
+
+__all__ = ["SUFFIXES", "FileLoader", "RenderCounts", "compare_files", "compare_folders", "mean_scores"]
+
+SUFFIXES = (".binary", ".emb", ".exr")
+KEYS = ("psnr", "delta_e", "ssim", "brdf_log_rmse")
+# Dense tables a FileLoader keeps (35 MB each): the pair being compared, and the
+# reference of the next pair in a folder.
+TABLES_KEPT = 3
+
+
+def _kind(path: str) -> str:
+    ext = os.path.splitext(path)[1].lower()
+    if ext == ".exr":
+        return "image"
+    if ext in (".binary", ".emb"):
+        return "brdf"
+    raise InputError(f"{path}: not a BRDF (.binary, .emb) or an image (.exr)")
+
+
+@dataclasses.dataclass
+class RenderCounts:
+    """What a :class:`FileLoader` rendered.
+
+    Attributes
+    ----------
+    passes
+        Quadrature passes made (a pair of BRDF files is rendered in one).
+    renders
+        BRDF files rendered.
+    cached
+        Renders taken from the loader's cache instead (same file content, same scene).
+    """
+
+    passes: int = 0
+    renders: int = 0
+    cached: int = 0
+
+
+class FileLoader:
+    """Reads inputs: images, reference-scene renders and dense tables; loads the model
+    (for ``.emb`` inputs) once, on first need.
+
+    A BRDF file's render is kept in memory, keyed by the SHA-256 of the file's bytes (and
+    of the model's fingerprint for an ``.emb``) and the scene settings, so a reference
+    scored against several predictions is rendered once per loader (``counts`` says how
+    often that happened).
+
+    Parameters
+    ----------
+    model_path
+        Model file (or built-in name) of ``.emb`` inputs; ``None``: the built-in the first
+        ``.emb`` names by fingerprint, else the default built-in, else an ``.emb`` is an
+        error.
+    resolution
+        Render size of BRDF inputs (``None``: the reference scene's 256).
+    progress
+        Show render progress on stderr.
+    before_torch
+        Called once, before the first render or model load (the first use of torch):
+        ``brdfkit metrics`` sizes torch's thread pool there, so that comparing two
+        images never imports torch.
+    """
+
+    def __init__(self, model_path=None, resolution: int | None = None, progress: bool = True,
+                 before_torch=None):
+        self.model_path = model_path
+        self.resolution = resolution
+        self.progress = progress
+        self._before_torch = before_torch
+        self._models = EmbeddingModel(model_path, before_load=self._torch_needed)
+        self._renders: dict = {}
+        self._tables: collections.OrderedDict = collections.OrderedDict()
+        self.counts = RenderCounts()
+
+    def _torch_needed(self):
+        if self._before_torch is not None:
+            hook, self._before_torch = self._before_torch, None
+            hook()
+
+    def model(self, emb_path):
+        """The model of the ``.emb`` inputs: ``model_path``, else the built-in the first
+        embedding asked about names (:class:`brdfkit.brdf_file.EmbeddingModel`)."""
+        return self._models.for_file(emb_path)
+
+    def image(self, path, resolution=None):
+        """An ``.exr`` as it is, a BRDF file rendered in the reference scene."""
+        from brdfkit.render.image import read_exr
+
+        if _kind(path) == "image":
+            return read_exr(path)
+        return self.renders([path], resolution)[0]
+
+    def _render_key(self, path, scene) -> str:
+        model = self.model(path).fingerprint if path.lower().endswith(".emb") else ""
+        return hashlib.sha256("\n".join([file_digest(path), model, repr(scene)]).encode()).hexdigest()
+
+    def renders(self, paths, resolution=None) -> list:
+        """Reference-scene renders of BRDF files: float32 ``(R, R, 3)`` each; the ones not
+        cached are rendered together in one quadrature pass."""
+        from brdfkit.render import file_render as files
+
+        scene = files.reference_scene(resolution or self.resolution)
+        keys = [self._render_key(p, scene) for p in paths]
+        todo = {}
+        for key, path in zip(keys, paths):
+            if key not in self._renders:
+                todo.setdefault(key, path)
+        self.counts.cached += len(paths) - len(todo)
+        if todo:
+            embs = [p for p in todo.values() if p.lower().endswith(".emb")]
+            model = self.model(embs[0]) if embs else None
+            tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(".binary")}
+            self._torch_needed()
+            images = files.render_brdf_files(list(todo.values()), resolution=scene.resolution,
+                                             progress=self.progress, model=model, tables=tables)
+            self._renders.update(zip(todo, images))
+            self.counts.passes += 1
+            self.counts.renders += len(todo)
+        return [self._renders[k].copy() for k in keys]
+
+    def check(self, path):
+        """Read ``path`` (and the model an ``.emb`` needs) without rendering: a bad
+        reference must not cost a render of the prediction first (a 256 px render is
+        minutes on a busy 2-core machine; docs/stability.md)."""
+        if _kind(path) == "image":
+            from brdfkit.render.image import read_exr
+
+            read_exr(path)
+        elif path.lower().endswith(".emb"):
+            from brdfkit.io.embedding import check_compatible, read_embedding
+
+            check_compatible(read_embedding(path), self.model(path), path)
+        else:
+            self.table(path)
+
+    def table(self, path):
+        """The dense table of a BRDF file; a ``.binary`` is read once per loader (the
+        check, the render and the BRDF-space error all need it), the last
+        :data:`TABLES_KEPT` kept."""
+        if path.lower().endswith(".binary"):
+            from brdfkit.io.merl import read_merl
+
+            st = os.stat(path)
+            key = (os.path.realpath(path), st.st_ino, st.st_size, st.st_mtime_ns)  # a rewritten file is read again
+            if key not in self._tables:
+                table = read_merl(path)
+                table.setflags(write=False)  # shared by the check, the render and the scores
+                self._tables[key] = table
+                while len(self._tables) > TABLES_KEPT:
+                    self._tables.popitem(last=False)
+            self._tables.move_to_end(key)
+            return self._tables[key]
+        return read_table(path, self._models)
+
+
+def compare_files(loader: FileLoader, pred: str, ref: str) -> dict:
+    """:func:`brdfkit.evaluation.metrics.score` of one prediction against one reference; a BRDF
+    compared with an image is rendered at the image's size."""
+    from brdfkit.atomic import check_input_file
+    from brdfkit.evaluation.metrics import score
+
+    check_input_file(pred)
+    check_input_file(ref)
+    kp, kr = _kind(pred), _kind(ref)
+    loader.check(pred)
+    loader.check(ref)
+    size = None
+    img_r = loader.image(ref) if kr == "image" else None
+    img_p = loader.image(pred) if kp == "image" else None
+    for img, path in ((img_r, ref), (img_p, pred)):
+        if img is not None and size is None:
+            if img.shape[0] != img.shape[1]:
+                if kp != kr:
+                    raise InputError(f"{path}: a {img.shape[1]}x{img.shape[0]} image cannot be compared "
+                                     "with a reference-scene render (square)")
+            size = img.shape[0]
+    if img_p is None and img_r is None:
+        img_p, img_r = loader.renders([pred, ref], size)  # one pass for the pair
+    elif img_p is None:
+        img_p = loader.image(pred, size)
+    elif img_r is None:
+        img_r = loader.image(ref, size)
+    if img_p.shape != img_r.shape:
+        raise InputError(f"{pred}, {ref}: image sizes differ ({img_p.shape[1]}x{img_p.shape[0]} "
+                         f"and {img_r.shape[1]}x{img_r.shape[0]})")
+    both = kp == kr == "brdf"
+    return score(img_p, img_r, loader.table(pred) if both else None, loader.table(ref) if both else None)
+
+
+def _stems(folder: str) -> dict:
+    found = {}
+    for name in sorted(os.listdir(folder)):
+        stem, ext = os.path.splitext(name)
+        if ext.lower() in SUFFIXES and os.path.isfile(os.path.join(folder, name)):
+            found.setdefault(stem, os.path.join(folder, name))
+    return found
+
+
+def compare_folders(loader: FileLoader, pred: str, ref: str, on_file=None, on_skip=None) -> dict:
+    """Compare the files of two folders matched by stem: ``{stem: scores}``.
+
+    ``on_skip(stem, folder)`` is called first for each stem only one folder holds,
+    ``on_file(i, n, stem)`` before each pair.
+    """
+    a, b = _stems(pred), _stems(ref)
+    common = [s for s in a if s in b]
+    if not common:
+        raise InputError(f"{pred}, {ref}: no file stems in common (files must be .binary, .emb or .exr)")
+    for stem in sorted(set(a) ^ set(b)):
+        if on_skip is not None:
+            on_skip(stem, pred if stem in a else ref)
+    rows = {}
+    for i, stem in enumerate(common, 1):
+        if on_file is not None:
+            on_file(i, len(common), stem)
+        rows[stem] = compare_files(loader, a[stem], b[stem])
+    return rows
+
+
+def mean_scores(rows: list) -> dict:
+    """Mean of each score over the rows that have it (``None`` where none has)."""
+    out = {}
+    for key in KEYS:
+        vals = [r[key] for r in rows if r.get(key) is not None]
+        out[key] = float(sum(vals) / len(vals)) if vals else None
+    return out

@@ -1,0 +1,309 @@
+"""Screen tuning: a trained hypernetwork's auto-decoder stage, fitted on renders (issue 21).
+
+The paper trains the hypernetwork on its mapped loss alone (Gokbudak et al. 2024, eq. 3),
+and its compressions render 10 dB below an 8-component PCA (issue 21). :func:`tune`
+continues a trained model as an **auto-decoder** (Park et al. 2019, DeepSDF): one latent
+``z_i`` per training material, initialised by the set encoder's pass over the material's
+cells, is optimised *together with the decoder* on
+
+    mean_i [ log E_screen(i) ] + map_weight * L_map + lambda_z mean(z^2)
+
+* ``E_screen(i)``: the render-aligned error of :mod:`brdfkit.render.screen` (display MSE
+  of a low-resolution render of the reference scene against the table's own render), the
+  environment turned by one of ``turns`` (a fixed draw of ``pairs_per_pixel`` pairs per
+  pixel, in proportion to the table's integrand, as in :mod:`brdfkit.hypernet.refine_on_screen`). The
+  log makes the loss the *mean PSNR over materials* (a sum of ``-10 log10 MSE``), so a
+  dark material counts as much as a bright one. The turn of half a turn is left out: it is
+  the second scene of ``docs/render-error.md``, on which nothing is tuned.
+* ``L_map``: the paper's cosine-weighted mapped MSE on ``query`` random measured cells,
+  which keeps the BRDF right where no render looks.
+
+The **set encoder** is trained at the same time to reach the latents: the squared distance
+of its pass over ``context`` random cells to ``z_i`` (a target, not a gradient path), so
+that an encoder pass lands where the refinement of :mod:`brdfkit.hypernet.refine_on_screen` starts.
+
+A checkpoint ``<output>.ckpt`` is written every ``checkpoint_minutes`` and on Ctrl-C;
+``resume=True`` continues it (the batches are seeded by ``(seed, step)``); the learning
+rates may be changed on resuming, the other options not.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+import time
+
+import numpy as np
+
+from brdfkit.errors import InputError, require_counts
+
+__all__ = ["TuneOptions", "tune"]
+
+_COUNTS = ("batch", "pairs_per_pixel", "query", "context", "resolution")
+"""The integer options of :class:`TuneOptions` (each at least 1)."""
+
+
+@dataclasses.dataclass(frozen=True)
+class TuneOptions:
+    """Settings of :func:`tune` (``brdfkit tune -O KEY=VALUE``).
+
+    Attributes
+    ----------
+    lr_decoder, lr_latent, lr_encoder
+        Adam learning rates of the decoder, the per-material latents and the encoder.
+    batch
+        Materials per step.
+    pairs_per_pixel
+        Pairs per pixel of each material's fixed draw (the full 32 px render has ~280).
+    turns
+        Environment turns (fractions of a full turn) the renders are fitted under.
+    map_weight
+        Weight of the paper's mapped loss.
+    lambda_z
+        Weight of the latents' mean square.
+    query, context
+        Cells per material for the mapped loss and for the encoder's context.
+    resolution
+        Side in pixels of the renders (:data:`brdfkit.render.screen.SCREEN_RESOLUTION`).
+    """
+
+    lr_decoder: float = 1e-4
+    lr_latent: float = 3e-3
+    lr_encoder: float = 3e-4
+    batch: int = 4
+    pairs_per_pixel: int = 32
+    turns: tuple = (0.0, 0.25, 0.75)
+    map_weight: float = 1.0
+    lambda_z: float = 1e-3
+    query: int = 4096
+    context: int = 4096
+    resolution: int = 32
+
+    def __post_init__(self):
+        for name in ("lr_decoder", "lr_latent", "lr_encoder", "map_weight", "lambda_z"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
+                raise InputError(f"tune option {name} must be a finite number >= 0, got {v!r}")
+        require_counts(self, _COUNTS, "tune option ")
+        if not self.turns or any(not 0.0 <= float(t) < 1.0 for t in self.turns):
+            raise InputError(f"tune option turns must be fractions of a turn in [0, 1), got {self.turns!r}")
+
+    @classmethod
+    def parse(cls, given: dict) -> "TuneOptions":
+        """From ``-O KEY=VALUE`` strings (``turns=0,0.25,0.75``)."""
+        fields = {f.name: f for f in dataclasses.fields(cls)}
+        out = {}
+        for key, value in given.items():
+            if key not in fields:
+                raise InputError(f"unknown tune option {key!r}; known: {', '.join(fields)}")
+            try:
+                if key == "turns":
+                    parts = value if isinstance(value, (tuple, list)) else str(value).split(",")
+                    out[key] = tuple(float(v) for v in parts)
+                elif key in _COUNTS:
+                    out[key] = int(value)
+                else:
+                    out[key] = float(value)
+            except ValueError:
+                raise InputError(f"tune option {key}={value!r} is not a number") from None
+        return cls(**out)
+
+
+def _material_data(model, paths, opts, screens):
+    """Per material: the encoder's latent, and per screen the table's image and the fixed
+    pair draw ``(idx, weight)`` (:func:`brdfkit.hypernet.refine_on_screen._draw`)."""
+    import torch
+
+    from brdfkit.hypernet.refine_on_screen import CompressConfig, _draw
+    from brdfkit.io.merl import read_merl
+    from brdfkit.hypernet.encoding import encode_table
+
+    cfg = CompressConfig(pairs_per_pixel=opts.pairs_per_pixel, uniform_share=0.25)
+    latents, per = [], []
+    for i, p in enumerate(paths):
+        table = read_merl(p)
+        latents.append(np.asarray(encode_table(model, table).latent, np.float32))
+        views = []
+        for k, sc in enumerate(screens):
+            with torch.no_grad():
+                at = sc.lookup(table)
+                target = sc.render_table(table, at).float()
+            idx, w = _draw(sc, at, dataclasses.replace(cfg, seed=1000 * i + k),
+                           np.arange(sc.pixels), sc.hd.device)
+            views.append((target, idx.int(), w))
+        per.append(views)
+    return np.stack(latents), per
+
+
+def _identity_without_rates(text):
+    """A checkpoint's identity with the learning rates left out (checkpoints of the first
+    tunes recorded them; they may change on resuming)."""
+    try:
+        doc = json.loads(text)
+        for key in ("lr_decoder", "lr_latent", "lr_encoder"):
+            doc["options"].pop(key, None)
+    except (TypeError, ValueError, KeyError, AttributeError):
+        return None
+    return json.dumps(doc, sort_keys=True)
+
+
+def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: float | None = None,
+         seed: int = 0, resume: bool = False, options: TuneOptions | None = None,
+         checkpoint_minutes: float = 2.0, device=None, progress=None) -> dict:
+    """Tune a trained hypernetwork on renders of its materials (module docstring).
+
+    Parameters
+    ----------
+    model
+        Model file or built-in name (:func:`brdfkit.api.load_model`); its reference table
+        and architecture are kept.
+    data
+        MERL ``.binary`` files or folders (:func:`brdfkit.io.folders.collect_materials`).
+    output
+        Model file to write; the checkpoint is ``<output>.ckpt``.
+    exclude
+        Material names to leave out.
+    steps, minutes
+        Stop after this many steps or minutes (since the call), whichever first; one of
+        them is required.
+    options
+        :class:`TuneOptions`.
+    device
+        ``"auto"`` / ``None`` (CUDA when present), ``"cpu"`` or ``"cuda"``.
+    progress
+        Optional callable ``progress(message)``.
+
+    Returns
+    -------
+    dict
+        The provenance saved in the model's ``meta["tune"]``.
+    """
+    import torch
+
+    from brdfkit.api import load_model
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.hypernet.training.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
+    from brdfkit.geometry import cell_angles, cos_theta_i, hd_vectors
+    from brdfkit.io.folders import collect_materials
+    from brdfkit.hypernet.model_file import save_model
+    from brdfkit.hypernet.network import hyponet_forward
+    from brdfkit.render.screen import rotated_envmap, screen, screen_error
+    from brdfkit.hypernet.training.dataset import TrainingSet
+
+    t0 = time.monotonic()
+    opts = options or TuneOptions()
+    if steps is None and minutes is None:
+        raise InputError("tune needs --steps or --minutes")
+    say = progress or (lambda msg: None)
+    output = os.fspath(output)
+    ckpt = checkpoint_path(output)
+    paths, names, excluded, _ = collect_materials(data, exclude)
+    from brdfkit.runtime import resolve_device
+
+    dev = resolve_device(None if device == "auto" else device)
+    m = load_model(model, dev)
+    refuse_overwrite_of_inputs(output, [*paths, m.path])
+    refuse_overwrite_of_inputs(ckpt, [*paths, m.path])
+    torch.manual_seed(seed)
+    screens = [screen(dev, opts.resolution, rotated_envmap(float(t)) if t else None) for t in opts.turns]
+    say(f"reading {len(paths)} materials")
+    z0, views = _material_data(m, paths, opts, screens)
+    tset = TrainingSet.load(paths, names, reference=m.rho_ref)
+    net = m.net
+    net.train()
+    for p in net.parameters():
+        p.requires_grad_(True)
+    latents = [torch.from_numpy(z[None].copy()).to(dev).requires_grad_(True) for z in z0]
+    opt_dec = torch.optim.Adam(net.decoder.parameters(), lr=opts.lr_decoder)
+    opt_lat = torch.optim.Adam(latents, lr=opts.lr_latent)
+    opt_enc = torch.optim.Adam(net.encoder.parameters(), lr=opts.lr_encoder)
+    fields = dataclasses.asdict(opts)
+    if fields["resolution"] == 32:  # added later: left out at its default, so older checkpoints resume
+        del fields["resolution"]
+    for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
+        del fields[key]
+    identity = json.dumps({"model": m.fingerprint, "materials": names, "options": fields, "seed": seed},
+                          sort_keys=True)
+    step, elapsed0, history = 0, 0.0, []
+    if resume:
+        state = load_checkpoint(ckpt, dev)
+        if _identity_without_rates(state.get("options")) != identity:
+            raise InputError(f"{ckpt}: checkpoint was made for another model, data or options; "
+                             f"tune afresh without --resume")
+        net.load_state_dict(state["net"])
+        for z, v in zip(latents, state["latents"]):
+            z.data.copy_(v)
+        for o, k, lr in ((opt_dec, "opt_dec", opts.lr_decoder), (opt_lat, "opt_lat", opts.lr_latent),
+                         (opt_enc, "opt_enc", opts.lr_encoder)):
+            o.load_state_dict(state["optimizer"][k])
+            for group in o.param_groups:  # the options' rates, not the checkpoint's
+                group["lr"] = lr
+        step, elapsed0, history = int(state["step"]), float(state["elapsed"]), list(state["history"])
+
+    def save_ckpt():
+        save_checkpoint(ckpt, {
+            "step": step, "elapsed": elapsed0 + time.monotonic() - t0, "net": net.state_dict(),
+            "latents": torch.cat([z.detach() for z in latents]),
+            "optimizer": {"opt_dec": opt_dec.state_dict(), "opt_lat": opt_lat.state_dict(),
+                          "opt_enc": opt_enc.state_dict()},
+            "history": history, "config": "", "options": identity, "materials": names,
+            "data_digest": tset.digest, "seed": seed})
+
+    values = torch.from_numpy(tset.values).to(dev)
+    cells = torch.from_numpy(tset.cells).to(dev)
+    gen = torch.Generator()
+    last_ckpt = time.monotonic()
+    ema = None
+    say(f"tuning from step {step}")
+    try:
+        while (steps is None or step < steps) and (minutes is None or time.monotonic() - t0 < 60 * minutes):
+            gen.manual_seed(int(np.random.SeedSequence([seed, step]).generate_state(1, np.uint64)[0]))
+            mats = torch.randperm(len(names), generator=gen)[:opts.batch]
+            turn = torch.randint(0, len(screens), (opts.batch,), generator=gen)
+            q = torch.randint(0, cells.numel(), (opts.batch, opts.query), generator=gen).to(dev)
+            c = torch.randint(0, cells.numel(), (opts.batch, opts.context), generator=gen).to(dev)
+            loss_s = loss_m = loss_e = 0.0
+            for b in range(opts.batch):
+                i, k = int(mats[b]), int(turn[b])
+                target, idx, w = views[i][k]
+                weights = net.hyponet_weights(latents[i])
+                img = screens[k].render_hyponet(m, weights, idx.long(), w)
+                loss_s = loss_s + torch.log(screen_error(img, target) + 1e-10)
+                th, td, pd = (a.float() for a in cell_angles(cells[q[b]]))
+                pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
+                cos = cos_theta_i(th, td, pd).clamp(min=0.0)[:, None]
+                loss_m = loss_m + torch.mean((cos * (pred - values[i, q[b]])) ** 2)
+                th, td, pd = (a.float() for a in cell_angles(cells[c[b]]))
+                z_enc = net.encode(hd_vectors(th, td, pd)[None], values[i, c[b]][None])
+                loss_e = loss_e + torch.mean((z_enc - latents[i].detach()) ** 2)
+            zs = torch.cat([latents[int(i)] for i in mats])
+            loss = (loss_s + opts.map_weight * loss_m) / opts.batch + opts.lambda_z * torch.mean(zs ** 2)
+            for o in (opt_dec, opt_lat, opt_enc):
+                o.zero_grad(set_to_none=True)
+            (loss + loss_e / opts.batch).backward()
+            torch.nn.utils.clip_grad_norm_(net.decoder.parameters(), 1.0)
+            for o in (opt_dec, opt_lat, opt_enc):
+                o.step()
+            step += 1
+            psnr = -10 * loss_s.item() / opts.batch / math.log(10)
+            ema = psnr if ema is None else 0.98 * ema + 0.02 * psnr
+            if step % 50 == 0:
+                history.append((step, round(ema, 3), float(loss_m) / opts.batch, float(loss_e) / opts.batch))
+                say(f"step {step}: screen PSNR (ema) {ema:.2f} dB, mapped {float(loss_m) / opts.batch:.4g}, "
+                    f"encoder {float(loss_e) / opts.batch:.4g}, {time.monotonic() - t0:.0f} s")
+            if time.monotonic() - last_ckpt > 60 * checkpoint_minutes:
+                save_ckpt()
+                last_ckpt = time.monotonic()
+    except KeyboardInterrupt:
+        save_ckpt()
+        raise
+    save_ckpt()
+    net.eval()
+    tuned = {"from": m.fingerprint, "steps": step, "options": dataclasses.asdict(opts), "seed": seed,
+             "wall_time_s": round(elapsed0 + time.monotonic() - t0, 1), "screen_psnr_ema": ema,
+             "materials": names, "excluded": excluded}
+    meta = dict(m.meta, tune=tuned)
+    save_model(output, net, m.rho_ref, meta)
+    return tuned

@@ -1,0 +1,18 @@
+"""Files in and out: the formats brdfkit reads and writes, each checked on reading.
+
+* :mod:`~brdfkit.io.merl`: MERL ``.binary`` tables (Matusik et al. 2003), read and written.
+* :mod:`~brdfkit.io.csvfile`: numeric CSV files with a header, the reading and row
+  refusals that sample sets and directions share.
+* :mod:`~brdfkit.io.samples`: sample sets (:class:`~brdfkit.io.samples.SampleSet`) and
+  their CSV files.
+* :mod:`~brdfkit.io.directions`: measurement directions without values
+  (:class:`~brdfkit.io.directions.DirectionSet`) and their CSV files.
+* :mod:`~brdfkit.io.embedding`: embedding files (``.emb``, JSON).
+* :mod:`~brdfkit.io.tensorfile`: the one checked safetensors reader (model files,
+  reference tables, PCA bases); never unpickles.
+* :mod:`~brdfkit.io.folders`: folders of tables, material names, exclude lists.
+* :mod:`~brdfkit.io.digest`: the sha256 of a file's bytes.
+
+May import: the ground floor (``errors``, ``atomic``) and :mod:`brdfkit.geometry`;
+numpy, and safetensors inside the functions that read tensors. No torch.
+"""

@@ -1,0 +1,173 @@
+"""The PCA basis file (format ``brdfkit-ipca``): safetensors, never pickle.
+
+Tensors ``cells`` (int64 ``(P,)``, sorted flat MERL indices) or, in compact files,
+``cell_mask`` (the grid's cells as a bit mask), ``reference``, ``mean``, ``components``
+(float32, or float16 in compact files; or int8 ``components`` with float32
+``component_scales``, :func:`~.storage.quantize`) and ``sigma`` (float32) as :class:`~.model.IpcaModel`
+holds them; metadata the format, its version, ``n_components``, the mapping's ``eps``,
+``phi_d_stride`` (1, or 2 for every other ``phi_d`` cell, :mod:`.storage`), ``dtype`` and
+the training ``materials`` (JSON). The same tensors and metadata, prefixed, hold the basis
+inside a learnt-prior model file (:mod:`brdfkit.methods.prior.prior_file`).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+
+from brdfkit.atomic import atomic_path, check_input_file
+from brdfkit.errors import FormatError
+from brdfkit.geometry import N_CELLS, N_PHI_D
+from brdfkit.methods.ipca.model import EPS, IpcaModel
+from brdfkit.methods.ipca.basis_storage import INT8_BLOCK, check_half, compact, dequantize, expand, quantize
+
+__all__ = ["IPCA_FORMAT", "IPCA_VERSION", "basis_tensors", "save_ipca", "load_ipca", "read_ipca", "storage_of"]
+
+IPCA_FORMAT = "brdfkit-ipca"
+IPCA_VERSION = "2"
+_READS = ("1", "2")  # version 2 adds the optional float16, int8 and half-phi_d storage
+_TENSORS = ("cells", "reference", "mean", "components", "sigma")
+
+
+def save_ipca(path: str | os.PathLike, basis: IpcaModel, *, half: bool = False, phi_stride: int = 1,
+              int8: bool = False) -> None:
+    """Write ``basis`` as one safetensors file (format ``brdfkit-ipca``), atomically;
+    ``half``, ``phi_stride`` and ``int8`` as :func:`basis_tensors` takes them."""
+    from safetensors.numpy import save_file
+
+    tensors, meta = basis_tensors(basis, half=half, phi_stride=phi_stride, int8=int8, where=os.fspath(path))
+    with atomic_path(path) as tmp:
+        save_file(tensors, tmp, metadata=meta)
+
+
+def basis_tensors(basis: IpcaModel, *, half: bool = False, phi_stride: int = 1, int8: bool = False,
+                  prefix: str = "", where: str = "basis") -> tuple[dict, dict]:
+    """The tensors and metadata of the file of ``basis`` (names prefixed with ``prefix``
+    when it is stored inside another model file); ``where`` names it in errors.
+
+    ``half`` stores the per-cell tensors in float16 and ``phi_stride = 2`` only the
+    cells of even ``phi_d`` index (:mod:`.storage`): together a quarter of the size, for
+    the bases shipped with the package. ``int8`` (with ``half``) stores the components in
+    int8 with a scale per block of cells (:func:`~.storage.quantize`): half again. The
+    reader restores the full grid the same way every time, so a model trained on the
+    restored basis sees exactly what it is shipped with.
+    """
+    if int8 and not half:
+        raise ValueError("int8 storage of a basis goes with half (float16 reference and mean)")
+    cells, per_cell = compact(basis.cells, [basis.reference, basis.mean, basis.components], phi_stride)
+    if half:
+        check_half(where, per_cell)
+    dtype = np.float16 if half else np.float32
+    # Compact files name their cells by a bit mask over the grid (0.18 MB), not by
+    # int64 indices (4.4 MB for half the grid).
+    where_cells = ({"cell_mask": np.packbits(np.isin(np.arange(N_CELLS), cells))} if half or phi_stride != 1
+                   else {"cells": np.ascontiguousarray(cells, dtype=np.int64)})
+    comps = quantize(per_cell[2]) if int8 else (np.ascontiguousarray(per_cell[2], dtype=dtype), None)
+    tensors = {**where_cells,
+               "reference": np.ascontiguousarray(per_cell[0], dtype=dtype),
+               "mean": np.ascontiguousarray(per_cell[1], dtype=dtype),
+               "components": comps[0],
+               **({"component_scales": comps[1]} if int8 else {}),
+               "sigma": np.ascontiguousarray(basis.sigma, dtype=np.float32)}
+    meta = {"format": IPCA_FORMAT, "version": IPCA_VERSION,
+            "n_components": str(basis.n_components), "eps": repr(EPS),
+            "weight": "cos_i*cos_o" if not basis.w_floor else "max(cos_i*cos_o, w_floor)",
+            **({"w_floor": repr(float(basis.w_floor))} if basis.w_floor else {}),
+            "channels": "separate observations, shared basis",
+            "phi_d_stride": str(int(phi_stride)),
+            "dtype": "int8" if int8 else "float16" if half else "float32",
+            "materials": json.dumps(list(basis.materials))}
+    return ({prefix + k: v for k, v in tensors.items()}, {prefix + k: v for k, v in meta.items()})
+
+
+def storage_of(meta: dict, prefix: str = "") -> dict:
+    """How a basis file's metadata (keys ``prefix + name``) says it is stored: the
+    ``half``, ``phi_stride`` and ``int8`` arguments of :func:`basis_tensors`."""
+    dtype = meta.get(prefix + "dtype")
+    return {"half": dtype in ("float16", "int8"), "phi_stride": int(meta.get(prefix + "phi_d_stride", "1")),
+            "int8": dtype == "int8"}
+
+
+def load_ipca(path: str | os.PathLike) -> IpcaModel:
+    """Read a basis written by :func:`save_ipca`.
+
+    Raises
+    ------
+    FormatError
+        Not a safetensors file, another format or version, missing or inconsistent
+        tensors, non-finite values.
+    """
+    from brdfkit.io.tensorfile import open_safetensors
+
+    path = check_input_file(path)
+    with open_safetensors(path) as f:
+        return read_ipca(f, path)
+
+
+def read_ipca(f, path: str, prefix: str = "") -> IpcaModel:
+    """The basis in an open safetensors file ``f`` (tensors and metadata keys named
+    ``prefix + name``: a basis stored inside another model file); errors name ``path``."""
+    meta = {k[len(prefix):]: v for k, v in (f.metadata() or {}).items() if k.startswith(prefix)}
+    if meta.get("format") != IPCA_FORMAT:
+        raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
+                                f"expected {IPCA_FORMAT!r})")
+    if meta.get("version") not in _READS:
+        raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
+                                f"(this brdfkit reads versions {', '.join(_READS)})")
+    stride = meta.get("phi_d_stride", "1")
+    if stride not in ("1", "2"):
+        raise FormatError(path, f"PCA basis phi_d_stride {stride!r} is not 1 or 2")
+    keys = set(f.keys())
+    missing = [k for k in _TENSORS if prefix + k not in keys and not (k == "cells" and prefix + "cell_mask" in keys)]
+    if missing:
+        raise FormatError(path, f"PCA basis lacks tensor(s) {', '.join(missing)}")
+    t = {k: f.get_tensor(prefix + k) for k in _TENSORS if prefix + k in keys}
+    if meta.get("dtype") == "int8":
+        if prefix + "component_scales" not in keys:
+            raise FormatError(path, "an int8 PCA basis lacks tensor 'component_scales'")
+        scales, comp = f.get_tensor(prefix + "component_scales"), t["components"]
+        if (comp.dtype != np.int8 or comp.ndim != 2 or scales.ndim != 2 or scales.shape[0] != comp.shape[0]
+                or scales.shape[1] != -(-comp.shape[1] // INT8_BLOCK)):
+            raise FormatError(path, "int8 PCA basis components and their scales have inconsistent types or shapes")
+        if not np.isfinite(scales).all():
+            raise FormatError(path, "PCA basis tensor 'component_scales' holds non-finite values")
+        t["components"] = dequantize(comp, scales)
+    if "cells" not in t:
+        mask = f.get_tensor(prefix + "cell_mask")
+        if mask.dtype != np.uint8 or mask.shape != ((N_CELLS + 7) // 8,):
+            raise FormatError(path, "PCA basis cell mask is not a bit mask of the MERL grid")
+        t["cells"] = np.flatnonzero(np.unpackbits(mask)[:N_CELLS]).astype(np.int64)
+    cells, comp = t["cells"], t["components"]
+    p = cells.shape[0] if cells.ndim == 1 else -1
+    if (cells.ndim != 1 or comp.ndim != 2 or comp.shape[1] != p or t["reference"].shape != (p,)
+            or t["mean"].shape != (p,) or t["sigma"].shape != (comp.shape[0],) or comp.shape[0] < 1):
+        raise FormatError(path, "PCA basis tensors have inconsistent shapes")
+    if p == 0 or cells.min() < 0 or cells.max() >= N_CELLS or (np.diff(cells) <= 0).any():
+        raise FormatError(path, "PCA basis cell indices are not sorted indices of the MERL grid")
+    for k in ("reference", "mean", "components", "sigma"):
+        if not np.isfinite(t[k]).all():
+            raise FormatError(path, f"PCA basis tensor {k!r} holds non-finite values")
+    if not (t["sigma"] > 0).all():
+        raise FormatError(path, "PCA basis tensor 'sigma' must be positive")
+    try:
+        materials = json.loads(meta.get("materials", "[]"))
+    except json.JSONDecodeError:
+        raise FormatError(path, "PCA basis metadata 'materials' is not JSON") from None
+    # found by benchmarks/fuzz_parsers.py: 'materials' = "5" raised a TypeError below
+    if not isinstance(materials, list) or not all(isinstance(m, str) for m in materials):
+        raise FormatError(path, "PCA basis metadata 'materials' is not a list of names")
+    try:
+        w_floor = float(meta.get("w_floor", "0"))
+    except ValueError:
+        raise FormatError(path, f"PCA basis metadata 'w_floor' is not a number: {meta.get('w_floor')!r}") from None
+    if not 0.0 <= w_floor < 1.0:
+        raise FormatError(path, f"PCA basis metadata 'w_floor' must be in [0, 1), got {w_floor!r}")
+    cells = cells.astype(np.int64)
+    per_cell = [t["reference"].astype(np.float32), t["mean"].astype(np.float32), comp.astype(np.float32)]
+    if stride == "2":
+        if ((cells % N_PHI_D) % 2).any():
+            raise FormatError(path, "a half-phi_d PCA basis may hold only cells of even phi_d index")
+        cells, per_cell = expand(cells, per_cell)
+    return IpcaModel(cells, *per_cell, t["sigma"].astype(np.float32), list(materials), w_floor)

@@ -1,0 +1,127 @@
+"""Render a BRDF file (``.binary`` MERL table, or ``.emb`` with its model): the work of
+``brdfkit render`` and of ``brdfkit metrics`` for BRDF inputs.
+
+Three renderers (``docs/render.md``): the deterministic quadrature of the reference
+scene (:mod:`.quadrature`, the default), the reference scene path-traced by Mitsuba 3,
+or a user's Mitsuba XML scene with the BRDF bound to one of its BSDFs
+(:mod:`.mitsuba3`).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+
+from brdfkit.console import ProgressBar
+
+__all__ = ["render_brdf_file", "render_brdf_files", "reference_scene"]
+
+
+def reference_scene(resolution: int | None = None, supersample: int = 1):
+    """The reference scene at ``resolution`` pixels square (default its own 256)."""
+    from brdfkit.render.scene import REFERENCE
+
+    return dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
+                               supersample=int(supersample))
+
+
+def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = True, model=None,
+                      tables: dict | None = None) -> list:
+    """Quadrature renders of several BRDF files in the reference scene, in one pass
+    (:func:`brdfkit.render.quadrature.render_many`: each image equals
+    :func:`render_brdf_file`'s of that file, to the bit).
+
+    Parameters
+    ----------
+    paths
+        ``.binary`` / ``.emb`` files.
+    resolution, progress, model
+        As for :func:`render_brdf_file`.
+    tables
+        Optional ``{path: dense table}`` of ``.binary`` files the caller has already read
+        (``brdfkit metrics`` reads each once).
+
+    Returns
+    -------
+    list
+        float32 ``(R, R, 3)`` linear RGB image per file.
+    """
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.brdf_file import load_brdf
+    from brdfkit.render.quadrature import render_many
+
+    tables = tables or {}
+    brdfs = [TableBRDF(tables[p], name=os.path.splitext(os.path.basename(p))[0]) if p in tables
+             else load_brdf(p, model=model) for p in paths]
+    # One pass needs one device (a table and a model's BRDF may sit on different ones).
+    groups: dict = {}
+    for i, b in enumerate(brdfs):
+        groups.setdefault(str(getattr(b, "device", "cpu")), []).append(i)
+    images = [None] * len(brdfs)
+    for idx in groups.values():
+        with ProgressBar(f"quadrature {' + '.join(brdfs[i].name for i in idx)}", enabled=progress) as bar:
+            done = render_many([brdfs[i] for i in idx], reference_scene(resolution),
+                               progress=bar if progress else None)
+        for i, (img, _) in zip(idx, done):
+            images[i] = img
+    return images
+
+
+def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mitsuba: bool = False,
+                     spp: int | None = None, supersample: int = 1, scene_file=None, bsdf_id: str | None = None,
+                     progress: bool = True, model=None):
+    """Render a ``.binary`` / ``.emb`` file.
+
+    Parameters
+    ----------
+    path
+        The BRDF file.
+    model_path, model
+        The model of an ``.emb`` (a path, or a model already loaded); for ``scene_file``,
+        also the model of the scene's other ``brdfkit`` BSDFs that name none.
+    resolution
+        Image size in pixels, square (default: the reference scene's 256); with
+        ``scene_file``, overrides the film's size.
+    mitsuba
+        Path-trace the reference scene with Mitsuba instead of the quadrature.
+    spp
+        Mitsuba samples per pixel (default: the scene's).
+    supersample
+        Quadrature: an ``S x S`` grid of points per pixel.
+    scene_file, bsdf_id
+        A Mitsuba XML scene and the id of the BSDF that gets the BRDF.
+    progress
+        Show a progress bar on stderr.
+
+    Returns
+    -------
+    tuple
+        ``(image, how)``: float32 ``(H, W, 3)`` linear RGB, and a short description for
+        messages (renderer, samples, BRDF evaluations).
+    """
+    from brdfkit.brdf_file import load_brdf
+    from brdfkit.render.scene import REFERENCE
+
+    brdf = load_brdf(path, model_path, model=model)
+    scene = dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
+                                supersample=int(supersample))
+    if scene_file is not None:
+        from brdfkit.render.mitsuba3.scenes import load_user_scene, render_scene
+
+        sc, n = load_user_scene(scene_file, bsdf_id, brdf, resolution=resolution, spp=spp, model_path=model_path)
+        with ProgressBar(f"Mitsuba {os.path.basename(scene_file)}", enabled=progress) as bar:
+            img = render_scene(sc, n, progress=bar if progress else None)
+        return img, f"Mitsuba, {os.path.basename(scene_file)}, {n} spp"
+    if mitsuba:
+        from brdfkit.render.mitsuba3.scenes import render_reference
+
+        n = int(spp or scene.spp)
+        with ProgressBar(f"Mitsuba {brdf.name}", enabled=progress) as bar:
+            img = render_reference(brdf, scene, spp=n, progress=bar if progress else None)
+        return img, f"Mitsuba reference scene, {n} spp"
+    from brdfkit.render.quadrature import RenderStats, render
+
+    stats = RenderStats()
+    with ProgressBar(f"quadrature {brdf.name}", enabled=progress) as bar:
+        img, _ = render(brdf, scene, progress=bar if progress else None, stats=stats)
+    return img, f"quadrature, {stats.evaluations:,} BRDF evaluations"

@@ -1,0 +1,176 @@
+"""Where and on how many threads torch runs: the one device rule and the thread counts.
+
+Device
+------
+``None`` or ``"auto"`` picks CUDA when a GPU is present, else the CPU; ``"cpu"``,
+``"cuda"`` and ``"cuda:N"`` (or a ``torch.device``) name one. A CUDA device asked for on a
+machine without one is refused with a one-line :class:`~brdfkit.errors.InputError`
+rather than failing later inside torch (:func:`resolve_device`).
+
+Threads
+-------
+torch runs its CPU operators on one OpenMP thread per core. When other processes already
+keep the cores busy, those threads wait for each other at every operator: on the 2-core
+project machine at load average 11, ``brdfkit sparse`` took 57 s wall with torch's two
+threads and 9.7 s with one (a dense decode: 11.3 s against 0.64 s;
+``docs/performance.md``). :func:`set_default_threads` therefore sizes the OpenMP pool to
+the cores that are idle by the 1-minute load average, before torch is imported, unless
+the user chose (``OMP_NUM_THREADS``).
+
+The library itself never changes the thread settings it was given: a library function
+that needs another thread count for its own work (NBRDF's tiny network runs fastest on
+one thread) sets it with :func:`torch_threads` for the duration of the call and restores
+it. :func:`set_torch_threads` (``--threads`` of ``brdfkit render`` and ``metrics``, the
+benchmark's worker processes) is for the command line and for processes brdfkit starts.
+
+torch is imported on first use only.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+
+from brdfkit.errors import InputError
+
+__all__ = ["resolve_device", "threads_for_load", "idle_cores", "running_others", "set_default_threads",
+           "set_torch_threads", "torch_threads"]
+
+def resolve_device(device=None, *, local_rank: int | None = None):
+    """The ``torch.device`` for a device option.
+
+    Parameters
+    ----------
+    device
+        ``None`` / ``"auto"`` (CUDA when available, else CPU), ``"cpu"``, ``"cuda"``,
+        ``"cuda:N"``, or a ``torch.device``.
+    local_rank
+        Under ``torchrun``: this process's local rank, so that a bare ``"cuda"`` (or
+        ``"auto"`` on a GPU machine) gives each process its own GPU,
+        ``cuda:(local_rank mod GPUs)``.
+
+    Returns
+    -------
+    torch.device
+
+    Raises
+    ------
+    InputError
+        CUDA asked for without a CUDA device, or a device that is not CPU or CUDA.
+    """
+    import torch
+
+    name = "auto" if device is None else str(device)
+    if name == "auto":
+        name = "cuda" if torch.cuda.is_available() else "cpu"
+    if name.startswith("cuda"):
+        if not torch.cuda.is_available():
+            raise InputError(f"device {name!r}: no CUDA device is available (use --device cpu or auto)")
+        if name == "cuda" and local_rank is not None:
+            name = f"cuda:{local_rank % torch.cuda.device_count()}"
+        try:
+            return torch.device(name)
+        except RuntimeError:
+            raise InputError(f"device {name!r}: not a CUDA device name (cuda or cuda:N)") from None
+    if name != "cpu":
+        raise InputError(f"device {name!r}: use auto, cpu or cuda")
+    return torch.device("cpu")
+
+
+# Any of these set by the user means the thread count is theirs to choose.
+USER_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS")
+
+
+def threads_for_load(cpus: int, load: float) -> int:
+    """Threads worth running when ``load`` runnable tasks (the load average) already
+    compete for ``cpus`` cores: the idle cores, at least one, at most ``cpus``."""
+    return max(1, min(cpus, int(cpus - load + 0.5)))
+
+
+def _cpus() -> int:
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
+def running_others() -> int | None:
+    """Tasks runnable right now besides this process (the 4th field of ``/proc/loadavg``,
+    ``running/total``, minus one), or ``None`` where there is no such file."""
+    try:
+        with open("/proc/loadavg") as f:
+            running = int(f.read().split()[3].split("/")[0])
+    except (OSError, ValueError, IndexError):
+        return None
+    return max(0, running - 1)
+
+
+def idle_cores() -> int | None:
+    """:func:`threads_for_load` of this machine now; ``None`` without a load average.
+
+    The load is the smaller of the 1-minute load average and the tasks runnable now
+    besides this one: the average still counts commands that have finished (a user's
+    previous command holds it near 1 for a minute on an idle machine, which made
+    ``brdfkit render`` run on one of two idle cores), while a job that keeps a core busy
+    shows in both."""
+    try:
+        load = os.getloadavg()[0]
+    except (AttributeError, OSError):
+        return None
+    now = running_others()
+    if now is not None:
+        load = min(load, now)
+    return threads_for_load(_cpus(), load)
+
+
+def set_default_threads(environ=None) -> int | None:
+    """Set ``OMP_NUM_THREADS`` to :func:`threads_for_load` when that is below the core
+    count and the user set no thread variable; call before importing torch.
+
+    Returns
+    -------
+    int or None
+        The thread count chosen, or ``None`` when the user's setting (or a platform
+        without a load average) leaves torch's default.
+    """
+    environ = os.environ if environ is None else environ
+    if any(k in environ for k in USER_VARIABLES):
+        return None
+    n = idle_cores()
+    if n is None:
+        return None
+    if n < _cpus():
+        environ["OMP_NUM_THREADS"] = str(n)
+    return n
+
+
+def set_torch_threads(threads: int | None = None) -> int:
+    """Set torch's thread count to ``threads``, by default to the idle cores (at least 1,
+    at most torch's current count); returns the count set. For the command line
+    (``--threads``), processes brdfkit starts, and programs using the library, once at
+    their start (``brdfkit.set_torch_threads()``, as ``examples/python_api.py`` does);
+    never called by library functions: the thread pool is the program's to choose.
+
+    Measured: on the shared 2-core machine, 2 threads rendered 256 px in 42 s at load 1.8
+    and 621 s at load 6.7, 1 thread in 17.5 s and 27.6 s (OpenMP threads wait for busy
+    cores at every operation; docs/render.md)."""
+    import torch
+
+    if threads is None:
+        threads = max(1, min(torch.get_num_threads(), idle_cores() or 1))
+    torch.set_num_threads(int(threads))
+    return int(threads)
+
+
+@contextlib.contextmanager
+def torch_threads(threads: int | None):
+    """Run the block with torch on ``threads`` CPU threads, restoring the count after
+    (``None``: leave it as it is)."""
+    if threads is None:
+        yield
+        return
+    import torch
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(int(threads))
+    try:
+        yield
+    finally:
+        torch.set_num_threads(old)

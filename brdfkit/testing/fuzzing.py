@@ -1,0 +1,343 @@
+"""Fuzzing of brdfkit's file parsers: only brdfkit's own one-line errors may escape.
+
+Used by ``tests/test_fuzz.py`` (a short run in the suite) and
+``benchmarks/fuzz_parsers.py`` (minutes per parser); needs hypothesis (the ``test``
+extra), so ``import brdfkit`` never imports it. Each parser gets random bytes and
+mutations of a valid file of its format: truncation, byte changes (half of them in the
+first kilobytes, where the headers are), and for safetensors files a rewritten JSON
+header (dtypes, shapes, offsets, metadata and the model config replaced by random JSON),
+re-framed with a correct length so that the parser gets past the framing.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import functools
+import json
+import os
+import shutil
+import sys
+import tempfile
+import time
+import warnings
+from typing import Callable
+
+import numpy as np
+from hypothesis import strategies as st
+
+from brdfkit.errors import BrdfkitError
+
+JSON_SCALARS = (st.none() | st.booleans() | st.integers(-2**64, 2**64) | st.floats()
+                | st.text(max_size=12) | st.sampled_from([0, 1, -1, 2**31, 7, 90, "F32", "F16", "I64", "BOOL",
+                                                          "U8", "1", "brdfkit-model", ""]))
+JSON_VALUES = st.recursive(JSON_SCALARS, lambda c: st.lists(c, max_size=4) | st.dictionaries(
+    st.text(max_size=8), c, max_size=4), max_leaves=8)
+
+
+@dataclasses.dataclass(frozen=True)
+class Parser:
+    """A parser under test: ``read(path)``, the file suffix it expects, and a function
+    returning the bytes of a valid file (built once per process)."""
+
+    name: str
+    read: Callable
+    suffix: str
+    seed: Callable[[], bytes]
+    safetensors: bool = False
+
+
+# --- valid seeds ---------------------------------------------------------------------------
+
+def _seed_folder() -> str:
+    """A new temporary folder for one seed file; :func:`_take` removes it."""
+    return tempfile.mkdtemp(prefix="brdfkit-fuzz-seeds-")
+
+
+def _take(path) -> bytes:
+    """The bytes of a seed file, removing the file and its folder: a test run used to leave
+    34 MB of seeds in the temporary folder."""
+    try:
+        with open(path, "rb") as f:
+            return f.read()
+    finally:
+        shutil.rmtree(os.path.dirname(path), ignore_errors=True)
+
+
+# The seed model: a hypernetwork small enough that a model file is a few kilobytes (the
+# tiny configuration of the test suite), untrained.
+SEED_MODEL_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
+                         decoder_hidden=16, decoder_layers=1)
+
+
+@functools.lru_cache(maxsize=None)
+def model_seed() -> bytes:
+    import torch
+
+    from brdfkit.materials import synthetic
+    from brdfkit.hypernet.network import HyperBRDF, HyperConfig
+    from brdfkit.hypernet.model_file import save_model
+
+    path = os.path.join(_seed_folder(), "model.safetensors")
+    torch.manual_seed(0)
+    save_model(path, HyperBRDF(HyperConfig(**SEED_MODEL_CONFIG)), synthetic.table(synthetic.STIFF[2]),
+               {"materials": ["stiff-white"], "steps": 0})
+    return _take(path)
+
+
+@functools.lru_cache(maxsize=None)
+def embedding_seed() -> bytes:
+    from brdfkit.io.embedding import Embedding, write_embedding
+
+    path = os.path.join(_seed_folder(), "a.emb")
+    write_embedding(path, Embedding(np.linspace(-1, 1, 7), "ab" * 32, "mat.binary", 40))
+    return _take(path)
+
+
+@functools.lru_cache(maxsize=None)
+def reference_seed() -> bytes:
+    from brdfkit.geometry import TABLE_SHAPE
+    from brdfkit.hypernet.mapping import save_reference
+
+    path = os.path.join(_seed_folder(), "ref.safetensors")
+    table = np.full(TABLE_SHAPE, 0.5, dtype=np.float32)
+    save_reference(path, table, ["a", "b"])
+    return _take(path)
+
+
+@functools.lru_cache(maxsize=None)
+def ipca_seed() -> bytes:
+    from brdfkit.methods.ipca import IpcaModel, save_ipca
+
+    path = os.path.join(_seed_folder(), "basis.safetensors")
+    p = 64
+    rng = np.random.default_rng(0)
+    save_ipca(path, IpcaModel(np.arange(1000, 1000 + 3 * p, 3, dtype=np.int64), rng.random(p, dtype=np.float32),
+                              rng.random(p, dtype=np.float32), rng.random((2, p), dtype=np.float32),
+                              np.array([1.0, 0.5], np.float32), ["a", "b"]))
+    return _take(path)
+
+
+@functools.lru_cache(maxsize=None)
+def csv_seed() -> bytes:
+    return (b"# a comment\ntheta_h,theta_d,phi_d,r,g,b\n0.1,0.2,0.3,0.5,0.25,0.125\n"
+            b"0.3,0.4,1.0,1e3,2e-4,0\n\n0.5,1.2,2.5,0.01,0.02,0.03\n")
+
+
+@functools.lru_cache(maxsize=None)
+def merl_seed() -> bytes:
+    # the header and the first cells of a table: read_merl checks the size first, so a
+    # full-size payload only matters for the NaN/Inf scan (test_samples.py fuzzes that)
+    stored = np.linspace(-1.0, 3.0, 300)
+    return np.array([90, 90, 180], "<i4").tobytes() + stored.astype("<f8").tobytes()
+
+
+def _read_model(path):
+    from brdfkit.hypernet.model_file import load_model
+
+    return load_model(path, "cpu")
+
+
+def _read_embedding(path):
+    from brdfkit.io.embedding import read_embedding
+
+    return read_embedding(path)
+
+
+def _read_reference(path):
+    from brdfkit.hypernet.mapping import load_reference
+
+    return load_reference(path)
+
+
+def _read_ipca(path):
+    from brdfkit.methods.ipca import load_ipca
+
+    return load_ipca(path)
+
+
+def _read_samples(path):
+    from brdfkit.io.samples import read_samples
+
+    return read_samples(path)
+
+
+def _read_merl(path):
+    from brdfkit.io.merl import read_merl
+
+    return read_merl(path)
+
+
+PARSERS = {p.name: p for p in (
+    Parser("read_merl", _read_merl, ".binary", merl_seed),
+    Parser("read_samples", _read_samples, ".csv", csv_seed),
+    Parser("read_embedding", _read_embedding, ".emb", embedding_seed),
+    Parser("load_model", _read_model, ".safetensors", model_seed, safetensors=True),
+    Parser("load_reference", _read_reference, ".safetensors", reference_seed, safetensors=True),
+    Parser("load_ipca", _read_ipca, ".safetensors", ipca_seed, safetensors=True),
+)}
+
+
+def add_parser(parser: Parser) -> None:
+    """Register another parser (the renderer's EXR reader registers itself when present)."""
+    PARSERS[parser.name] = parser
+
+
+try:  # the renderer's image reader, once it exists
+    from brdfkit.render.image import read_exr as _read_exr_fn  # noqa: F401
+except ImportError:
+    pass
+else:
+    @functools.lru_cache(maxsize=None)
+    def exr_seed() -> bytes:
+        from brdfkit.render.image import write_exr
+
+        path = os.path.join(_seed_folder(), "img.exr")
+        write_exr(path, np.linspace(0, 2, 4 * 5 * 3, dtype=np.float32).reshape(4, 5, 3))
+        return _take(path)
+
+    def _read_exr(path):
+        from brdfkit.render.image import read_exr
+
+        return read_exr(path)
+
+    add_parser(Parser("read_exr", _read_exr, ".exr", exr_seed))
+
+
+# --- mutations -----------------------------------------------------------------------------
+
+def _edit_bytes(data, seed: bytes) -> bytes:
+    b = bytearray(seed)
+    for _ in range(data.draw(st.integers(1, 8), label="edits")):
+        if not b:
+            break
+        limit = len(b) - 1 if data.draw(st.booleans(), label="anywhere") else min(len(b) - 1, 4096)
+        i = data.draw(st.integers(0, limit), label="at")
+        kind = data.draw(st.sampled_from(["set", "insert", "delete"]), label="kind")
+        if kind == "set":
+            b[i] = data.draw(st.integers(0, 255), label="byte")
+        elif kind == "insert":
+            b[i:i] = data.draw(st.binary(min_size=1, max_size=16), label="bytes")
+        else:
+            del b[i:i + data.draw(st.integers(1, 16), label="n")]
+    return bytes(b)
+
+
+def _edit_safetensors_header(data, seed: bytes) -> bytes:
+    n = int.from_bytes(seed[:8], "little")
+    header = json.loads(seed[8:8 + n])
+    body = seed[8 + n:]
+    for _ in range(data.draw(st.integers(1, 4), label="header edits")):
+        # half the edits go to the metadata (format, version, config, names), where the
+        # parsers' own checks are; the rest to a tensor entry or a new key
+        key = "__metadata__" if "__metadata__" in header and data.draw(st.booleans(), label="meta") else \
+            data.draw(st.sampled_from(sorted(header) + ["<new>"]), label="key")
+        if key == "<new>":
+            header[data.draw(st.text(max_size=10), label="new key")] = data.draw(JSON_VALUES, label="new value")
+            continue
+        entry = header[key]
+        if key == "__metadata__":
+            field = data.draw(st.sampled_from(sorted(entry) + ["<drop>"]), label="meta field")
+            if field == "<drop>":
+                entry.pop(data.draw(st.sampled_from(sorted(entry) or ["x"]), label="drop"), None)
+            elif field in ("config", "meta", "materials") and data.draw(st.booleans(), label="inner"):
+                try:
+                    inner = json.loads(entry[field])
+                except ValueError:
+                    inner = {}
+                if isinstance(inner, dict) and inner and data.draw(st.booleans(), label="one value"):
+                    inner[data.draw(st.sampled_from(sorted(inner)), label="inner key")] = \
+                        data.draw(JSON_VALUES, label="inner value")
+                else:
+                    inner = data.draw(JSON_VALUES, label="inner doc")
+                entry[field] = json.dumps(inner)
+            else:
+                entry[field] = data.draw(st.text(max_size=20) | JSON_VALUES.map(json.dumps), label="meta value")
+        elif isinstance(entry, dict):
+            field = data.draw(st.sampled_from(["dtype", "shape", "data_offsets", "<drop>", "<whole>"]),
+                              label="tensor field")
+            if field == "<drop>":
+                header.pop(key)
+            elif field == "<whole>":
+                header[key] = data.draw(JSON_VALUES, label="tensor entry")
+            elif field == "shape":
+                entry[field] = data.draw(st.lists(st.integers(-2, 2**40) | st.sampled_from([0, 1, 3, 90, 180]),
+                                                  max_size=5) | JSON_VALUES, label="shape")
+            elif field == "data_offsets":
+                lim = len(body) + 16
+                entry[field] = data.draw(st.lists(st.integers(-1, lim), min_size=2, max_size=2) | JSON_VALUES,
+                                         label="offsets")
+            else:
+                entry[field] = data.draw(st.sampled_from(["F32", "F16", "BF16", "F64", "I64", "I32", "I16", "I8",
+                                                          "U8", "U16", "U32", "U64", "BOOL", "F8_E4M3", "F8_E5M2"])
+                                         | JSON_VALUES, label="dtype")
+        else:
+            header[key] = data.draw(JSON_VALUES, label="value")
+    raw = json.dumps(header).encode()
+    raw += b" " * (-len(raw) % 8)
+    return len(raw).to_bytes(8, "little") + raw + body
+
+
+def draw_input(data, parser: Parser) -> bytes:
+    """One fuzz input for ``parser`` (hypothesis ``data`` object)."""
+    kinds = ["random", "truncate", "edit"] + (["header"] * 3 if parser.safetensors else [])
+    kind = data.draw(st.sampled_from(kinds), label="kind")
+    if kind == "random":
+        return data.draw(st.binary(max_size=600), label="random bytes")
+    seed = parser.seed()
+    if kind == "truncate":
+        return seed[:data.draw(st.integers(0, len(seed) - 1), label="cut")]
+    if kind == "edit":
+        return _edit_bytes(data, seed)
+    return _edit_safetensors_header(data, seed)
+
+
+@contextlib.contextmanager
+def _captured_output():
+    """What is written to file descriptors 1 and 2 (C libraries included) and the
+    warnings Python would show, while the block runs: ``(lines, warnings)``."""
+    lines: list[str] = []
+    caught: list = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = (os.dup(1), os.dup(2))
+    with tempfile.TemporaryFile() as tmp, warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        os.dup2(tmp.fileno(), 1)
+        os.dup2(tmp.fileno(), 2)
+        try:
+            yield lines, caught
+        finally:
+            for fd, old in zip((1, 2), saved):
+                os.dup2(old, fd)
+                os.close(old)
+            tmp.seek(0)
+            lines.extend(ln for ln in tmp.read().decode("utf-8", "replace").splitlines() if ln.strip())
+            # the categories a user would see (DeprecationWarning and kin are hidden)
+            caught.extend(x for x in w if not issubclass(x.category, (DeprecationWarning, PendingDeprecationWarning,
+                                                                      ImportWarning)))
+
+
+def check_parser(parser: Parser, raw: bytes, folder: str, slow_s: float = 30.0) -> tuple[bool, float]:
+    """Write ``raw`` and parse it: a result or a one-line :class:`BrdfkitError` naming
+    the file, and nothing else printed; anything else (another exception, a multi-line
+    message, output from a C library or a warning, a parse slower than ``slow_s``)
+    fails. Returns ``(accepted, seconds)``."""
+    path = os.path.join(folder, "fuzz" + parser.suffix)
+    with open(path, "wb") as f:
+        f.write(raw)
+    accepted = True
+    t0 = time.perf_counter()
+    with _captured_output() as (printed, caught):
+        try:
+            parser.read(path)
+        except BrdfkitError as e:
+            accepted = False
+            msg = str(e)
+            assert msg.isprintable(), repr(msg)  # one line, no terminal escapes
+            assert path in msg, msg
+    elapsed = time.perf_counter() - t0
+    assert not printed, f"{parser.name} printed {printed[:3]}"
+    assert not caught, f"{parser.name} warned {[str(x.message) for x in caught[:3]]}"
+    assert elapsed < slow_s, f"{parser.name} took {elapsed:.1f} s on a {len(raw)}-byte input"
+    return accepted, elapsed
