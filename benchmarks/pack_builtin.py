@@ -6,8 +6,10 @@ hypernetworks in float16 with one shared reference file (they were all trained a
 the reference of ``merl80-l40``, ``-O reference=``), learnt priors each with the basis
 file it was trained on (``merl80-basis`` fitted on the 80 training materials of
 ``merl80-l40``, ``merl-rgl-basis`` on all 151). Validation figures come from
-``benchmarks/eval_sparse.py --json`` or ``brdfkit bench``'s ``bench.json`` (held-out
-materials only: the learnt prior's mean log RMSE per N, from uniform samples).
+``benchmarks/eval_sparse.py --json`` or ``brdfkit bench``'s ``bench.json``: the learnt
+prior's mean log RMSE per N from uniform samples (held-out materials only), and the
+renders' figures (``renders``: PSNR and Delta E per N, and ``encode`` from a compression
+run of the model), as ``brdfkit models`` shows them.
 
     python benchmarks/pack_builtin.py --src /work/models --dst brdfkit/models \
         --validation merl80-l40=bench-sparse/bench.json
@@ -67,6 +69,27 @@ def _tune_record(path):
     return load_model(path, "cpu").meta.get("tune")
 
 
+def _renders(name, doc) -> dict:
+    """The renders' figures of model ``name`` in a ``bench.json``: the learnt prior's mean
+    PSNR and Delta E per N (uniform samples), and ``encode`` from the compression records
+    of the hypernetwork ``(name)``; with how they were measured."""
+    cfg = doc.get("config", {})
+    ok = [r for r in doc.get("records", []) if "error" not in r and r.get("psnr") is not None]
+    groups = {}
+    for r in ok:
+        if r["kind"] == "sparse" and r["method"] == "prior" and r.get("sampling", "uniform") == "uniform":
+            groups.setdefault(str(r["n"]), []).append(r)
+        elif r["kind"] == "compression" and r["method"].endswith(f"({name})"):
+            groups.setdefault("encode", []).append(r)
+    if not groups:
+        return {}
+    n_mats = len({r["material"] for g in groups.values() for r in g})
+    return {"psnr": {k: round(sum(r["psnr"] for r in g) / len(g), 2) for k, g in groups.items()},
+            "delta_e": {k: round(sum(r["delta_e"] for r in g) / len(g), 3) for k, g in groups.items()},
+            "scenes": list(cfg.get("scenes") or ["reference"]), "resolution": cfg.get("resolution"),
+            "materials": f"{n_mats} materials of {os.path.basename(str(cfg.get('data') or cfg.get('compression_data')))}"}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--src", help="folder of the trained model files")
@@ -83,18 +106,26 @@ def main():
     from brdfkit.models.builtin import write_manifest
     from brdfkit.hypernet.packing import manifest_entry, pack_model
 
-    validation = {}
+    validation, renders = {}, {}
     for item in args.validation:
         name, _, path = item.partition("=")
         try:
             with open(path) as f:
-                recs = [r for r in json.load(f)["records"] if r["method"] == "prior"
-                        and r.get("sampling", "uniform") == "uniform" and r.get("log_rmse") is not None]
+                doc = json.load(f)
+            recs = [r for r in doc["records"] if r["method"] == "prior"
+                    and r.get("sampling", "uniform") == "uniform" and r.get("log_rmse") is not None]
         except (OSError, ValueError, KeyError, TypeError) as e:
             ap.error(f"--validation {item}: not a readable bench.json or eval_sparse.py --json record ({e})")
-        validation[name] = {str(n): round(sum(r["log_rmse"] for r in recs if r["n"] == n)
-                                          / sum(1 for r in recs if r["n"] == n), 4)
-                            for n in sorted({r["n"] for r in recs})}
+        if recs:
+            validation[name] = {str(n): round(sum(r["log_rmse"] for r in recs if r["n"] == n)
+                                              / sum(1 for r in recs if r["n"] == n), 4)
+                                for n in sorted({r["n"] for r in recs})}
+        found = _renders(name, doc)
+        if found:
+            renders.setdefault(name, {"psnr": {}, "delta_e": {}}).update(
+                {k: v for k, v in found.items() if k not in ("psnr", "delta_e")})
+            for key in ("psnr", "delta_e"):
+                renders[name][key].update(found[key])
     if args.validation_only:
         try:
             with open(os.path.join(args.dst, "manifest.json")) as f:
@@ -104,6 +135,8 @@ def main():
         for entry in doc["models"]:
             if entry["name"] in validation:
                 entry["validation"] = validation[entry["name"]]
+            if entry["name"] in renders:
+                entry["renders"] = renders[entry["name"]]
         write_manifest(args.dst, doc["models"], default=doc["default"])
         print(f"set the validation of {', '.join(sorted(validation)) or 'no model'} in {args.dst}/manifest.json")
         return
@@ -120,6 +153,8 @@ def main():
         pack_model(os.path.join(args.src, hyper), dst, half=True, reference_file=REFERENCE)
         entry = manifest_entry(dst, name, command=command, validation=validation.get(name, {}),
                                materials_list=mats)
+        if name in renders:
+            entry["renders"] = renders[name]
         tuned = _tune_record(dst)
         if tuned:  # the manifest counts the paper's steps and the screen tuning's together
             entry["steps"] += int(tuned["steps"])

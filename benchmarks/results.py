@@ -15,9 +15,17 @@ Unless ``--skip-run``, it runs, printing each command first:
    at the ``render`` design's directions (``brdfkit plan``) at N = 10, 20, 40 into
    ``RUNS/bench-planned``, and the two merged into ``RUNS/bench-sparse``;
 3. ``RUNS/all151``, a folder of links to every MERL and RGL proxy (refused when a name
-   is in both), and ``RUNS/ipca151.safetensors`` (when missing) fitted on it;
-4. the compression benchmark of ``merl-rgl-l40``, ``merl-rgl-l7`` and that basis on all
-   151 tables into ``RUNS/bench-compression``.
+   is in both), and ``RUNS/ipca151-13.safetensors`` (when missing), a 13-component basis
+   fitted on it;
+4. the compression benchmark of ``merl-rgl-l40``, ``merl-rgl-l7`` and that basis's
+   leading 13, 8 and 2 components (PCA-13 beside 40-D, IPCA-8, PCA-2 beside 7-D: the
+   same count of numbers) on all 151 tables into ``RUNS/bench-compression``;
+5. ``RUNS/ipca80-13.safetensors`` (when missing) on the 80 training materials, and the
+   compression of the 20 test materials, which no model here was trained on, by
+   ``merl80-l40`` against its PCA-13 and IPCA-8 into ``RUNS/bench-unseen``.
+
+Every bench renders in the scene suite (``--scenes all``, ``docs/render.md``): the
+figures are means over its six scenes, with each scene's in a table beside them.
 
 Then (or straight away with ``--skip-run``) it reads the two ``bench.json``, writes the
 page (atomically) and copies the bench figures beside it (``images/bench-*.png``), and
@@ -54,10 +62,11 @@ def plan(proxies: str, runs: str, test_list: str, jobs: int) -> dict:
     sparse = ["brdfkit", "bench", "--data", j(proxies, "merl"), "--test-list", test_list, "-m", "merl80-l40",
               "--ipca", j(runs, "ipca80.safetensors"), "--model-file", "prior=merl80-l40",
               "--methods", "prior,ipca,nbrdf,hypernet", "--seeds", "3"]
-    common = ["--resolution", "128", "--jobs", str(jobs), "--threads", "1", "--device", "cpu",
+    common = ["--scenes", "all", "--resolution", "128", "--jobs", str(jobs), "--threads", "1", "--device", "cpu",
               "--cache", j(runs, "bench-cache")]
     return {
-        "ipca80": j(runs, "ipca80.safetensors"), "ipca151": j(runs, "ipca151.safetensors"),
+        "ipca80": j(runs, "ipca80.safetensors"), "ipca151": j(runs, "ipca151-13.safetensors"),
+        "ipca80k": j(runs, "ipca80-13.safetensors"),
         "all151": j(runs, "all151"),
         "fit80": ["brdfkit", "fit", "--method", "ipca", j(proxies, "merl"), "--exclude-list", test_list,
                   "-o", j(runs, "ipca80.safetensors")],
@@ -66,10 +75,16 @@ def plan(proxies: str, runs: str, test_list: str, jobs: int) -> dict:
         "uniform": [*sparse, "--n", "10,20,40,160,400,2000,4000", *common, "-o", j(runs, "bench-uniform")],
         "sparse": ["brdfkit", "bench", "--merge", j(runs, "bench-uniform"), "--merge", j(runs, "bench-planned"),
                    "-o", j(runs, "bench-sparse")],
-        "fit151": ["brdfkit", "fit", "--method", "ipca", j(runs, "all151"), "-o", j(runs, "ipca151.safetensors")],
-        "compression": ["brdfkit", "bench", "--compression-models", "merl-rgl-l40,merl-rgl-l7",
-                        "--compression-data", j(runs, "all151"), "--ipca", j(runs, "ipca151.safetensors"),
+        "fit151": ["brdfkit", "fit", "--method", "ipca", j(runs, "all151"), "--components", "13",
+                   "-o", j(runs, "ipca151-13.safetensors")],
+        "compression": ["brdfkit", "bench", "--compression-models", "merl-rgl-l40,merl-rgl-l7,pca-8,pca-2",
+                        "--compression-data", j(runs, "all151"), "--ipca", j(runs, "ipca151-13.safetensors"),
                         *common, "-o", j(runs, "bench-compression")],
+        "fit80k": ["brdfkit", "fit", "--method", "ipca", j(proxies, "merl"), "--exclude-list", test_list,
+                   "--components", "13", "-o", j(runs, "ipca80-13.safetensors")],
+        "unseen": ["brdfkit", "bench", "--compression-models", "merl80-l40,pca-8",
+                   "--compression-data", j(runs, "test20"), "--ipca", j(runs, "ipca80-13.safetensors"),
+                   *common, "-o", j(runs, "bench-unseen")],
     }
 
 
@@ -115,6 +130,25 @@ def link_all(proxies: str, folder: str) -> int:
         if not os.path.lexists(os.path.join(folder, f)):
             os.symlink(src, os.path.join(folder, f))
     return len(sources)
+
+
+def link_test(proxies: str, test_list: str, folder: str) -> int:
+    """Make ``folder`` a folder of links to the test materials' ``PROXIES/merl`` tables
+    (the compression of materials no model here was trained on; a test material without a
+    table is left out, as the sparse bench leaves it out); returns their count."""
+    from brdfkit.io.folders import read_exclude_list
+
+    os.makedirs(folder, exist_ok=True)
+    names = read_exclude_list(test_list)
+    names = [n for n in names if os.path.isfile(os.path.join(proxies, "merl", n + ".binary"))]
+    for name in names:
+        src = os.path.abspath(os.path.join(proxies, "merl", name + ".binary"))
+        link = os.path.join(folder, name + ".binary")
+        if os.path.lexists(link) and os.readlink(link) != src:
+            os.unlink(link)
+        if not os.path.lexists(link):
+            os.symlink(src, link)
+    return len(names)
 
 
 def read_bench(folder: str) -> dict:
@@ -232,8 +266,10 @@ def differs_table(sparse: dict, comp: dict) -> list[str]:
         ("IPCA in compression", "protocol not stated",
          (ipca[0] if ipca else "none") + ", fitted on all the compressed tables"),
         ("scene for PSNR / Delta E / SSIM", "the paper's renders",
-         f"our reference scene ([render.md](render.md)): a sphere under a procedural HDR environment, "
-         f"deterministic quadrature renderer, **{cfg['resolution']} x {cfg['resolution']} pixels**, whole image"),
+         f"our scene suite ([render.md](render.md)): a sphere under {len(cfg.get('scenes') or ['reference'])} "
+         f"procedural HDR environment(s) ({', '.join(cfg.get('scenes') or ['reference'])}), the figures their "
+         f"mean, deterministic quadrature renderer, **{cfg['resolution']} x {cfg['resolution']} pixels**, whole "
+         f"image"),
         ("draws", "not stated", f"{page.plural(len(seeds), 'draw')} of N samples per material (seeds "
          f"{', '.join(map(str, seeds))}), uniform over the Rusinkiewicz angles (at N = 10, 20, 40 also at "
          f"planned directions, `(planned)`), the same samples for every method"),
@@ -246,7 +282,7 @@ def differs_table(sparse: dict, comp: dict) -> list[str]:
     return ["| | paper | here |", "| --- | --- | --- |"] + [f"| {a} | {b} | {c} |" for a, b, c in rows]
 
 
-def compose(sparse: dict, comp: dict, proxies: str, cmds: dict, one: str, figures: set) -> str:
+def compose(sparse: dict, comp: dict, proxies: str, cmds: dict, one: str, figures: set, unseen=None) -> str:
     dates = sorted({s[:10] for d in (sparse, comp) for s in [d["started"], *d.get("merged_from", [])]})
     check = page.done_when(sparse)
     sparse = page.with_sampling_labels(sparse)
@@ -280,6 +316,10 @@ def compose(sparse: dict, comp: dict, proxies: str, cmds: dict, one: str, figure
     lines += [*page.sparse_findings(sparse),
               *page.paper_section(sparse, hyp.name if hyp else os.path.basename(sparse["config"].get("model") or "?")),
               *page.compression_section(comp, proxies, figure="bench-compression.png" in figures),
+              *(page.compression_section(unseen, proxies, figure=False, title="Compression of unseen materials",
+                                         intro="The test materials, which `merl80-l40` and the PCA bases were "
+                                               "fitted without (all on the other 80 MERL materials).")
+                if unseen else ["## Compression of unseen materials", "", "Not run (no `bench-unseen`).", ""]),
               *regenerate(sparse, comp, cmds, one, proxies)]
     return "\n".join(lines).rstrip() + "\n"
 
@@ -295,7 +335,9 @@ def regenerate(sparse, comp, cmds, one, proxies) -> list[str]:
              shlex.join(cmds["fit80"]), shlex.join(cmds["planned"]), shlex.join(cmds["uniform"]),
              shlex.join(cmds["sparse"]),
              f"# {cmds['all151']}: links to every {proxies}/merl and {proxies}/rgl table (no name in both)",
-             shlex.join(cmds["fit151"]), shlex.join(cmds["compression"]), "```", ""]
+             shlex.join(cmds["fit151"]), shlex.join(cmds["compression"]),
+             f"# {os.path.dirname(cmds['all151'])}/test20: links to the test materials of {proxies}/merl",
+             shlex.join(cmds["fit80k"]), shlex.join(cmds["unseen"]), "```", ""]
     for key, doc in (("sparse", sparse), ("compression", comp)):
         recorded = doc["config"].get("command") or ""
         if recorded and recorded != shlex.join(cmds[key]):
@@ -337,7 +379,8 @@ def main(argv=None) -> int:
     one = shlex.join(["python", "benchmarks/results.py", "--proxies", args.proxies, "--runs", args.runs,
                       "--jobs", str(args.jobs)])
     dirs = {"sparse": os.path.join(args.runs, "bench-sparse"),
-            "compression": os.path.join(args.runs, "bench-compression")}
+            "compression": os.path.join(args.runs, "bench-compression"),
+            "unseen": os.path.join(args.runs, "bench-unseen")}
     try:
         if args.jobs < 1:
             raise InputError(f"--jobs must be at least 1, got {args.jobs}")
@@ -356,12 +399,18 @@ def main(argv=None) -> int:
             if not os.path.exists(cmds["ipca151"]):
                 run(cmds["fit151"])
             run(cmds["compression"])
+            print(f"# {os.path.join(args.runs, 'test20')}: "
+                  f"{link_test(args.proxies, args.test_list, os.path.join(args.runs, 'test20'))} links", flush=True)
+            if not os.path.exists(cmds["ipca80k"]):
+                run(cmds["fit80k"])
+            run(cmds["unseen"])
         sparse, comp = read_bench(dirs["sparse"]), read_bench(dirs["compression"])
+        unseen = read_bench(dirs["unseen"]) if os.path.isdir(dirs["unseen"]) else None
         out_dir = os.path.dirname(os.path.abspath(args.out))
         if not os.path.isdir(out_dir):
             raise InputError(f"{args.out}: folder {out_dir} does not exist")
         figures = copy_figures(dirs, os.path.join(out_dir, "images"))
-        text = compose(sparse, comp, args.proxies, cmds, one, figures)
+        text = compose(sparse, comp, args.proxies, cmds, one, figures, unseen)
         with atomic_open(args.out, "w", encoding="utf-8") as f:
             f.write(text)
     except InputError as e:

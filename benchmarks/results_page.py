@@ -50,6 +50,30 @@ PLANNED_TEXT = ("**M (planned)**: method M from samples measured at the directio
 _HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
 
 
+def scene_text(cfg) -> str:
+    """Where the image metrics were taken: the suite's mean or one scene."""
+    scenes = cfg.get("scenes") or ["reference"]
+    res = cfg["resolution"]
+    if len(scenes) == 1:
+        return f"{scenes[0]} scene {res} x {res}"
+    return f"mean of {len(scenes)} scenes, {res} x {res}"
+
+
+def scene_section(rows, key_cols, cfg, what: str) -> list[str]:
+    """Each scene's mean PSNR / Delta E per summary row, and the worst scene: the per-scene
+    view of a run in the scene suite (empty for a one-scene run)."""
+    from brdfkit.bench.report import scene_table
+
+    scenes = cfg.get("scenes") or ["reference"]
+    if len(scenes) < 2:
+        return []
+    return [f"#### {what}, per scene: PSNR (dB) / Delta E 2000", "",
+            "Each scene of the suite ([render.md](render.md#the-scene-suite)). Today's built-in models were "
+            "tuned, and `brdfkit encode` refined, on renders of the **reference** scene: its column is "
+            "in-sample for them and given for continuity; the others were fitted by no one.", "",
+            *scene_table(rows, key_cols, scenes), ""]
+
+
 def plural(k: int, word: str) -> str:
     return f"{k} {word}" + ("" if k == 1 else "s")
 
@@ -195,7 +219,6 @@ def sparse_section(sparse) -> list[str]:
     methods, ns = methods_of(sparse), _ns(recs)
     rows = {(r["method"], r["n"]): r for r in summarise(recs)["sparse"]}
     cfg = sparse["config"]
-    res = cfg["resolution"]
     seeds = sorted({r.get("seed") for r in recs})
     failed = [r for r in sparse["records"] if r["kind"] == "sparse" and "error" in r]
     mats = sparse["materials"]["sparse"]
@@ -215,9 +238,10 @@ def sparse_section(sparse) -> list[str]:
              ""]
     if not recs:
         return lines + ["No sparse record.", ""]
-    for metric, digits, title in (("psnr", 2, f"PSNR (dB), reference scene {res} x {res}"),
-                                  ("delta_e", 2, f"Delta E 2000, reference scene {res} x {res}"),
-                                  ("ssim", 3, f"SSIM, reference scene {res} x {res}"),
+    where = scene_text(cfg)
+    for metric, digits, title in (("psnr", 2, f"PSNR (dB), {where}"),
+                                  ("delta_e", 2, f"Delta E 2000, {where}"),
+                                  ("ssim", 3, f"SSIM, {where}"),
                                   ("log_rmse", 4, "BRDF log RMSE (cosine-weighted, lower is better)")):
         paper = metric in ("psnr", "delta_e", "ssim")
         lines += [f"#### {title}", "",
@@ -233,6 +257,9 @@ def sparse_section(sparse) -> list[str]:
                 ref = ""
             lines.append(f"| {n} |{ref}" + "".join(f" {cell(rows.get((m, n)), metric, digits)} |" for m in methods))
         lines.append("")
+    lines += scene_section([rows[(m, n)] for m in methods for n in ns if (m, n) in rows],
+                           [("method", lambda r: r["method"]), ("N", lambda r: str(r["n"]))], cfg,
+                           "Sparse reconstruction")
     lines += ["#### Run time per reconstruction (samples in, dense table out; one torch thread)", "",
               "| N |" + "".join(f" {m} CPU s |" for m in methods) + "".join(f" {m} wall s |" for m in methods),
               "| ---: |" + " ---: |" * (2 * len(methods))]
@@ -348,16 +375,19 @@ def _paper_comp(label: str, latent) -> str:
     return "-" if got is None else f"{got:.2f}"
 
 
-def compression_section(comp, proxies, figure=True) -> list[str]:
+def compression_section(comp, proxies, figure=True, title="Compression (the paper's compression table)",
+                        intro="") -> list[str]:
     recs = ok_records(comp, "compression")
     failed = [r for r in comp["records"] if r["kind"] == "compression" and "error" in r]
     mats = comp["materials"]["compression"]
     fam = {m: family_of(m, proxies) for m in mats}
     counts = {f: sum(1 for v in fam.values() if v == f) for f in ("MERL", "RGL", "other")}
-    lines = ["## Compression (the paper's compression table)", "",
-             f"{len(mats)} materials ({counts['MERL']} MERL, {counts['RGL']} RGL"
+    lines = [f"## {title}", "",
+             (intro + " " if intro else "") + f"{len(mats)} materials ({counts['MERL']} MERL, {counts['RGL']} RGL"
              + (f", {counts['other']} neither" if counts["other"] else "") + "), each table encoded whole and "
-             "decoded (IPCA: least-squares projection onto its components, then decode). `±` is the standard "
+             f"decoded (IPCA and PCA-K: least-squares projection onto its components, then decode; PCA-K stores 3 K "
+             f"numbers, so PCA-13 sits beside a 40-D latent and PCA-2 beside 7-D). Renders: "
+             f"{scene_text(comp['config'])}. `±` is the standard "
              "deviation over materials; time = encode + decode. "
              + (f"**{len(failed)} failed** (left out)." if failed else "No reconstruction failed.")
              + ("" if comp.get("complete") else " **The run did not finish.**"),
@@ -388,6 +418,8 @@ def compression_section(comp, proxies, figure=True) -> list[str]:
                          f"{cell(row, 'log_rmse', 4, '_sd_materials')} | {fmt(row['cpu_s'], 2)} | "
                          f"{fmt(row['time_s'], 2)} |")
     lines.append("")
+    lines += scene_section([table[(label, "all")] for label in labels], [("model", lambda r: r["method"])],
+                           comp["config"], "Compression")
     if figure:
         lines += ["![compression per material](images/bench-compression.png)", ""]
     for label in labels:

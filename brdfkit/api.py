@@ -45,6 +45,13 @@ def load_model(path: str | os.PathLike, device=None):
     Returns
     -------
     brdfkit.hypernet.loaded.NeuralModel
+
+    Examples
+    --------
+    >>> from brdfkit.testing.examples import tiny_model
+    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")  # an untrained model
+    >>> model.cfg.latent_dim, len(model.fingerprint)
+    (7, 64)
     """
     from brdfkit.models.builtin import resolve_model
     from brdfkit.hypernet.model_file import load_model as _load
@@ -65,6 +72,9 @@ def _load_input(obj, source: str):
         if path.lower().endswith(".csv"):
             from brdfkit.io.samples import read_samples
             return read_samples(path), name
+        if path.lower().endswith(".bsdf"):  # an RGL file, at the MERL grid (brdf_file)
+            from brdfkit.brdf_file import read_table
+            return read_table(path), name
         from brdfkit.io.merl import read_merl
         return read_merl(path), name
     if isinstance(obj, np.ndarray) or hasattr(obj, "__array__"):
@@ -78,14 +88,15 @@ def _load_input(obj, source: str):
 
 
 def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
-           budget: float | None = None) -> Embedding:
+           steps: int | None = None, max_seconds: float | None = None) -> Embedding:
     """Encode a material into an embedding.
 
     A dense table is compressed by the set encoder's pass over all its measured cells
-    (Gokbudak et al. 2024), then, by default, that latent is refined on screen for
-    ``budget`` seconds: descended on the render-aligned error and kept only where
-    held-out pixels agree (:func:`brdfkit.hypernet.refine_on_screen.compress_table`; never worse there
-    than the encoder's pass). A sample set is encoded by the encoder's pass alone
+    (Gokbudak et al. 2024), then, by default, that latent is refined on screen for at
+    most ``steps`` steps: descended on the render-aligned error and kept only where
+    held-out pixels agree (:func:`brdfkit.hypernet.refine_on_screen.compress_table`; never
+    worse there than the encoder's pass). The same table gives the same latent to the
+    bit, whatever the machine's load. A sample set is encoded by the encoder's pass alone
     (``brdfkit sparse --method hypernet`` refines on samples).
 
     Parameters
@@ -95,20 +106,35 @@ def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
     samples_or_table
         A :class:`~brdfkit.io.samples.SampleSet` (any ``N >= 1``), a dense table
         ``(90, 90, 180, 3)`` in 1/sr with NaN where unmeasured (all measured cells are
-        used), or the path of a MERL ``.binary`` or a ``.csv`` sample set.
+        used), or the path of a MERL ``.binary``, an RGL ``.bsdf`` or a ``.csv`` sample set.
     source
         Provenance recorded in the embedding; defaults to the file name or the sample
         set's source.
     refine
         Refine a table's latent on screen (``False``: the paper's single pass).
-    budget
-        Seconds of that refinement (default :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_BUDGET`).
+    steps
+        Most steps of that refinement (default
+        :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_STEPS`; 0: none).
+    max_seconds
+        A wall-clock cap on the refinement (default none; a capped result depends on
+        the machine's speed: its ``refinement`` record says ``"max_seconds"``).
 
     Returns
     -------
     Embedding
         float32 latent of the model's size, with the model's fingerprint and the number
         of samples averaged.
+
+    Examples
+    --------
+    >>> from brdfkit.testing.examples import lambertian_table, tiny_model
+    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")
+    >>> emb = encode(model, lambertian_table(), refine=False)  # the encoder's one pass
+    >>> emb.latent.shape, emb.sample_count
+    ((7,), 1111432)
+    >>> from brdfkit.acquisition.sampling import draw_samples
+    >>> encode(model, draw_samples(lambertian_table(), 40, seed=0)).sample_count
+    40
     """
     from brdfkit.hypernet.encoding import encode_samples, encode_table
 
@@ -117,9 +143,9 @@ def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
         return encode_samples(model, data, name)
     if not refine:
         return encode_table(model, data, name)
-    from brdfkit.hypernet.refine_on_screen import DEFAULT_BUDGET, CompressConfig, compress_table
+    from brdfkit.hypernet.refine_on_screen import DEFAULT_STEPS, CompressConfig, compress_table
 
-    cfg = CompressConfig(budget=DEFAULT_BUDGET if budget is None else budget)
+    cfg = CompressConfig(steps=DEFAULT_STEPS if steps is None else steps, max_seconds=max_seconds)
     return compress_table(model, data, cfg, name).embedding
 
 
@@ -141,6 +167,15 @@ def decode(model, embedding, *, source: str = "") -> np.ndarray:
     numpy.ndarray
         float64 ``(90, 90, 180, 3)``, 1/sr, NaN where the model's reference table is
         unmeasured (below the horizon).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from brdfkit.testing.examples import lambertian_table, tiny_model
+    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")
+    >>> table = decode(model, encode(model, lambertian_table(), refine=False))
+    >>> table.shape, bool(np.nanmin(table) >= 0)
+    ((90, 90, 180, 3), True)
     """
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
@@ -165,6 +200,15 @@ def sparse(model, samples, *, source: str = ""):
     tuple
         ``(table, embedding)``: float64 ``(90, 90, 180, 3)`` in 1/sr (NaN below the
         horizon) and the :class:`Embedding` it was decoded from.
+
+    Examples
+    --------
+    >>> from brdfkit.acquisition.sampling import draw_samples
+    >>> from brdfkit.testing.examples import lambertian_table, tiny_model
+    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")
+    >>> table, emb = sparse(model, draw_samples(lambertian_table(), 40, seed=0))
+    >>> table.shape, emb.sample_count
+    ((90, 90, 180, 3), 40)
     """
     if isinstance(samples, (str, os.PathLike)) and not os.fspath(samples).lower().endswith(".csv"):
         raise InputError(f"{os.fspath(samples)}: sparse reconstruction takes a .csv sample set "
@@ -185,6 +229,16 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
         The embeddings come from different models (fingerprints or latent sizes differ).
     InputError
         ``t`` not a finite number, or outside ``[0, 1]`` without ``allow_extrapolation``.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> a = Embedding(np.zeros(7, np.float32), "f" * 64, "a", 0)
+    >>> b = Embedding(np.ones(7, np.float32), "f" * 64, "b", 0)
+    >>> interpolate(a, b, 0.25).latent.tolist()
+    [0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25]
+    >>> interpolate(a, b, 0.0).latent is not a.latent, bool((interpolate(a, b, 1.0).latent == b.latent).all())
+    (True, True)
     """
     try:
         t = float(t)

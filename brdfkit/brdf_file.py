@@ -6,6 +6,8 @@ brdfkit's commands take BRDFs as files of these kinds (:data:`KINDS`):
 suffix      kind          opened as
 =========== ============= ================================================================
 ``.binary`` ``merl``      the dense table it holds (:func:`brdfkit.io.merl.read_merl`)
+``.bsdf``   ``rgl``       an RGL file (Dupuy and Jakob 2018) evaluated at the MERL grid's
+                          directions (:func:`brdfkit.io.rgl_bsdf.read_bsdf_table`)
 ``.emb``    ``embedding`` the hyponet its latent decodes to, with the model that made it
                           (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`)
 =========== ============= ================================================================
@@ -30,24 +32,38 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["KINDS", "brdf_kind", "EmbeddingModel", "read_table", "load_brdf"]
+__all__ = ["KINDS", "TABLE_KINDS", "OUTPUT_KINDS", "brdf_kind", "EmbeddingModel", "read_table", "load_brdf", "convert"]
 
-KINDS = {".binary": "merl", ".emb": "embedding"}
+KINDS = {".binary": "merl", ".bsdf": "rgl", ".emb": "embedding"}
 """BRDF file suffixes and their kinds."""
+TABLE_KINDS = ("merl", "rgl")
+"""The kinds that hold a table (read without a model)."""
 
 
 def brdf_kind(path) -> str:
-    """``"merl"`` or ``"embedding"`` from a file's suffix; InputError otherwise.
+    """``"merl"``, ``"rgl"`` or ``"embedding"`` from a file's suffix; InputError otherwise.
 
     Examples
     --------
-    >>> brdf_kind("teflon.binary"), brdf_kind("mix.EMB")
-    ('merl', 'embedding')
+    >>> brdf_kind("teflon.binary"), brdf_kind("mix.EMB"), brdf_kind("satin_gold_rgb.bsdf")
+    ('merl', 'embedding', 'rgl')
     """
     kind = KINDS.get(os.path.splitext(os.fspath(path))[1].lower())
     if kind is None:
-        raise InputError(f"{os.fspath(path)}: not a BRDF file: not a MERL table (.binary) or an embedding (.emb)")
+        raise InputError(f"{os.fspath(path)}: not a BRDF file: not a MERL table (.binary), an RGL file "
+                         f"(.bsdf) or an embedding (.emb)")
     return kind
+
+
+def _read_table_file(path, kind: str) -> np.ndarray:
+    """The table of a ``merl`` or ``rgl`` file."""
+    if kind == "merl":
+        from brdfkit.io.merl import read_merl
+
+        return read_merl(path)
+    from brdfkit.io.rgl_bsdf import read_bsdf_table
+
+    return read_bsdf_table(path)
 
 
 class EmbeddingModel:
@@ -91,13 +107,12 @@ class EmbeddingModel:
 
 def read_table(path, models: EmbeddingModel | None = None) -> np.ndarray:
     """A BRDF file as a dense table: float64 ``(90, 90, 180, 3)``, 1/sr, NaN where
-    unmeasured; an embedding decoded by its model (``models``: default, the built-in it
-    names)."""
+    unmeasured; an RGL ``.bsdf`` evaluated at the grid's directions; an embedding decoded
+    by its model (``models``: default, the built-in it names)."""
     path = os.fspath(path)
-    if brdf_kind(path) == "merl":
-        from brdfkit.io.merl import read_merl
-
-        return read_merl(path)
+    kind = brdf_kind(path)
+    if kind in TABLE_KINDS:
+        return _read_table_file(path, kind)
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.io.embedding import read_embedding
 
@@ -111,7 +126,8 @@ def load_brdf(path, model_path=None, device=None, model=None):
     Parameters
     ----------
     path
-        A MERL ``.binary`` table or an embedding ``.emb``.
+        A MERL ``.binary`` table, an RGL ``.bsdf`` file (rendered as its table at the
+        MERL grid) or an embedding ``.emb``.
     model_path
         The model (``.safetensors``, or a built-in name) an ``.emb`` was made with;
         ``None``: the installed built-in whose fingerprint the embedding records, else
@@ -131,11 +147,11 @@ def load_brdf(path, model_path=None, device=None, model=None):
 
     path = check_input_file(path)
     name = os.path.splitext(os.path.basename(path))[0]
-    if brdf_kind(path) == "merl":
-        from brdfkit.io.merl import read_merl
+    kind = brdf_kind(path)
+    if kind in TABLE_KINDS:
         from brdfkit.render.renderable import TableBRDF
 
-        return TableBRDF(read_merl(path), name=name, device=device)
+        return TableBRDF(_read_table_file(path, kind), name=name, device=device)
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.io.embedding import read_embedding
 
@@ -143,3 +159,74 @@ def load_brdf(path, model_path=None, device=None, model=None):
     brdf = NeuralBRDF.from_embedding(models.for_file(path), read_embedding(path), name=path)
     brdf.name = name
     return brdf
+
+
+OUTPUT_KINDS = {".binary": "merl", ".bsdf": "rgl"}
+"""What :func:`convert` writes (an ``.emb`` is made by ``brdfkit encode``)."""
+
+
+def convert(src, dst, *, models: EmbeddingModel | None = None, settings=None, spectral: bool = False,
+            description: str | None = None) -> dict:
+    """Convert a BRDF file into a MERL ``.binary`` table or an RGL ``.bsdf`` file.
+
+    Parameters
+    ----------
+    src
+        Any BRDF file (:data:`KINDS`): read as its dense table (:func:`read_table`).
+    dst
+        The output, ``.binary`` or ``.bsdf`` (:data:`OUTPUT_KINDS`), written atomically;
+        never one of the inputs.
+    models
+        The model ``.emb`` inputs decode with (default: the built-in the embedding names).
+    settings
+        :class:`brdfkit.io.rgl.fit.FitSettings` of a ``.bsdf`` output (default: its
+        defaults).
+    spectral
+        Write a spectral ``.bsdf`` (pbrt-v4, Mitsuba's spectral variants) instead of RGB
+        (Mitsuba's RGB variants); :func:`brdfkit.io.rgl_bsdf.rgb_to_spectra`.
+    description
+        The ``.bsdf`` file's description (default: brdfkit and the input's name).
+
+    Returns
+    -------
+    dict
+        ``{"input_kind", "output_kind", "bytes", "read_s", "write_s"}``.
+
+    Raises
+    ------
+    InputError
+        An output of another suffix, one equal to an input, options of a ``.bsdf``
+        output for a ``.binary`` one, or a bad input (its reader's one-line error).
+    """
+    import time
+
+    from brdfkit.atomic import check_input_file, refuse_overwrite_of_inputs
+
+    src, dst = os.fspath(src), os.fspath(dst)
+    out_kind = OUTPUT_KINDS.get(os.path.splitext(dst)[1].lower())
+    if out_kind is None:
+        raise InputError(f"{dst}: convert writes a MERL table (.binary) or an RGL file (.bsdf); "
+                         f"an embedding (.emb) is made by `brdfkit encode`")
+    if out_kind == "merl" and (spectral or settings is not None):
+        raise InputError(f"{dst}: the resolution and colour options apply to an RGL .bsdf output, "
+                         f"not to a MERL table")
+    in_kind = brdf_kind(src)
+    refuse_overwrite_of_inputs(dst, [src, getattr(models, "model_path", None)])
+    if settings is not None:
+        settings.check()
+    check_input_file(src)
+    t0 = time.perf_counter()
+    table = read_table(src, models)
+    t1 = time.perf_counter()
+    if out_kind == "merl":
+        from brdfkit.io.merl import write_merl
+
+        write_merl(dst, table)
+    else:
+        from brdfkit.io.rgl_bsdf import FitSettings, write_bsdf
+
+        if description is None:
+            description = f"brdfkit: {os.path.basename(src)}"
+        write_bsdf(dst, table, settings or FitSettings(), spectral=spectral, description=description)
+    return {"input_kind": in_kind, "output_kind": out_kind, "bytes": os.path.getsize(dst),
+            "read_s": t1 - t0, "write_s": time.perf_counter() - t1}

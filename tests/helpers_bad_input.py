@@ -186,3 +186,93 @@ def bad_embedding_files(folder, good_doc: dict, other_doc: dict) -> dict:
                         f"not by the given model {fp[:12]} (model.safetensors, latent 7); encode the material "
                         f"again with this model"),
     }
+
+
+# --- RGL .bsdf files (issue 30) ---------------------------------------------------------------
+
+RGL_SMALL = dict(resolution=8, theta_i=3, ndf=16, vndf=(4, 8))
+"""Settings of the small good .bsdf the bad ones are made from (brdfkit.io.rgl.fit.FitSettings)."""
+
+
+def good_bsdf(path):
+    """Write the small good ``.bsdf`` (a Lambertian table) to ``path``; returns ``path``."""
+    from brdfkit.io.rgl_bsdf import FitSettings, write_bsdf
+    from brdfkit.testing.examples import lambertian_table
+
+    write_bsdf(path, lambertian_table((0.6, 0.5, 0.4)), FitSettings(**RGL_SMALL), description="good")
+    return path
+
+
+def rgl_variants(folder, good_path) -> dict:
+    """name -> (path of a malformed ``.bsdf``, the message after "PATH: ")."""
+    import numpy as np
+
+    from brdfkit.io.rgl.container import read_tensor_file, write_tensor_file
+
+    raw = good_path.read_bytes()
+    fields = read_tensor_file(good_path)
+    out = {}
+
+    def put(name, data, message):
+        p = folder / f"{name}.bsdf"
+        p.write_bytes(data)
+        out[name] = (p, message)
+
+    def edited(name, message, **changes):
+        p = folder / f"{name}.bsdf"
+        new = {k: v for k, v in fields.items() if changes.get(k, 0) is not None}
+        new.update({k: v for k, v in changes.items() if v is not None})
+        write_tensor_file(p, new)
+        out[name] = (p, message)
+
+    size = len(raw)
+    put("empty", b"", "not an RGL .bsdf file: 0 bytes, too short for the 18-byte header")
+    put("header_10", raw[:10], "not an RGL .bsdf file: 10 bytes, too short for the 18-byte header")
+    put("table_cut", raw[:40], "truncated: 40 bytes, the field table ends inside field 'description'")
+    put("data_cut", raw[:size // 2], f"truncated: {size // 2} bytes, field 'rgb' (1, 3, 3, 8, 8) needs {size}")
+    put("one_short", raw[:-1], f"truncated: {size - 1} bytes, field 'rgb' (1, 3, 3, 8, 8) needs {size}")
+    put("magic", b"tensor_fiel\0" + raw[12:], "not an RGL .bsdf file: no 'tensor_file' magic at the start")
+    put("version", raw[:12] + bytes([2, 0]) + raw[14:],
+        "tensor file version 2.0 is not supported (this brdfkit reads version 1.0)")
+    put("merl", np.array([90, 90, 180], "<i4").tobytes() + b"\0" * 64,
+        "not an RGL .bsdf file: no 'tensor_file' magic at the start")
+    edited("no_vndf", "not an RGL .bsdf file: missing field 'vndf'", vndf=None)
+    edited("no_fields", "not an RGL .bsdf file: missing fields 'theta_i', 'phi_i', 'ndf', 'sigma', 'vndf', "
+                        "'luminance', 'rgb', 'description', 'jacobian'",
+           **{k: None for k in fields})
+    edited("rank", "field 'ndf': float32 of shape (32,), expected float32 of rank 2",
+           ndf=fields["ndf"].reshape(-1))
+    edited("dtype", "field 'sigma': float64 of shape (2, 16), expected float32 of rank 2",
+           sigma=fields["sigma"].astype(np.float64))
+    edited("shape", "field 'luminance' has shape (1, 3, 8, 7), expected (1, 3, 8, 8)",
+           luminance=fields["luminance"][..., :7])
+    edited("theta_count", "field 'vndf' has shape (1, 3, 4, 8), expected (1, 2, 4, 8)",
+           theta_i=fields["theta_i"][:2])
+    nan = fields["rgb"].copy()
+    nan[0, 1, 2, 3, 4] = np.nan
+    edited("nan", "field 'rgb' holds NaN values", rgb=nan)
+    inf = fields["vndf"].copy()
+    inf[0, 0, 1, 1] = np.inf
+    edited("inf", "field 'vndf' holds infinite values", vndf=inf)
+    edited("negative", "field 'ndf' holds negative values (-1)", ndf=np.full_like(fields["ndf"], -1.0))
+    edited("zero_sigma", "field 'sigma' holds zeros: the projected area must be positive",
+           sigma=np.zeros_like(fields["sigma"]))
+    edited("theta_order", "field 'theta_i' is not strictly increasing", theta_i=fields["theta_i"][::-1].copy())
+    spectral = {k: v for k, v in fields.items() if k != "rgb"}
+    spectral["spectra"] = np.repeat(fields["rgb"][:, :, :1], 5, axis=2)
+    spectral["wavelengths"] = np.linspace(400, 700, 5).astype(np.float32)
+    write_tensor_file(folder / "spectral.bsdf", spectral)
+    out["spectral"] = (folder / "spectral.bsdf",
+                       "spectral .bsdf file (fields 'spectra', 'wavelengths'): brdfkit reads RGB files "
+                       "(field 'rgb'; RGL's database offers each material as RGB too)")
+    aniso = dict(fields, phi_i=np.linspace(-3.1, 3.1, 4).astype(np.float32))
+    for k in ("vndf", "luminance", "rgb"):
+        aniso[k] = np.repeat(fields[k], 4, axis=0)
+    write_tensor_file(folder / "anisotropic.bsdf", aniso)
+    out["anisotropic"] = (folder / "anisotropic.bsdf",
+                          "anisotropic material (4 incident azimuths): brdfkit's tables are isotropic; "
+                          "this file is refused rather than averaged")
+    out["missing"] = (folder / "missing.bsdf", "no such file")
+    (folder / "folder.bsdf").mkdir()
+    out["directory"] = (folder / "folder.bsdf", "is a directory, expected a file")
+    return out

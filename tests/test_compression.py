@@ -1,5 +1,5 @@
 """The render-aligned error (:mod:`brdfkit.render.screen`), compression refined on screen
-(:mod:`brdfkit.hypernet.refine_on_screen`, ``brdfkit encode --budget/--no-refine``) and screen tuning
+(:mod:`brdfkit.hypernet.refine_on_screen`, ``brdfkit encode --steps/--no-refine``) and screen tuning
 (:mod:`brdfkit.hypernet.tuning`, ``brdfkit tune``): the small render is the reference scene's,
 refinement is never worse than the encoder's pass on held-out pixels, and bad settings
 are one-line errors."""
@@ -76,7 +76,7 @@ def test_rotated_environment_turns_the_lights():
 def test_refinement_is_never_worse_than_the_encoder_pass(tiny):
     _, m = tiny
     table = material_table(1)
-    r = compress_table(m, table, CompressConfig(budget=100.0, max_steps=40, resolution=16))
+    r = compress_table(m, table, CompressConfig(steps=40, resolution=16))
     before, after = r.heldout
     assert after <= before
     assert r.best_step % 5 == 0 and r.best_step <= r.steps <= 40
@@ -84,22 +84,23 @@ def test_refinement_is_never_worse_than_the_encoder_pass(tiny):
         np.testing.assert_array_equal(r.embedding.latent, r.encoder.latent)
     else:
         assert after < before
-    # Deterministic when stopped by steps or patience rather than by time.
-    again = compress_table(m, table, CompressConfig(budget=100.0, max_steps=40, resolution=16))
+    # Deterministic: a budget of steps, a convergence stop, no clock.
+    again = compress_table(m, table, CompressConfig(steps=40, resolution=16))
     np.testing.assert_array_equal(again.embedding.latent, r.embedding.latent)
     np.testing.assert_array_equal(r.encoder.latent, api.encode(m, table, refine=False).latent)
 
 
-def test_budget_zero_is_the_encoder_pass(tiny):
+def test_zero_steps_is_the_encoder_pass(tiny):
     _, m = tiny
     table = material_table(1)
     z0 = api.encode(m, table, refine=False).latent
-    np.testing.assert_array_equal(api.encode(m, table, budget=0).latent, z0)
-    r = compress_table(m, table, CompressConfig(budget=0))
+    np.testing.assert_array_equal(api.encode(m, table, steps=0).latent, z0)
+    r = compress_table(m, table, CompressConfig(steps=0))
     assert r.steps == 0 and r.embedding is r.encoder
 
 
-@pytest.mark.parametrize("kw", [dict(budget=-1), dict(budget=float("nan")), dict(holdout=1.0),
+@pytest.mark.parametrize("kw", [dict(steps=-1), dict(steps=2.5), dict(max_seconds=0.0),
+                                dict(max_seconds=float("nan")), dict(holdout=1.0),
                                 dict(pairs_per_pixel=0), dict(uniform_share=2.0)])
 def test_bad_compress_settings_are_input_errors(kw):
     with pytest.raises(InputError):
@@ -117,13 +118,13 @@ def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tm
     assert r.returncode == 0 and "encoder pass" in r.stdout + r.stderr
     plain = read_embedding(tmp_path / "plain" / "mat.emb")
     np.testing.assert_allclose(plain.latent, api.encode(m, material_table(1), refine=False).latent, atol=1e-6)
-    r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--budget", "0.5",
+    r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--steps", "10",
                      "-o", tmp_path / "refined"])
     assert r.returncode == 0 and "refined on screen" in r.stdout + r.stderr
     assert read_embedding(tmp_path / "refined" / "mat.emb").latent.shape == plain.latent.shape
-    r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--budget", "-2",
+    r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--steps", "-2",
                      "-o", tmp_path / "bad"])
-    assert r.returncode == 2 and "Traceback" not in r.stderr and "--budget" in r.stderr
+    assert r.returncode == 2 and "Traceback" not in r.stderr and "--steps" in r.stderr
     assert not (tmp_path / "bad" / "mat.emb").exists()
 
 

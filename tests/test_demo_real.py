@@ -73,12 +73,12 @@ def shelf(tmp_path_factory):
 
 @pytest.fixture
 def quick(monkeypatch, shelf):
-    """The tiny shelf installed in this process, and a short refinement (0.1 s a table):
-    in-process runs read the demo's budget when called."""
+    """The tiny shelf installed in this process, and a short refinement (3 steps a table):
+    in-process runs read the demo's step count when called."""
     import brdfkit.demos.real_materials
 
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
-    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_BUDGET", 0.1)
+    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_STEPS", 3)
     return shelf
 
 
@@ -170,24 +170,24 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     report = proc.stdout
     flat = re.sub(r"\s+", " ", report)
     assert "Times" in report and "whole demo" in report
-    for what in ("sparse", "compressed"):
-        assert f"MERL test materials, {what}: BRDF log RMSE" in report
+    for what in ("sparse", "compressed"):  # ranked by renders (issue 28)
+        assert f"MERL test materials, {what}: PSNR dB / Delta E 2000 of 12 px reference-scene renders" in flat
     for name in ("violet-rubber", "teflon"):  # a row in each table: 4 sparse columns, 3 compressions
-        rows = re.findall(rf"{name}\s*[│|]((?:\s*[\d.]+\s*[│|]?)+)", report)
+        rows = re.findall(rf"{name}\s*[│|]((?:\s*[\d.]+ / [\d.]+\s*[│|]?)+)", report)
         values = [[float(v) for v in re.findall(r"[\d.]+", row)] for row in rows]
-        assert [len(v) for v in values] == [4, 3] and np.isfinite(sum(values, [])).all(), report
+        assert [len(v) for v in values] == [8, 6] and np.isfinite(sum(values, [])).all(), report
     assert len(re.findall(r"mean\s*[│|]", report)) == 2
     # The compressions' headers whole (wrapped at the model's name, not cut).
     assert "…" not in report and all(w in report for t in LABELS for w in t.split(" ("))
     # Each compression labelled by kind, in the explanation and the times; the budget said.
-    assert "refined on screen, 1 s" in flat and "brdfkit encode refines for 3 s by default" in flat
+    assert "refined on screen, at most 40 steps" in flat and "brdfkit encode takes at most 120 by default" in flat
     assert "in-sample (merl-rgl-l40, merl-rgl-l7): trained on all 151 MERL + RGL materials, these included" in flat
     assert "unseen (merl80-l40): trained without the 20 MERL test materials" in flat
     for label in LABELS:
-        assert re.search(rf"encode \+ refine 1 s, {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
+        assert re.search(rf"encode \+ refine \(40 steps\), {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
         assert re.search(rf"decode, {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
     assert f"writing into {out}" in proc.stderr.replace("\n", "")
-    assert "compressing (refined on screen, 1 s)" in re.sub(r"\s+", " ", proc.stderr)
+    assert "compressing (refined on screen, at most 40 steps)" in re.sub(r"\s+", " ", proc.stderr)
     assert "materials/  (2 files, 70.0 MB)" in report and "not kept" not in report
 
     # The tables: the material, the four sparse reconstructions, three compressions, a blend.
@@ -212,7 +212,8 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert doc["columns"] == SPARSE_COLUMNS + LABELS and list(doc["errors"]["teflon"]) == doc["columns"]
     assert [(c["column"], c["kind"], c["latent_dim"]) for c in doc["compressions"]] == [
         (LABELS[0], "in-sample", 40), (LABELS[1], "in-sample", 7), (LABELS[2], "unseen", 40)]
-    assert doc["compression_budget_s"] == 1.0 and doc["interpolation_model"] == "merl80-l40"
+    assert doc["compression_steps"] == 40 and doc["interpolation_model"] == "merl80-l40"
+    assert doc["psnr"]["teflon"].keys() == doc["errors"]["teflon"].keys()  # the renders the tables rank by
     # The sheet and the plot, of the first material.
     for png in ("sheet-violet-rubber.png", "plot-violet-rubber.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
@@ -227,7 +228,7 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
     encode = brdfkit.api.encode
 
     def recording_encode(model, data, **kw):
-        calls.append((model.cfg.latent_dim, kw.get("refine", True), kw.get("budget")))
+        calls.append((model.cfg.latent_dim, kw.get("refine", True), kw.get("steps")))
         return encode(model, data, **kw)
 
     monkeypatch.setattr(brdfkit.api, "encode", recording_encode)
@@ -237,10 +238,10 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
     assert [c[:3] for c in res.compressions] == [
         ("merl-rgl-l40", "in-sample", LABELS[0]), ("merl-rgl-l7", "in-sample", LABELS[1]),
         ("merl80-l40", "unseen", LABELS[2])]
-    # Every full table refined on screen for the demo's budget, read when the demo runs.
-    assert calls == [(40, True, 0.1), (7, True, 0.1), (40, True, 0.1)] and res.compression_budget == 0.1
+    # Every full table refined on screen for the demo's steps, read when the demo runs.
+    assert calls == [(40, True, 3), (7, True, 3), (40, True, 3)] and res.compression_steps == 3
     assert [t for t, _ in res.times if t.startswith("encode")] == [
-        f"encode + refine 0.1 s, {label} (mean)" for label in LABELS]
+        f"encode + refine (3 steps), {label} (mean)" for label in LABELS]
     assert len(res.errors) == 1 and len(res.errors[0][1]) == 7
     assert res.times[-1][0] == "whole demo" and all(t >= 0 for _, t in res.times)
     assert all(os.path.isfile(p) for p in res.files)
@@ -256,7 +257,7 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
     assert ("write the MERL tables the sheet renders, to a temporary folder (0)", 0.0) in res.times
 
     calls.clear()
-    res = run_real_demo(tmp_path / "e", only=["teflon"], render=False, device="cpu", budget=0)
+    res = run_real_demo(tmp_path / "e", only=["teflon"], render=False, device="cpu", steps=0)
     assert calls == [(40, False, 0), (7, False, 0), (40, False, 0)]  # the encoder's pass alone
     assert res.times[2 + 2][0] == f"encode (encoder pass only), {LABELS[0]} (mean)"
 
@@ -316,7 +317,7 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
     import brdfkit.demos.real_materials
 
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(quick))
-    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_BUDGET", 0.1)
+    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_STEPS", 3)
     out = tmp_path / "e"
     code, stdout, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "teflon", "--resolution", "8"])
     assert code == 0, stderr[-3000:]
@@ -348,6 +349,6 @@ def test_bad_options_are_one_line(shelf, monkeypatch, capsys, tmp_path):
     from brdfkit.demos.real_materials import run_real_demo
     from brdfkit.errors import InputError
 
-    with pytest.raises(InputError, match="budget must be a finite number of seconds >= 0"):
-        run_real_demo(tmp_path / "b", budget=-1.0)
+    with pytest.raises(InputError, match="refinement steps must be a whole number >= 0"):
+        run_real_demo(tmp_path / "b", steps=-1)
     assert not (tmp_path / "b").exists()

@@ -16,14 +16,17 @@ Reconstructions, per material (the 20 test materials of ``merl-test.txt`` by def
   (``refine=False``: the paper's one encoder pass);
 * compression of the full table (in-sample: ``merl-rgl-*`` were trained on these
   materials) with ``merl-rgl-l40`` and ``merl-rgl-l7``: the encoder's pass
-  (:func:`brdfkit.api.encode` / :func:`brdfkit.api.decode`), or with ``--compress-budget
-  S > 0`` :func:`brdfkit.hypernet.refine_on_screen.compress_table` refined on screen for ``S`` seconds
+  (:func:`brdfkit.api.encode` / :func:`brdfkit.api.decode`), or with ``--compress-steps
+  S > 0`` :func:`brdfkit.hypernet.refine_on_screen.compress_table` refined on screen for at most ``S`` steps
   (``compress-MODEL``; the encoder pass it starts from is then scored too, as
   ``compress-MODEL-enc``, unless the refinement kept the encoder's latent).
 
 Judges (``--px`` pixels, the whole image, as ``brdfkit bench`` scores): PSNR and
 Delta E 2000 of :func:`brdfkit.render.quadrature.render` of the reconstruction against
-that of the reference table, on the reference scene (``ref``) and the rotated one (``rot``).
+that of the reference table, on the reference scene (``ref``) and the rotated one (``rot``);
+with ``--judges suite`` (issue 28), in every scene of the suite
+(:mod:`brdfkit.render.scene_suite`) instead, and ``heldout``: their mean over the suite's
+scenes other than the reference (which today's built-ins were tuned on).
 
 Candidate errors, each signed so that higher is better before ranking:
 
@@ -35,6 +38,9 @@ Candidate errors, each signed so that higher is better before ranking:
 * ``screen_psnr``: the render-aligned error of :mod:`brdfkit.render.screen` (32 px
   reference scene, trilinear table lookups at its quadrature pairs, display-encoded MSE
   as a PSNR);
+* ``screen_obj``: the same error in the objective scenes of the suite (``--objective K``:
+  ``studio-0`` ... ``studio-(K-1)``, :data:`brdfkit.render.scene_suite.OBJECTIVE_SCENES`,
+  none of them judged), the mean of their PSNRs;
 * ``lin_rmse``: ``sqrt(mean((cos_i (pred - ref))^2))``, the cosine-weighted *linear*
   RMSE (1/sr, no log) over the same cells;
 * ``albedo_de``: Delta E 2000 of the two tables' albedo colours. The albedo is the
@@ -80,17 +86,29 @@ SPARSE_MODEL = "merl80-l40"
 COMPRESS_MODELS = ("merl-rgl-l40", "merl-rgl-l7")
 METHODS = ("prior", "ipca", "hypernet", "hypernet-norefine")
 
-CANDIDATES = ("log_rmse", "train_loss", "screen_psnr", "lin_rmse", "albedo_de")
-HIGHER_BETTER = {"screen_psnr": True, "ref_psnr": True, "rot_psnr": True}
+CANDIDATES = ("log_rmse", "train_loss", "screen_psnr", "screen_obj", "lin_rmse", "albedo_de")
 JUDGES = ("ref_psnr", "ref_delta_e", "rot_psnr", "rot_delta_e")
 JUDGE_LABELS = {"ref_psnr": "ref PSNR", "ref_delta_e": "ref Delta E", "rot_psnr": "rotated PSNR",
                 "rot_delta_e": "rotated Delta E"}
 JUDGE_ROWS = ("ref_psnr", "ref_delta_e")  # the reference scene's judges, ranked against the rotated one's
 
 
+def use_suite():
+    """Judge in the scene suite: every scene's PSNR and Delta E, and ``heldout`` (the mean
+    over the scenes other than the reference); the reference's own rows rank against them."""
+    global JUDGES, JUDGE_LABELS, JUDGE_ROWS
+    from brdfkit.render.scene_suite import SUITE
+
+    keys = [s.replace("-", "_") for s in SUITE] + ["heldout"]
+    JUDGES = tuple(f"{k}_{m}" for k in keys for m in ("psnr", "delta_e"))
+    JUDGE_LABELS = {f"{k}_{m}": f"{k} {'PSNR' if m == 'psnr' else 'Delta E'}" for k in keys
+                    for m in ("psnr", "delta_e")}
+    JUDGE_ROWS = ("reference_psnr", "reference_delta_e")
+
+
 def signed(key, value):
     """``value`` signed so that higher is better."""
-    return value if HIGHER_BETTER.get(key, False) else -value
+    return value if (key.endswith("_psnr") or key in ("screen_obj",)) else -value
 
 
 def spearman(a, b) -> float:
@@ -140,9 +158,10 @@ def albedo_weights() -> np.ndarray:
 
 
 class Candidates:
-    """The candidate errors of reconstructions against one reference table."""
+    """The candidate errors of reconstructions against one reference table (``objective``:
+    the screens of the objective scenes)."""
 
-    def __init__(self, table, rho_ref, sc):
+    def __init__(self, table, rho_ref, sc, objective=()):
         from brdfkit.geometry import N_CELLS
         from brdfkit.hypernet.mapping import to_mapped
         from brdfkit.evaluation.metrics import _grid_cos_i
@@ -158,6 +177,7 @@ class Candidates:
         self.mapped_ref[self.base] = to_mapped(self.flat[self.base], rref[self.base])
         self.sc = sc
         self.screen_ref = sc.render_table(table).float()
+        self.objective = [(o, o.render_table(table).float()) for o in objective]
 
     def __call__(self, pred):
         from brdfkit.geometry import N_CELLS
@@ -181,6 +201,11 @@ class Candidates:
         t = time.perf_counter()
         out["screen_psnr"] = float(screen_psnr(self.sc.render_table(pred).float(), self.screen_ref))
         secs["screen_psnr"] = time.perf_counter() - t
+
+        t = time.perf_counter()
+        out["screen_obj"] = float(np.mean([screen_psnr(o.render_table(pred).float(), r) for o, r in self.objective])
+                                  if self.objective else float("nan"))
+        secs["screen_obj"] = time.perf_counter() - t
 
         t = time.perf_counter()
         r = self.flat[m]
@@ -223,11 +248,11 @@ def reconstructions(name, table, args, models):
     for mname in args.compress_models:
         model = models["compress:" + mname]
         t = time.perf_counter()
-        if args.compress_budget > 0:
+        if args.compress_steps > 0:
             from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
             from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
-            res = compress_table(model, table, CompressConfig(budget=args.compress_budget), source=name)
+            res = compress_table(model, table, CompressConfig(steps=args.compress_steps), source=name)
             pred = NeuralBRDF.from_embedding(model, res.embedding, name).to_table()
             extra = {"steps": res.steps, "best_step": res.best_step, "heldout": list(res.heldout),
                      "refine_s": res.seconds}
@@ -293,9 +318,12 @@ def main():
     ap.add_argument("--methods", nargs="*", default=list(METHODS), choices=METHODS)
     ap.add_argument("--model", default=SPARSE_MODEL, help="built-in (or file) of the sparse methods")
     ap.add_argument("--compress-models", nargs="*", default=list(COMPRESS_MODELS))
-    ap.add_argument("--compress-budget", type=float, default=0.0,
-                    help="seconds of compress_table's refinement on screen (0: the encoder's pass alone)")
+    ap.add_argument("--compress-steps", type=int, default=0,
+                    help="most steps of compress_table's refinement on screen (0: the encoder's pass alone)")
     ap.add_argument("--px", type=int, default=128, help="render size of the judges")
+    ap.add_argument("--judges", choices=("ref-rot", "suite"), default="ref-rot",
+                    help="the judged scenes: the reference and its half-turn, or the scene suite")
+    ap.add_argument("--objective", type=int, default=4, help="objective scenes of the screen_obj candidate")
     ap.add_argument("--threads", type=int, default=1, help="torch threads")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
@@ -314,9 +342,12 @@ def main():
     from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.quadrature import render
     from brdfkit.render.scene import Scene
+    from brdfkit.render.scene_suite import SUITE, objective_envmap, scene_env
     from brdfkit.render.screen import rotated_envmap, screen
     from common import load_average, machine
 
+    if args.judges == "suite":
+        use_suite()
     names = args.materials or read_exclude_list(args.test_list)
     if args.limit:
         names = names[:args.limit]
@@ -336,8 +367,10 @@ def main():
     info["model_files"] = model_files
     info["load_s"] = time.perf_counter() - t0
     scene = Scene(resolution=args.px)
-    envs = {"ref": None, "rot": rotated_envmap()}
+    envs = ({s.replace("-", "_"): scene_env(s) for s in SUITE} if args.judges == "suite"
+            else {"ref": None, "rot": rotated_envmap()})
     sc = screen()
+    objective = [screen(env=objective_envmap(i)) for i in range(args.objective)]
 
     def judge_images(t):
         bt = TableBRDF(t, device="cpu")
@@ -348,7 +381,7 @@ def main():
         tm = time.perf_counter()
         table = read_merl(paths[name])
         ref_imgs = judge_images(table)
-        cands = Candidates(table, rho_ref, sc)
+        cands = Candidates(table, rho_ref, sc, objective)
         recs = []
         for label, n, seed, pred, rec_s, extra in reconstructions(name, table, args, models):
             rec = {"material": name, "reconstruction": label, "n": n, "seed": seed, "reconstruct_s": rec_s, **extra}
@@ -358,6 +391,10 @@ def main():
             for k in envs:
                 rec[f"{k}_psnr"] = min(float(psnr(imgs[k], ref_imgs[k])), PSNR_CAP)
                 rec[f"{k}_delta_e"] = float(delta_e_2000(imgs[k], ref_imgs[k]))
+            if args.judges == "suite":
+                held = [k for k in envs if k != "reference"]
+                for m in ("psnr", "delta_e"):
+                    rec[f"heldout_{m}"] = float(np.mean([rec[f"{k}_{m}"] for k in held]))
             vals, secs = cands(pred)
             rec.update(vals)
             rec["candidate_s"] = secs

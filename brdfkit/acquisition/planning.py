@@ -216,6 +216,14 @@ def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, se
     InputError
         An unknown design or option, ``n < 1``, more directions than candidate cells, a
         model that is no basis.
+
+    Examples
+    --------
+    >>> plan = plan_directions(n=20, design="uniform", seed=0)  # no basis needed
+    >>> len(plan), plan.design, plan.condition_number is None
+    (20, 'uniform', True)
+    >>> bool((plan_directions(n=20, design="uniform", seed=0).cells == plan.cells).all())
+    True
     """
     if design not in DESIGNS:
         raise InputError(f"unknown design {design!r}; known: {', '.join(DESIGNS)}")

@@ -10,7 +10,7 @@ from brdfkit.errors import InputError
 from brdfkit.acquisition.protocol import SAMPLINGS, draw_seed
 
 __all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed",
-           "default_methods"]
+           "default_methods", "pca_components"]
 
 DEFAULT_N = (40, 160, 400, 2000, 4000)
 DEFAULT_METHODS = ("hypernet", "ipca", "nbrdf")
@@ -57,9 +57,15 @@ class BenchConfig:
         prior, a learnt-prior or basis file; default: ``ipca``'s basis) and the design (:data:`brdfkit.acquisition.designs.DESIGNS`).
     compression_models, compression_data
         Hypernetwork models to test on encode -> decode of every table in
-        ``compression_data`` (plus the PCA basis, when ``ipca`` is given).
+        ``compression_data`` (plus the PCA basis, when ``ipca`` is given); ``pca-K`` names
+        the ``ipca`` basis's ``K`` leading components (PCA of ``3 K`` numbers, to set
+        beside a latent of the same size: ``pca-13`` beside 40-D, ``pca-2`` beside 7-D).
+    scenes
+        The suite scenes the image metrics are taken in (:mod:`brdfkit.render.scene_suite`);
+        with more than one, ``psnr``, ``delta_e`` and ``ssim`` are their means and each
+        record holds every scene's under ``scenes``.
     resolution
-        Reference-scene render size (pixels square) for the image metrics.
+        Render size (pixels square) for the image metrics.
     jobs, threads
         Worker processes (one material at a time each) and torch threads per process
         (default: torch's own choice with one process, ``cpu_count // jobs`` otherwise).
@@ -91,6 +97,7 @@ class BenchConfig:
     plan_design: str = "render"
     compression_models: tuple = ()
     compression_data: str | None = None
+    scenes: tuple = ("reference",)
     resolution: int = DEFAULT_RESOLUTION
     jobs: int = 1
     threads: int | None = None
@@ -134,7 +141,8 @@ class BenchConfig:
             cfg, **{f: resolve_for(name, getattr(cfg, f)) for f, name in fields.items() if getattr(cfg, f)},
             models={m: resolve_for(m, p) if p else p for m, p in cfg.models.items()},
             plan_model=_plan_file(cfg.plan_model) if cfg.plan_model else None,
-            compression_models=tuple(resolve_for("hypernet", p) for p in cfg.compression_models))
+            compression_models=tuple(p if pca_components(p) else resolve_for("hypernet", p)
+                                     for p in cfg.compression_models))
 
     def with_default_methods(self) -> "BenchConfig":
         """This configuration with ``methods=None`` replaced by :func:`default_methods`
@@ -150,17 +158,20 @@ class BenchConfig:
         return dataclasses.replace(self, methods=methods, models=models, ipca=ipca)
 
     def compressors(self) -> list:
-        """``(method, model file)`` of the compression benchmark: the hypernetwork models
-        of :attr:`compression_models`, then every other method that can compress and
-        whose model file is given (the PCA basis: its best reconstruction)."""
+        """``(method, model file, components)`` of the compression benchmark: the
+        hypernetwork models of :attr:`compression_models` and its ``pca-K`` entries (the
+        ``ipca`` basis's ``K`` leading components), then every other method that can
+        compress and whose model file is given (the PCA basis: its best reconstruction);
+        ``components`` is ``None`` but for ``pca-K``."""
         from brdfkit.methods import METHODS
 
         if not self.compression_models:
             return []
-        hypernet = METHODS["hypernet"]
-        return [(hypernet, path) for path in self.compression_models] + [
-            (m, self.model_file(name)) for name, m in METHODS.items()
-            if m is not hypernet and m.compress_fn is not None and self.model_file(name)]
+        hypernet, ipca = METHODS["hypernet"], METHODS["ipca"]
+        named = [(ipca, self.model_file("ipca"), pca_components(p)) if pca_components(p) else (hypernet, p, None)
+                 for p in self.compression_models]
+        return named + [(m, self.model_file(name), None) for name, m in METHODS.items()
+                        if m is not hypernet and m.compress_fn is not None and self.model_file(name)]
 
     def method_options(self, method: str):
         """The options object of a method: its defaults and :attr:`options`."""
@@ -219,6 +230,12 @@ class BenchConfig:
                 raise InputError(f"--model-file: method {m!r} takes no model file")
         for m, opts in self.options.items():
             get_method(m).make_options(**opts)
+        if any(pca_components(p) for p in self.compression_models) and not self.ipca:
+            raise InputError("--compression-models pca-K takes the K leading components of --ipca BASIS: give --ipca")
+        from brdfkit.render.scene_suite import scene_names
+
+        if tuple(scene_names(",".join(self.scenes))) != tuple(self.scenes):
+            raise InputError(f"--scenes: {','.join(self.scenes)} names a scene twice")
         if self.compression_models and not self.compression_data:
             raise InputError("--compression-models needs --compression-data DIR")
         if self.compression_data and not self.compression_models:
@@ -229,14 +246,25 @@ class BenchConfig:
             raise InputError(f"--jobs must be at least 1, got {self.jobs}")
         if self.threads is not None and self.threads < 1:
             raise InputError(f"--threads must be at least 1, got {self.threads}")
-        for f in [self.model, self.ipca, self.plan_model, self.test_list, *self.compression_models,
-                  *self.models.values()]:
+        models = [p for p in self.compression_models if not pca_components(p)]
+        for f in [self.model, self.ipca, self.plan_model, self.test_list, *models, *self.models.values()]:
             if f:
                 check_input_file(f)
         for d in (self.data, self.compression_data):
             if d is not None and not os.path.isdir(d):
                 raise InputError(f"{d}: not a folder of MERL tables")
 
+
+
+def pca_components(spec) -> int | None:
+    """``K`` of a ``--compression-models`` entry ``pca-K`` (a PCA of ``K`` components),
+    else ``None``; :class:`InputError` for ``pca-`` without a positive whole number."""
+    text = str(spec)
+    if not text.startswith("pca-"):
+        return None
+    if not text[4:].isdigit() or int(text[4:]) < 1:
+        raise InputError(f"--compression-models {text}: pca-K takes a whole number of components K >= 1")
+    return int(text[4:])
 
 
 def default_methods(model: str | None, prior: str | None = None) -> tuple[tuple, str | None]:

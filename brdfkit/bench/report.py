@@ -45,8 +45,7 @@ def write_markdown(path: str, result: dict) -> None:
                 f"{', '.join(result['dropped_materials'])}"] if result.get("dropped_materials") else []),
              f"- machine: {env['machine']}, {env['cpus']} CPUs, torch {env['torch']} "
              f"({env['threads']} thread(s) per process, {cfg['jobs']} process(es)), device {env['device']}",
-             f"- renders: reference scene, quadrature renderer, {cfg['resolution']} x {cfg['resolution']} "
-             f"pixels, whole image; PSNR capped at 100 dB", ""]
+             _renders_text(cfg), ""]
     if summ["sparse"]:
         lines += ["## Sparse reconstruction", "",
                   f"{result['materials']['sparse_count']} test material(s) from `{cfg['data']}`, "
@@ -61,6 +60,10 @@ def write_markdown(path: str, result: dict) -> None:
                          f"{_pm(row, 'ssim', 4)} | {_pm(row, 'log_rmse', 4)} | {_fmt(row['time_s'], 3)} "
                          f"({_fmt(row['time_s_median'], 3)}) | {_fmt(row['cpu_s'], 3)} | "
                          f"{row['count']} / {row['failures']} |")
+        if len(cfg.get("scenes") or ["reference"]) > 1:
+            lines += ["", "### Sparse, per scene: PSNR (dB) / Delta E 2000, mean over materials and draws", ""]
+            lines += scene_table(summ["sparse"], [("method", label), ("N", lambda r: str(r["n"]))],
+                                 cfg["scenes"])
         lines += ["", "### Per material: PSNR (dB), mean over draws", ""]
         lines += _per_material_table(result["records"], "psnr", 2)
         lines += ["", "### Per material: BRDF log RMSE, mean over draws", ""]
@@ -82,6 +85,10 @@ def write_markdown(path: str, result: dict) -> None:
             lines.append(f"| {row['method']} | {row['latent']} | {_pmm(row, 'psnr', 2)} | {_pmm(row, 'delta_e', 2)} | "
                          f"{_pmm(row, 'ssim', 4)} | {_pmm(row, 'log_rmse', 4)} | {_fmt(row['time_s'], 3)} | "
                          f"{_fmt(row['cpu_s'], 3)} | {row['count']} / {row['failures']} |")
+    scenes = cfg.get("scenes") or ["reference"]
+    if len(scenes) > 1 and summ["compression"]:
+        lines += ["", "### Compression, per scene: PSNR (dB) / Delta E 2000, mean over materials", ""]
+        lines += scene_table(summ["compression"], [("model", lambda r: r["method"])], scenes)
     if summ.get("compression_by_training") and any(r.get("trained_on") for r in summ["compression_by_training"]):
         lines += ["", "### Compression: training materials against held-out ones", "",
                   "| model | material in its training set | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | "
@@ -108,6 +115,32 @@ def write_markdown(path: str, result: dict) -> None:
     lines.append("")
     with atomic_open(path, "w", encoding="utf-8") as f:
         f.write("\n".join(lines))
+
+
+def _renders_text(cfg) -> str:
+    """How the image metrics were taken: the scenes, the renderer, the size."""
+    scenes = cfg.get("scenes") or ["reference"]
+    where = (f"the {scenes[0]} scene" if len(scenes) == 1 else
+             f"{len(scenes)} scenes of the suite ({', '.join(scenes)}; PSNR, Delta E and SSIM are their means, "
+             f"the per-scene tables give each)")
+    return (f"- renders: {where}, quadrature renderer, {cfg['resolution']} x {cfg['resolution']} pixels, whole "
+            f"image; PSNR capped at 100 dB")
+
+
+def scene_table(rows, key_cols, scenes) -> list[str]:
+    """A markdown table of each scene's mean PSNR (dB) and Delta E per summary row (the
+    rows' ``scenes``), ``key_cols`` ``[(header, function of a row)]`` first."""
+    head = [h for h, _ in key_cols] + [f"{s} PSNR / Delta E" for s in scenes] + ["worst scene PSNR"]
+    out = ["| " + " | ".join(head) + " |", "| " + " | ".join(["---"] * len(key_cols) + ["---:"] * (len(scenes) + 1))
+           + " |"]
+    for row in rows:
+        per = row.get("scenes") or {}
+        psnrs = [per[s]["psnr"] for s in scenes if s in per and per[s]["psnr"] is not None]
+        cells = [f(row) for _, f in key_cols]
+        cells += [f"{_fmt(per.get(s, {}).get('psnr'), 2)} / {_fmt(per.get(s, {}).get('delta_e'), 2)}" for s in scenes]
+        cells.append(_fmt(min(psnrs), 2) if psnrs else "n/a")
+        out.append("| " + " | ".join(cells) + " |")
+    return out
 
 
 def _sampling_text(cfg) -> str:

@@ -53,6 +53,10 @@ def _summary_rows(records, keys) -> list[dict]:
             row[m + "_sd_seeds"] = _sd([mean(v) for v in by_seed.values()])
             row[m + "_sd_materials"] = _sd([mean(v) for v in by_mat.values()])
         row["time_s_median"] = (float(np.median([r["time_s"] for r in ok])) if ok else None)
+        scenes = list(dict.fromkeys(s for r in ok for s in (r.get("scenes") or {})))
+        if scenes:  # each scene's mean, for the suite's per-scene tables
+            row["scenes"] = {s: {m: mean([(r.get("scenes") or {}).get(s, {}).get(m) for r in ok])
+                                 for m in ("psnr", "delta_e", "ssim")} for s in scenes}
         rows.append(row)
     return rows
 

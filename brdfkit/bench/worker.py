@@ -50,13 +50,13 @@ class Worker:
     def __init__(self, cfg: BenchConfig):
         from brdfkit.runtime import resolve_device
         from brdfkit.methods import get_method
-        from brdfkit.render.envmap import reference_envmap
         from brdfkit.render.scene import Scene
+        from brdfkit.render.scene_suite import scene_env
 
         self.cfg = cfg
         self.device = resolve_device(cfg.device)
         self.scene = Scene(resolution=cfg.resolution)
-        self.env = reference_envmap()
+        self.envs = {name: scene_env(name) for name in cfg.scenes}
         self.methods, self.models, self.options = {}, {}, {}
         self.protocols = {}  # sampling -> brdfkit.acquisition.protocol.SamplingProtocol
         if cfg.data is not None:
@@ -73,61 +73,90 @@ class Worker:
         # (label, code size, method, model), see BenchConfig.compressors
         self.compressors = []
         self.trained = {}  # compression label -> names of the materials it was trained on
-        for method, path in cfg.compressors():
+        for method, path, components in cfg.compressors():
             model = method.load(path, self.device)
+            if components is not None:  # pca-K: the basis's K leading components
+                from brdfkit.methods.ipca import load_ipca
+                from brdfkit.models.builtin import resolve_basis
+
+                model = load_ipca(resolve_basis(path)).leading(components)
             label, size, trained = method.describe_fn(model, path)
+            if components is not None:
+                label = f"pca {components} components ({3 * components} numbers)"
             self.compressors.append((label, size, method, model))
             self.trained[label] = trained
         self.warm = set()
 
     # -- scoring
 
-    def render(self, table):
-        from brdfkit.render.renderable import TableBRDF
+    def render(self, table) -> dict:
+        """``{scene: image}`` of a table in every scene of the run."""
         from brdfkit.render.quadrature import render
+        from brdfkit.render.renderable import TableBRDF
 
-        img, _ = render(TableBRDF(table, device=self.device), self.scene, env=self.env)
-        return img
+        brdf = TableBRDF(table, device=self.device)
+        return {name: render(brdf, self.scene, env=env)[0] for name, env in self.envs.items()}
 
-    def reference(self, name: str, path: str, table):
-        """The cached reference render of a material (rendered on first use)."""
-        from brdfkit.render.image import read_exr, write_exr
+    def reference(self, name: str, path: str, table) -> dict:
+        """The cached renders of a material in every scene (rendered on first use)."""
+        todo = {s: self._cache_file(name, path, s) for s in self.envs}
+        out = {s: self._cached(name, f) for s, f in todo.items()}
+        if any(img is None for img in out.values()):
+            from brdfkit.render.image import write_exr
 
-        cache = self.cfg.cache or os.path.join(self.cfg.output, "cache")
-        # The key is the table's content and everything the render depends on (scene,
-        # quadrature, environment, the renderer's code), not the name: a table reached under another name
-        # (a symlink in a second folder) reuses its render.
-        key = hashlib.sha256("\n".join([file_digest(path), repr(self.scene), self.env.fingerprint(),
-                                        repr(self.env.bright), renderer_digest()]).encode()).hexdigest()[:16]
-        suffix = f"-{self.cfg.resolution}px-{key}.exr"
-        file = os.path.join(cache, name + suffix)
+            out = self.render(table)
+            for s, file in todo.items():
+                os.makedirs(os.path.dirname(file), exist_ok=True)
+                write_exr(file, out[s])
+        return out
+
+    def _cache_file(self, name: str, path: str, scene: str) -> str:
+        """The cache file of a material's render in ``scene``. The key is the table's
+        content and everything the render depends on (scene, quadrature, environment,
+        the renderer's code), not the name: a table reached under another name (a symlink
+        in a second folder) reuses its render."""
+        env = self.envs[scene]
+        key = hashlib.sha256("\n".join([file_digest(path), repr(self.scene), env.fingerprint(),
+                                        repr(env.bright), renderer_digest()]).encode()).hexdigest()[:16]
+        return os.path.join(self.cfg.cache or os.path.join(self.cfg.output, "cache"),
+                            f"{name}-{self.cfg.resolution}px-{key}.exr")
+
+    def _cached(self, name: str, file: str):
+        """A cached render (``file``, or one of another name with the same key), or ``None``."""
+        from brdfkit.render.image import read_exr
+
+        cache, suffix = os.path.dirname(file), file[len(os.path.join(os.path.dirname(file), name)):]
         found = [f for f in (os.listdir(cache) if os.path.isdir(cache) else []) if f.endswith(suffix)]
-        for f in sorted(found, key=lambda f: f != name + suffix):
+        for f in sorted(found, key=lambda f: f != os.path.basename(file)):
             try:
                 img = read_exr(os.path.join(cache, f))
                 if img.shape == (self.cfg.resolution, self.cfg.resolution, 3):
                     return img
             except InputError:
                 pass  # a damaged cache file is simply rendered again
-        img = self.render(table)
-        os.makedirs(cache, exist_ok=True)
-        write_exr(file, img)
-        return img
+        return None
 
-    def score(self, table, ref_table, ref_img) -> dict:
-        """:func:`brdfkit.evaluation.metrics.score` of a reconstruction (rendered here, the render
-        timed as ``render_s``); the BRDF log RMSE is recorded as ``log_rmse``."""
-        from brdfkit.evaluation.metrics import score
+    def score(self, table, ref_table, ref_imgs: dict) -> dict:
+        """:func:`brdfkit.evaluation.metrics.score` of a reconstruction (rendered here in
+        every scene, the renders timed as ``render_s``); the BRDF log RMSE is recorded as
+        ``log_rmse``. In several scenes, the image scores are their means and ``scenes``
+        holds each scene's."""
+        from brdfkit.evaluation.comparison import mean_scores
+        from brdfkit.evaluation.metrics import brdf_log_rmse, score
 
         t0 = time.perf_counter()
-        img = self.render(table)
+        imgs = self.render(table)
         render_s = time.perf_counter() - t0
-        out = score(img, ref_img, table, ref_table)
-        out["log_rmse"] = out.pop("brdf_log_rmse")
+        per = {s: score(imgs[s], ref_imgs[s]) for s in imgs}
+        out = per[next(iter(per))] if len(per) == 1 else mean_scores(list(per.values()))
+        out = {k: v for k, v in out.items() if k != "brdf_log_rmse"}
+        if len(per) > 1:
+            out["scenes"] = {s: {k: v for k, v in r.items() if k != "brdf_log_rmse"} for s, r in per.items()}
+        out["log_rmse"] = brdf_log_rmse(table, ref_table)
         out["render_s"] = render_s
         return out
 
-    def _timed(self, rec: dict, table, ref_img, reconstruct) -> dict:
+    def _timed(self, rec: dict, table, ref_imgs, reconstruct) -> dict:
         """``rec`` with the wall and CPU time of ``reconstruct()`` (``time_s``, ``cpu_s``)
         and the scores of the table it returns, or with the ``error`` it raised."""
         try:
@@ -135,7 +164,7 @@ class Worker:
             recon = reconstruct()
             rec["time_s"] = time.perf_counter() - t0
             rec["cpu_s"] = time.process_time() - c0
-            rec.update(self.score(recon, table, ref_img))
+            rec.update(self.score(recon, table, ref_imgs))
         except Exception as e:
             rec["error"] = error_text(e)
         return rec
@@ -171,7 +200,7 @@ class Worker:
         base = {"kind": "sparse", "material": name}
         try:
             table = read_merl(path)
-            ref_img = self.reference(name, path, table)
+            ref_imgs = self.reference(name, path, table)
         except Exception as e:
             return failed_records(cfg, "sparse", name, error_text(e))
         records = []
@@ -187,7 +216,7 @@ class Worker:
                     for m in cfg.methods:
                         self._warm_up(m, table)
                         records.append(self._timed(
-                            dict(base, method=m, n=int(k), seed=s, **info), table, ref_img,
+                            dict(base, method=m, n=int(k), seed=s, **info), table, ref_imgs,
                             lambda m=m, s=s, samples=samples: self.methods[m].reconstruct(
                                 samples, self.models[m], seed=s, device=self.device, options=self.options[m])))
         return records
@@ -198,7 +227,7 @@ class Worker:
         base = {"kind": "compression", "material": name}
         try:
             table = read_merl(path)
-            ref_img = self.reference(name, path, table)
+            ref_imgs = self.reference(name, path, table)
         except Exception as e:
             return failed_records(self.cfg, "compression", name, error_text(e),
                                    [(label, dim) for label, dim, _, _ in self.compressors])
@@ -206,7 +235,7 @@ class Worker:
         for label, dim, method, model in self.compressors:
             records.append(self._timed(
                 dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ())), table,
-                ref_img, lambda method=method, model=model: method.compress_fn(model, table, name)))
+                ref_imgs, lambda method=method, model=model: method.compress_fn(model, table, name)))
         return records
 
 

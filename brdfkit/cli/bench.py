@@ -56,9 +56,13 @@ def _str_list(value: str | None) -> tuple:
               help="Design of the planned samples (`brdfkit plan --design`).")
 @click.option("--compression-models", default=None,
               help="Hypernetwork models (files or built-in names) to test on encode -> decode, comma-separated "
-                   "(e.g. merl-rgl-l7,m40.safetensors).")
+                   "(e.g. merl-rgl-l7,m40.safetensors); pca-K: the K leading components of --ipca (pca-13 "
+                   "beside a 40-D latent, pca-2 beside 7-D: the same count of numbers).")
 @click.option("--compression-data", type=click.Path(file_okay=False), default=None,
               help="Folder of MERL tables for the compression benchmark.")
+@click.option("--scenes", default="reference", show_default=True, metavar="all|A,B",
+              help="Scenes of the suite the renders are scored in (docs/render.md); with several, PSNR, "
+                   "Delta E and SSIM are their means, and each scene's is recorded.")
 @click.option("--resolution", type=int, default=128, show_default=True,
               help="Reference-scene render size (pixels square) for PSNR, Delta E and SSIM.")
 @click.option("--jobs", type=int, default=1, show_default=True,
@@ -86,7 +90,7 @@ def _str_list(value: str | None) -> tuple:
                    "(one method re-run after a change).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed, methods, sampling, plan_model,
-            plan_design, compression_models, compression_data,
+            plan_design, compression_models, compression_data, scenes,
             resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, method_options, group_by_prefix, cache, merge, replace, output,
             allow_incomplete, quiet):
     """Measure reconstruction error against run time (and compression error).
@@ -102,6 +106,7 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
 
     from brdfkit.bench import BenchConfig, merge_results, run_bench
     from brdfkit.console import console
+    from brdfkit.render.scene_suite import scene_names
 
     if merge:
         if data or compression_models:
@@ -129,6 +134,7 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
                       methods=None if methods is None else _str_list(methods),
                       sampling=_str_list(sampling), plan_model=plan_model, plan_design=plan_design,
                       compression_models=_str_list(compression_models), compression_data=compression_data,
+                      scenes=tuple(scene_names(scenes)),
                       resolution=resolution, jobs=jobs, threads=threads, device=device,
                       options=options,
                       group_by_prefix=group_by_prefix,

@@ -25,7 +25,7 @@ def command(ref, preds, model_path, sheet, resolution, as_json, threads, quiet):
     """Compare predictions PRED... with the reference REF on one sheet.
 
     REF comes first (unlike `brdfkit metrics PRED REF`). Inputs are MERL .binary tables,
-    .emb embeddings (with -m MODEL) or .exr images of the same size; BRDFs are rendered
+    RGL .bsdf files, .emb embeddings (with -m MODEL) or .exr images of the same size; BRDFs are rendered
     in the reference scene. The sheet shows the renders in a row, each prediction
     labelled with PSNR, Delta E 2000, SSIM and the BRDF log RMSE against REF (the
     numbers of `brdfkit metrics`), and the per-pixel Delta E 2000 under each

@@ -18,15 +18,20 @@ from brdfkit.cli.common import model_option, require_model
 @click.option("--refine/--no-refine", default=True, show_default=True,
               help="Refine a table's latent on screen after the encoder's pass (--no-refine: the "
                    "paper's single pass).")
-@click.option("--budget", type=click.FloatRange(min=0), default=None, metavar="SECONDS",
-              help="Seconds of refinement per table [default: 3].")
-def command(inputs, model_path, output_dir, refine, budget):
-    """Encode each BRDF (.binary MERL table or .csv sample set) into <stem>.emb.
+@click.option("--steps", type=click.IntRange(min=0), default=None,
+              help="Most refinement steps per table [default: 120]; it stops sooner when held-out pixels "
+                   "stop improving. The same input gives the same bytes, however busy the machine.")
+@click.option("--max-seconds", type=click.FloatRange(min=0, min_open=True), default=None,
+              help="Also stop a table's refinement after this many seconds (off by default: a cut result "
+                   "depends on the machine's speed; the output says when it cut).")
+def command(inputs, model_path, output_dir, refine, steps, max_seconds):
+    """Encode each BRDF (.binary MERL table, .bsdf RGL file or .csv sample set) into <stem>.emb.
 
     A MERL table is encoded from all its measured cells, then its latent is refined for
-    --budget seconds on the render-aligned error (docs/model.md), keeping it only where
-    held-out pixels agree. A sample set gets the encoder's pass. A bad input is reported
-    and skipped; the others are still encoded, and the exit code is 2 if any failed.
+    at most --steps steps on the render-aligned error (docs/model.md), keeping it only
+    where held-out pixels agree. A sample set gets the encoder's pass. A bad input is
+    reported and skipped; the others are still encoded, and the exit code is 2 if any
+    failed.
     """
     import os
 
@@ -42,6 +47,7 @@ def command(inputs, model_path, output_dir, refine, budget):
     out = console()
     failures: list[str] = []
     planned: dict[str, str] = {}
+    cut: list[str] = []
     done = 0
 
     def one(path: str) -> None:
@@ -52,9 +58,11 @@ def command(inputs, model_path, output_dir, refine, budget):
             raise InputError(f"{path}: would write {target}, already written for {planned[key]}; "
                              f"rename one of them")
         refuse_overwrite_of_inputs(target, [*inputs, model_path])
-        emb = encode(model, path, refine=refine, budget=budget)
+        emb = encode(model, path, refine=refine, steps=steps, max_seconds=max_seconds)
         write_embedding(target, emb)
         planned[key] = path
+        if emb.refinement and emb.refinement["stopped"] == "max_seconds":
+            cut.append(f"{stem} ({emb.refinement['steps']} steps)")
 
     if len(inputs) > 1:
         with ProgressBar("encoding", total=len(inputs), count=True, out=out) as bar:
@@ -70,9 +78,12 @@ def command(inputs, model_path, output_dir, refine, budget):
         one(inputs[0])
         done = 1
     where = output_dir if output_dir else "beside the inputs"
-    how = "refined on screen" if refine and budget != 0 else "encoder pass"
+    how = "refined on screen" if refine and steps != 0 else "encoder pass"
     out.print(f"encoded {done} of {len(inputs)} file{'s' if len(inputs) != 1 else ''} "
               f"(latent {model.cfg.latent_dim}, model {model.short_fingerprint}, {how}) into {where}")
+    if cut:
+        out.print(f"note: --max-seconds cut the refinement of {', '.join(cut)}: those embeddings depend on the "
+                  f"machine's speed (replay one with --steps N)", soft_wrap=True)
     if failures:
         for msg in failures:
             click.echo(f"brdfkit: error: {msg}", err=True)

@@ -17,20 +17,40 @@ def _fmt(v, digits):
     return "-" if v is None else f"{v:.{digits}f}"
 
 
-def _print_table(rows: dict, mean: dict | None):
-    from rich.console import Console
+def _table(first: str, rows: dict, log_rmse: bool = True):
     from rich.table import Table
 
     t = Table(title=None)
-    for col in ("material", "PSNR dB", "Delta E 2000", "SSIM", "BRDF log RMSE"):
-        t.add_column(col, justify="left" if col == "material" else "right")
-    for name, r in rows.items():
-        t.add_row(name, _fmt(r["psnr"], 2), _fmt(r["delta_e"], 3), _fmt(r["ssim"], 4),
-                  _fmt(r["brdf_log_rmse"], 4))
+    cols = ("PSNR dB", "Delta E 2000", "SSIM") + (("BRDF log RMSE", "peak/grazing") if log_rmse else ())
+    for col in (first, *cols):
+        t.add_column(col, justify="left" if col == first else "right")
+    for label, r in rows.items():
+        cells = [_fmt(r["psnr"], 2), _fmt(r["delta_e"], 3), _fmt(r["ssim"], 4)]
+        if log_rmse:
+            h = r.get("highlights") or {}
+            cells += [_fmt(r["brdf_log_rmse"], 4), "/".join(_signed(h.get(k)) for k in ("peak", "grazing"))]
+        t.add_row(label, *cells)
+    return t
+
+
+def _signed(v):
+    return "-" if v is None else f"{v:+.2f}"
+
+
+def _print_table(rows: dict, mean: dict | None, scenes=None):
+    """The scores per material (and their mean); scored in scenes, the image scores are
+    means over the scenes, and a second table gives each scene's (over the materials)."""
+    from rich.console import Console
+
+    out = Console(soft_wrap=True)
+    shown = dict(rows)
     if mean is not None:
-        t.add_row("[bold]mean[/bold]", _fmt(mean["psnr"], 2), _fmt(mean["delta_e"], 3),
-                  _fmt(mean["ssim"], 4), _fmt(mean["brdf_log_rmse"], 4))
-    Console(soft_wrap=True).print(t)
+        shown["[bold]mean[/bold]"] = mean
+    first = "material" if scenes is None else f"material (mean of {len(scenes)} scene{'s' * (len(scenes) > 1)})"
+    out.print(_table(first, shown))
+    if scenes is not None:
+        per = (mean or next(iter(rows.values())))["scenes"]
+        out.print(_table("scene" if mean is None else "scene (mean of the materials)", per, log_rmse=False))
 
 
 @click.command("metrics")
@@ -38,22 +58,31 @@ def _print_table(rows: dict, mean: dict | None):
 @model_option
 @click.option("--json", "as_json", is_flag=True, help="Print JSON on stdout (see below).")
 @click.option("--resolution", type=click.IntRange(min=16, max=4096), default=None,
-              help="Size of the reference-scene renders of BRDF inputs (default 256).")
+              help="Size of the renders of BRDF inputs (default 256).")
+@click.option("--scenes", default=None, metavar="all|A,B",
+              help="Score two BRDF inputs in these scenes of the suite (all: reference, backlight, rim, "
+                   "small-lights, overcast, sunset; docs/render.md), each and their mean.")
 @threads_option
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def command(ctx, paths, model_path, as_json, resolution, threads, quiet):
+def command(ctx, paths, model_path, as_json, resolution, scenes, threads, quiet):
     """Compare PRED with REF: PSNR, Delta E 2000, SSIM and the BRDF log RMSE.
 
-    PRED and REF are BRDF files (MERL .binary, or .emb with -m MODEL), which are first
+    PRED and REF are BRDF files (MERL .binary, RGL .bsdf, or .emb with -m MODEL), which are first
     rendered in the reference scene by the quadrature renderer, EXR images of the same
-    size, or two folders whose files (.binary, .emb, .exr) are matched by file stem.
+    size, or two folders whose files (.binary, .bsdf, .emb, .exr) are matched by file stem.
     Image metrics use the display encoding of docs/render.md (exposure 1, clipped,
     sRGB) over the whole image; PSNR of identical images is reported as 100 dB.
     brdf_log_rmse (docs/render.md) needs two BRDF files, else it is null.
 
-    --json prints {"psnr", "delta_e", "ssim", "brdf_log_rmse"} for a pair and
-    {"materials": {name: {...}}, "mean": {...}} for folders.
+    peak/grazing (log10, two BRDF files) is the peak region's brightness against the
+    reference's, below and above theta_d = 60 degrees: +0.3 a highlight twice as bright
+    (invented), -1 ten times darker (lost); docs/render.md.
+
+    --json prints {"psnr", "delta_e", "ssim", "brdf_log_rmse", "highlights"} for a pair and
+    {"materials": {name: {...}}, "mean": {...}} for folders. With --scenes the image
+    scores are means over the scenes and "scenes": {name: {"psnr", "delta_e",
+    "ssim"}} holds each scene's.
 
     With no arguments, prints this help and exits with status 2.
     """
@@ -66,21 +95,23 @@ def command(ctx, paths, model_path, as_json, resolution, threads, quiet):
         raise InputError(f"metrics: expected PRED REF, got {len(paths)} path(s)")
     pred, ref = paths
     from brdfkit.evaluation.comparison import FileLoader, compare_files, compare_folders, mean_scores
+    from brdfkit.render.scene_suite import scene_names
     from brdfkit.runtime import set_torch_threads
 
     # Threads are set on the first render: two images are compared without torch.
     loader = FileLoader(model_path, resolution, progress=not quiet and not as_json,
                         before_torch=lambda: set_torch_threads(threads))
+    names = None if scenes is None else scene_names(scenes)
     dirs = [os.path.isdir(p) for p in paths]
     if any(dirs) and not all(dirs):
         raise InputError(f"{pred if not dirs[0] else ref}: is a file but the other input is a folder; "
                          "give two files or two folders")
     if not all(dirs):
-        result = compare_files(loader, pred, ref)
+        result = compare_files(loader, pred, ref, names, highlights=True)
         if as_json:
             click.echo(json.dumps(result))
         else:
-            _print_table({os.path.splitext(os.path.basename(pred))[0]: result}, None)
+            _print_table({os.path.splitext(os.path.basename(pred))[0]: result}, None, names)
         return
 
     def on_file(i, n, stem):
@@ -90,9 +121,9 @@ def command(ctx, paths, model_path, as_json, resolution, threads, quiet):
     def on_skip(stem, where):
         console().print(f"note: {stem} only in {where}; skipped", soft_wrap=True)
 
-    rows = compare_folders(loader, pred, ref, on_file, on_skip)
+    rows = compare_folders(loader, pred, ref, on_file, on_skip, names, highlights=True)
     mean = mean_scores(list(rows.values()))
     if as_json:
         click.echo(json.dumps({"materials": rows, "mean": mean}))
     else:
-        _print_table(rows, mean)
+        _print_table(rows, mean, names)

@@ -45,6 +45,30 @@ def _json(m) -> dict:
     return d
 
 
+def _key(k: str):
+    return (0, int(k), k) if str(k).isdigit() else (1, 0, str(k))
+
+
+def _print_renders(out, installed) -> None:
+    """The models' held-out figures as renders: PSNR dB / Delta E 2000 per N (or
+    ``encode``), and how they were measured."""
+    have = [m for m in installed if m.renders.get("psnr")]
+    if not have:
+        return
+    keys = sorted({k for m in have for k in m.renders["psnr"]}, key=_key)
+    out.print("\nValidation: renders of held-out materials, PSNR dB / Delta E 2000 (N: from N samples; "
+              "encode: encode + decode; -: not measured)")
+    val = _table(("name", *(f"N={k}" if str(k).isdigit() else str(k) for k in keys)))
+    for m in have:
+        p, e = m.renders["psnr"], m.renders.get("delta_e", {})
+        val.add_row(m.name, *(f"{p[k]:.1f}/{e[k]:.2f}" if k in p and k in e else "-" for k in keys))
+    out.print(val)
+    for m in have:
+        r = m.renders
+        out.print(f"{m.name}: {r.get('materials', 'held-out materials')}; scenes "
+                  f"{', '.join(r.get('scenes', ['reference']))}; {r.get('resolution', '?')} px", soft_wrap=True)
+
+
 @click.command("models")
 @click.option("--json", "as_json", is_flag=True, help="Print the manifest's entries as JSON on stdout.")
 @click.option("--check", is_flag=True,
@@ -52,7 +76,8 @@ def _json(m) -> dict:
 def command(as_json, check):
     """List the built-in models: the names `-m` takes, with how each was trained.
 
-    Validation figures are the BRDF log RMSE on held-out materials from N samples. A
+    Validation figures are renders of held-out materials (PSNR and Delta E 2000 of
+    reconstructions from N samples, or of encode + decode), then the BRDF log RMSE. A
     model with a learnt prior (column prior) reconstructs sparse samples with it by
     default (`brdfkit sparse`, docs/models.md). The folder is the package's
     brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
@@ -94,8 +119,9 @@ def command(as_json, check):
                     _duration(m.train_seconds))
     out.print(tab)
     out.print("*: the default. prior: has a learnt prior (sparse's default method with it).")
+    _print_renders(out, installed)
     if ns:
-        out.print("\nValidation: BRDF log RMSE on held-out materials from N samples (-: not measured)")
+        out.print("\nBRDF-space: log RMSE on held-out materials from N samples (-: not measured)")
         val = _table(("name", *(f"N={n}" for n in ns)))
         for m in installed:
             val.add_row(m.name, *("-" if m.validation.get(n) is None else f"{m.validation[n]:.3f}" for n in ns))

@@ -28,8 +28,8 @@ def _angles(text: str, name: str) -> list[float]:
 @click.option("--decades", default="6", show_default=True,
               help="Decades below the largest value shown by the log scales.")
 def command(paths, model_path, output, view, theta_i, phi_d, channel, cosine, linear, decades):
-    """Plot BRDF files side by side: MERL .binary tables and/or .emb embeddings (decoded
-    with -m MODEL).
+    """Plot BRDF files side by side: MERL .binary tables, RGL .bsdf files and/or .emb
+    embeddings (decoded with -m MODEL).
 
     In-plane lobes (polar, as in BRDF Explorer) for several incident angles, and
     theta_h / theta_d slices at fixed phi_d on one shared log colour scale, each input

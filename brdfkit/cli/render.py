@@ -1,4 +1,4 @@
-"""``brdfkit render``: render a BRDF in the reference scene or a Mitsuba scene."""
+"""``brdfkit render``: render a BRDF in a scene of the suite or a Mitsuba scene."""
 
 from __future__ import annotations
 
@@ -26,10 +26,11 @@ def threads_option(f):
 @click.option("--png", type=click.Path(dir_okay=False), default=None,
               help="Also write a tone-mapped sRGB PNG (exposure 1, clipped; docs/render.md).")
 @click.option("--mitsuba", is_flag=True,
-              help="Path-trace the reference scene with Mitsuba 3 instead of the quadrature.")
-@click.option("--scene", "scene_file", type=click.Path(dir_okay=False), default=None,
-              help="Render this Mitsuba XML scene instead (with --bsdf-id).")
-@click.option("--bsdf-id", default=None, help="Id of the <bsdf> in --scene that gets the BRDF.")
+              help="Path-trace the scene with Mitsuba 3 instead of the quadrature.")
+@click.option("--scene", "scene", default="reference", show_default=True, metavar="NAME|FILE.xml",
+              help="A scene of the suite (reference, backlight, rim, small-lights, overcast, sunset; "
+                   "docs/render.md), or a Mitsuba XML scene file to render instead (with --bsdf-id).")
+@click.option("--bsdf-id", default=None, help="Id of the <bsdf> in --scene FILE.xml that gets the BRDF.")
 @click.option("--spp", type=click.IntRange(min=1), default=None,
               help="Samples per pixel for Mitsuba (default 256, or the scene's own).")
 @click.option("--resolution", type=click.IntRange(min=8, max=8192), default=None,
@@ -38,15 +39,16 @@ def threads_option(f):
               help="Quadrature: average an S x S grid of points per pixel (anti-aliasing).")
 @threads_option
 @click.option("--quiet", is_flag=True, help="No progress bar.")
-def command(brdf, model_path, output, png, mitsuba, scene_file, bsdf_id, spp, resolution, supersample,
+def command(brdf, model_path, output, png, mitsuba, scene, bsdf_id, spp, resolution, supersample,
             threads, quiet):
-    """Render BRDF (a MERL .binary or an embedding .emb with -m MODEL) to an EXR image.
+    """Render BRDF (a MERL .binary, an RGL .bsdf, or an embedding .emb with -m MODEL) to an EXR image.
 
     By default the reference scene (a sphere under a fixed HDR environment,
     docs/render.md) is computed by deterministic quadrature: noise-free, same bytes
-    every run. --mitsuba path-traces the same scene with Mitsuba 3 and the `brdfkit`
-    BSDF plugin; --scene FILE.xml --bsdf-id NAME renders your own Mitsuba scene with
-    the BRDF bound to the BSDF of that id.
+    every run. --scene NAME puts the sphere under another scene of the suite.
+    --mitsuba path-traces the same scene with Mitsuba 3 and the `brdfkit` BSDF plugin;
+    --scene FILE.xml --bsdf-id NAME renders your own Mitsuba scene with the BRDF bound
+    to the BSDF of that id.
     """
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import InputError
@@ -56,6 +58,13 @@ def command(brdf, model_path, output, png, mitsuba, scene_file, bsdf_id, spp, re
     from brdfkit.render.image import write_exr, write_png
 
     brdf_kind(brdf)
+    scene_file = scene if scene.lower().endswith(".xml") or os.path.isfile(scene) else None
+    if scene_file is None:
+        from brdfkit.render.scene_suite import scene_names
+
+        if "," in scene or scene.strip() == "all":
+            raise InputError(f"--scene {scene}: render takes one scene (a name of the suite, or a Mitsuba .xml file)")
+        scene_names(scene)  # an unknown name is refused here, before anything is read
     if scene_file is not None and not bsdf_id:
         raise InputError(f"{scene_file}: --scene needs --bsdf-id NAME (the <bsdf id=...> to replace)")
     if bsdf_id and scene_file is None:
@@ -71,7 +80,7 @@ def command(brdf, model_path, output, png, mitsuba, scene_file, bsdf_id, spp, re
     t0 = time.perf_counter()
     img, how = render_brdf_file(brdf, model_path, resolution=resolution, mitsuba=mitsuba, spp=spp,
                                 supersample=supersample, scene_file=scene_file, bsdf_id=bsdf_id,
-                                progress=not quiet)
+                                progress=not quiet, scene="reference" if scene_file else scene)
     write_exr(output, img)
     if png is not None:
         write_png(png, img)

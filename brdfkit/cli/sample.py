@@ -9,6 +9,18 @@ from brdfkit.console import console
 from brdfkit.errors import InputError
 
 
+def _table(path: str):
+    """The dense table of a BRDF file through the one loader (:func:`brdfkit.brdf_file.read_table`:
+    ``.binary``, ``.bsdf``, ``.emb``); a file of any other name is read as a MERL table,
+    whose reader says what it is not."""
+    import os
+
+    from brdfkit.brdf_file import KINDS, read_table
+    from brdfkit.io.merl import read_merl
+
+    return read_table(path) if os.path.splitext(path)[1].lower() in KINDS else read_merl(path)
+
+
 def _given(name: str) -> bool:
     from click.core import ParameterSource
 
@@ -27,8 +39,9 @@ def _given(name: str) -> bool:
               help="With -n: uniform over Rusinkiewicz angles, or over measured cells.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output CSV.")
 def command(brdf, n, at, seed, distribution, output):
-    """Measure the MERL table BRDF into a CSV sample set: N random measurements (-n), or
-    one at each direction of a directions CSV (--at).
+    """Measure the BRDF (a MERL .binary table, an RGL .bsdf file at the MERL grid, or an
+    .emb decoded by its built-in model) into a CSV sample set: N random measurements (-n),
+    or one at each direction of a directions CSV (--at).
 
     With -n only measured cells are drawn, each with its cell's angles and value. With
     --at each direction gets the table's trilinear interpolation there (a cell's own
@@ -37,7 +50,6 @@ def command(brdf, n, at, seed, distribution, output):
     """
     import os
 
-    from brdfkit.io.merl import read_merl
     from brdfkit.io.samples import write_samples
     from brdfkit.acquisition.sampling import draw_samples, measure_samples
 
@@ -54,10 +66,10 @@ def command(brdf, n, at, seed, distribution, output):
         from brdfkit.io.directions import read_directions
 
         directions = read_directions(at)  # before the table: a bad file is refused at once
-        samples = measure_samples(read_merl(brdf), directions, source=name)
+        samples = measure_samples(_table(brdf), directions, source=name)
         how = f" at the directions of {at}"
     else:
-        samples = draw_samples(read_merl(brdf), n, seed, distribution, source=name)
+        samples = draw_samples(_table(brdf), n, seed, distribution, source=name)
         how = ""
     write_samples(output, samples)
     console().print(f"wrote {len(samples)} samples of {brdf}{how} to {output}")

@@ -9,7 +9,7 @@ the built-in models (``docs/models.md``), none of which needs training here:
   :func:`brdfkit.methods.choice.choose`), which never saw these materials, and with
   IPCA on the same PCA basis beside it (Nielsen et al. 2015);
 * compression of the full table by three hypernetworks (:data:`COMPRESSIONS`), each
-  encode refined on screen for :data:`COMPRESSION_BUDGET` seconds
+  encode refined on screen for at most :data:`COMPRESSION_STEPS` steps
   (:func:`brdfkit.api.encode`, :func:`brdfkit.hypernet.refine_on_screen.compress_table`), then decoded,
   of two kinds, labelled as such wherever they appear:
 
@@ -38,14 +38,12 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import json
 import os
-import shutil
 import time
 
 from brdfkit.errors import InputError
 
-__all__ = ["SPARSE_MODEL", "COMPRESSIONS", "COMPRESSION_MODELS", "COMPRESSION_KINDS", "COMPRESSION_BUDGET",
+__all__ = ["SPARSE_MODEL", "COMPRESSIONS", "COMPRESSION_MODELS", "COMPRESSION_KINDS", "COMPRESSION_STEPS",
            "INTERPOLATION_MODEL", "SAMPLE_COUNTS", "SHEET_RESOLUTION", "RealDemoResult", "demo_materials",
            "check_models", "compression_labels", "run_real_demo"]
 
@@ -61,10 +59,10 @@ COMPRESSION_KINDS = {"in-sample": "trained on all 151 MERL + RGL materials, thes
                                   "compression protocol)",
                      "unseen": "trained without the 20 MERL test materials"}
 """What each kind of :data:`COMPRESSIONS` means, for the output."""
-COMPRESSION_BUDGET = 1.0
-"""Seconds each compression's latent is refined on screen (``brdfkit encode`` refines for
-:data:`brdfkit.hypernet.refine_on_screen.DEFAULT_BUDGET`, 3 s): 12 refinements (four materials, three
-models), plus about 0.5 s of set-up each, so the demo stays about a minute."""
+COMPRESSION_STEPS = 40
+"""Most steps each compression's latent is refined on screen (``brdfkit encode`` takes at
+most :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_STEPS`, 120): 12 refinements (four
+materials, three models), so the demo stays about a minute."""
 INTERPOLATION_MODEL = "merl80-l40"
 """The compression model whose embeddings are blended (one of :data:`COMPRESSION_MODELS`).
 The unseen one, not ``merl-rgl-l40``: its latent space is the one the sparse
@@ -142,6 +140,10 @@ class RealDemoResult:
         compressions' labels (``in-sample 40-D (merl-rgl-l40)``).
     errors
         ``[(material, [BRDF log RMSE per column])]`` against the material's table.
+    renders
+        ``[(material, [(PSNR dB, Delta E 2000) per column])]`` of reference-scene renders
+        at ``resolution`` against the material's (empty without renders): what the
+        console's tables rank by.
     times
         ``[(step, seconds)]``, the last the whole demo.
     files
@@ -170,34 +172,10 @@ class RealDemoResult:
     """Whether the dense tables were written into the output folder."""
     compressions: list = dataclasses.field(default_factory=list)
     """``[(model, kind, label, short)]`` of the compressions (:func:`compression_labels`)."""
-    compression_budget: float = COMPRESSION_BUDGET
-    """Seconds each compression was refined on screen."""
-
-
-class _Clock:
-    """Accumulates the seconds spent in named steps (``with clock("step"):``)."""
-
-    def __init__(self):
-        self.spent: dict[str, list[float]] = {}
-
-    def __call__(self, step: str):
-        clock = self
-
-        class _Span:
-            def __enter__(self):
-                self.t = time.monotonic()
-
-            def __exit__(self, *exc):
-                clock.spent.setdefault(step, []).append(time.monotonic() - self.t)
-
-        return _Span()
-
-    def total(self, step: str) -> float:
-        return float(sum(self.spent.get(step, ())))
-
-    def mean(self, step: str) -> float:
-        v = self.spent.get(step, ())
-        return float(sum(v) / len(v)) if v else 0.0
+    compression_steps: int = COMPRESSION_STEPS
+    """Most steps each compression was refined on screen."""
+    renders: list = dataclasses.field(default_factory=list)
+    """``[(material, [(PSNR dB, Delta E 2000) per column])]`` (see the class doc)."""
 
 
 def _pick(only) -> list[str]:
@@ -212,7 +190,7 @@ def _pick(only) -> list[str]:
 
 def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, device="auto", render: bool = True,
                   resolution: int = SHEET_RESOLUTION, keep_tables: bool = False,
-                  budget: float | None = None) -> RealDemoResult:
+                  steps: int | None = None) -> RealDemoResult:
     """Run the demo (see the module doc), reporting progress on stderr.
 
     Parameters
@@ -233,15 +211,15 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
         Also write the dense tables: the materials (``materials/``), the sparse
         reconstructions (``reconstructed/``), the compressions and the blend
         (``decoded/``), 35 MB each.
-    budget
-        Seconds each compression's latent is refined on screen (default
-        :data:`COMPRESSION_BUDGET`; 0: the encoder's pass alone).
+    steps
+        Most steps each compression's latent is refined on screen (default
+        :data:`COMPRESSION_STEPS`; 0: the encoder's pass alone).
 
     Raises
     ------
     InputError
         The built-in models are not installed (:func:`check_models`), an unknown
-        material, a bad resolution or budget.
+        material, a bad resolution or step count.
     """
     from brdfkit.hypernet.refine_on_screen import CompressConfig
     from brdfkit.demos.synthetic_training import scratch_folder
@@ -250,201 +228,219 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
     names = _pick(only)
     if not 8 <= resolution <= 1024:
         raise InputError(f"--resolution must be between 8 and 1024 pixels, got {resolution}")
-    budget = COMPRESSION_BUDGET if budget is None else budget
-    CompressConfig(budget=budget)  # its one-line refusal, before any work
+    refine_steps = COMPRESSION_STEPS if steps is None else steps
+    CompressConfig(steps=refine_steps)  # its one-line refusal, before any work
     out_dir = os.path.abspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     # The sheet takes its tiles' labels from its inputs' file stems, so it renders files
     # named by label in a temporary folder, written there or linked to the kept tables.
     sheet_dir = scratch_folder(out_dir, keep_tables=False) if render else contextlib.nullcontext(None)
     with sheet_dir as scratch:
-        return _run(out_dir, scratch, keep_tables, names, seed, device, resolution, float(budget))
+        return _run(out_dir, scratch, keep_tables, names, seed, device, resolution, int(refine_steps))
 
 
-def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, budget) -> RealDemoResult:
+def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_steps) -> RealDemoResult:
     """:func:`run_real_demo` in ``out_dir``; ``scratch``: the temporary folder of the
     sheet's inputs (``None``: no sheet)."""
     import torch
 
-    from brdfkit import api
-    from brdfkit.atomic import atomic_open
     from brdfkit.console import console
-    from brdfkit.io.embedding import write_embedding
-    from brdfkit.io.merl import write_merl
-    from brdfkit.methods import get_method
-    from brdfkit.methods.choice import AUTO, choose
-    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.demos.real_outputs import DemoFiles, StepClock, write_figures
     from brdfkit.materials.nbrdf_networks import load_nbrdf_weights, nbrdf_table
-    from brdfkit.figures.brdf_plot import plot_brdfs
-    from brdfkit.io.samples import write_samples
-    from brdfkit.acquisition.sampling import draw_samples
 
     err = console()
-    clock = _Clock()
+    clock = StepClock()
     t_all = time.monotonic()
-    render = scratch is not None
-    kept = ("materials", "reconstructed", "decoded") if keep_tables else ()
-    dirs = {d: os.path.join(out_dir, d) for d in ("samples", "embeddings", *kept)}
-    for d in dirs.values():
-        os.makedirs(d, exist_ok=True)
+    files = DemoFiles(out_dir, scratch, keep_tables, clock)
     err.print(f"[bold]brdfkit demo[/]: {len(names)} MERL test material(s) with the built-in models; "
               f"writing into {out_dir}"
               + ("" if keep_tables else " (the dense tables stay in memory; --keep-tables writes them)"))
     err.print(f"using {torch.get_num_threads()} torch thread(s) (set OMP_NUM_THREADS to choose)")
-    written, n_tables = [], [0]
-
-    def write_table(folder, stem, table, tile=None):
-        """Write ``OUT/folder/stem.binary`` when tables are kept, and the sheet's input
-        ``scratch/TILE.binary`` (``tile``: its label on the sheet) when it renders one;
-        returns the latter, else ``None``."""
-        kept_path = None
-        if keep_tables:
-            kept_path = os.path.join(dirs[folder], stem + ".binary")
-            with clock("write tables"):
-                write_merl(kept_path, table)
-            written.append(kept_path)
-            n_tables[0] += 1
-        if tile is None or scratch is None:
-            return None
-        path = os.path.join(scratch, tile + ".binary")
-        with clock("write tables"):
-            if kept_path is None:
-                write_merl(path, table)
-                n_tables[0] += 1
-            else:  # the kept file, without a second 35 MB write where hard links work
-                try:
-                    os.link(kept_path, path)
-                except OSError:
-                    shutil.copyfile(kept_path, path)
-        return path
-
     with clock("load models"):
-        choice = choose(AUTO, SPARSE_MODEL)
-        sparse_method = get_method(choice.method)
-        sparse_model = sparse_method.load(choice.path, device)
-        ipca = get_method("ipca")
-        ipca_model = ipca.load(SPARSE_MODEL)
-        hyper = {m: api.load_model(m, device) for m in COMPRESSION_MODELS}
+        models = _load_models(device)
         weights = load_nbrdf_weights()
-    comps = compression_labels({m: hyper[m].cfg.latent_dim for m in COMPRESSION_MODELS})
-    methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
-    columns = [f"{label} {n}" for label, _, _ in methods for n in SAMPLE_COUNTS]
-    columns += [label for _, _, label, _ in comps]
-    refined = f"refined on screen, {budget:g} s" if budget > 0 else "encoder pass only"
-    encode_step = f"encode + refine {budget:g} s" if budget > 0 else "encode (encoder pass only)"  # in the times
+    method = models.choice.method
+    columns = [f"{label} {n}" for label, _, _ in models.methods for n in SAMPLE_COUNTS]
+    columns += [label for _, _, label, _ in models.comps]
+    refined = f"refined on screen, at most {refine_steps} steps" if refine_steps > 0 else "encoder pass only"
     # What the plot and the sheet show of the first material ({result key: label}): the
     # default method from both sample counts and all three compressions, so that in-sample
     # and unseen compression sit side by side. IPCA is left to the table so that the sheet
     # keeps six tiles (its width and render time of two compressions).
     tiles = {"reference": names[0],
-             **{f"{choice.method} {n}": f"{choice.method}, {n} samples" for n in SAMPLE_COUNTS},
-             **{m: short for m, _, _, short in comps}}
+             **{f"{method} {n}": f"{method}, {n} samples" for n in SAMPLE_COUNTS},
+             **{m: short for m, _, _, short in models.comps}}
 
-    rows, embs, shown, sheet_inputs = [], {}, {}, {}
+    rows, embs, shown, sheet_inputs, scored = [], {}, {}, {}, []
     for name in names:
         err.print(f"{name}: decoding its NBRDF network, reconstructing, compressing ({refined})")
         with clock("decode NBRDF tables"):
             ref = nbrdf_table(weights[name], device=device)
         first = name == names[0]
+        # Only the first material's results are the sheet's tiles and the plot's lines.
+        row, inputs, results, emb, tables = _material(name, ref, models, files, clock, tiles if first else {},
+                                                       seed, device, refine_steps)
+        if scratch is not None:
+            from brdfkit.demos.real_outputs import render_scores
 
-        def tile(key):
-            return tiles.get(key) if first and render else None
-
-        files = {"reference": write_table("materials", name, ref, tile("reference"))}
-        found = {}
-        for n in SAMPLE_COUNTS:
-            samples = draw_samples(ref, n, seed=seed, source=f"{name}-{n}")
-            written.append(os.path.join(dirs["samples"], f"{name}-{n}.csv"))
-            write_samples(written[-1], samples)
-            for label, method, model in methods:
-                with clock(f"sparse {label}"):
-                    pred, emb = method.sparse(samples, model, seed=seed, device=device)
-                key = f"{label} {n}"
-                with clock("score"):
-                    found[key] = brdf_log_rmse(pred, ref)
-                files[key] = write_table("reconstructed", f"{name}-{label}-{n}", pred, tile(key))
-                if emb is not None:  # a hypernetwork default makes one
-                    written.append(os.path.join(dirs["embeddings"], f"{name}-{label}-{n}.emb"))
-                    write_embedding(written[-1], emb)
-                if first and key in tiles:
-                    shown[tiles[key]] = pred
-        row = [found[f"{label} {n}"] for label, _, _ in methods for n in SAMPLE_COUNTS]
-        for m, _, _, short in comps:
-            with clock(f"encode {m}"):
-                emb = api.encode(hyper[m], ref, source=name, refine=budget > 0, budget=budget)
-            with clock(f"decode {m}"):
-                dec = api.decode(hyper[m], emb)
-            with clock("score"):
-                row.append(brdf_log_rmse(dec, ref))
-            written.append(os.path.join(dirs["embeddings"], f"{name}-{m}.emb"))
-            write_embedding(written[-1], emb)
-            files[m] = write_table("decoded", f"{name}-{m}", dec, tile(m))
-            if m == INTERPOLATION_MODEL:
-                embs[name] = emb
-            if first:
-                shown[short] = dec
+            with clock("render scores"):
+                scored.append((name, render_scores(ref, [tables[c] for c in columns], resolution)))
+        if emb is not None:
+            embs[name] = emb
         if first:
-            shown = {name: ref, **shown}
-            sheet_inputs = files
+            shown = {name: ref, **results}
+            sheet_inputs = inputs
         rows.append((name, row))
-
-    m = INTERPOLATION_MODEL
     if len(names) > 1:
-        a, b = names[0], names[1]
-        err.print(f"interpolating {a} and {b} at t = 0.5 ({m})")
-        with clock("interpolate"):
-            mix = api.interpolate(embs[a], embs[b], 0.5)
-            mixed = api.decode(hyper[m], mix)
-        stem = f"{a}+{b}-t0.5-{m}"
-        written.append(os.path.join(dirs["embeddings"], stem + ".emb"))
-        write_embedding(written[-1], mix)
-        write_table("decoded", stem, mixed)
+        _interpolate(names[0], names[1], embs, models, files, clock, err)
 
     name = names[0]
-    plot_path = os.path.join(out_dir, f"plot-{name}.png")
-    err.print(f"plotting {name} against its reconstructions: {plot_path}")
-    with clock("plot"):
-        plot_brdfs(shown, plot_path)
-    written.append(plot_path)
-    sheet_path = None
-    if render:
-        from brdfkit.figures.comparison_sheet import comparison_sheet
+    plot_path, sheet_path = write_figures(files, err, clock, name, shown, sheet_inputs, tiles, resolution)
+    times = _times(clock, models, names, files, refine_steps, len(tiles), resolution)
+    files.written.append(_write_errors(out_dir, models, columns, rows, refine_steps, seed, scored))
+    times.append(("whole demo", time.monotonic() - t_all))
+    return RealDemoResult(out_dir, names, method, columns, rows, times, sorted(files.written), sheet_path,
+                          plot_path, name, resolution, keep_tables, models.comps, refine_steps, scored)
 
-        sheet_path = os.path.join(out_dir, f"sheet-{name}.png")
-        preds = [sheet_inputs[k] for k in tiles if k != "reference"]
-        err.print(f"rendering {name} and {len(preds)} reconstructions ({resolution} px): {sheet_path}")
-        with clock("sheet"):
-            comparison_sheet(sheet_inputs["reference"], preds, sheet_path, resolution=resolution)
-        written.append(sheet_path)
 
+@dataclasses.dataclass
+class _Models:
+    """The demo's loaded models (:func:`_load_models`)."""
+
+    choice: object
+    """:func:`brdfkit.methods.choice.choose`'s choice of the sparse reconstructions."""
+    methods: list
+    """``[(label, method, loaded model)]`` of the sparse reconstructions: the choice, IPCA."""
+    hyper: dict
+    """``{name: hypernetwork}`` of :data:`COMPRESSION_MODELS`."""
+    comps: list
+    """``[(model, kind, label, short)]`` of the compressions (:func:`compression_labels`)."""
+
+
+def _load_models(device) -> _Models:
+    """Load the sparse reconstructions' methods (:data:`SPARSE_MODEL`'s default, and IPCA
+    on its basis) and the compression hypernetworks on ``device``."""
+    from brdfkit import api
+    from brdfkit.methods import get_method
+    from brdfkit.methods.choice import AUTO, choose
+
+    choice = choose(AUTO, SPARSE_MODEL)
+    sparse_method = get_method(choice.method)
+    sparse_model = sparse_method.load(choice.path, device)
+    ipca = get_method("ipca")
+    ipca_model = ipca.load(SPARSE_MODEL)
+    hyper = {m: api.load_model(m, device) for m in COMPRESSION_MODELS}
+    comps = compression_labels({m: hyper[m].cfg.latent_dim for m in COMPRESSION_MODELS})
+    methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
+    return _Models(choice, methods, hyper, comps)
+
+
+def _material(name, ref, models: _Models, files, clock, tiles: dict, seed, device, refine_steps):
+    """Reconstruct the material ``name`` (its table ``ref``, ``(90, 90, 180, 3)``, 1/sr)
+    from :data:`SAMPLE_COUNTS` samples by each sparse method, and compress it with each
+    hypernetwork, refined for at most ``refine_steps`` steps; write the samples, embeddings and tables
+    (``files``: :class:`brdfkit.demos.real_outputs.DemoFiles`), and the sheet's inputs of
+    the results that ``tiles`` (``{result key: label}``; empty: none) names.
+
+    Returns
+    -------
+    tuple
+        ``(row, inputs, shown, emb, tables)``: the BRDF log RMSE of each column,
+        ``{result key: sheet input or None}``, ``{label: table}`` of the results ``tiles``
+        names, the embedding of :data:`INTERPOLATION_MODEL`, and ``{column: table}``.
+    """
+    from brdfkit import api
+    from brdfkit.acquisition.sampling import draw_samples
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.io.samples import write_samples
+
+    inputs = {"reference": files.table("materials", name, ref, tiles.get("reference"))}
+    found, shown, emb_mix, tables = {}, {}, None, {}
+    for n in SAMPLE_COUNTS:
+        samples = draw_samples(ref, n, seed=seed, source=f"{name}-{n}")
+        write_samples(files.keep("samples", f"{name}-{n}.csv"), samples)
+        for label, method, model in models.methods:
+            with clock(f"sparse {label}"):
+                pred, emb = method.sparse(samples, model, seed=seed, device=device)
+            key = f"{label} {n}"
+            with clock("score"):
+                found[key] = brdf_log_rmse(pred, ref)
+            tables[key] = pred
+            inputs[key] = files.table("reconstructed", f"{name}-{label}-{n}", pred, tiles.get(key))
+            if emb is not None:  # a hypernetwork default makes one
+                write_embedding(files.keep("embeddings", f"{name}-{label}-{n}.emb"), emb)
+            if key in tiles:
+                shown[tiles[key]] = pred
+    row = [found[f"{label} {n}"] for label, _, _ in models.methods for n in SAMPLE_COUNTS]
+    for m, _, label, short in models.comps:
+        with clock(f"encode {m}"):
+            emb = api.encode(models.hyper[m], ref, source=name, refine=refine_steps > 0, steps=refine_steps)
+        with clock(f"decode {m}"):
+            dec = api.decode(models.hyper[m], emb)
+        with clock("score"):
+            row.append(brdf_log_rmse(dec, ref))
+        tables[label] = dec
+        write_embedding(files.keep("embeddings", f"{name}-{m}.emb"), emb)
+        inputs[m] = files.table("decoded", f"{name}-{m}", dec, tiles.get(m))
+        if m == INTERPOLATION_MODEL:
+            emb_mix = emb
+        if m in tiles:
+            shown[short] = dec
+    return row, inputs, shown, emb_mix, tables
+
+
+def _interpolate(a, b, embs, models: _Models, files, clock, err) -> None:
+    """Blend the :data:`INTERPOLATION_MODEL` embeddings ``embs`` of the materials ``a`` and
+    ``b`` at ``t = 0.5``, decode the blend, and write both."""
+    from brdfkit import api
+    from brdfkit.io.embedding import write_embedding
+
+    m = INTERPOLATION_MODEL
+    err.print(f"interpolating {a} and {b} at t = 0.5 ({m})")
+    with clock("interpolate"):
+        mix = api.interpolate(embs[a], embs[b], 0.5)
+        mixed = api.decode(models.hyper[m], mix)
+    stem = f"{a}+{b}-t0.5-{m}"
+    write_embedding(files.keep("embeddings", stem + ".emb"), mix)
+    files.table("decoded", stem, mixed)
+
+
+def _times(clock, models: _Models, names, files, refine_steps, renders, resolution) -> list:
+    """``[(step, seconds)]`` of the demo's steps from ``clock``, the whole demo not yet;
+    ``renders``: the sheet's tiles (counted only with a sheet)."""
     n_mat = len(names)
+    encode_step = f"encode + refine ({refine_steps} steps)" if refine_steps > 0 else "encode (encoder pass only)"
     times = [("load the built-in models", clock.total("load models")),
              (f"decode {n_mat} NBRDF network(s) to MERL tables", clock.total("decode NBRDF tables"))]
-    for label, _, _ in methods:
+    for label, _, _ in models.methods:
         times.append((f"sparse reconstruction, {label} (mean of {n_mat * len(SAMPLE_COUNTS)})",
                       clock.mean(f"sparse {label}")))
-    for m, _, label, _ in comps:
+    for m, _, label, _ in models.comps:
         times.append((f"{encode_step}, {label} (mean)", clock.mean(f"encode {m}")))
         times.append((f"decode, {label} (mean)", clock.mean(f"decode {m}")))
-    if len(names) > 1:
+    if n_mat > 1:
         times.append(("interpolate two embeddings + decode", clock.total("interpolate")))
     times.append((f"score the results (brdf_log_rmse, {len(clock.spent.get('score', ()))})",
                   clock.total("score")))
-    where = "" if keep_tables else " the sheet renders, to a temporary folder"
-    times.append((f"write the MERL tables{where} ({n_tables[0]})", clock.total("write tables")))
+    if "render scores" in clock.spent:
+        times.append((f"render and score the results ({resolution} px)", clock.total("render scores")))
+    where = "" if files.keep_tables else " the sheet renders, to a temporary folder"
+    times.append((f"write the MERL tables{where} ({files.n_tables})", clock.total("write tables")))
     times.append(("plot", clock.total("plot")))
-    if render:
-        times.append((f"comparison sheet ({len(preds) + 1} renders, {resolution} px)", clock.total("sheet")))
-    errors_path = os.path.join(out_dir, "errors.json")
-    doc = {"format": "brdfkit-demo-errors", "metric": "brdf_log_rmse", "sparse_model": SPARSE_MODEL,
-           "sparse_method": choice.method, "compression_models": list(COMPRESSION_MODELS),
-           "compressions": [{"column": label, "model": m, "kind": kind, "latent_dim": hyper[m].cfg.latent_dim}
-                            for m, kind, label, _ in comps],
-           "compression_budget_s": budget, "interpolation_model": INTERPOLATION_MODEL, "seed": seed,
-           "columns": columns, "errors": {n: dict(zip(columns, map(float, row))) for n, row in rows}}
-    with atomic_open(errors_path, "w", encoding="utf-8") as f:
-        json.dump(doc, f, indent=1)
-    written.append(errors_path)
-    times.append(("whole demo", time.monotonic() - t_all))
-    return RealDemoResult(out_dir, names, choice.method, columns, rows, times, sorted(written), sheet_path,
-                          plot_path, name, resolution, keep_tables, comps, budget)
+    if files.scratch is not None:
+        times.append((f"comparison sheet ({renders} renders, {resolution} px)", clock.total("sheet")))
+    return times
+
+
+def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, scored) -> str:
+    """``OUT/errors.json`` (:func:`brdfkit.demos.real_outputs.write_errors`) with what
+    made its figures; returns its path."""
+    from brdfkit.demos.real_outputs import write_errors
+
+    made = {"sparse_model": SPARSE_MODEL, "sparse_method": models.choice.method,
+            "compression_models": list(COMPRESSION_MODELS),
+            "compressions": [{"column": label, "model": m, "kind": kind, "latent_dim": models.hyper[m].cfg.latent_dim}
+                             for m, kind, label, _ in models.comps],
+            "compression_steps": refine_steps, "interpolation_model": INTERPOLATION_MODEL, "seed": seed}
+    return write_errors(out_dir, made, columns, rows, scored)

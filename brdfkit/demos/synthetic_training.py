@@ -199,17 +199,15 @@ def _run(out_dir, scratch, minutes, steps, n_materials, holdout, seed, device, r
 
     from brdfkit import api
     from brdfkit.console import console
-    from brdfkit.io.embedding import write_embedding
-    from brdfkit.io.merl import read_merl, write_merl
-    from brdfkit.evaluation.metrics import brdf_log_rmse
-    from brdfkit.acquisition.sampling import draw_samples
     from brdfkit.hypernet.training.loop import fit
 
     err = console()
     t_all = time.monotonic()
     mat_dir = os.path.join(scratch or out_dir, "materials")
     emb_dir, dec_dir, ren_dir = (os.path.join(out_dir, d) for d in ("embeddings", "decoded", "renders"))
-    for d in (emb_dir,) + ((dec_dir,) if scratch is None else ()) + ((ren_dir,) if render else ()):
+    dec_dir = dec_dir if scratch is None else None
+    ren_dir = ren_dir if render else None
+    for d in (emb_dir,) + ((dec_dir,) if dec_dir else ()) + ((ren_dir,) if ren_dir else ()):
         os.makedirs(d, exist_ok=True)
     err.print(f"[bold]brdfkit demo[/]: writing into {out_dir}"
               + ("" if scratch is None else " (the dense tables: in memory and a temporary folder there, removed "
@@ -232,10 +230,47 @@ def _run(out_dir, scratch, minutes, steps, n_materials, holdout, seed, device, r
     model = api.load_model(model_path, None if device == "auto" else device)
     times.append((f"training ({model.meta['steps']} steps)", time.monotonic() - t))
 
-    scorer = render_psnr() if render else None
+    rows, psnr_rows, full_emb, spent = _reconstruct_held_out(model, held, mat_dir, emb_dir, dec_dir, ren_dir, seed, err,
+                                                     times, written)
+    t_interp = _interpolate(model, held, names, full_emb, mat_dir, emb_dir, dec_dir, written)
+
+    for n in SAMPLE_COUNTS:
+        times.append((f"sparse reconstruction, {n} samples (mean per material)", float(np.mean(spent[n]))))
+    times.append(("encode a full table (mean)", float(np.mean(spent["encode"]))))
+    times.append(("decode to a full table (mean)", float(np.mean(spent["decode"]))))
+    times.append(("interpolate two embeddings + decode", t_interp))
+    times.append(("whole demo", time.monotonic() - t_all))
+    columns = ["median reference", *(f"{n} samples" for n in SAMPLE_COUNTS), "full table (compressed)"]
+    return DemoResult(out_dir, model_path, paths, held, model.cfg.latent_dim, rows, columns, psnr_rows, times,
+                      [model_path, model_path + ".ckpt"] + sorted(written), scratch is None)
+
+
+def _reconstruct_held_out(model, held, mat_dir, emb_dir, dec_dir, ren_dir, seed, err, times, written):
+    """Reconstruct, compress and score each held-out material of ``mat_dir`` with ``model``.
+
+    Writes the embeddings into ``emb_dir``, the decoded tables into ``dec_dir`` (``None``:
+    not kept) and, for the first material, the renders of its reconstruction from the most
+    samples into ``ren_dir`` (``None``: no render); appends the files to ``written`` and
+    the render's time to ``times``.
+
+    Returns
+    -------
+    tuple
+        ``(rows, psnr_rows, full_emb, spent)``: the :class:`DemoResult` errors and PSNR,
+        ``{material: embedding of its full table}``, and the seconds of each call,
+        ``{N: [sparse], "encode": [...], "decode": [...]}``.
+    """
+    import numpy as np
+
+    from brdfkit import api
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.io.merl import read_merl, write_merl
+    from brdfkit.evaluation.metrics import brdf_log_rmse
+    from brdfkit.acquisition.sampling import draw_samples
+
+    scorer = render_psnr() if ren_dir is not None else None
     rows, psnr_rows, full_emb = [], [], {}
-    t_sparse = {n: [] for n in SAMPLE_COUNTS}
-    t_encode, t_decode = [], []
+    spent = {**{n: [] for n in SAMPLE_COUNTS}, "encode": [], "decode": []}
     ref_table = model.rho_ref.astype(np.float64)
     for i, name in enumerate(held):
         err.print(f"reconstructing {name}")
@@ -245,7 +280,7 @@ def _run(out_dir, scratch, minutes, steps, n_materials, holdout, seed, device, r
             samples = draw_samples(table, n, seed=seed + 1000 * i + n, source=f"{name}-{n}")
             t = time.monotonic()
             pred, emb = api.sparse(model, samples, source=f"{name} ({n} samples)")
-            t_sparse[n].append(time.monotonic() - t)
+            spent[n].append(time.monotonic() - t)
             written.append(os.path.join(emb_dir, f"{name}-{n}samples.emb"))
             write_embedding(written[-1], emb)
             row.append(brdf_log_rmse(pred, table))
@@ -259,18 +294,29 @@ def _run(out_dir, scratch, minutes, steps, n_materials, holdout, seed, device, r
                 times.append((f"render material + reconstruction ({RENDER_RESOLUTION} px)", time.monotonic() - t))
         t = time.monotonic()
         emb = api.encode(model, table, source=name)
-        t_encode.append(time.monotonic() - t)
+        spent["encode"].append(time.monotonic() - t)
         t = time.monotonic()
         decoded = api.decode(model, emb)
-        t_decode.append(time.monotonic() - t)
+        spent["decode"].append(time.monotonic() - t)
         row.append(brdf_log_rmse(decoded, table))
         written.append(os.path.join(emb_dir, f"{name}.emb"))
         write_embedding(written[-1], emb)
-        if scratch is None:
+        if dec_dir is not None:
             written.append(os.path.join(dec_dir, f"{name}.binary"))
             write_merl(written[-1], decoded)
         full_emb[name] = emb
         rows.append((name, row))
+    return rows, psnr_rows, full_emb, spent
+
+
+def _interpolate(model, held, names, full_emb, mat_dir, emb_dir, dec_dir, written) -> float:
+    """Blend the embeddings of the first two held-out materials (or the first and a
+    trained one) at ``t = 0.5`` and decode the blend, writing its embedding into
+    ``emb_dir`` and its table into ``dec_dir`` (``None``: not kept); returns the seconds
+    the blend and its decode took. ``full_emb``: ``{material: embedding}``, completed here."""
+    from brdfkit import api
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.io.merl import read_merl, write_merl
 
     a = held[0]
     b = held[1] if len(held) > 1 else next(n for n in names if n not in held)
@@ -283,16 +329,7 @@ def _run(out_dir, scratch, minutes, steps, n_materials, holdout, seed, device, r
     mix_name = f"{a}+{b}-t0.5"
     written.append(os.path.join(emb_dir, mix_name + ".emb"))
     write_embedding(written[-1], mix)
-    if scratch is None:
+    if dec_dir is not None:
         written.append(os.path.join(dec_dir, mix_name + ".binary"))
         write_merl(written[-1], mixed)
-
-    for n in SAMPLE_COUNTS:
-        times.append((f"sparse reconstruction, {n} samples (mean per material)", float(np.mean(t_sparse[n]))))
-    times.append(("encode a full table (mean)", float(np.mean(t_encode))))
-    times.append(("decode to a full table (mean)", float(np.mean(t_decode))))
-    times.append(("interpolate two embeddings + decode", t_interp))
-    times.append(("whole demo", time.monotonic() - t_all))
-    columns = ["median reference", *(f"{n} samples" for n in SAMPLE_COUNTS), "full table (compressed)"]
-    return DemoResult(out_dir, model_path, paths, held, model.cfg.latent_dim, rows, columns, psnr_rows, times,
-                      [model_path, model_path + ".ckpt"] + sorted(written), scratch is None)
+    return t_interp

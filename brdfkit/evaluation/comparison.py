@@ -1,7 +1,7 @@
 """Errors of predicted BRDF files or images against references: the work of
 ``brdfkit metrics``.
 
-A BRDF file (MERL ``.binary``, or ``.emb`` with its model) is rendered in the reference
+A BRDF file (MERL ``.binary``, RGL ``.bsdf``, or ``.emb`` with its model) is rendered in the reference
 scene by the quadrature renderer (:func:`brdfkit.render.file_render.render_brdf_file`); an
 ``.exr`` is taken as it is. Each pair is scored by :func:`brdfkit.evaluation.metrics.score`, the
 same function the benchmark uses. Two folders are compared file by file, matched by
@@ -21,7 +21,8 @@ from brdfkit.io.digest import file_digest
 
 __all__ = ["SUFFIXES", "FileLoader", "RenderCounts", "compare_files", "compare_folders", "mean_scores"]
 
-SUFFIXES = (".binary", ".emb", ".exr")
+SUFFIXES = (".binary", ".bsdf", ".emb", ".exr")
+TABLE_SUFFIXES = (".binary", ".bsdf")  # BRDF files that hold a table (read once per loader)
 KEYS = ("psnr", "delta_e", "ssim", "brdf_log_rmse")
 # Dense tables a FileLoader keeps (35 MB each): the pair being compared, and the
 # reference of the next pair in a folder.
@@ -32,9 +33,9 @@ def _kind(path: str) -> str:
     ext = os.path.splitext(path)[1].lower()
     if ext == ".exr":
         return "image"
-    if ext in (".binary", ".emb"):
+    if ext in (".binary", ".bsdf", ".emb"):
         return "brdf"
-    raise InputError(f"{path}: not a BRDF (.binary, .emb) or an image (.exr)")
+    raise InputError(f"{path}: not a BRDF (.binary, .bsdf, .emb) or an image (.exr)")
 
 
 @dataclasses.dataclass
@@ -102,25 +103,26 @@ class FileLoader:
         embedding asked about names (:class:`brdfkit.brdf_file.EmbeddingModel`)."""
         return self._models.for_file(emb_path)
 
-    def image(self, path, resolution=None):
-        """An ``.exr`` as it is, a BRDF file rendered in the reference scene."""
+    def image(self, path, resolution=None, scene: str = "reference"):
+        """An ``.exr`` as it is, a BRDF file rendered in ``scene`` (a suite scene's name)."""
         from brdfkit.render.image import read_exr
 
         if _kind(path) == "image":
             return read_exr(path)
-        return self.renders([path], resolution)[0]
+        return self.renders([path], resolution, scene)[0]
 
-    def _render_key(self, path, scene) -> str:
+    def _render_key(self, path, settings, scene: str) -> str:
         model = self.model(path).fingerprint if path.lower().endswith(".emb") else ""
-        return hashlib.sha256("\n".join([file_digest(path), model, repr(scene)]).encode()).hexdigest()
+        return hashlib.sha256("\n".join([file_digest(path), model, repr(settings), scene]).encode()).hexdigest()
 
-    def renders(self, paths, resolution=None) -> list:
-        """Reference-scene renders of BRDF files: float32 ``(R, R, 3)`` each; the ones not
-        cached are rendered together in one quadrature pass."""
+    def renders(self, paths, resolution=None, scene: str = "reference") -> list:
+        """Renders of BRDF files in a suite scene (:mod:`brdfkit.render.scene_suite`):
+        float32 ``(R, R, 3)`` each; the ones not cached are rendered together in one
+        quadrature pass."""
         from brdfkit.render import file_render as files
 
-        scene = files.reference_scene(resolution or self.resolution)
-        keys = [self._render_key(p, scene) for p in paths]
+        settings = files.reference_scene(resolution or self.resolution)
+        keys = [self._render_key(p, settings, scene) for p in paths]
         todo = {}
         for key, path in zip(keys, paths):
             if key not in self._renders:
@@ -129,10 +131,10 @@ class FileLoader:
         if todo:
             embs = [p for p in todo.values() if p.lower().endswith(".emb")]
             model = self.model(embs[0]) if embs else None
-            tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(".binary")}
+            tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(TABLE_SUFFIXES)}
             self._torch_needed()
-            images = files.render_brdf_files(list(todo.values()), resolution=scene.resolution,
-                                             progress=self.progress, model=model, tables=tables)
+            images = files.render_brdf_files(list(todo.values()), resolution=settings.resolution,
+                                             progress=self.progress, model=model, tables=tables, scene=scene)
             self._renders.update(zip(todo, images))
             self.counts.passes += 1
             self.counts.renders += len(todo)
@@ -154,16 +156,14 @@ class FileLoader:
             self.table(path)
 
     def table(self, path):
-        """The dense table of a BRDF file; a ``.binary`` is read once per loader (the
+        """The dense table of a BRDF file; a table file (``.binary``, ``.bsdf``) is read once per loader (the
         check, the render and the BRDF-space error all need it), the last
         :data:`TABLES_KEPT` kept."""
-        if path.lower().endswith(".binary"):
-            from brdfkit.io.merl import read_merl
-
+        if path.lower().endswith(TABLE_SUFFIXES):
             st = os.stat(path)
             key = (os.path.realpath(path), st.st_ino, st.st_size, st.st_mtime_ns)  # a rewritten file is read again
             if key not in self._tables:
-                table = read_merl(path)
+                table = read_table(path)
                 table.setflags(write=False)  # shared by the check, the render and the scores
                 self._tables[key] = table
                 while len(self._tables) > TABLES_KEPT:
@@ -173,17 +173,56 @@ class FileLoader:
         return read_table(path, self._models)
 
 
-def compare_files(loader: FileLoader, pred: str, ref: str) -> dict:
+def compare_files(loader: FileLoader, pred: str, ref: str, scenes=None, highlights: bool = False) -> dict:
     """:func:`brdfkit.evaluation.metrics.score` of one prediction against one reference; a BRDF
-    compared with an image is rendered at the image's size."""
+    compared with an image is rendered at the image's size.
+
+    Parameters
+    ----------
+    scenes
+        Suite scene names (:func:`brdfkit.render.scene_suite.scene_names`) to score two
+        BRDF files in; ``None``: the reference scene, as before the suite.
+    highlights
+        Also check the peak region of two BRDF files (``"highlights"``).
+
+    Returns
+    -------
+    dict
+        ``{"psnr", "delta_e", "ssim", "brdf_log_rmse"}``, with ``highlights`` and two BRDF
+        files ``"highlights"`` (:func:`brdfkit.evaluation.metrics.highlights`: the peak
+        region's brightness against the reference's); with ``scenes``, the image scores are their
+        means over the scenes, and ``"scenes"`` holds ``{name: {"psnr", "delta_e", "ssim"}}``.
+    """
     from brdfkit.atomic import check_input_file
-    from brdfkit.evaluation.metrics import score
+    from brdfkit.evaluation.metrics import brdf_log_rmse, highlights as peak_check, score
 
     check_input_file(pred)
     check_input_file(ref)
     kp, kr = _kind(pred), _kind(ref)
     loader.check(pred)
     loader.check(ref)
+    both = kp == kr == "brdf"
+    if scenes is not None:
+        if not both:
+            raise InputError(f"{pred if kp == 'image' else ref}: --scenes renders BRDF files; an image has no scene")
+        per = {}
+        for name in scenes:
+            img_p, img_r = loader.renders([pred, ref], None, name)  # one pass for the pair
+            per[name] = {k: v for k, v in score(img_p, img_r).items() if k != "brdf_log_rmse"}
+        out = mean_scores(list(per.values()))
+        out["brdf_log_rmse"] = brdf_log_rmse(loader.table(pred), loader.table(ref))
+        out["scenes"] = per
+    else:
+        img_p, img_r = _image_pair(loader, pred, ref, kp, kr)
+        out = score(img_p, img_r, loader.table(pred) if both else None, loader.table(ref) if both else None)
+    if both and highlights:
+        out["highlights"] = peak_check(loader.table(pred), loader.table(ref))
+    return out
+
+
+def _image_pair(loader: FileLoader, pred: str, ref: str, kp: str, kr: str):
+    """The two images a reference-scene comparison scores: given images as they are,
+    BRDF files rendered (at a given image's size)."""
     size = None
     img_r = loader.image(ref) if kr == "image" else None
     img_p = loader.image(pred) if kp == "image" else None
@@ -203,8 +242,7 @@ def compare_files(loader: FileLoader, pred: str, ref: str) -> dict:
     if img_p.shape != img_r.shape:
         raise InputError(f"{pred}, {ref}: image sizes differ ({img_p.shape[1]}x{img_p.shape[0]} "
                          f"and {img_r.shape[1]}x{img_r.shape[0]})")
-    both = kp == kr == "brdf"
-    return score(img_p, img_r, loader.table(pred) if both else None, loader.table(ref) if both else None)
+    return img_p, img_r
 
 
 def _stems(folder: str) -> dict:
@@ -216,8 +254,10 @@ def _stems(folder: str) -> dict:
     return found
 
 
-def compare_folders(loader: FileLoader, pred: str, ref: str, on_file=None, on_skip=None) -> dict:
-    """Compare the files of two folders matched by stem: ``{stem: scores}``.
+def compare_folders(loader: FileLoader, pred: str, ref: str, on_file=None, on_skip=None, scenes=None,
+                    highlights: bool = False) -> dict:
+    """Compare the files of two folders matched by stem: ``{stem: scores}`` (``scenes``
+    and ``highlights`` as :func:`compare_files` takes them).
 
     ``on_skip(stem, folder)`` is called first for each stem only one folder holds,
     ``on_file(i, n, stem)`` before each pair.
@@ -225,7 +265,7 @@ def compare_folders(loader: FileLoader, pred: str, ref: str, on_file=None, on_sk
     a, b = _stems(pred), _stems(ref)
     common = [s for s in a if s in b]
     if not common:
-        raise InputError(f"{pred}, {ref}: no file stems in common (files must be .binary, .emb or .exr)")
+        raise InputError(f"{pred}, {ref}: no file stems in common (files must be .binary, .bsdf, .emb or .exr)")
     for stem in sorted(set(a) ^ set(b)):
         if on_skip is not None:
             on_skip(stem, pred if stem in a else ref)
@@ -233,14 +273,20 @@ def compare_folders(loader: FileLoader, pred: str, ref: str, on_file=None, on_sk
     for i, stem in enumerate(common, 1):
         if on_file is not None:
             on_file(i, len(common), stem)
-        rows[stem] = compare_files(loader, a[stem], b[stem])
+        rows[stem] = compare_files(loader, a[stem], b[stem], scenes, highlights)
     return rows
 
 
 def mean_scores(rows: list) -> dict:
-    """Mean of each score over the rows that have it (``None`` where none has)."""
+    """Mean of each score over the rows that have it (``None`` where none has); rows
+    scored in scenes also get the mean of each scene's scores under ``"scenes"``."""
     out = {}
     for key in KEYS:
         vals = [r[key] for r in rows if r.get(key) is not None]
         out[key] = float(sum(vals) / len(vals)) if vals else None
+    names = [n for n in (rows[0].get("scenes") or {})] if rows else []
+    if names:
+        out["scenes"] = {n: mean_scores([r["scenes"][n] for r in rows]) for n in names}
+        for m in out["scenes"].values():
+            m.pop("brdf_log_rmse", None)
     return out

@@ -32,7 +32,8 @@ from brdfkit.errors import InputError
 # Re-exported: the metrics' own display encoding, defined with the renderer's.
 from brdfkit.render.display import EXPOSURE, display_encode, display_linear, srgb_oetf
 
-__all__ = ["EXPOSURE", "PSNR_CAP", "brdf_log_rmse", "dark_at_grazing", "display_encode", "srgb_oetf",
+__all__ = ["EXPOSURE", "PSNR_CAP", "PEAK_THETA_H_DEG", "brdf_log_rmse", "dark_at_grazing", "highlights",
+           "display_encode", "srgb_oetf",
            "psnr", "delta_e_2000", "delta_e_2000_map", "ssim", "image_metrics", "score"]
 
 PSNR_CAP = 100.0
@@ -73,6 +74,14 @@ def brdf_log_rmse(pred, ref) -> float:
     InputError
         Wrong shapes, no cell measured in both, or values so negative that the log is
         undefined (``rho cos_i <= -1``).
+
+    Examples
+    --------
+    >>> from brdfkit.testing.examples import lambertian_table
+    >>> brdf_log_rmse(lambertian_table(), lambertian_table())
+    0.0
+    >>> round(brdf_log_rmse(lambertian_table((0.4, 0.25, 0.1)), lambertian_table()), 4)
+    0.0533
     """
     from brdfkit.geometry import GRID_SHAPE
 
@@ -107,6 +116,61 @@ def dark_at_grazing(pred, ref, above_deg: float = 80.0) -> float:
     return float(np.mean(p[ok] < 0.1 * r[ok])) if ok.any() else 0.0
 
 
+PEAK_THETA_H_DEG = 5.0
+"""The specular peak's region: ``theta_h`` below this many degrees (MERL's first 21
+``theta_h`` rows, the square-root spacing's densest part)."""
+
+_LUMINANCE = np.array([0.2126, 0.7152, 0.0722])  # linear sRGB (ITU-R BT.709)
+
+
+def highlights(pred, ref, grazing_deg: float = 60.0) -> dict:
+    """Invented or lost highlights: the peak region's brightness of ``pred`` against
+    ``ref``'s, where renders of one scene may not look.
+
+    The region is ``theta_h < PEAK_THETA_H_DEG``, split at ``theta_d = grazing_deg``
+    into the specular peak (``"peak"``) and the grazing band (``"grazing"``: near-mirror
+    reflection at grazing incidence, which a scene lit from the camera's side barely
+    sees). Each is ``log10`` of the ratio of the two tables' mean luminance over the
+    cells measured in both: ``+0.3`` is a peak twice as bright as the table's (a
+    highlight invented, or too strong), ``-1`` one ten times darker (a highlight lost).
+
+    Parameters
+    ----------
+    pred, ref
+        ``(90, 90, 180, 3)`` tables in 1/sr, NaN where unmeasured.
+    grazing_deg
+        ``theta_d`` in degrees where the grazing band starts.
+
+    Returns
+    -------
+    dict
+        ``{"peak": float, "grazing": float}``; ``None`` for a region no cell of which is
+        measured in both, or whose reference is black (below 1e-6 /sr).
+
+    Examples
+    --------
+    >>> from brdfkit.testing.examples import lambertian_table
+    >>> highlights(lambertian_table(), lambertian_table())
+    {'peak': 0.0, 'grazing': 0.0}
+    >>> twice = lambertian_table() * 2
+    >>> round(highlights(twice, lambertian_table())["peak"], 4)
+    0.301
+    """
+    from brdfkit.geometry import grid_angles
+
+    th, td, _ = (np.degrees(a) for a in grid_angles())
+    p = np.asarray(pred, np.float64)[th < PEAK_THETA_H_DEG] @ _LUMINANCE  # (rows, 90, 180)
+    r = np.asarray(ref, np.float64)[th < PEAK_THETA_H_DEG] @ _LUMINANCE
+    out = {}
+    for key, band in (("peak", td < grazing_deg), ("grazing", td >= grazing_deg)):
+        a, b = p[:, band], r[:, band]
+        ok = np.isfinite(a) & np.isfinite(b)
+        mean_a, mean_b = (float(x[ok].mean()) if ok.any() else float("nan") for x in (a, b))
+        good = ok.any() and mean_b > 1e-6
+        out[key] = round(float(np.log10(max(mean_a, 1e-12) / mean_b)), 6) if good else None
+    return out
+
+
 def _check_pair(pred, ref, mask):
     a = np.asarray(pred, dtype=np.float64)
     b = np.asarray(ref, dtype=np.float64)
@@ -139,6 +203,15 @@ def psnr(pred, ref, mask=None) -> float:
     -------
     float
         ``10 log10(1 / MSE)``; ``inf`` for identical display images.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.full((8, 8, 3), 0.5)
+    >>> psnr(ref, ref)
+    inf
+    >>> round(psnr(ref * 1.01, ref), 2)  # a 1% brighter render
+    49.67
     """
     a, b, mask = _check_pair(pred, ref, mask)
     d = (display_encode(a) - display_encode(b)) ** 2
@@ -166,6 +239,15 @@ def delta_e_2000(pred, ref, mask=None) -> float:
     float
         Mean Delta E 2000 (0 for identical display images; about 1 is a just-noticeable
         difference).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.full((8, 8, 3), 0.5)
+    >>> delta_e_2000(ref, ref)
+    0.0
+    >>> round(delta_e_2000(ref * [1.1, 1.0, 1.0], ref), 2)  # 10% more red
+    4.04
     """
     a, b, mask = _check_pair(pred, ref, mask)
     de = delta_e_2000_map(a, b)
@@ -192,6 +274,13 @@ def ssim(pred, ref, mask=None) -> float:
     -------
     float
         In ``[-1, 1]``, 1 for identical display images.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.random.default_rng(0).uniform(0, 1, (16, 16, 3))
+    >>> ssim(ref, ref)
+    1.0
     """
     from skimage.metrics import structural_similarity
 
@@ -228,6 +317,13 @@ def score(pred_img, ref_img, pred_table=None, ref_table=None) -> dict:
         ``{"psnr", "delta_e", "ssim", "brdf_log_rmse"}``: :func:`image_metrics` with PSNR
         capped at :data:`PSNR_CAP` (so JSON stays standard), and :func:`brdf_log_rmse`
         (``None`` without both tables).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> img = np.full((8, 8, 3), 0.5)
+    >>> score(img, img)
+    {'psnr': 100.0, 'delta_e': 0.0, 'ssim': 1.0, 'brdf_log_rmse': None}
     """
     out = image_metrics(pred_img, ref_img)
     out["psnr"] = min(out["psnr"], PSNR_CAP)

@@ -258,12 +258,10 @@ def plot_figure(tables: dict[str, np.ndarray], *, theta_i: Sequence[float] = (0.
         raise InputError("plot: no input")
     theta_i = [float(t) for t in theta_i]
     phi_d = [float(p) for p in phi_d]
-    labels = list(tables)
     want_lobes, want_slices = view in ("both", "lobes"), view in ("both", "slices")
     unit = "BRDF x cos(theta_o) (1/sr)" if cosine else "BRDF (1/sr)"
-    what = f"{channel}, {unit}"
 
-    n_lobes, n_cols = len(theta_i), len(labels)
+    n_lobes, n_cols = len(theta_i), len(tables)
     # Inches: a lobe panel; a slice image (square: it fills its axes, and the layout
     # makes room for every title and label only around axes it does not shrink) and
     # what a column and a row of them add around it (titles, ticks, labels, colour bar).
@@ -275,87 +273,106 @@ def plot_figure(tables: dict[str, np.ndarray], *, theta_i: Sequence[float] = (0.
     fig = plt.figure(figsize=(width, sum(heights)), dpi=dpi, layout="constrained")
     # Room between a view's title and its panels' titles, and at the figure's edges.
     fig.get_layout_engine().set(h_pad=6 / 72, w_pad=6 / 72)
-    subfigs = fig.subfigures(len(heights), 1, height_ratios=heights, squeeze=False)[:, 0]
-    row = 0
-
+    subfigs = iter(fig.subfigures(len(heights), 1, height_ratios=heights, squeeze=False)[:, 0])
     if want_lobes:
-        sub = subfigs[row]
-        row += 1
-        lobes = {(lab, t): inplane_lobe(tables[lab], t, channel, cosine)[1]
-                 for lab in labels for t in theta_i}
-        if log:
-            lo, hi = _log_range(lobes.values(), decades)
-        else:
-            hi = max((float(np.nanmax(v)) for v in lobes.values() if np.any(np.isfinite(v))), default=1.0)
-        axes = sub.subplots(1, n_lobes, squeeze=False)[0]
-        to = np.radians(THETA_O_DEG)
-        rmax = hi - lo if log else hi * 1.05
-        for ax, t in zip(axes, theta_i):
-            _polar_frame(ax, rmax, lo if log else None, rmax)
-            for n, lab in enumerate(labels):
-                v = lobes[(lab, t)]
-                r = v
-                if log:
-                    with np.errstate(divide="ignore", invalid="ignore"):
-                        r = np.clip(np.log10(np.where(v > 0, v, np.nan)) - lo, 0.0, None)
-                    r = np.where(np.isfinite(v) & (v <= 0), 0.0, r)
-                # Colour and dash both change per input: a reconstruction lying on its
-                # reference must still show.
-                ax.plot(r * np.sin(to), r * np.cos(to), color=COLOURS[n % len(COLOURS)],
-                        ls=STYLES[n % len(STYLES)], lw=1.7, label=lab)
-            ti = math.radians(t)
-            ax.annotate("", xy=(0, 0), xytext=(-rmax * math.sin(ti), rmax * math.cos(ti)),
-                        arrowprops=dict(arrowstyle="->", color="0.3", lw=1.3))
-            ax.plot([0, rmax * math.sin(ti)], [0, rmax * math.cos(ti)], color="0.5", lw=0.9, ls=":")
-            ax.set_title(f"theta_i = {t:g} deg", fontsize=10)
-        handles, names = axes[0].get_legend_handles_labels()
-        sub.suptitle(_wrap(f"In-plane lobes ({what}, {'log' if log else 'linear'} radius; light along the "
-                           "arrow, dotted: mirror direction)", width - 0.4, 10), fontsize=10)
-        sub.legend(handles, names, loc="outside lower center", ncol=min(len(labels), 6), fontsize=9,
-                   frameon=False)
-
+        _draw_lobes(next(subfigs), tables, theta_i, channel, cosine, log, decades,
+                    f"{channel}, {unit}", width)
     if want_slices:
-        sub = subfigs[row]
-        ks = [int(round(p / 180.0 * 180)) % 180 for p in phi_d]
-        images = {(lab, k): channel_values(tables[lab][:, :, k, :], channel) for lab in labels for k in ks}
-        lo_s, hi_s = _log_range(images.values(), decades)
         # Empty columns either side keep the images square and centred in a figure wider
         # than they need (the lobes').
         side = (width - slices_width) / 2 / (image + 0.15)
-        ratios = [side, *[1.0] * n_cols, side] if side > 0 else [1.0] * n_cols
-        grid = sub.add_gridspec(len(ks), len(ratios), width_ratios=ratios)
-        first = 1 if side > 0 else 0
-        axes = np.array([[sub.add_subplot(grid[i, first + j]) for j in range(n_cols)] for i in range(len(ks))])
-        cmap = matplotlib.colormaps["magma"].with_extremes(bad="0.82")
-        th_ticks = [90.0 * math.sqrt(d / 90.0) for d in THETA_H_TICKS]
-        im = None
-        for i, (k, p) in enumerate(zip(ks, phi_d)):
-            for j, lab in enumerate(labels):
-                ax = axes[i, j]
-                v = images[(lab, k)]
-                with np.errstate(divide="ignore", invalid="ignore"):
-                    lv = np.log10(np.where(v > 0, v, np.nan))
-                lv = np.where(np.isfinite(v) & (v <= 0), lo_s, lv)
-                im = ax.imshow(lv, origin="lower", cmap=cmap, vmin=lo_s, vmax=hi_s, aspect="auto",
-                               extent=(-0.5, 89.5, -0.5, 89.5), interpolation="nearest")
-                ax.set_title(f"{_wrap(lab, image, 9)}\nphi_d = {p:g} deg", fontsize=9)
-                ax.set_xticks([0, 15, 30, 45, 60, 75, 89])
-                ax.set_xticklabels(["0", "15", "30", "45", "60", "75", "90"], fontsize=7)
-                ax.set_yticks(th_ticks)
-                ax.set_yticklabels([f"{d:g}" for d in THETA_H_TICKS], fontsize=7)
-                if i == len(ks) - 1:
-                    ax.set_xlabel("theta_d (deg)", fontsize=8)
-                else:
-                    ax.tick_params(labelbottom=False)
-                if j == 0:
-                    ax.set_ylabel("theta_h (deg)", fontsize=8)
-                else:
-                    ax.tick_params(labelleft=False)
-        cb = sub.colorbar(im, ax=axes, shrink=0.85, aspect=25, pad=0.02)
-        ticks = np.arange(math.ceil(lo_s), math.floor(hi_s) + 1)
-        cb.set_ticks(ticks)
-        cb.set_ticklabels([_decade_label(x) for x in ticks])
-        cb.set_label(f"{unit.replace(' x cos(theta_o)', '')}, {channel}", fontsize=8)
-        sub.suptitle(_wrap(f"Slices at fixed phi_d ({channel}, log colour scale shared by all; "
-                           "grey: not measured)", width - 0.4, 10), fontsize=10)
+        _draw_slices(next(subfigs), tables, phi_d, channel, unit, decades, width, side, image)
     return fig
+
+
+def _draw_lobes(sub, tables: dict[str, np.ndarray], theta_i: list[float], channel: str, cosine: bool,
+                log: bool, decades: float, what: str, width: float) -> None:
+    """The in-plane lobes of :func:`plot_figure` in the subfigure ``sub``: one polar panel
+    per incident angle of ``theta_i`` (degrees), one line per table, a shared legend;
+    ``what`` names the values in the title, ``width`` (inches) wraps it."""
+    labels = list(tables)
+    n_lobes = len(theta_i)
+    lobes = {(lab, t): inplane_lobe(tables[lab], t, channel, cosine)[1]
+             for lab in labels for t in theta_i}
+    if log:
+        lo, hi = _log_range(lobes.values(), decades)
+    else:
+        hi = max((float(np.nanmax(v)) for v in lobes.values() if np.any(np.isfinite(v))), default=1.0)
+    axes = sub.subplots(1, n_lobes, squeeze=False)[0]
+    to = np.radians(THETA_O_DEG)
+    rmax = hi - lo if log else hi * 1.05
+    for ax, t in zip(axes, theta_i):
+        _polar_frame(ax, rmax, lo if log else None, rmax)
+        for n, lab in enumerate(labels):
+            v = lobes[(lab, t)]
+            r = v
+            if log:
+                with np.errstate(divide="ignore", invalid="ignore"):
+                    r = np.clip(np.log10(np.where(v > 0, v, np.nan)) - lo, 0.0, None)
+                r = np.where(np.isfinite(v) & (v <= 0), 0.0, r)
+            # Colour and dash both change per input: a reconstruction lying on its
+            # reference must still show.
+            ax.plot(r * np.sin(to), r * np.cos(to), color=COLOURS[n % len(COLOURS)],
+                    ls=STYLES[n % len(STYLES)], lw=1.7, label=lab)
+        ti = math.radians(t)
+        ax.annotate("", xy=(0, 0), xytext=(-rmax * math.sin(ti), rmax * math.cos(ti)),
+                    arrowprops=dict(arrowstyle="->", color="0.3", lw=1.3))
+        ax.plot([0, rmax * math.sin(ti)], [0, rmax * math.cos(ti)], color="0.5", lw=0.9, ls=":")
+        ax.set_title(f"theta_i = {t:g} deg", fontsize=10)
+    handles, names = axes[0].get_legend_handles_labels()
+    sub.suptitle(_wrap(f"In-plane lobes ({what}, {'log' if log else 'linear'} radius; light along the "
+                       "arrow, dotted: mirror direction)", width - 0.4, 10), fontsize=10)
+    sub.legend(handles, names, loc="outside lower center", ncol=min(len(labels), 6), fontsize=9,
+               frameon=False)
+
+
+def _draw_slices(sub, tables: dict[str, np.ndarray], phi_d: list[float], channel: str, unit: str,
+                 decades: float, width: float, side: float, image: float) -> None:
+    """The slices of :func:`plot_figure` in the subfigure ``sub``: one row of ``log10``
+    images per ``phi_d`` (degrees), one column per table, one colour bar. ``unit`` names
+    the values, ``width`` (inches) wraps the title, ``side`` is the width of the empty
+    columns either side (in image columns; none when not positive), ``image`` the width
+    of an image (inches) that wraps its title."""
+    import matplotlib
+
+    labels = list(tables)
+    n_cols = len(labels)
+    ks = [int(round(p / 180.0 * 180)) % 180 for p in phi_d]
+    images = {(lab, k): channel_values(tables[lab][:, :, k, :], channel) for lab in labels for k in ks}
+    lo_s, hi_s = _log_range(images.values(), decades)
+    ratios = [side, *[1.0] * n_cols, side] if side > 0 else [1.0] * n_cols
+    grid = sub.add_gridspec(len(ks), len(ratios), width_ratios=ratios)
+    first = 1 if side > 0 else 0
+    axes = np.array([[sub.add_subplot(grid[i, first + j]) for j in range(n_cols)] for i in range(len(ks))])
+    cmap = matplotlib.colormaps["magma"].with_extremes(bad="0.82")
+    th_ticks = [90.0 * math.sqrt(d / 90.0) for d in THETA_H_TICKS]
+    im = None
+    for i, (k, p) in enumerate(zip(ks, phi_d)):
+        for j, lab in enumerate(labels):
+            ax = axes[i, j]
+            v = images[(lab, k)]
+            with np.errstate(divide="ignore", invalid="ignore"):
+                lv = np.log10(np.where(v > 0, v, np.nan))
+            lv = np.where(np.isfinite(v) & (v <= 0), lo_s, lv)
+            im = ax.imshow(lv, origin="lower", cmap=cmap, vmin=lo_s, vmax=hi_s, aspect="auto",
+                           extent=(-0.5, 89.5, -0.5, 89.5), interpolation="nearest")
+            ax.set_title(f"{_wrap(lab, image, 9)}\nphi_d = {p:g} deg", fontsize=9)
+            ax.set_xticks([0, 15, 30, 45, 60, 75, 89])
+            ax.set_xticklabels(["0", "15", "30", "45", "60", "75", "90"], fontsize=7)
+            ax.set_yticks(th_ticks)
+            ax.set_yticklabels([f"{d:g}" for d in THETA_H_TICKS], fontsize=7)
+            if i == len(ks) - 1:
+                ax.set_xlabel("theta_d (deg)", fontsize=8)
+            else:
+                ax.tick_params(labelbottom=False)
+            if j == 0:
+                ax.set_ylabel("theta_h (deg)", fontsize=8)
+            else:
+                ax.tick_params(labelleft=False)
+    cb = sub.colorbar(im, ax=axes, shrink=0.85, aspect=25, pad=0.02)
+    ticks = np.arange(math.ceil(lo_s), math.floor(hi_s) + 1)
+    cb.set_ticks(ticks)
+    cb.set_ticklabels([_decade_label(x) for x in ticks])
+    cb.set_label(f"{unit.replace(' x cos(theta_o)', '')}, {channel}", fontsize=8)
+    sub.suptitle(_wrap(f"Slices at fixed phi_d ({channel}, log colour scale shared by all; "
+                       "grey: not measured)", width - 0.4, 10), fontsize=10)

@@ -21,53 +21,13 @@ from typing import Sequence
 import numpy as np
 
 from brdfkit.errors import InputError
+from brdfkit.figures.canvas import bare_axes, pyplot, save_png, show_render
 
-__all__ = ["comparison_sheet", "DELTA_E_SCALE", "pyplot", "bare_axes", "show_render", "save_png"]
+__all__ = ["comparison_sheet", "DELTA_E_SCALE"]
 
 # Lowest top of the error colour scale: a few units of Delta E 2000 (about 1 is just
 # noticeable), so that near-identical images do not show amplified noise.
 DELTA_E_SCALE = 5.0
-
-
-def pyplot():
-    """``matplotlib.pyplot`` on the Agg backend: a sheet is a file, never a window, and
-    needs no display."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def bare_axes(ax) -> None:
-    """No ticks and no frame: the axes shows an image or text only."""
-    ax.set_xticks([])
-    ax.set_yticks([])
-    for spine in ax.spines.values():
-        spine.set_visible(False)
-
-
-def show_render(ax, image, title: str | None = None, fontsize: float = 10) -> None:
-    """Draw a linear RGB render ``(H, W, 3)`` as displayed
-    (:func:`brdfkit.render.display.display_encode`: exposure 1, clipped, sRGB), nearest-pixel,
-    on bare axes, with ``title`` above it."""
-    from brdfkit.render.display import display_encode
-
-    ax.imshow(display_encode(image), interpolation="nearest")
-    if title is not None:
-        ax.set_title(title, fontsize=fontsize)
-    bare_axes(ax)
-
-
-def save_png(fig, output: str | os.PathLike) -> None:
-    """Write ``fig`` to the PNG ``output`` atomically (:func:`brdfkit.atomic.atomic_path`)
-    at the figure's own dpi, then close it."""
-    from brdfkit.atomic import atomic_path
-
-    with atomic_path(os.fspath(output)) as tmp:
-        fig.savefig(tmp, format="png", dpi=fig.dpi)
-    pyplot().close(fig)
 
 
 def _caption(scores: dict) -> str:

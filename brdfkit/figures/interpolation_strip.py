@@ -99,7 +99,7 @@ def interpolation_strip(model, a, b, output: str | os.PathLike, *, steps: int = 
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.render.file_render import reference_scene
     from brdfkit.render.quadrature import render_many
-    from brdfkit.figures.comparison_sheet import pyplot, save_png, show_render
+    from brdfkit.figures.canvas import pyplot, save_png, show_render
 
     check_strip(steps, size)
     ts = strip_ts(steps)

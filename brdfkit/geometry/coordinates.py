@@ -24,7 +24,8 @@ Examples
 --------
 >>> import numpy as np
 >>> wi, wo = io_from_half_diff(np.array([0.0]), np.array([0.3]), np.array([0.0]))
->>> [float(round(a[0], 6)) for a in half_diff_from_io(wi, wo)[:3]]
+>>> theta_h, phi_h, theta_d, phi_d = half_diff_from_io(wi, wo)
+>>> [round(float(a[0]), 6) for a in (theta_h, theta_d, phi_d)]
 [0.0, 0.3, 0.0]
 >>> hd_vectors(0.0, 0.0, 0.0).tolist()
 [0.0, 0.0, 1.0, 0.0, 0.0, 1.0]

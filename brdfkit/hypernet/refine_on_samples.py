@@ -184,13 +184,23 @@ def refine(model, samples, embedding: Embedding | None = None, *, config: Refine
     Returns
     -------
     RefineResult
+        Run on :data:`brdfkit.hypernet.refine_on_screen.THREADS` torch thread(s), so that
+        the same samples give the same result to the bit, whatever the machine's load.
     """
+    from brdfkit.hypernet.refine_on_screen import THREADS
+    from brdfkit.runtime import torch_threads
+
+    with torch_threads(THREADS):
+        return _refine(model, samples, embedding, config or RefineConfig(), seed, name)
+
+
+def _refine(model, samples, embedding, cfg: RefineConfig, seed: int, name: str) -> RefineResult:
+    """:func:`refine` on the threads it set."""
     import torch
 
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.hypernet.encoding import encode_samples
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
-    cfg = config or RefineConfig()
     emb = embedding if embedding is not None else encode_samples(model, samples, name)
     dev = model.device
     z0 = torch.from_numpy(np.asarray(emb.latent, np.float32).copy()).to(dev)[None]

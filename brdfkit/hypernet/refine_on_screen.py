@@ -11,7 +11,7 @@ what renders see instead:
    scene of :mod:`brdfkit.render.screen`; the error is the images' mean squared
    difference after the metrics' display encoding (exposure, clip, sRGB). The hyponet is
    evaluated only at the scene's direction pairs: no dense table is decoded.
-3. ``z`` descends that error by Adam, within a wall-clock ``budget``; each step renders
+3. ``z`` descends that error by Adam, for at most ``steps`` steps; each step renders
    the hyponet from a fixed subset of the pairs (``pairs_per_pixel`` per pixel, drawn
    once in proportion to the table's own integrand, mixed with a uniform share, and
    weighted by ``1 / (K p)``: an unbiased estimate of the full render, exact for the
@@ -20,6 +20,11 @@ what renders see instead:
    every ``check_every`` steps, and the latent with the lowest held-out error is kept,
    the encoder's own included: refinement is never worse than the encoder pass on the
    held-out pixels, and it stops after ``patience`` checks without a gain.
+
+The budget is counted in steps, never in seconds, and the whole compression runs on
+:data:`THREADS` torch thread(s) whatever the caller's setting: the same table, model and
+version give the same latent to the bit, however loaded the machine is (a wall-clock cap,
+``max_seconds``, is only applied when asked for, and the result says when it cut).
 
 ``docs/render-error.md`` measures the error (rank correlation with 128 px renders on two
 scenes), ``docs/model.md`` the error against encode time.
@@ -35,10 +40,16 @@ import numpy as np
 from brdfkit.io.embedding import Embedding
 from brdfkit.errors import InputError, require_counts
 
-__all__ = ["DEFAULT_BUDGET", "CompressConfig", "CompressResult", "compress_table"]
+__all__ = ["DEFAULT_STEPS", "THREADS", "CompressConfig", "CompressResult", "compress_table", "draw_pairs"]
 
-DEFAULT_BUDGET = 3.0
-"""Seconds of refinement per table by default (``brdfkit encode --budget``)."""
+DEFAULT_STEPS = 120
+"""Most Adam steps of the refinement per table by default (``brdfkit encode --steps``):
+about what the earlier 3 s wall-clock budget ran on an idle machine (``docs/model.md``)."""
+
+THREADS = 1
+"""Torch threads of a compression, fixed so that its result does not depend on the
+thread count a loaded machine would pick (two threads and one give other bits in the
+refinement's reductions)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -47,11 +58,12 @@ class CompressConfig:
 
     Attributes
     ----------
-    budget
-        Wall-clock seconds of the refinement's steps (0: the encoder's pass alone); the
-        set-up before them (the table's render and the pair draw) takes about 0.5 s more.
-    max_steps
-        Most Adam steps, whatever the budget.
+    steps
+        Most Adam steps (0: the encoder's pass alone); fewer when the held-out error
+        stops improving (``patience``).
+    max_seconds
+        A wall-clock cap on the steps, or ``None`` (the default: none). A run it cuts
+        depends on the machine's speed and load; the result says so (``stopped``).
     lr
         Adam's learning rate on the latent. Chosen by renders: on the six materials of
         issue 21 (blue-metallic-paint, gold-metallic-paint, teflon, chrome-steel,
@@ -73,8 +85,8 @@ class CompressConfig:
         Side in pixels of the render (:data:`brdfkit.render.screen.SCREEN_RESOLUTION`).
     """
 
-    budget: float = DEFAULT_BUDGET
-    max_steps: int = 400
+    steps: int = DEFAULT_STEPS
+    max_seconds: float | None = None
     lr: float = 0.005
     pairs_per_pixel: int = 48
     uniform_share: float = 0.25
@@ -85,13 +97,15 @@ class CompressConfig:
     resolution: int = 32
 
     def __post_init__(self):
-        if not (self.budget >= 0.0 and np.isfinite(self.budget)):
-            raise InputError(f"refinement budget must be a finite number of seconds >= 0, got {self.budget!r}")
+        if not (isinstance(self.steps, int) and not isinstance(self.steps, bool) and self.steps >= 0):
+            raise InputError(f"refinement steps must be a whole number >= 0, got {self.steps!r}")
+        if self.max_seconds is not None and not (self.max_seconds > 0.0 and np.isfinite(self.max_seconds)):
+            raise InputError(f"max_seconds must be a finite number of seconds > 0, got {self.max_seconds!r}")
         if not 0.0 < self.holdout < 1.0:
             raise InputError(f"holdout must be in (0, 1), got {self.holdout!r}")
         if not 0.0 <= self.uniform_share <= 1.0:
             raise InputError(f"uniform_share must be in [0, 1], got {self.uniform_share!r}")
-        require_counts(self, ("max_steps", "pairs_per_pixel", "check_every", "patience", "resolution"))
+        require_counts(self, ("pairs_per_pixel", "check_every", "patience", "resolution"))
 
 
 @dataclasses.dataclass
@@ -110,6 +124,10 @@ class CompressResult:
         Held-out display MSE ``(encoder, kept)``.
     seconds
         Wall-clock seconds of the refinement's steps.
+    stopped
+        Why the steps ended: ``"steps"`` (all of them ran), ``"converged"`` (the
+        held-out error stopped improving), ``"max_seconds"`` (cut by the wall-clock cap:
+        not reproducible) or ``"encoder"`` (no refinement).
     """
 
     embedding: Embedding
@@ -118,12 +136,43 @@ class CompressResult:
     best_step: int
     heldout: tuple
     seconds: float
+    stopped: str = "steps"
 
 
-def _draw(screen, target, cfg, fit_pixels, device):
-    """Fixed pair subset of the fitted pixels: ``(idx, weight)``, ``K`` pairs per pixel
-    drawn in proportion to ``(1 - u) c_k / sum c + u / n`` (``c_k`` the table's integrand
-    at the pair, luminance), weighted ``1 / (K p_k)``."""
+def draw_pairs(screen, target, cfg, fit_pixels, device):
+    """A fixed draw of a screen's pairs, for renders that estimate the full one.
+
+    In each of ``fit_pixels``, ``K = cfg.pairs_per_pixel`` of the pixel's ``n`` pairs
+    are drawn with replacement, pair ``k`` with probability
+    ``p_k = (1 - u) c_k / sum c + u / n`` (``u = cfg.uniform_share``; ``c_k`` the table's
+    integrand at the pair, ``target * screen.rw`` summed over the channels; uniform when
+    the pixel's integrand is zero) and weighted ``1 / (K p_k)``, so that
+    ``screen.render_hyponet(..., idx, weight)`` is an unbiased estimate of the full
+    render, exact for the table itself. Pixels without pairs are skipped.
+
+    Parameters
+    ----------
+    screen
+        :class:`brdfkit.render.screen.Screen` with ``M`` pairs and ``P`` pixels.
+    target
+        The table at the pairs (:meth:`brdfkit.render.screen.Screen.lookup`), float64
+        torch ``(M, 3)``, 1/sr.
+    cfg
+        :class:`CompressConfig`: ``seed`` (of a NumPy generator), ``pairs_per_pixel``
+        and ``uniform_share``.
+    fit_pixels
+        Integer array of the pixels to draw in, each in ``[0, P)``, in the draw's order.
+    device
+        Torch device of the results.
+
+    Returns
+    -------
+    idx : torch.Tensor
+        int64 ``(K * F,)`` pair indices in ``[0, M)``, ``K`` per pixel with pairs, pixel
+        after pixel (``F`` such pixels).
+    weight : torch.Tensor
+        float32 ``(K * F,)`` the pairs' ``1 / (K p_k)``.
+    """
     import torch
 
     rng = np.random.default_rng(cfg.seed)
@@ -161,7 +210,7 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
     table
         ``(90, 90, 180, 3)`` BRDF in 1/sr, NaN where unmeasured.
     config
-        :class:`CompressConfig` (its defaults when ``None``; ``budget = 0`` skips the
+        :class:`CompressConfig` (its defaults when ``None``; ``steps = 0`` skips the
         refinement).
     source
         Provenance recorded in the embedding.
@@ -171,16 +220,26 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
     Returns
     -------
     CompressResult
+        Its embedding records the refinement (``Embedding.refinement``: steps, the step
+        kept, why it stopped).
     """
-    import torch
-
     from brdfkit.hypernet.encoding import encode_table
-    from brdfkit.render.screen import screen, screen_error
+    from brdfkit.runtime import torch_threads
 
     cfg = config or CompressConfig()
-    emb0 = encoder_embedding if encoder_embedding is not None else encode_table(model, table, source)
-    if cfg.budget <= 0:
-        return CompressResult(emb0, emb0, 0, 0, (float("nan"),) * 2, 0.0)
+    with torch_threads(THREADS):
+        emb0 = encoder_embedding if encoder_embedding is not None else encode_table(model, table, source)
+        if cfg.steps == 0:
+            return CompressResult(emb0, emb0, 0, 0, (float("nan"),) * 2, 0.0, "encoder")
+        return _refine(model, table, cfg, emb0)
+
+
+def _refine(model, table, cfg: CompressConfig, emb0: Embedding) -> CompressResult:
+    """The steps of :func:`compress_table` from the encoder's embedding ``emb0``."""
+    import torch
+
+    from brdfkit.render.screen import screen, screen_error
+
     dev = model.device
     sc = screen(dev, cfg.resolution)
     with torch.no_grad():
@@ -191,7 +250,7 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
     n_held = max(1, int(round(cfg.holdout * sc.pixels)))
     held_pix = torch.from_numpy(np.sort(perm[:n_held])).to(dev)
     fit_pix = np.sort(perm[n_held:])
-    idx, wts = _draw(sc, at_pairs, cfg, fit_pix, dev)
+    idx, wts = draw_pairs(sc, at_pairs, cfg, fit_pix, dev)
     fit_pix_t = torch.from_numpy(fit_pix).to(dev)
     target_f = target.float()
     held_pairs = torch.isin(sc.pix, held_pix).nonzero().squeeze(1)
@@ -211,10 +270,12 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
         z = z0.clone().requires_grad_(True)
         opt = torch.optim.Adam([z], lr=cfg.lr)
         best = (held_error(z0), 0, z0.clone())  # also makes the reference at the pairs
-        first = best[0]
-        step = 0
-        start = time.perf_counter()  # the budget is the steps': set-up is about 0.5-1 s
-        while step < cfg.max_steps and time.perf_counter() - start < cfg.budget:
+        first, step, stopped = best[0], 0, "steps"
+        start = time.perf_counter()
+        while step < cfg.steps:
+            if cfg.max_seconds is not None and time.perf_counter() - start >= cfg.max_seconds:
+                stopped = "max_seconds"
+                break
             loss = screen_error(sc.render_hyponet(model, net.hyponet_weights(z), idx, wts), target_f, fit_pix_t)
             opt.zero_grad(set_to_none=True)
             loss.backward()
@@ -225,11 +286,13 @@ def compress_table(model, table, config: CompressConfig | None = None, source: s
                 if err < best[0]:
                     best = (err, step, z.detach().clone())
                 elif step - best[1] >= cfg.patience * cfg.check_every:
+                    stopped = "converged"
                     break
     finally:
         for p, r in zip(net.parameters(), was):
             p.requires_grad_(r)
     err, best_step, zb = best
+    record = {"steps": step, "best_step": best_step, "stopped": stopped}
     emb = Embedding(zb[0].cpu().numpy().astype(np.float32), emb0.model_fingerprint, emb0.source,
-                    emb0.sample_count)
-    return CompressResult(emb, emb0, step, best_step, (first, err), time.perf_counter() - start)
+                    emb0.sample_count, refinement=record)
+    return CompressResult(emb, emb0, step, best_step, (first, err), time.perf_counter() - start, stopped)

@@ -113,10 +113,10 @@ class TuneOptions:
 
 def _material_data(model, paths, opts, screens):
     """Per material: the encoder's latent, and per screen the table's image and the fixed
-    pair draw ``(idx, weight)`` (:func:`brdfkit.hypernet.refine_on_screen._draw`)."""
+    pair draw ``(idx, weight)`` (:func:`brdfkit.hypernet.refine_on_screen.draw_pairs`)."""
     import torch
 
-    from brdfkit.hypernet.refine_on_screen import CompressConfig, _draw
+    from brdfkit.hypernet.refine_on_screen import CompressConfig, draw_pairs
     from brdfkit.io.merl import read_merl
     from brdfkit.hypernet.encoding import encode_table
 
@@ -130,8 +130,8 @@ def _material_data(model, paths, opts, screens):
             with torch.no_grad():
                 at = sc.lookup(table)
                 target = sc.render_table(table, at).float()
-            idx, w = _draw(sc, at, dataclasses.replace(cfg, seed=1000 * i + k),
-                           np.arange(sc.pixels), sc.hd.device)
+            idx, w = draw_pairs(sc, at, dataclasses.replace(cfg, seed=1000 * i + k),
+                                np.arange(sc.pixels), sc.hd.device)
             views.append((target, idx.int(), w))
         per.append(views)
     return np.stack(latents), per
@@ -147,6 +147,187 @@ def _identity_without_rates(text):
     except (TypeError, ValueError, KeyError, AttributeError):
         return None
     return json.dumps(doc, sort_keys=True)
+
+
+def _identity(model_fingerprint, names, opts, seed) -> str:
+    """What a checkpoint must have been made for to be resumed: the model, the materials,
+    the options but the learning rates, the seed (JSON, sorted keys)."""
+    fields = dataclasses.asdict(opts)
+    if fields["resolution"] == 32:  # added later: left out at its default, so older checkpoints resume
+        del fields["resolution"]
+    for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
+        del fields[key]
+    return json.dumps({"model": model_fingerprint, "materials": names, "options": fields, "seed": seed},
+                      sort_keys=True)
+
+
+@dataclasses.dataclass
+class _Tuning:
+    """A tune in progress: the trained tensors, their optimisers and what its checkpoint
+    records.
+
+    Attributes
+    ----------
+    net
+        The model's :class:`~brdfkit.hypernet.network.HyperBRDF`, in training mode.
+    latents
+        Per material, its latent, float32 torch ``(1, latent_dim)`` with gradients.
+    opt_dec, opt_lat, opt_enc
+        Adam on the decoder, the latents and the encoder.
+    identity
+        :func:`_identity` of the run.
+    names, digest, seed
+        The materials, the training set's digest and the seed.
+    t0
+        ``time.monotonic()`` at the call.
+    step, elapsed0, history
+        Steps done, seconds spent by earlier runs of a resumed tune, and the
+        ``(step, PSNR ema, mapped loss, encoder loss)`` every 50 steps.
+    ema
+        Exponential moving average of the batches' screen PSNR (dB); ``None`` before a step.
+    """
+
+    net: object
+    latents: list
+    opt_dec: object
+    opt_lat: object
+    opt_enc: object
+    identity: str
+    names: list
+    digest: str
+    seed: int
+    t0: float
+    step: int = 0
+    elapsed0: float = 0.0
+    history: list = dataclasses.field(default_factory=list)
+    ema: float | None = None
+
+    @property
+    def optimizers(self) -> tuple:
+        """``(opt_dec, opt_lat, opt_enc)``."""
+        return self.opt_dec, self.opt_lat, self.opt_enc
+
+    def checkpoint_state(self) -> dict:
+        """The state :func:`brdfkit.hypernet.training.checkpoint.save_checkpoint` writes."""
+        import torch
+
+        return {"step": self.step, "elapsed": self.elapsed0 + time.monotonic() - self.t0,
+                "net": self.net.state_dict(), "latents": torch.cat([z.detach() for z in self.latents]),
+                "optimizer": {"opt_dec": self.opt_dec.state_dict(), "opt_lat": self.opt_lat.state_dict(),
+                              "opt_enc": self.opt_enc.state_dict()},
+                "history": self.history, "config": "", "options": self.identity, "materials": self.names,
+                "data_digest": self.digest, "seed": self.seed}
+
+
+def _start(net, z0, opts, dev, **record) -> _Tuning:
+    """The tune of ``net`` from the encoder's latents ``z0`` (float32 ``(materials,
+    latent_dim)``): everything trainable, one Adam per part at the options' rates;
+    ``record``: the other :class:`_Tuning` fields."""
+    import torch
+
+    net.train()
+    for p in net.parameters():
+        p.requires_grad_(True)
+    latents = [torch.from_numpy(z[None].copy()).to(dev).requires_grad_(True) for z in z0]
+    opt_dec = torch.optim.Adam(net.decoder.parameters(), lr=opts.lr_decoder)
+    opt_lat = torch.optim.Adam(latents, lr=opts.lr_latent)
+    opt_enc = torch.optim.Adam(net.encoder.parameters(), lr=opts.lr_encoder)
+    return _Tuning(net, latents, opt_dec, opt_lat, opt_enc, **record)
+
+
+def _resume(run: _Tuning, state: dict, ckpt, opts):
+    """Continue ``run`` from the checkpoint ``state`` read from ``ckpt``, at the options'
+    learning rates; refused if it was made for another identity."""
+    if _identity_without_rates(state.get("options")) != run.identity:
+        raise InputError(f"{ckpt}: checkpoint was made for another model, data or options; "
+                         f"tune afresh without --resume")
+    run.net.load_state_dict(state["net"])
+    for z, v in zip(run.latents, state["latents"]):
+        z.data.copy_(v)
+    for o, k, lr in ((run.opt_dec, "opt_dec", opts.lr_decoder), (run.opt_lat, "opt_lat", opts.lr_latent),
+                     (run.opt_enc, "opt_enc", opts.lr_encoder)):
+        o.load_state_dict(state["optimizer"][k])
+        for group in o.param_groups:  # the options' rates, not the checkpoint's
+            group["lr"] = lr
+    run.step, run.elapsed0, run.history = int(state["step"]), float(state["elapsed"]), list(state["history"])
+
+
+def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev):
+    """One optimiser step on a batch seeded by ``(run.seed, run.step)``.
+
+    ``values``: float32 torch ``(materials, n_cells, 3)``, the mapped values at ``cells``
+    (int64 ``(n_cells,)`` flat MERL indices), on ``dev``; ``views[i][k]``: material ``i``'s
+    target image and pair draw under ``screens[k]``. Returns the batch's sums of the log
+    screen errors, of the mapped losses and of the encoder's losses (torch scalars).
+    """
+    import torch
+
+    from brdfkit.geometry import cell_angles, cos_theta_i, hd_vectors
+    from brdfkit.hypernet.network import hyponet_forward
+    from brdfkit.render.screen import screen_error
+
+    net, latents = run.net, run.latents
+    gen.manual_seed(int(np.random.SeedSequence([run.seed, run.step]).generate_state(1, np.uint64)[0]))
+    mats = torch.randperm(len(run.names), generator=gen)[:opts.batch]
+    turn = torch.randint(0, len(screens), (opts.batch,), generator=gen)
+    q = torch.randint(0, cells.numel(), (opts.batch, opts.query), generator=gen).to(dev)
+    c = torch.randint(0, cells.numel(), (opts.batch, opts.context), generator=gen).to(dev)
+    loss_s = loss_m = loss_e = 0.0
+    for b in range(opts.batch):
+        i, k = int(mats[b]), int(turn[b])
+        target, idx, w = views[i][k]
+        weights = net.hyponet_weights(latents[i])
+        img = screens[k].render_hyponet(m, weights, idx.long(), w)
+        loss_s = loss_s + torch.log(screen_error(img, target) + 1e-10)
+        th, td, pd = (a.float() for a in cell_angles(cells[q[b]]))
+        pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
+        cos = cos_theta_i(th, td, pd).clamp(min=0.0)[:, None]
+        loss_m = loss_m + torch.mean((cos * (pred - values[i, q[b]])) ** 2)
+        th, td, pd = (a.float() for a in cell_angles(cells[c[b]]))
+        z_enc = net.encode(hd_vectors(th, td, pd)[None], values[i, c[b]][None])
+        loss_e = loss_e + torch.mean((z_enc - latents[i].detach()) ** 2)
+    zs = torch.cat([latents[int(i)] for i in mats])
+    loss = (loss_s + opts.map_weight * loss_m) / opts.batch + opts.lambda_z * torch.mean(zs ** 2)
+    for o in run.optimizers:
+        o.zero_grad(set_to_none=True)
+    (loss + loss_e / opts.batch).backward()
+    torch.nn.utils.clip_grad_norm_(net.decoder.parameters(), 1.0)
+    for o in run.optimizers:
+        o.step()
+    return loss_s, loss_m, loss_e
+
+
+def _loop(run: _Tuning, m, screens, views, tset, opts, dev, steps, minutes, checkpoint_minutes, ckpt, say):
+    """The steps until ``steps`` or ``minutes`` (since ``run.t0``), a checkpoint every
+    ``checkpoint_minutes`` and on Ctrl-C (then re-raised)."""
+    import torch
+
+    from brdfkit.hypernet.training.checkpoint import save_checkpoint
+
+    values = torch.from_numpy(tset.values).to(dev)
+    cells = torch.from_numpy(tset.cells).to(dev)
+    gen = torch.Generator()
+    last_ckpt = time.monotonic()
+    say(f"tuning from step {run.step}")
+    try:
+        while (steps is None or run.step < steps) and (minutes is None or time.monotonic() - run.t0 < 60 * minutes):
+            loss_s, loss_m, loss_e = _step(run, m, screens, views, values, cells, gen, opts, dev)
+            run.step += 1
+            psnr = -10 * loss_s.item() / opts.batch / math.log(10)
+            run.ema = psnr if run.ema is None else 0.98 * run.ema + 0.02 * psnr
+            if run.step % 50 == 0:
+                run.history.append((run.step, round(run.ema, 3), float(loss_m) / opts.batch,
+                                    float(loss_e) / opts.batch))
+                say(f"step {run.step}: screen PSNR (ema) {run.ema:.2f} dB, "
+                    f"mapped {float(loss_m) / opts.batch:.4g}, "
+                    f"encoder {float(loss_e) / opts.batch:.4g}, {time.monotonic() - run.t0:.0f} s")
+            if time.monotonic() - last_ckpt > 60 * checkpoint_minutes:
+                save_checkpoint(ckpt, run.checkpoint_state())
+                last_ckpt = time.monotonic()
+    except KeyboardInterrupt:
+        save_checkpoint(ckpt, run.checkpoint_state())
+        raise
+    save_checkpoint(ckpt, run.checkpoint_state())
 
 
 def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: float | None = None,
@@ -184,13 +365,12 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
 
     from brdfkit.api import load_model
     from brdfkit.atomic import refuse_overwrite_of_inputs
-    from brdfkit.hypernet.training.checkpoint import checkpoint_path, load_checkpoint, save_checkpoint
-    from brdfkit.geometry import cell_angles, cos_theta_i, hd_vectors
+    from brdfkit.hypernet.training.checkpoint import checkpoint_path, load_checkpoint
     from brdfkit.io.folders import collect_materials
     from brdfkit.hypernet.model_file import save_model
-    from brdfkit.hypernet.network import hyponet_forward
-    from brdfkit.render.screen import rotated_envmap, screen, screen_error
+    from brdfkit.render.screen import rotated_envmap, screen
     from brdfkit.hypernet.training.dataset import TrainingSet
+    from brdfkit.runtime import resolve_device
 
     t0 = time.monotonic()
     opts = options or TuneOptions()
@@ -200,8 +380,6 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     output = os.fspath(output)
     ckpt = checkpoint_path(output)
     paths, names, excluded, _ = collect_materials(data, exclude)
-    from brdfkit.runtime import resolve_device
-
     dev = resolve_device(None if device == "auto" else device)
     m = load_model(model, dev)
     refuse_overwrite_of_inputs(output, [*paths, m.path])
@@ -211,99 +389,15 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     say(f"reading {len(paths)} materials")
     z0, views = _material_data(m, paths, opts, screens)
     tset = TrainingSet.load(paths, names, reference=m.rho_ref)
-    net = m.net
-    net.train()
-    for p in net.parameters():
-        p.requires_grad_(True)
-    latents = [torch.from_numpy(z[None].copy()).to(dev).requires_grad_(True) for z in z0]
-    opt_dec = torch.optim.Adam(net.decoder.parameters(), lr=opts.lr_decoder)
-    opt_lat = torch.optim.Adam(latents, lr=opts.lr_latent)
-    opt_enc = torch.optim.Adam(net.encoder.parameters(), lr=opts.lr_encoder)
-    fields = dataclasses.asdict(opts)
-    if fields["resolution"] == 32:  # added later: left out at its default, so older checkpoints resume
-        del fields["resolution"]
-    for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
-        del fields[key]
-    identity = json.dumps({"model": m.fingerprint, "materials": names, "options": fields, "seed": seed},
-                          sort_keys=True)
-    step, elapsed0, history = 0, 0.0, []
+    run = _start(m.net, z0, opts, dev, identity=_identity(m.fingerprint, names, opts, seed), names=names,
+                 digest=tset.digest, seed=seed, t0=t0)
     if resume:
-        state = load_checkpoint(ckpt, dev)
-        if _identity_without_rates(state.get("options")) != identity:
-            raise InputError(f"{ckpt}: checkpoint was made for another model, data or options; "
-                             f"tune afresh without --resume")
-        net.load_state_dict(state["net"])
-        for z, v in zip(latents, state["latents"]):
-            z.data.copy_(v)
-        for o, k, lr in ((opt_dec, "opt_dec", opts.lr_decoder), (opt_lat, "opt_lat", opts.lr_latent),
-                         (opt_enc, "opt_enc", opts.lr_encoder)):
-            o.load_state_dict(state["optimizer"][k])
-            for group in o.param_groups:  # the options' rates, not the checkpoint's
-                group["lr"] = lr
-        step, elapsed0, history = int(state["step"]), float(state["elapsed"]), list(state["history"])
-
-    def save_ckpt():
-        save_checkpoint(ckpt, {
-            "step": step, "elapsed": elapsed0 + time.monotonic() - t0, "net": net.state_dict(),
-            "latents": torch.cat([z.detach() for z in latents]),
-            "optimizer": {"opt_dec": opt_dec.state_dict(), "opt_lat": opt_lat.state_dict(),
-                          "opt_enc": opt_enc.state_dict()},
-            "history": history, "config": "", "options": identity, "materials": names,
-            "data_digest": tset.digest, "seed": seed})
-
-    values = torch.from_numpy(tset.values).to(dev)
-    cells = torch.from_numpy(tset.cells).to(dev)
-    gen = torch.Generator()
-    last_ckpt = time.monotonic()
-    ema = None
-    say(f"tuning from step {step}")
-    try:
-        while (steps is None or step < steps) and (minutes is None or time.monotonic() - t0 < 60 * minutes):
-            gen.manual_seed(int(np.random.SeedSequence([seed, step]).generate_state(1, np.uint64)[0]))
-            mats = torch.randperm(len(names), generator=gen)[:opts.batch]
-            turn = torch.randint(0, len(screens), (opts.batch,), generator=gen)
-            q = torch.randint(0, cells.numel(), (opts.batch, opts.query), generator=gen).to(dev)
-            c = torch.randint(0, cells.numel(), (opts.batch, opts.context), generator=gen).to(dev)
-            loss_s = loss_m = loss_e = 0.0
-            for b in range(opts.batch):
-                i, k = int(mats[b]), int(turn[b])
-                target, idx, w = views[i][k]
-                weights = net.hyponet_weights(latents[i])
-                img = screens[k].render_hyponet(m, weights, idx.long(), w)
-                loss_s = loss_s + torch.log(screen_error(img, target) + 1e-10)
-                th, td, pd = (a.float() for a in cell_angles(cells[q[b]]))
-                pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
-                cos = cos_theta_i(th, td, pd).clamp(min=0.0)[:, None]
-                loss_m = loss_m + torch.mean((cos * (pred - values[i, q[b]])) ** 2)
-                th, td, pd = (a.float() for a in cell_angles(cells[c[b]]))
-                z_enc = net.encode(hd_vectors(th, td, pd)[None], values[i, c[b]][None])
-                loss_e = loss_e + torch.mean((z_enc - latents[i].detach()) ** 2)
-            zs = torch.cat([latents[int(i)] for i in mats])
-            loss = (loss_s + opts.map_weight * loss_m) / opts.batch + opts.lambda_z * torch.mean(zs ** 2)
-            for o in (opt_dec, opt_lat, opt_enc):
-                o.zero_grad(set_to_none=True)
-            (loss + loss_e / opts.batch).backward()
-            torch.nn.utils.clip_grad_norm_(net.decoder.parameters(), 1.0)
-            for o in (opt_dec, opt_lat, opt_enc):
-                o.step()
-            step += 1
-            psnr = -10 * loss_s.item() / opts.batch / math.log(10)
-            ema = psnr if ema is None else 0.98 * ema + 0.02 * psnr
-            if step % 50 == 0:
-                history.append((step, round(ema, 3), float(loss_m) / opts.batch, float(loss_e) / opts.batch))
-                say(f"step {step}: screen PSNR (ema) {ema:.2f} dB, mapped {float(loss_m) / opts.batch:.4g}, "
-                    f"encoder {float(loss_e) / opts.batch:.4g}, {time.monotonic() - t0:.0f} s")
-            if time.monotonic() - last_ckpt > 60 * checkpoint_minutes:
-                save_ckpt()
-                last_ckpt = time.monotonic()
-    except KeyboardInterrupt:
-        save_ckpt()
-        raise
-    save_ckpt()
-    net.eval()
-    tuned = {"from": m.fingerprint, "steps": step, "options": dataclasses.asdict(opts), "seed": seed,
-             "wall_time_s": round(elapsed0 + time.monotonic() - t0, 1), "screen_psnr_ema": ema,
+        _resume(run, load_checkpoint(ckpt, dev), ckpt, opts)
+    _loop(run, m, screens, views, tset, opts, dev, steps, minutes, checkpoint_minutes, ckpt, say)
+    run.net.eval()
+    tuned = {"from": m.fingerprint, "steps": run.step, "options": dataclasses.asdict(opts), "seed": seed,
+             "wall_time_s": round(run.elapsed0 + time.monotonic() - t0, 1), "screen_psnr_ema": run.ema,
              "materials": names, "excluded": excluded}
     meta = dict(m.meta, tune=tuned)
-    save_model(output, net, m.rho_ref, meta)
+    save_model(output, run.net, m.rho_ref, meta)
     return tuned

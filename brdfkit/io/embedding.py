@@ -51,12 +51,18 @@ class Embedding:
     sample_count
         Number of BRDF samples the encoder averaged over (0 when not from samples, e.g.
         an interpolation).
+    refinement
+        How the latent was refined after the encoder's pass, or ``None`` (not refined):
+        ``{"steps": int, "best_step": int, "stopped": str}``
+        (:class:`brdfkit.hypernet.refine_on_screen.CompressResult`); ``--steps`` of the
+        record replays it.
     """
 
     latent: np.ndarray
     model_fingerprint: str
     source: str = ""
     sample_count: int = 0
+    refinement: dict | None = None
 
     def __post_init__(self):
         self.latent = np.asarray(self.latent, dtype=np.float32).reshape(-1)
@@ -78,6 +84,8 @@ def _to_json(emb: Embedding) -> str:
         "source": emb.source,
         "sample_count": int(emb.sample_count),
     }
+    if emb.refinement is not None:  # absent from files of unrefined latents, as before
+        doc["refinement"] = dict(emb.refinement)
     return json.dumps(doc, indent=1) + "\n"
 
 
@@ -155,7 +163,19 @@ def read_embedding(path: str | os.PathLike) -> Embedding:
     count = doc.get("sample_count", 0)
     if not _is_int(count) or count < 0:
         raise FormatError(path, f"'sample_count' must be a non-negative integer, not {count!r}")
-    return Embedding(np.array(latent, dtype=np.float32), fp, source, count)
+    return Embedding(np.array(latent, dtype=np.float32), fp, source, count, _refinement(path, doc))
+
+
+def _refinement(path, doc) -> dict | None:
+    """The optional ``refinement`` record of an embedding file, checked."""
+    rec = doc.get("refinement")
+    if rec is None:
+        return None
+    ok = (isinstance(rec, dict) and _is_int(rec.get("steps")) and _is_int(rec.get("best_step"))
+          and isinstance(rec.get("stopped"), str) and 0 <= rec["best_step"] <= rec["steps"])
+    if not ok:
+        raise FormatError(path, "'refinement' must be {\"steps\": int, \"best_step\": int <= steps, \"stopped\": str}")
+    return {"steps": rec["steps"], "best_step": rec["best_step"], "stopped": rec["stopped"]}
 
 
 def check_compatible(emb: Embedding, model, name: str = "") -> None:

@@ -87,6 +87,17 @@ def read_merl(path: str | os.PathLike) -> np.ndarray:
     FormatError
         The file is not a MERL table: wrong size, wrong dimensions, truncated, or a NaN
         or infinite value in the payload. The message names the file and the problem.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from brdfkit.testing.examples import lambertian_table
+    >>> write_merl("white.binary", lambertian_table((1.0, 1.0, 1.0)))
+    >>> table = read_merl("white.binary")
+    >>> table.shape, float(np.nanmax(table) * np.pi)
+    ((90, 90, 180, 3), 1.0)
+    >>> bool(np.isnan(table).any())  # below the horizon: not measured
+    True
     """
     path = check_input_file(path)
     size = os.path.getsize(path)
@@ -134,6 +145,14 @@ def write_merl(path: str | os.PathLike, table) -> None:
     ------
     InputError
         Wrong shape, infinite or negative values.
+
+    Examples
+    --------
+    >>> import os
+    >>> from brdfkit.testing.examples import lambertian_table
+    >>> write_merl("grey.binary", lambertian_table((0.5, 0.5, 0.5)))
+    >>> os.path.getsize("grey.binary")  # 12-byte header, 3 x 1,458,000 float64
+    34992012
     """
     arr = table if isinstance(table, np.ndarray) and table.dtype == np.float64 else \
         np.asarray(table, dtype=np.float64)

@@ -1,14 +1,15 @@
 """The hypernetwork of Gokbudak et al. 2024 as a reconstruction method: encode the
-samples with the set encoder, optionally refine the result on the samples
-(:mod:`brdfkit.hypernet.refine_on_samples`), decode the hyponet on the whole grid; its model file
-comes from :func:`brdfkit.hypernet.training.loop.fit`."""
+samples with the set encoder (:func:`brdfkit.hypernet.encoding.encode_samples`),
+optionally refine the result on the samples (:mod:`brdfkit.hypernet.refine_on_samples`),
+decode the hyponet on the whole grid; its model file comes from
+:func:`brdfkit.hypernet.training.loop.fit`. The samples go straight to the encoder, not
+through :func:`brdfkit.api.encode`, which takes paths, tables and sample sets alike."""
 
 from __future__ import annotations
 
 import dataclasses
 import os
 
-from brdfkit import api
 from brdfkit.errors import InputError
 from brdfkit.methods.method import Method, MethodOptions
 
@@ -16,7 +17,9 @@ __all__ = ["METHOD", "HypernetOptions"]
 
 
 def _load(path, device):
-    return api.load_model(path, device=device)
+    from brdfkit.hypernet.packing import load_builtin
+
+    return load_builtin(path, device=device)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -40,9 +43,12 @@ class HypernetOptions(MethodOptions):
 
 
 def _reconstruct(samples, model, options, *, seed, device):
-    emb = api.encode(model, samples)
+    from brdfkit.hypernet.encoding import encode_samples
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+
+    emb = encode_samples(model, samples)
     if not options.refine:
-        return api.decode(model, emb), emb
+        return NeuralBRDF.from_embedding(model, emb).to_table(), emb
     from brdfkit.hypernet.refine_on_samples import RefineConfig, refine
 
     result = refine(model, samples, emb, config=RefineConfig(target=options.refine_target), seed=seed)
@@ -57,7 +63,10 @@ def _fit(data, output, *, exclude=(), progress=True, **options):
 
 
 def _compress(model, table, name):
-    return api.decode(model, api.encode(model, table, source=name))
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+
+    return NeuralBRDF.from_embedding(model, compress_table(model, table, CompressConfig(), name).embedding).to_table()
 
 
 def _describe(model, path):

@@ -59,6 +59,11 @@ class BuiltinModel:
         Training steps, wall time (s) and the command that trained it (or ``None``).
     validation
         ``{N: BRDF log RMSE}`` on held-out materials from ``N`` samples.
+    renders
+        The held-out figures as renders judge them: ``{"psnr": {key: dB}, "delta_e":
+        {key: value}, "scenes": [...], "resolution": px, "materials": text}``, a key ``N``
+        (sparse reconstruction from N samples) or ``"encode"`` (compression); ``{}``: not
+        measured.
     default, installed
         Whether it is the manifest's default, and whether its file is present.
     """
@@ -74,6 +79,7 @@ class BuiltinModel:
     train_seconds: float | None = None
     command: str | None = None
     validation: dict = dataclasses.field(default_factory=dict)
+    renders: dict = dataclasses.field(default_factory=dict)
     default: bool = False
     installed: bool = False
     prior: str | None = None
@@ -136,6 +142,7 @@ def _entry(where: str, folder: str, d, default: str | None) -> BuiltinModel:
         validation = {int(k): float(v) for k, v in val.items()}
     except (AttributeError, TypeError, ValueError):
         raise bad("'validation' must map sample counts to log RMSE values") from None
+    renders = _renders(d.get("renders"), bad)
     prior, prior_fp = d.get("prior"), d.get("prior_fingerprint")
     if prior is not None and (not isinstance(prior, str) or os.path.basename(prior) != prior
                               or not prior.endswith(".safetensors")):
@@ -148,8 +155,20 @@ def _entry(where: str, folder: str, d, default: str | None) -> BuiltinModel:
                         name=name, file=file, path=path, latent_dim=latent, fingerprint=fp, materials=mats,
                         materials_list=d.get("materials_list"), steps=d.get("steps"),
                         train_seconds=d.get("train_seconds"), command=d.get("command"),
-                        validation=dict(sorted(validation.items())), default=name == default,
+                        validation=dict(sorted(validation.items())), renders=renders, default=name == default,
                         installed=os.path.isfile(path))
+
+
+def _renders(r, bad) -> dict:
+    """An entry's ``renders`` checked (see :class:`BuiltinModel`)."""
+    if r is None:
+        return {}
+    ok = isinstance(r, dict) and all(isinstance(r.get(k, {}), dict) for k in ("psnr", "delta_e"))
+    ok = ok and all(isinstance(v, (int, float)) and not isinstance(v, bool)
+                    for k in ("psnr", "delta_e") for v in r.get(k, {}).values())
+    if not ok:
+        raise bad("'renders' must hold 'psnr' and 'delta_e' maps of numbers")
+    return dict(r)
 
 
 def read_manifest(folder: str | os.PathLike | None = None) -> Manifest:

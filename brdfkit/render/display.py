@@ -15,7 +15,7 @@ same display-referred image (``docs/render.md``):
 Examples
 --------
 >>> import numpy as np
->>> display_encode(np.array([[[0.0, 1.0, 2.0]]])).tolist()
+>>> np.round(display_encode(np.array([[[0.0, 1.0, 2.0]]])), 6).tolist()  # clipped at 1
 [[[0.0, 1.0, 1.0]]]
 >>> float(np.round(srgb_oetf(0.5), 4))
 0.7354

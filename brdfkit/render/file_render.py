@@ -26,8 +26,8 @@ def reference_scene(resolution: int | None = None, supersample: int = 1):
 
 
 def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = True, model=None,
-                      tables: dict | None = None) -> list:
-    """Quadrature renders of several BRDF files in the reference scene, in one pass
+                      tables: dict | None = None, scene: str = "reference") -> list:
+    """Quadrature renders of several BRDF files in one scene, in one pass
     (:func:`brdfkit.render.quadrature.render_many`: each image equals
     :func:`render_brdf_file`'s of that file, to the bit).
 
@@ -35,7 +35,7 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
     ----------
     paths
         ``.binary`` / ``.emb`` files.
-    resolution, progress, model
+    resolution, progress, model, scene
         As for :func:`render_brdf_file`.
     tables
         Optional ``{path: dense table}`` of ``.binary`` files the caller has already read
@@ -49,6 +49,7 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
     from brdfkit.render.renderable import TableBRDF
     from brdfkit.brdf_file import load_brdf
     from brdfkit.render.quadrature import render_many
+    from brdfkit.render.scene_suite import scene_env
 
     tables = tables or {}
     brdfs = [TableBRDF(tables[p], name=os.path.splitext(os.path.basename(p))[0]) if p in tables
@@ -60,7 +61,7 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
     images = [None] * len(brdfs)
     for idx in groups.values():
         with ProgressBar(f"quadrature {' + '.join(brdfs[i].name for i in idx)}", enabled=progress) as bar:
-            done = render_many([brdfs[i] for i in idx], reference_scene(resolution),
+            done = render_many([brdfs[i] for i in idx], reference_scene(resolution), env=scene_env(scene),
                                progress=bar if progress else None)
         for i, (img, _) in zip(idx, done):
             images[i] = img
@@ -69,7 +70,7 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
 
 def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mitsuba: bool = False,
                      spp: int | None = None, supersample: int = 1, scene_file=None, bsdf_id: str | None = None,
-                     progress: bool = True, model=None):
+                     progress: bool = True, model=None, scene: str = "reference"):
     """Render a ``.binary`` / ``.emb`` file.
 
     Parameters
@@ -90,6 +91,9 @@ def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mi
         Quadrature: an ``S x S`` grid of points per pixel.
     scene_file, bsdf_id
         A Mitsuba XML scene and the id of the BSDF that gets the BRDF.
+    scene
+        The suite scene (:mod:`brdfkit.render.scene_suite`) of the quadrature or Mitsuba
+        render: its environment around the reference scene's sphere and camera.
     progress
         Show a progress bar on stderr.
 
@@ -102,7 +106,11 @@ def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mi
     from brdfkit.brdf_file import load_brdf
     from brdfkit.render.scene import REFERENCE
 
+    from brdfkit.render.scene_suite import scene_env
+
+    env = scene_env(scene)  # an unknown name is refused before the file is read
     brdf = load_brdf(path, model_path, model=model)
+    name = scene
     scene = dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
                                 supersample=int(supersample))
     if scene_file is not None:
@@ -117,11 +125,11 @@ def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mi
 
         n = int(spp or scene.spp)
         with ProgressBar(f"Mitsuba {brdf.name}", enabled=progress) as bar:
-            img = render_reference(brdf, scene, spp=n, progress=bar if progress else None)
-        return img, f"Mitsuba reference scene, {n} spp"
+            img = render_reference(brdf, scene, spp=n, progress=bar if progress else None, env=env)
+        return img, f"Mitsuba, scene {name}, {n} spp"
     from brdfkit.render.quadrature import RenderStats, render
 
     stats = RenderStats()
     with ProgressBar(f"quadrature {brdf.name}", enabled=progress) as bar:
-        img, _ = render(brdf, scene, progress=bar if progress else None, stats=stats)
-    return img, f"quadrature, {stats.evaluations:,} BRDF evaluations"
+        img, _ = render(brdf, scene, env=env, progress=bar if progress else None, stats=stats)
+    return img, f"quadrature, scene {name}, {stats.evaluations:,} BRDF evaluations"

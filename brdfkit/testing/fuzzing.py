@@ -132,6 +132,17 @@ def merl_seed() -> bytes:
     return np.array([90, 90, 180], "<i4").tobytes() + stored.astype("<f8").tobytes()
 
 
+@functools.lru_cache(maxsize=None)
+def bsdf_seed() -> bytes:
+    # a small RGL .bsdf (3 incident elevations, an 8 x 8 sample grid): 4 kB
+    from brdfkit.geometry import TABLE_SHAPE
+    from brdfkit.io.rgl_bsdf import FitSettings, write_bsdf
+
+    path = os.path.join(_seed_folder(), "a.bsdf")
+    write_bsdf(path, np.full(TABLE_SHAPE, 0.1), FitSettings(resolution=8, theta_i=3, ndf=16, vndf=(4, 8)))
+    return _take(path)
+
+
 def _read_model(path):
     from brdfkit.hypernet.model_file import load_model
 
@@ -168,8 +179,15 @@ def _read_merl(path):
     return read_merl(path)
 
 
+def _read_bsdf(path):
+    from brdfkit.io.rgl_bsdf import read_bsdf
+
+    return read_bsdf(path)
+
+
 PARSERS = {p.name: p for p in (
     Parser("read_merl", _read_merl, ".binary", merl_seed),
+    Parser("read_bsdf", _read_bsdf, ".bsdf", bsdf_seed),
     Parser("read_samples", _read_samples, ".csv", csv_seed),
     Parser("read_embedding", _read_embedding, ".emb", embedding_seed),
     Parser("load_model", _read_model, ".safetensors", model_seed, safetensors=True),

@@ -9,6 +9,8 @@
 * :mod:`~brdfkit.hypernet.training.checkpoint`: resumable state (``<model>.ckpt``).
 * :mod:`~brdfkit.hypernet.training.distributed`: the PyTorch DDP process group and stop
   signals.
+* :mod:`~brdfkit.hypernet.training.display`: the run's log lines and progress bar on
+  stderr (rank 0).
 
 May import: what :mod:`brdfkit.hypernet` may, and the hypernetwork's own modules.
 """

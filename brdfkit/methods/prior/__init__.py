@@ -7,6 +7,8 @@ This package registers the method (:data:`METHOD`); its parts are
 - :mod:`.model`: the network and the closed-form fit (:class:`~.model.PriorModel`,
   :func:`~.model.solve`);
 - :mod:`.fit`: its training, ``brdfkit fit --method prior``;
+- :mod:`.training_data`: what the training fits on (the basis, the cells, the held-out
+  fold bases, the tensors on the device);
 - :mod:`.file`: its model file (format ``brdfkit-prior``), which holds or names the
   PCA basis (:mod:`brdfkit.methods.ipca`).
 """

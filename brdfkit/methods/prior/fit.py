@@ -27,18 +27,19 @@ on the validation split (``docs/generalisation.md``):
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 import os
 import sys
-import tempfile
 import time
 
 import numpy as np
 
 from brdfkit.errors import InputError
-from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D
-from brdfkit.methods.ipca import DEFAULT_COMPONENTS, EPS, IpcaModel, fit_ipca, load_ipca, save_ipca, storage_of
+from brdfkit.methods.ipca import DEFAULT_COMPONENTS, EPS
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, solve
+from brdfkit.methods.prior.training_data import TrainingTensors, fold_bases, main_basis, to_device, training_cells
 
 __all__ = ["fit_prior", "FIT_OPTIONS"]
 
@@ -47,28 +48,157 @@ FIT_OPTIONS = ("latent_dim", "steps", "minutes", "seed", "device", "batch_materi
                "spread", "context_min", "context_max")
 
 
-def _storage(path: str) -> dict:
-    from brdfkit.io.tensorfile import open_safetensors
-
-    with open_safetensors(path) as f:
-        meta = f.metadata() or {}
-    return storage_of(meta)
+def _real(v) -> bool:
+    """A finite number (``-O`` values arrive parsed as JSON: a word or a bool is no number)."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
-def _as_stored(basis: IpcaModel, storage: dict) -> IpcaModel:
-    """The basis as a file with ``storage`` gives it back."""
-    if not storage["half"] and storage["phi_stride"] == 1 and not storage.get("int8"):
-        return basis
-    with tempfile.TemporaryDirectory() as tmp:
-        path = os.path.join(tmp, "basis.safetensors")
-        save_ipca(path, basis, **storage)
-        return load_ipca(path)
+def _count(v, least=1) -> bool:
+    """An integer (not a bool) of at least ``least``."""
+    return isinstance(v, int) and not isinstance(v, bool) and v >= least
 
 
-def _resolve_basis(spec) -> str:
-    from brdfkit.models.builtin import resolve_basis
+def _check_options(*, steps, minutes, folds, mixup, ema, batch_materials, query_size, lr, lambda_w, lambda_z,
+                   latent_dim, width, components, s2, lam, weight, spread, context_min, context_max):
+    """Raise :class:`InputError` on the first of :func:`fit_prior`'s options out of range."""
+    real, count = _real, _count
+    for key, value, ok in (("steps", steps, steps is None or count(steps)),
+                           ("minutes", minutes, minutes is None or (real(minutes) and minutes > 0)),
+                           ("folds", folds, count(folds, 2)),
+                           ("mixup", mixup, real(mixup) and 0.0 <= mixup <= 1.0),
+                           ("ema", ema, real(ema) and 0.0 <= ema < 1.0),
+                           ("batch_materials", batch_materials, count(batch_materials)),
+                           ("query_size", query_size, count(query_size)), ("lr", lr, real(lr) and lr > 0),
+                           ("lambda_w", lambda_w, real(lambda_w) and lambda_w >= 0),
+                           ("lambda_z", lambda_z, real(lambda_z) and lambda_z >= 0),
+                           ("latent_dim", latent_dim, count(latent_dim)), ("width", width, count(width)),
+                           ("components", components, count(components)),
+                           ("s2", s2, real(s2) and s2 > 0), ("lam", lam, real(lam) and lam > 0),
+                           ("weight", weight, weight in ("metric", "energy")),
+                           ("spread", spread, isinstance(spread, bool)),
+                           ("context_min", context_min, count(context_min)),
+                           ("context_max", context_max, count(context_max) and count(context_min)
+                            and context_max >= context_min)):
+        if not ok:
+            raise InputError(f"--method prior: option {key} = {value!r} is out of range")
 
-    return resolve_basis(spec)
+
+@dataclasses.dataclass(frozen=True)
+class _Recipe:
+    """The training options of :func:`fit_prior` (its docstring)."""
+
+    steps: int | None
+    minutes: float | None
+    batch_materials: int
+    query_size: int
+    context_min: int
+    context_max: int
+    mixup: float
+    lr: float
+    lambda_w: float
+    lambda_z: float
+    ema: float
+
+
+def _rand(g, dev, *shape, dtype=None):
+    """A uniform draw in [0, 1) of the generator ``g`` on ``dev``, of ``shape``, float32
+    unless ``dtype`` says otherwise."""
+    import torch
+
+    return torch.rand(shape, generator=g, device=dev, dtype=torch.float32 if dtype is None else dtype)
+
+
+def _mixup(d: TrainingTensors, folds_b, c_pos, q_pos, crho, qrho, mixup, g, dev):
+    """Mix, in place, each material's context and query values ``crho``, ``qrho``
+    (``(B, N, 3)``, ``(B, Q, 3)`` at cell positions ``c_pos``, ``q_pos``) with another
+    material of its fold (``folds_b``, ``(B,)``), with probability ``mixup``, linearly in
+    IPCA's mapped space at a uniform ratio."""
+    import torch
+
+    members, w_all, values = d.members, d.weight, d.values
+    batch_materials = folds_b.shape[0]
+    rand = functools.partial(_rand, g, dev)
+    partner = torch.stack([members[int(f)][int(torch.randint(0, len(members[int(f)]), (), generator=g,
+                                                              device=dev))] for f in folds_b])
+    t = torch.where(rand(batch_materials) < mixup, rand(batch_materials),
+                    torch.ones(batch_materials, device=dev))[:, None, None]
+    for rho, pos in ((crho, c_pos), (qrho, q_pos)):
+        w = w_all[pos][..., None]
+        other = values[partner[:, None], pos]
+        mixed = (torch.exp(t * torch.log(rho * w + EPS) + (1 - t) * torch.log(other * w + EPS)) - EPS) / w
+        rho.copy_(mixed.clamp(min=0))
+
+
+def _batch_loss(d: TrainingTensors, net, cfg: PriorConfig, recipe: _Recipe, g, dev):
+    """One batch drawn with ``g`` (context size, materials, context and query cells,
+    mixup) and its losses: ``(loss, reg)``, the metric's mean square at the query cells
+    after the two closed-form fits (the basis's prior, then the network's), and the
+    penalty on the head's output and the latent."""
+    import torch
+
+    P = d.n_cells
+    values, w_all, cos_all = d.values, d.weight, d.cos
+    batch_materials, query_size = recipe.batch_materials, recipe.query_size
+    rand = functools.partial(_rand, g, dev)
+    n_ctx = int(round(math.exp(math.log(recipe.context_min)
+                               + float(rand()) * math.log(recipe.context_max / recipe.context_min))))
+    mats = torch.randint(0, d.n_materials, (batch_materials,), generator=g, device=dev)
+    folds_b = d.mat_fold[mats]
+    c_pos = torch.searchsorted(d.cdf, rand(batch_materials, n_ctx, dtype=torch.float64)).clamp_(max=P - 1)
+    q_pos = torch.randint(0, P, (batch_materials, query_size), generator=g, device=dev)
+    crho, qrho = values[mats[:, None], c_pos], values[mats[:, None], q_pos]
+    if recipe.mixup > 0:
+        _mixup(d, folds_b, c_pos, q_pos, crho, qrho, recipe.mixup, g, dev)
+    ctab, qtab, sig = d.fold_tab[folds_b[:, None], c_pos], d.fold_tab[folds_b[:, None], q_pos], d.fold_sig[folds_b]
+    rows = (ctab, crho, w_all[c_pos], cos_all[c_pos])
+    c, b = solve(*rows, sig, cfg.s2, cfg.lam, weight=cfg.weight)
+    with torch.no_grad():
+        resid = b - torch.einsum("bck,blk->bcl", ctab[..., 2:], c)
+    mu, sd, z, dc = net(d.hd[c_pos], resid, c, sig, n_ctx)
+    c, _ = solve(*rows, sd, cfg.s2, cfg.lam, mu=mu, weight=cfg.weight)
+    ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
+    mapped = mean + torch.einsum("bqk,blk->bql", comp, c)
+    x = (torch.expm1(mapped.clamp(max=30)) * (ref + EPS) + ref) / w_all[q_pos][..., None]
+    qc = cos_all[q_pos][..., None]
+    loss = ((torch.log1p(x.clamp(min=0) * qc) - torch.log1p(qrho * qc)) ** 2).mean()
+    reg = recipe.lambda_w * (dc ** 2).mean() + recipe.lambda_z * (z ** 2).mean()
+    return loss, reg
+
+
+def _train(d: TrainingTensors, cfg: PriorConfig, recipe: _Recipe, seed, dev, say):
+    """Adam on the network of ``cfg`` until ``recipe.steps`` or ``recipe.minutes``, the
+    learning rate decayed on a cosine to a tenth. Returns ``(averaged, steps, losses)``:
+    the exponential moving average of the weights, the steps taken and their losses."""
+    import torch
+
+    net = prior_net(cfg).to(dev)
+    opt = torch.optim.Adam(net.parameters(), lr=recipe.lr)
+    avg = torch.optim.swa_utils.AveragedModel(net, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(recipe.ema))
+    g = torch.Generator(device=dev).manual_seed(seed)
+    say(f"training on {d.n_materials} materials, {d.n_cells:,} cells, device {dev}")
+    t_train, step, losses, last_say = time.monotonic(), 0, [], time.monotonic()
+    steps, lr = recipe.steps, recipe.lr
+    budget = None if recipe.minutes is None else recipe.minutes * 60
+    while (steps is None or step < steps) and (budget is None or time.monotonic() - t_train < budget):
+        loss, reg = _batch_loss(d, net, cfg, recipe, g, dev)
+        opt.zero_grad()
+        (loss + reg).backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        frac = step / steps if budget is None else (time.monotonic() - t_train) / budget
+        if steps is not None and budget is not None:
+            frac = max(frac, step / steps)
+        for grp in opt.param_groups:
+            grp["lr"] = lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * min(frac, 1.0))))
+        opt.step()
+        avg.update_parameters(net)
+        losses.append(float(loss.detach()))
+        step += 1
+        if time.monotonic() - last_say > 30:
+            last_say = time.monotonic()
+            say(f"step {step}, {step / (last_say - t_train):.1f} steps/s, loss {np.mean(losses[-200:]):.5f}")
+    if not losses or not np.isfinite(losses[-1]):
+        raise InputError("training gave no finite loss")
+    return avg, step, losses
 
 
 def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: int = 40, steps: int | None = None,
@@ -114,37 +244,14 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.runtime import resolve_device
     from brdfkit.io.folders import collect_materials
-    from brdfkit.io.merl import read_merl
     from brdfkit.methods.prior.prior_file import save_prior
 
     if steps is None and minutes is None:
         steps = 3000
-
-    def real(v):  # -O values arrive parsed as JSON: a word or a bool is no number
-        return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-    def count(v, least=1):
-        return isinstance(v, int) and not isinstance(v, bool) and v >= least
-
-    for key, value, ok in (("steps", steps, steps is None or count(steps)),
-                           ("minutes", minutes, minutes is None or (real(minutes) and minutes > 0)),
-                           ("folds", folds, count(folds, 2)),
-                           ("mixup", mixup, real(mixup) and 0.0 <= mixup <= 1.0),
-                           ("ema", ema, real(ema) and 0.0 <= ema < 1.0),
-                           ("batch_materials", batch_materials, count(batch_materials)),
-                           ("query_size", query_size, count(query_size)), ("lr", lr, real(lr) and lr > 0),
-                           ("lambda_w", lambda_w, real(lambda_w) and lambda_w >= 0),
-                           ("lambda_z", lambda_z, real(lambda_z) and lambda_z >= 0),
-                           ("latent_dim", latent_dim, count(latent_dim)), ("width", width, count(width)),
-                           ("components", components, count(components)),
-                           ("s2", s2, real(s2) and s2 > 0), ("lam", lam, real(lam) and lam > 0),
-                           ("weight", weight, weight in ("metric", "energy")),
-                           ("spread", spread, isinstance(spread, bool)),
-                           ("context_min", context_min, count(context_min)),
-                           ("context_max", context_max, count(context_max) and count(context_min)
-                            and context_max >= context_min)):
-        if not ok:
-            raise InputError(f"--method prior: option {key} = {value!r} is out of range")
+    _check_options(steps=steps, minutes=minutes, folds=folds, mixup=mixup, ema=ema, batch_materials=batch_materials,
+                   query_size=query_size, lr=lr, lambda_w=lambda_w, lambda_z=lambda_z, latent_dim=latent_dim,
+                   width=width, components=components, s2=s2, lam=lam, weight=weight, spread=spread,
+                   context_min=context_min, context_max=context_max)
     t0 = time.monotonic()
     say = (lambda msg: print(f"brdfkit: {msg}", file=sys.stderr, flush=True)) if progress else (lambda msg: None)
     paths, names, _, unknown = collect_materials(data, exclude)
@@ -157,122 +264,19 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     dev = resolve_device(device)
     torch.manual_seed(seed)
 
-    if basis is not None:
-        bpath = _resolve_basis(basis)
-        storage = _storage(bpath)
-        full = load_ipca(bpath)
-        components = full.n_components
-    else:
-        storage = {"half": False, "phi_stride": 1, "int8": False}
-        say(f"fitting the {components}-component basis to {len(paths)} materials")
-        full = fit_ipca(paths, components, names=names)  # Nielsen's mapping (w_floor 0): give -O basis= for another
-    # Training cells: measured in every training table and covered by the basis.
-    covered = np.zeros(N_CELLS, bool)
-    covered[full.cells] = True
-    tables = []
-    for p in paths:
-        t = read_merl(p).reshape(N_CELLS, 3)
-        covered &= np.isfinite(t).all(1)
-        tables.append(t.astype(np.float32))
-    cells = np.flatnonzero(covered)
-    if cells.size == 0:
-        raise InputError("no cell is measured in every training table and covered by the basis")
-    values = torch.from_numpy(np.stack([np.clip(t[cells], 0, None) for t in tables]))  # (M, P, 3)
-    del tables
-    P, K = cells.size, components
-
+    full, storage, components = main_basis(basis, components, paths, names, say)
+    cells, values = training_cells(paths, full)
     fold_of = np.arange(len(paths)) % folds
-    full_comp = full._table()[cells][:, 2:].astype(np.float64)
-    tabs, sigmas = [], []
-    for f in range(folds):
-        say(f"fitting the basis of fold {f + 1} of {folds}")
-        keep = [p for p, fo in zip(paths, fold_of) if fo != f]
-        fb = _as_stored(fit_ipca(keep, K, w_floor=full.w_floor), storage)
-        tab = fb._table()[cells].astype(np.float64)
-        if not np.isfinite(tab).all():
-            tab = np.nan_to_num(tab)  # a cell only the held-out fold measured: the reference
-        # Procrustes: one meaning per coefficient in every fold basis.
-        u, _, vt = np.linalg.svd(tab[:, 2:].T @ full_comp)
-        r = u @ vt
-        tabs.append(np.concatenate([tab[:, :2], tab[:, 2:] @ r], 1).astype(np.float32))
-        sigmas.append(np.sqrt(np.einsum("ij,i,ij->j", r, fb.sigma.astype(np.float64) ** 2, r)).astype(np.float32))
-    fold_tab = torch.from_numpy(np.stack(tabs)).to(dev)
-    fold_sig = torch.from_numpy(np.stack(sigmas)).to(dev)
-    del tabs
-    from brdfkit.geometry import cos_theta_i, grid_angles, grid_hd
-    values = values.to(dev)
-    hd_all = torch.from_numpy(np.ascontiguousarray(grid_hd()[cells], np.float32)).to(dev)
-    w_all = torch.from_numpy(np.clip(full.cell_weight(cells), 1e-6, None).astype(np.float32)).to(dev)
-    th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
-    cos_all = torch.from_numpy(np.clip(cos_theta_i(th, td, pd).reshape(N_CELLS)[cells], 0, None)
-                               .astype(np.float32)).to(dev)
-    # Cells weighted by the solid angle a uniform draw over the angles gives each theta_h row.
-    row = torch.from_numpy(cells // (N_THETA_D * N_PHI_D)).double()
-    cdf = torch.cumsum(2 * row + 1, 0)
-    cdf = (cdf / cdf[-1]).to(dev)
-    mat_fold = torch.from_numpy(fold_of).to(dev)
-    members = [torch.from_numpy(np.flatnonzero(fold_of == f)).to(dev) for f in range(folds)]
+    tabs, sigmas = fold_bases(paths, fold_of, folds, full, cells, components, storage, say)
+    d = to_device(values, cells, full, fold_of, folds, tabs, sigmas, dev)
+    del values, tabs, sigmas
 
-    cfg = PriorConfig(n_components=K, latent_dim=latent_dim, width=width, s2=float(s2), lam=float(lam),
+    cfg = PriorConfig(n_components=components, latent_dim=latent_dim, width=width, s2=float(s2), lam=float(lam),
                       weight=weight, spread=spread)
-    net = prior_net(cfg).to(dev)
-    opt = torch.optim.Adam(net.parameters(), lr=lr)
-    avg = torch.optim.swa_utils.AveragedModel(net, multi_avg_fn=torch.optim.swa_utils.get_ema_multi_avg_fn(ema))
-    g = torch.Generator(device=dev).manual_seed(seed)
-    say(f"training on {len(paths)} materials, {P:,} cells, device {dev}")
-    t_train, step, losses, last_say = time.monotonic(), 0, [], time.monotonic()
-    budget = None if minutes is None else minutes * 60
-
-    def rand(*shape, dtype=torch.float32):
-        return torch.rand(shape, generator=g, device=dev, dtype=dtype)
-
-    while (steps is None or step < steps) and (budget is None or time.monotonic() - t_train < budget):
-        n_ctx = int(round(math.exp(math.log(context_min) + float(rand()) * math.log(context_max / context_min))))
-        mats = torch.randint(0, len(paths), (batch_materials,), generator=g, device=dev)
-        folds_b = mat_fold[mats]
-        c_pos = torch.searchsorted(cdf, rand(batch_materials, n_ctx, dtype=torch.float64)).clamp_(max=P - 1)
-        q_pos = torch.randint(0, P, (batch_materials, query_size), generator=g, device=dev)
-        crho, qrho = values[mats[:, None], c_pos], values[mats[:, None], q_pos]
-        if mixup > 0:
-            partner = torch.stack([members[int(f)][int(torch.randint(0, len(members[int(f)]), (), generator=g,
-                                                                      device=dev))] for f in folds_b])
-            t = torch.where(rand(batch_materials) < mixup, rand(batch_materials),
-                            torch.ones(batch_materials, device=dev))[:, None, None]
-            for rho, pos in ((crho, c_pos), (qrho, q_pos)):
-                w = w_all[pos][..., None]
-                other = values[partner[:, None], pos]
-                mixed = (torch.exp(t * torch.log(rho * w + EPS) + (1 - t) * torch.log(other * w + EPS)) - EPS) / w
-                rho.copy_(mixed.clamp(min=0))
-        ctab, qtab, sig = fold_tab[folds_b[:, None], c_pos], fold_tab[folds_b[:, None], q_pos], fold_sig[folds_b]
-        rows = (ctab, crho, w_all[c_pos], cos_all[c_pos])
-        c, b = solve(*rows, sig, cfg.s2, cfg.lam, weight=weight)
-        with torch.no_grad():
-            resid = b - torch.einsum("bck,blk->bcl", ctab[..., 2:], c)
-        mu, sd, z, dc = net(hd_all[c_pos], resid, c, sig, n_ctx)
-        c, _ = solve(*rows, sd, cfg.s2, cfg.lam, mu=mu, weight=weight)
-        ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
-        mapped = mean + torch.einsum("bqk,blk->bql", comp, c)
-        x = (torch.expm1(mapped.clamp(max=30)) * (ref + EPS) + ref) / w_all[q_pos][..., None]
-        qc = cos_all[q_pos][..., None]
-        loss = ((torch.log1p(x.clamp(min=0) * qc) - torch.log1p(qrho * qc)) ** 2).mean()
-        reg = lambda_w * (dc ** 2).mean() + lambda_z * (z ** 2).mean()
-        opt.zero_grad()
-        (loss + reg).backward()
-        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        frac = step / steps if budget is None else (time.monotonic() - t_train) / budget
-        if steps is not None and budget is not None:
-            frac = max(frac, step / steps)
-        for grp in opt.param_groups:
-            grp["lr"] = lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * min(frac, 1.0))))
-        opt.step()
-        avg.update_parameters(net)
-        losses.append(float(loss.detach()))
-        step += 1
-        if time.monotonic() - last_say > 30:
-            last_say = time.monotonic()
-            say(f"step {step}, {step / (last_say - t_train):.1f} steps/s, loss {np.mean(losses[-200:]):.5f}")
-    if not losses or not np.isfinite(losses[-1]):
-        raise InputError("training gave no finite loss")
+    recipe = _Recipe(steps=steps, minutes=minutes, batch_materials=batch_materials, query_size=query_size,
+                     context_min=context_min, context_max=context_max, mixup=mixup, lr=lr, lambda_w=lambda_w,
+                     lambda_z=lambda_z, ema=ema)
+    avg, step, losses = _train(d, cfg, recipe, seed, dev, say)
     final = prior_net(cfg)
     final.load_state_dict({k: v.detach().cpu() for k, v in avg.module.state_dict().items()})
     final.eval()

@@ -18,18 +18,21 @@ __all__ = ["PASS_LANES", "reference_scene_dict", "render_scene", "render_referen
 PASS_LANES = 1 << 20
 
 
-def reference_scene_dict(bsdf: dict, scene=None, spp: int | None = None) -> dict:
+def reference_scene_dict(bsdf: dict, scene=None, spp: int | None = None, env=None, mi=None) -> dict:
     """The reference scene (:mod:`brdfkit.render.scene`) as a Mitsuba scene dict.
 
     Path tracer with ``max_depth = 2`` (direct lighting; the sphere is convex), emitters
     hidden (black background), orthographic camera on ``+z``, box-filtered pixels,
-    independent sampler, and the reference environment map written once to an EXR in
-    the cache folder.
+    independent sampler, and the environment map (``env``, default the reference one; a
+    suite scene's, :func:`brdfkit.render.scene_suite.scene_env`) written once to an EXR in
+    the cache folder. ``mi``: the Mitsuba module with a variant already set (default:
+    :func:`load_mitsuba`'s; ``brdfkit.testing.mitsuba_measured`` passes a scalar one).
     """
     from brdfkit.render.envmap import reference_envmap
     from brdfkit.render.scene import REFERENCE
 
-    mi, _ = load_mitsuba()
+    if mi is None:
+        mi, _ = load_mitsuba()
     scene = scene or REFERENCE
     h = scene.view_half_width
     to_world = mi.ScalarTransform4f().look_at(origin=[0, 0, 10], target=[0, 0, 0], up=[0, 1, 0]) \
@@ -43,7 +46,7 @@ def reference_scene_dict(bsdf: dict, scene=None, spp: int | None = None) -> dict
                      "rfilter": {"type": "box"}, "pixel_format": "rgb"},
             "sampler": {"type": "independent", "sample_count": int(spp or scene.spp)},
         },
-        "emitter": {"type": "envmap", "filename": reference_envmap().exr_path()},
+        "emitter": {"type": "envmap", "filename": (env if env is not None else reference_envmap()).exr_path()},
         "sphere": {"type": "sphere", "center": [0, 0, 0], "radius": 1.0, "bsdf": bsdf},
     }
 
@@ -91,8 +94,9 @@ def render_scene(scene, spp: int, seed: int = 0, progress=None) -> np.ndarray:
     return (acc / spp).astype(np.float32)
 
 
-def render_reference(brdf, scene=None, spp: int | None = None, seed: int = 0, progress=None):
-    """Path-trace the reference scene with ``brdf`` on the sphere.
+def render_reference(brdf, scene=None, spp: int | None = None, seed: int = 0, progress=None, env=None):
+    """Path-trace the reference scene (under ``env``, default the reference environment)
+    with ``brdf`` on the sphere.
 
     Returns
     -------
@@ -105,7 +109,7 @@ def render_reference(brdf, scene=None, spp: int | None = None, seed: int = 0, pr
     scene = scene or REFERENCE
     spp = int(spp or scene.spp)
     sc = mi.load_dict(reference_scene_dict({"type": "brdfkit", "source": register_source(brdf)},
-                                           scene, spp))
+                                           scene, spp, env))
     return render_scene(sc, spp, seed, progress)
 
 

@@ -1,0 +1,178 @@
+"""What the real-materials demo (:mod:`brdfkit.demos.real_materials`) writes, and the clock
+of its steps: its output folders and the files it keeps, its dense tables (kept in the
+output folder, or the comparison sheet's inputs in a temporary folder), the plot and the
+comparison sheet.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import time
+
+__all__ = ["StepClock", "DemoFiles", "write_figures"]
+
+
+class StepClock:
+    """Accumulates the seconds spent in named steps (``with clock("step"):``)."""
+
+    def __init__(self):
+        self.spent: dict[str, list[float]] = {}
+
+    def __call__(self, step: str):
+        clock = self
+
+        class _Span:
+            def __enter__(self):
+                self.t = time.monotonic()
+
+            def __exit__(self, *exc):
+                clock.spent.setdefault(step, []).append(time.monotonic() - self.t)
+
+        return _Span()
+
+    def total(self, step: str) -> float:
+        return float(sum(self.spent.get(step, ())))
+
+    def mean(self, step: str) -> float:
+        v = self.spent.get(step, ())
+        return float(sum(v) / len(v)) if v else 0.0
+
+
+class DemoFiles:
+    """The demo's output folder: its subfolders, the files kept there, and the dense tables.
+
+    Parameters
+    ----------
+    out_dir
+        The demo's folder: ``samples/`` and ``embeddings/`` are made there, and with
+        ``keep_tables`` ``materials/``, ``reconstructed/`` and ``decoded/`` too.
+    scratch
+        The temporary folder of the sheet's inputs (``None``: no sheet).
+    keep_tables
+        Write the dense tables into ``out_dir``.
+    clock
+        Times the table writes (step ``write tables``).
+
+    Attributes
+    ----------
+    dirs
+        ``{subfolder: path}``.
+    written
+        Every file written and kept, in order.
+    n_tables
+        Dense tables written, kept or for the sheet (not the sheet's links to kept ones).
+    """
+
+    def __init__(self, out_dir: str, scratch: str | None, keep_tables: bool, clock: StepClock):
+        self.out_dir, self.scratch, self.keep_tables, self.clock = out_dir, scratch, keep_tables, clock
+        kept = ("materials", "reconstructed", "decoded") if keep_tables else ()
+        self.dirs = {d: os.path.join(out_dir, d) for d in ("samples", "embeddings", *kept)}
+        for d in self.dirs.values():
+            os.makedirs(d, exist_ok=True)
+        self.written: list[str] = []
+        self.n_tables = 0
+
+    def table(self, folder: str, stem: str, table, tile: str | None = None) -> str | None:
+        """Write ``OUT/folder/stem.binary`` when tables are kept, and the sheet's input
+        ``scratch/TILE.binary`` (``tile``: its label on the sheet) when it renders one;
+        returns the latter, else ``None``. ``table``: ``(90, 90, 180, 3)``, 1/sr."""
+        from brdfkit.io.merl import write_merl
+
+        kept_path = None
+        if self.keep_tables:
+            kept_path = os.path.join(self.dirs[folder], stem + ".binary")
+            with self.clock("write tables"):
+                write_merl(kept_path, table)
+            self.written.append(kept_path)
+            self.n_tables += 1
+        if tile is None or self.scratch is None:
+            return None
+        path = os.path.join(self.scratch, tile + ".binary")
+        with self.clock("write tables"):
+            if kept_path is None:
+                write_merl(path, table)
+                self.n_tables += 1
+            else:  # the kept file, without a second 35 MB write where hard links work
+                try:
+                    os.link(kept_path, path)
+                except OSError:
+                    shutil.copyfile(kept_path, path)
+        return path
+
+    def keep(self, folder: str, name: str) -> str:
+        """``OUT/folder/name``, recorded in :attr:`written` (before it is written: a failed
+        write ends the demo)."""
+        self.written.append(os.path.join(self.dirs[folder], name))
+        return self.written[-1]
+
+
+def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dict, inputs: dict,
+                  tiles: dict, resolution: int) -> tuple[str, str | None]:
+    """The plot of ``shown`` (``{label: (90, 90, 180, 3) table}``, the material first;
+    :func:`brdfkit.figures.brdf_plot.plot_brdfs`) and, when ``files`` has a scratch folder,
+    the comparison sheet (:func:`brdfkit.figures.comparison_sheet.comparison_sheet`) of the
+    sheet's ``inputs`` (``{result key: path}``) in the order of ``tiles`` (``{result key:
+    label}``, the reference first), rendered at ``resolution`` pixels, of the material
+    ``name``; progress on the console ``err``.
+
+    Returns
+    -------
+    tuple
+        ``(plot path, sheet path)``, the latter ``None`` without a sheet.
+    """
+    from brdfkit.figures.brdf_plot import plot_brdfs
+
+    plot_path = os.path.join(files.out_dir, f"plot-{name}.png")
+    err.print(f"plotting {name} against its reconstructions: {plot_path}")
+    with clock("plot"):
+        plot_brdfs(shown, plot_path)
+    files.written.append(plot_path)
+    if files.scratch is None:
+        return plot_path, None
+    from brdfkit.figures.comparison_sheet import comparison_sheet
+
+    sheet_path = os.path.join(files.out_dir, f"sheet-{name}.png")
+    preds = [inputs[k] for k in tiles if k != "reference"]
+    err.print(f"rendering {name} and {len(preds)} reconstructions ({resolution} px): {sheet_path}")
+    with clock("sheet"):
+        comparison_sheet(inputs["reference"], preds, sheet_path, resolution=resolution)
+    files.written.append(sheet_path)
+    return plot_path, sheet_path
+
+
+def render_scores(ref, tables: list, resolution: int) -> list:
+    """``[(PSNR dB, Delta E 2000)]`` of each of ``tables`` against the table ``ref``
+    (``(90, 90, 180, 3)``, 1/sr), all rendered in the reference scene at ``resolution``
+    pixels in one quadrature pass: the demo's tables rank reconstructions by renders."""
+    import dataclasses
+
+    from brdfkit.evaluation.metrics import delta_e_2000, psnr
+    from brdfkit.render.quadrature import render_many
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.render.scene import REFERENCE
+
+    scene = dataclasses.replace(REFERENCE, resolution=int(resolution))
+    images = [img for img, _ in render_many([TableBRDF(t) for t in [ref, *tables]], scene)]
+    return [(min(psnr(img, images[0]), 100.0), delta_e_2000(img, images[0])) for img in images[1:]]
+
+
+def write_errors(out_dir, made: dict, columns, rows, scored) -> str:
+    """Write ``OUT/errors.json`` (atomically): the BRDF log RMSE of each material and
+    column (``rows``: ``[(material, values)]``), the renders' PSNR and Delta E 2000
+    (``scored``, when rendered), and ``made``, what made them; returns its path."""
+    import json
+    import os
+
+    from brdfkit.atomic import atomic_open
+
+    path = os.path.join(out_dir, "errors.json")
+    doc = {"format": "brdfkit-demo-errors", "metric": "brdf_log_rmse", **made, "columns": columns,
+           "errors": {n: dict(zip(columns, map(float, row))) for n, row in rows}}
+    if scored:
+        doc["psnr"] = {n: {c: float(v[0]) for c, v in zip(columns, row)} for n, row in scored}
+        doc["delta_e"] = {n: {c: float(v[1]) for c, v in zip(columns, row)} for n, row in scored}
+    with atomic_open(path, "w", encoding="utf-8") as f:
+        json.dump(doc, f, indent=1)
+    return path
+

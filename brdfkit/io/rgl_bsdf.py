@@ -1,0 +1,362 @@
+"""RGL ``.bsdf`` files (Dupuy and Jakob 2018): read, evaluate, write.
+
+The format of RGL's measured-material database and of the renderers that read it
+(Mitsuba 3's ``measured`` BSDF, pbrt-v4's ``measured`` material; reference loader
+``powitacq``): a Mitsuba tensor file (:mod:`brdfkit.io.rgl.container`) holding the
+adaptive parameterization of "An Adaptive Parameterization for Efficient Material
+Acquisition and Rendering" (ACM TOG 37(6), 2018):
+
+============== ============================== ==========================================
+field          dtype, shape                   what
+============== ============================== ==========================================
+``description`` uint8 ``(n,)``                UTF-8 text
+``jacobian``   uint8 ``(1,)``                 1: values are multiplied by ``D / 4 sigma``
+``theta_i``    float32 ``(T,)``               incident elevations (radians, increasing)
+``phi_i``      float32 ``(P,)``               incident azimuths (``P <= 2``: isotropic)
+``ndf``        float32 ``(h, w)``             ``D`` over ``u_m`` (bilinear)
+``sigma``      float32 ``(h, w)``             projected area over ``u_wi``
+``vndf``       float32 ``(P, T, h, w)``       the warp's density over ``u_m``
+``luminance``  float32 ``(P, T, N, N)``       sampling density over sample space
+``rgb``        float32 ``(P, T, 3, N, N)``    values over sample space (RGB files), or
+``spectra``    float32 ``(P, T, W, N, N)``    values per wavelength, with
+``wavelengths`` float32 ``(W,)``              nanometres (spectral files)
+============== ============================== ==========================================
+
+A reader evaluates ``f(wi, wo) cos(theta_o)`` at a direction pair by mapping the half
+vector ``m`` to ``u_m = (sqrt(2 theta_m / pi), (phi_m - phi_i + pi) / 2 pi)``, inverting
+the ``vndf`` warp there (parameters ``(phi_i, theta_i)``) to a sample-space point,
+interpolating the values there, and (``jacobian = 1``) multiplying by
+``D(u_m) / (4 sigma(u_wi))``. :class:`RglBsdf` does exactly that in NumPy
+(:meth:`RglBsdf.eval`); :func:`read_bsdf_table` evaluates it at the MERL grid.
+:func:`write_bsdf` fits the parameterization to a MERL table
+(:mod:`brdfkit.io.rgl.fit`) and writes it, RGB or spectral.
+
+brdfkit reads isotropic RGB files; a spectral file, or an anisotropic one, is refused
+in one line, as is anything malformed. Negative RGB values, which RGL's RGB files hold
+where a spectral measurement lies outside the sRGB gamut, are clipped to 0 in the
+tables as the reference loader does.
+
+May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io.rgl`; numpy;
+colour-science inside :func:`rgb_to_spectra`.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+
+import numpy as np
+
+from brdfkit.errors import FormatError, InputError
+from brdfkit.geometry import TABLE_SHAPE
+from brdfkit.io.rgl.container import read_tensor_file, write_tensor_file
+from brdfkit.io.rgl.fit import FitSettings, fit_fields, phi2u, theta2u
+from brdfkit.io.rgl.marginal import Marginal2D
+
+__all__ = ["RglBsdf", "read_bsdf", "read_bsdf_table", "write_bsdf", "rgb_to_spectra", "spectral_basis", "FitSettings", "KIND"]
+
+KIND = "an RGL .bsdf file"
+_FLOAT_FIELDS = ("theta_i", "phi_i", "ndf", "sigma", "vndf", "luminance")
+_RANKS = {"theta_i": 1, "phi_i": 1, "ndf": 2, "sigma": 2, "vndf": 4, "luminance": 4, "rgb": 5,
+          "description": 1, "jacobian": 1}
+
+
+class RglBsdf:
+    """An isotropic RGB ``.bsdf`` material, checked, ready to evaluate.
+
+    Parameters
+    ----------
+    fields
+        Field name -> array, as :func:`read_bsdf` checked them.
+    path
+        The file (for messages).
+
+    Attributes
+    ----------
+    description
+        The file's description text.
+    theta_i
+        Incident elevations, radians ``(T,)``.
+    resolution
+        ``N`` of the sample-space grid.
+    """
+
+    def __init__(self, fields: dict, path: str = "<memory>"):
+        self.path = path
+        self.description = bytes(fields["description"]).decode("utf-8", "replace")
+        self.jacobian = bool(fields["jacobian"][0])
+        self.theta_i = fields["theta_i"].astype(np.float64)
+        self.phi_i = fields["phi_i"].astype(np.float64)
+        self.resolution = int(fields["rgb"].shape[-1])
+        params = (self.phi_i, self.theta_i)
+        self._ndf = Marginal2D(fields["ndf"], normalize=False, sampling=False)
+        self._sigma = Marginal2D(fields["sigma"], normalize=False, sampling=False)
+        self._vndf = Marginal2D(fields["vndf"], params)
+        self._rgb = Marginal2D(fields["rgb"], params, normalize=False, sampling=False, channels=True)
+
+    def eval(self, wi, wo) -> np.ndarray:
+        """What Mitsuba 3's ``measured`` BSDF returns: ``f(wi, wo) cos(theta_o)``.
+
+        Parameters
+        ----------
+        wi, wo
+            Unit directions ``(M, 3)`` in the local frame (``z`` the normal); ``wi`` is
+            the direction the parameterization is conditioned on (Mitsuba's ``si.wi``).
+
+        Returns
+        -------
+        numpy.ndarray
+            float64 ``(M, 3)``, 1/sr times the cosine; 0 where either direction is at or
+            below the horizon. Negative values of the file pass through.
+        """
+        wi = np.asarray(wi, np.float64).reshape(-1, 3)
+        wo = np.asarray(wo, np.float64).reshape(-1, 3)
+        out = np.zeros((wi.shape[0], 3))
+        up = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+        if not up.any():
+            return out
+        a, b = wi[up], wo[up]
+        m = a + b
+        m /= np.linalg.norm(m, axis=1, keepdims=True)
+        theta_i = np.arctan2(np.hypot(a[:, 0], a[:, 1]), a[:, 2])
+        phi_i = np.arctan2(a[:, 1], a[:, 0])
+        theta_m = np.arctan2(np.hypot(m[:, 0], m[:, 1]), m[:, 2])
+        phi_m = np.arctan2(m[:, 1], m[:, 0])
+        v = phi2u(phi_m - phi_i)
+        u_m = np.stack([theta2u(theta_m), v - np.floor(v)], -1)
+        u_wi = np.stack([theta2u(theta_i), phi2u(phi_i)], -1)
+        corners = self._vndf.corners((phi_i, theta_i))  # the rgb field's grids are the same
+        sample, _ = self._vndf.invert(u_m, corners=corners)
+        spec = self._rgb.eval(sample, corners=corners)
+        if self.jacobian:
+            spec *= (self._ndf.eval(u_m) / (4.0 * self._sigma.eval(u_wi)))[:, None]
+        out[up] = spec
+        return out
+
+    def brdf(self, wi, wo) -> np.ndarray:
+        """The BRDF ``f(wi, wo)`` in 1/sr ``(M, 3)``, non-negative: :meth:`eval` divided by
+        the larger of the two cosines, with the more grazing direction as the one the
+        parameterization is conditioned on (reciprocity; the division stays well
+        conditioned), negative values clipped to 0."""
+        wi = np.asarray(wi, np.float64).reshape(-1, 3)
+        wo = np.asarray(wo, np.float64).reshape(-1, 3)
+        swap = wi[:, 2] > wo[:, 2]
+        cond = np.where(swap[:, None], wo, wi)
+        other = np.where(swap[:, None], wi, wo)
+        with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+            f = self.eval(cond, other) / other[:, 2:3]
+        # NaN where a file's warp has an empty row (what Mitsuba would return too): 0
+        return np.where((other[:, 2:3] > 0) & np.isfinite(f), np.maximum(f, 0.0), 0.0)
+
+    def to_table(self) -> np.ndarray:
+        """The material at the MERL grid's directions (Matusik et al. 2003): float64
+        ``(90, 90, 180, 3)``, 1/sr, NaN where either direction is below the horizon."""
+        wi, wo = _grid_pairs()
+        up = (wi[:, 2] > 0) & (wo[:, 2] > 0)
+        cells = np.flatnonzero(up)
+        table = np.full((wi.shape[0], 3), np.nan)
+        step = 1 << 18
+        for s in range(0, cells.size, step):
+            idx = cells[s:s + step]
+            table[idx] = self.brdf(wi[idx], wo[idx])
+        return table.reshape(TABLE_SHAPE)
+
+
+def _grid_pairs():
+    """``(wi, wo)`` of every MERL cell (``phi_h = 0``), float64 ``(N_CELLS, 3)`` each, from
+    the grid's 1-D angles by broadcasting (as :func:`brdfkit.geometry.grid_directions`,
+    several times faster than evaluating the trigonometry per cell)."""
+    from brdfkit.geometry import grid_angles
+
+    th, td, pd = grid_angles()
+    sh, ch = np.sin(th)[:, None, None], np.cos(th)[:, None, None]
+    dx = (np.sin(td)[:, None] * np.cos(pd)[None, :])[None]
+    dy = np.broadcast_to((np.sin(td)[:, None] * np.sin(pd)[None, :])[None], (th.size, td.size, pd.size))
+    dz = np.cos(td)[None, :, None]
+    wi = np.stack(np.broadcast_arrays(ch * dx + sh * dz, dy, ch * dz - sh * dx), -1)
+    # wo = 2 (wi . h) h - wi, and wi . h = cos(theta_d)
+    wo = np.stack(np.broadcast_arrays(2 * dz * sh - wi[..., 0], -dy, 2 * dz * ch - wi[..., 2]), -1)
+    return wi.reshape(-1, 3), wo.reshape(-1, 3)
+
+
+def _check_fields(fields: dict, path: str) -> None:
+    """Refuse what no reader could use: a spectral, anisotropic, incomplete or
+    misshapen file, or values that are not finite or negative where a density is."""
+    if "spectra" in fields or "wavelengths" in fields:
+        raise FormatError(path, "spectral .bsdf file (fields 'spectra', 'wavelengths'): brdfkit reads RGB "
+                                "files (field 'rgb'; RGL's database offers each material as RGB too)")
+    missing = [k for k in _RANKS if k not in fields]
+    if missing:
+        raise FormatError(path, f"not an RGL .bsdf file: missing field{'s' if len(missing) > 1 else ''} "
+                                f"{', '.join(repr(k) for k in missing)}")
+    for name, rank in _RANKS.items():
+        a = fields[name]
+        want = np.uint8 if name in ("description", "jacobian") else np.float32
+        if a.ndim != rank or a.dtype != want:
+            raise FormatError(path, f"field '{name}': {a.dtype} of shape {a.shape}, expected {np.dtype(want)} "
+                                    f"of rank {rank}")
+    t, p = fields["theta_i"].size, fields["phi_i"].size
+    if p > 2:
+        raise FormatError(path, f"anisotropic material ({p} incident azimuths): brdfkit's tables are "
+                                "isotropic; this file is refused rather than averaged")
+    n = fields["rgb"].shape[-1]
+    expect = {"vndf": (p, t) + fields["vndf"].shape[2:], "luminance": (p, t, n, n), "rgb": (p, t, 3, n, n),
+              "jacobian": (1,)}
+    for name, shape in expect.items():
+        if fields[name].shape != shape:
+            raise FormatError(path, f"field '{name}' has shape {fields[name].shape}, expected {shape}")
+    for name in ("ndf", "sigma", "vndf", "luminance", "rgb"):
+        if min(fields[name].shape[-2:]) < 2:
+            raise FormatError(path, f"field '{name}' has shape {fields[name].shape}: a grid needs at least 2 x 2")
+    if t < 1 or p < 1:
+        raise FormatError(path, f"fields 'theta_i' and 'phi_i' hold {t} and {p} values: at least 1 each")
+    for name in (*_FLOAT_FIELDS, "rgb"):
+        a = fields[name]
+        if not np.isfinite(a).all():
+            bad = "NaN" if np.isnan(a).any() else "infinite"
+            raise FormatError(path, f"field '{name}' holds {bad} values")
+        if name != "rgb" and name != "phi_i" and (a < 0).any():
+            raise FormatError(path, f"field '{name}' holds negative values ({float(a.min()):.3g})")
+    for name in ("theta_i", "phi_i"):
+        if (np.diff(fields[name].astype(np.float64)) <= 0).any():
+            raise FormatError(path, f"field '{name}' is not strictly increasing")
+    if fields["theta_i"].max() > math.pi / 2 + 1e-4:
+        raise FormatError(path, f"field 'theta_i' goes past pi/2 ({float(fields['theta_i'].max()):.4f} rad)")
+    if not (fields["sigma"] > 0).all():
+        raise FormatError(path, "field 'sigma' holds zeros: the projected area must be positive")
+    for name in ("vndf", "luminance"):
+        sums = fields[name].reshape(p * t, -1).astype(np.float64).sum(1)
+        if not (sums > 0).all():
+            raise FormatError(path, f"field '{name}' has an all-zero slice: not a distribution")
+
+
+def read_bsdf(path) -> RglBsdf:
+    """Read and check an RGL ``.bsdf`` file.
+
+    Parameters
+    ----------
+    path
+        An isotropic RGB file (RGL's ``*_rgb.bsdf``, or one :func:`write_bsdf` wrote).
+
+    Returns
+    -------
+    RglBsdf
+        Ready to evaluate.
+
+    Raises
+    ------
+    FormatError
+        A malformed container (truncated, another magic or version), a missing or
+        misshapen field, NaN, infinite or negative data, a spectral or anisotropic file.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from brdfkit.testing.examples import lambertian_table
+    >>> write_bsdf("white.bsdf", lambertian_table((1.0, 1.0, 1.0)), FitSettings(resolution=16))
+    >>> bsdf = read_bsdf("white.bsdf")
+    >>> bsdf.theta_i.shape, bsdf.resolution
+    ((24,), 16)
+    >>> up = np.array([[0.0, 0.0, 1.0]])
+    >>> np.round(bsdf.brdf(up, up) * np.pi, 5)  # albedo 1, at a node of the grid
+    array([[1., 1., 1.]])
+    """
+    path = os.fspath(path)
+    fields = read_tensor_file(path, KIND)
+    _check_fields(fields, path)
+    return RglBsdf(fields, path)
+
+
+def read_bsdf_table(path) -> np.ndarray:
+    """An RGL ``.bsdf`` file at the MERL grid: float64 ``(90, 90, 180, 3)`` in 1/sr, NaN
+    below the horizon (:meth:`RglBsdf.to_table`)."""
+    return read_bsdf(path).to_table()
+
+
+def rgb_to_spectra(rgb: np.ndarray, axis: int = 0):
+    """Spectra of linear sRGB values by Mallett and Yuksel 2019 ("Spectral Primary
+    Decomposition for Rendering with sRGB Reflectance"), colour-science's
+    ``RGB_to_sd_Mallett2019`` basis.
+
+    The decomposition is *linear*: a value's spectrum is ``r S_r + g S_g + b S_b`` with
+    non-negative basis spectra summing to 1, so it keeps a BRDF value's spectrum
+    proportional to its RGB whatever its magnitude (BRDF values exceed 1, where the
+    bounded sigmoid spectra of Jakob and Hanika 2019 cannot go), it commutes with the
+    readers' interpolation, and white stays flat.
+
+    Parameters
+    ----------
+    rgb
+        Linear sRGB values with the channels on ``axis``.
+    axis
+        The channel axis.
+
+    Returns
+    -------
+    tuple
+        ``(spectra, wavelengths)``: the spectra with ``W`` wavelengths on ``axis``, and
+        the wavelengths in nanometres ``(W,)``: 380-780 nm in 10 nm steps (every other
+        sample of the basis, which is smooth: the readers interpolate linearly between
+        wavelengths, and hold the end values outside).
+    """
+    values, wavelengths = spectral_basis()
+    moved = np.moveaxis(np.asarray(rgb, np.float64), axis, -1)
+    return np.moveaxis(moved @ values.T, -1, axis), wavelengths
+
+
+def spectral_basis():
+    """The basis of :func:`rgb_to_spectra`: ``(values (W, 3), wavelengths (W,) nm)``."""
+    from colour.recovery import MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019 as basis
+
+    return np.asarray(basis.values, np.float64)[::2], np.asarray(basis.wavelengths, np.float64)[::2]
+
+
+def write_bsdf(path, table, settings: FitSettings = FitSettings(), *, spectral: bool = False,
+               description: str = "") -> None:
+    """Write a MERL table as an RGL ``.bsdf`` file, atomically.
+
+    Parameters
+    ----------
+    path
+        Output file.
+    table
+        ``(90, 90, 180, 3)``, 1/sr, NaN where not measured; evaluated between cells with
+        :func:`brdfkit.geometry.trilinear.lookup_trilinear`.
+    settings
+        Resolutions (:class:`brdfkit.io.rgl.fit.FitSettings`).
+    spectral
+        Write ``spectra`` and ``wavelengths`` (:func:`rgb_to_spectra`; what pbrt-v4 and
+        Mitsuba's spectral variants read) instead of ``rgb`` (Mitsuba's RGB variants).
+    description
+        Stored in the file's ``description``.
+
+    Raises
+    ------
+    InputError
+        A table of another shape, or with infinite or negative values.
+    """
+    from brdfkit.geometry import half_diff_from_io
+    from brdfkit.geometry.trilinear import lookup_trilinear
+
+    arr = np.asarray(table, np.float64)
+    if arr.shape != TABLE_SHAPE:
+        raise InputError(f"{os.fspath(path)}: cannot write a table of shape {arr.shape}, expected {TABLE_SHAPE}")
+    if np.isinf(arr).any() or (arr < 0).any():
+        raise InputError(f"{os.fspath(path)}: table holds infinite or negative values")
+
+    def brdf(wi, wo):
+        th, _, td, pd = half_diff_from_io(wi, wo)
+        return lookup_trilinear(arr, th, td, pd)
+
+    fields = fit_fields(brdf, settings)
+    out = {"description": description, "jacobian": np.array([1], np.uint8),
+           "theta_i": fields["theta_i"].astype(np.float32), "phi_i": np.zeros(1, np.float32)}
+    for name in ("ndf", "sigma", "vndf", "luminance"):
+        out[name] = fields[name].astype(np.float32)
+    if spectral:
+        spectra, wavelengths = rgb_to_spectra(fields["rgb"], axis=2)
+        out["spectra"] = spectra.astype(np.float32)
+        out["wavelengths"] = wavelengths.astype(np.float32)
+    else:
+        out["rgb"] = fields["rgb"].astype(np.float32)
+    write_tensor_file(path, out)
