@@ -2,15 +2,19 @@
 rendered in the reference scene against the source; and Mitsuba 3's own ``measured``
 BSDF rendering the written file against brdfkit's render of the source.
 
-Three jobs (any combination in one run):
+Four jobs (any combination in one run):
 
 * ``--roundtrip``: every table of ``--data`` (folders of MERL ``.binary`` proxies, or
   ``--names`` among them) written at the default settings, read back at the MERL grid,
   both rendered by the quadrature (``--px``, default 256) in one pass; PSNR, Delta E,
   the file's size, write and read seconds per material.
+  ``--scenes NAME,...`` renders in those scenes of the suite instead
+  (:mod:`brdfkit.render.scene_suite`; ``psnr`` is then their mean).
 * ``--sizes N,...``: the error against file size on the ``--names`` materials: one
   ``.bsdf`` per sample-space resolution ``N`` (and per ``--theta-i-sizes``), all read
   back and rendered with the source in one pass.
+* ``--agree NAME ...``: Mitsuba's ``measured`` ``eval`` against brdfkit's reader of the
+  written file at ``--pairs`` random direction pairs.
 * ``--mitsuba NAME ...``: the written file path-traced by Mitsuba's ``measured`` plugin
   (``scalar_rgb``, in a child process; ``--mitsuba-px``, ``--spp``) against the
   quadrature render of the source (supersampled 4 x 4: Mitsuba box-filters each pixel).
@@ -68,8 +72,9 @@ def _scores(images, ref):
     return [{"psnr": round(psnr(img, ref), 3), "delta_e": round(delta_e_2000(img, ref), 4)} for img in images]
 
 
-def roundtrip(tables, px, folder):
-    """One row per material at the default settings."""
+def roundtrip(tables, px, folder, scenes=None):
+    """One row per material at the default settings; with ``scenes`` (suite scene names,
+    :mod:`brdfkit.render.scene_suite`) the PSNR in each, and their mean as ``psnr``."""
     from brdfkit.io.merl import read_merl
     from brdfkit.io.rgl.fit import FitSettings
     from brdfkit.render.quadrature import render_many
@@ -77,13 +82,27 @@ def roundtrip(tables, px, folder):
     from brdfkit.render.scene import REFERENCE
 
     scene = dataclasses.replace(REFERENCE, resolution=px)
+    envs = {None: None}
+    if scenes:
+        from brdfkit.render.scene_suite import scene_env
+
+        envs = {name: scene_env(name) for name in scenes}
     rows = []
     for i, (name, src) in enumerate(tables.items(), 1):
         table = read_merl(src)
         back, info = _write_read(table, os.path.join(folder, "x.bsdf"), FitSettings())
-        (ref, _), (img, _) = render_many([TableBRDF(table, device="cpu"), TableBRDF(back, device="cpu")], scene)
-        rows.append({"material": name, **_scores([img], ref)[0], **info})
-        print(f"[{i}/{len(tables)}] {name}: {rows[-1]}", flush=True)
+        pair = [TableBRDF(table, device="cpu"), TableBRDF(back, device="cpu")]
+        per = {}
+        for scene_name, env in envs.items():
+            (ref, _), (img, _) = render_many(pair, scene, env=env)
+            per[scene_name] = _scores([img], ref)[0]
+        row = {"material": name, **info}
+        if scenes:
+            row.update(psnr=round(sum(v["psnr"] for v in per.values()) / len(per), 3), scenes=per)
+        else:
+            row.update(per[None])
+        rows.append(row)
+        print(f"[{i}/{len(tables)}] {name}: {row}", flush=True)
     return rows
 
 
@@ -138,6 +157,39 @@ def mitsuba(tables, px, spp, folder):
     return rows
 
 
+def agree(tables, pairs, folder, seed=30):
+    """Mitsuba's ``measured`` ``eval`` against brdfkit's reader on each written file, at
+    ``pairs`` random direction pairs (uniform over the hemisphere)."""
+    import numpy as np
+
+    from brdfkit.io.merl import read_merl
+    from brdfkit.io.rgl_bsdf import read_bsdf, write_bsdf
+    from brdfkit.testing.mitsuba_measured import measured_eval
+
+    rng = np.random.default_rng(seed)
+
+    def dirs():
+        z, phi = rng.random(pairs), rng.random(pairs) * 2 * np.pi
+        return np.stack([np.sqrt(1 - z * z) * np.cos(phi), np.sqrt(1 - z * z) * np.sin(phi), z], -1)
+
+    wi, wo = dirs(), dirs()
+    paths = []
+    for name, src in tables.items():
+        paths.append(os.path.join(folder, f"{name}.bsdf"))
+        write_bsdf(paths[-1], read_merl(src))
+    rows = []
+    for name, path, theirs in zip(tables, paths, measured_eval(paths, wi, wo)):
+        ours = read_bsdf(path).eval(wi, wo)
+        diff, scale = np.abs(ours - theirs), np.abs(theirs).max()
+        rel = diff / np.maximum(np.abs(theirs), 1e-300)
+        rows.append({"material": name, "pairs": pairs, "values": int(theirs.size),
+                     "max_rel": float(rel.max()), "over_1e-3_rel": int((rel > 1e-3).sum()),
+                     "over_1e-3_rel_plus_1e-6_max": int((diff > 1e-3 * np.abs(theirs) + 1e-6 * scale).sum()),
+                     "max_rel_of_values_above_1e-4_max": float(rel[np.abs(theirs) > 1e-4 * scale].max())})
+        print(rows[-1], flush=True)
+    return rows
+
+
 def _summary(rows):
     import numpy as np
 
@@ -155,9 +207,13 @@ def main(argv=None):
     ap.add_argument("--names", nargs="*", default=None, help="these materials only")
     ap.add_argument("--roundtrip", action="store_true", help="every material at the default settings")
     ap.add_argument("--px", type=int, default=256, help="render size of --roundtrip and --sizes")
+    ap.add_argument("--scenes", default=None, metavar="NAME,...",
+                    help="--roundtrip in these scenes of the suite (brdfkit.render.scene_suite), not the reference")
     ap.add_argument("--sizes", default=None, metavar="N,...", help="sample-space resolutions for error vs size")
     ap.add_argument("--theta-i-sizes", default="", metavar="T,...", help="incident elevation counts, too")
     ap.add_argument("--mitsuba", nargs="*", default=None, metavar="NAME", help="Mitsuba render check of these")
+    ap.add_argument("--agree", nargs="*", default=None, metavar="NAME", help="Mitsuba eval against the reader")
+    ap.add_argument("--pairs", type=int, default=10_000)
     ap.add_argument("--mitsuba-px", type=int, default=64)
     ap.add_argument("--spp", type=int, default=4096)
     ap.add_argument("--threads", type=int, default=1)
@@ -168,14 +224,18 @@ def main(argv=None):
     record = {"command": " ".join(["benchmarks/rgl_roundtrip.py", *sys.argv[1:]])}
     with tempfile.TemporaryDirectory(prefix="rgl-roundtrip-") as folder:
         if args.roundtrip:
-            rows = roundtrip(_tables(args.data, args.names), args.px, folder)
-            record["roundtrip"] = {"px": args.px, "rows": rows, "summary": _summary(rows)}
+            scenes = [x for x in args.scenes.split(",") if x] if args.scenes else None
+            rows = roundtrip(_tables(args.data, args.names), args.px, folder, scenes)
+            record["roundtrip"] = {"px": args.px, "scenes": scenes or ["reference"], "rows": rows,
+                                   "summary": _summary(rows)}
             print("roundtrip", record["roundtrip"]["summary"])
         if args.sizes:
             res = [int(x) for x in args.sizes.split(",") if x]
             thetas = [int(x) for x in args.theta_i_sizes.split(",") if x]
             record["sizes"] = {"px": args.px, "rows": sizes(_tables(args.data, args.names), args.px, res, thetas,
                                                             folder)}
+        if args.agree is not None:
+            record["agree"] = {"rows": agree(_tables(args.data, args.agree), args.pairs, folder)}
         if args.mitsuba is not None:
             record["mitsuba"] = {"rows": mitsuba(_tables(args.data, args.mitsuba), args.mitsuba_px, args.spp,
                                                  folder)}

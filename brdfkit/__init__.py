@@ -5,7 +5,8 @@ BRDF Representation", ECCV 2024. The public API is imported lazily: ``import brd
 loads neither torch nor mitsuba; each name pulls in only the module that defines it
 (``__init__.pyi`` lists them for IDEs and type checkers).
 
-The package, one folder per domain; data flows down this list, never up:
+The package, one folder per domain; data flows down this list, never up (each package's
+docstring says what it may import):
 
 ============================ ===========================================================
 ``errors``, ``atomic``,      what every layer shares: one-line errors, atomic outputs,

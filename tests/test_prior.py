@@ -506,6 +506,24 @@ def test_fit_prior_smoke(data, tables):
     assert not [p for p in data.iterdir() if p.name.startswith(".brdfkit-tmp-")]
 
 
+def test_fit_prior_minutes_choose_steps_that_replay(data):
+    """``minutes`` chooses the step count once (issue 28): the model records it, and a run
+    of that many ``steps`` gives the same weights."""
+    import torch
+
+    from brdfkit.methods.prior.fit import fit_prior
+
+    tiny = {**TINY_FIT, "steps": None}
+    fit_prior([data / "data"], data / "m.safetensors", progress=False, minutes=0.002, **tiny)
+    meta = load_prior(data / "m.safetensors").meta
+    assert meta["budget"]["steps"] == meta["steps"] >= 1
+    fit_prior([data / "data"], data / "s.safetensors", progress=False, **{**tiny, "steps": meta["steps"]})
+    a, b = load_prior(data / "m.safetensors"), load_prior(data / "s.safetensors")
+    assert "budget" not in b.meta
+    for x, y in zip(a.net.state_dict().values(), b.net.state_dict().values()):
+        assert torch.equal(x, y)
+
+
 def _tiny_args(data, out, **change):
     opts = {k: v for k, v in TINY_FIT.items() if k not in ("steps", "components", "latent_dim", "batch_materials")}
     opts.update(change)

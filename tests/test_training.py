@@ -214,6 +214,12 @@ def test_minutes_budget_stops_training(lib, tmp_path):
     assert time.monotonic() - t0 < 60  # 10 million steps would take hours
     meta = load_model(out, "cpu").meta
     assert 0 < meta["steps"] < 10_000_000
+    # --minutes chose the step count once (issue 28): --steps replays the run, bit for bit.
+    assert meta["budget"]["steps"] == meta["steps"] and meta["budget"]["probe_steps"] > 0
+    again = tmp_path / "again.safetensors"
+    tiny_fit(lib, again, steps=meta["steps"])
+    assert load_model(again, "cpu").fingerprint == load_model(out, "cpu").fingerprint
+    assert load_model(again, "cpu").meta["budget"] is None
 
 
 # --- inputs --------------------------------------------------------------------------------

@@ -30,7 +30,8 @@ and scored the same way (``time_s`` = encode + decode); with a PCA basis, its be
 reconstruction (:meth:`brdfkit.methods.ipca.IpcaModel.project` then ``decode``) too.
 
 Every reconstruction is scored by :func:`brdfkit.evaluation.metrics.score`, the function
-``brdfkit metrics`` uses. A failure of one reconstruction (or of reading one material)
+``brdfkit metrics`` uses, in the scenes of ``BenchConfig.scenes`` (the reference scene, or
+the suite of :mod:`brdfkit.render.scene_suite`: then their mean, and each scene's). A failure of one reconstruction (or of reading one material)
 is recorded with its message and left out of the means; the run goes on.
 
 Outputs (in ``OUTDIR``)
@@ -45,6 +46,9 @@ Summaries: :mod:`.summary`.
 Modules: :mod:`.config` (:class:`BenchConfig`), :mod:`.worker` (one process's models and
 scoring), :mod:`.runner` (:func:`run_bench`, :func:`merge_results`), :mod:`.summary`,
 :mod:`.report` (``bench.md`` and the plots).
+
+May import: every library package below the CLI (methods, acquisition, render,
+evaluation).
 """
 
 from brdfkit.bench.config import DEFAULT_METHODS, DEFAULT_N, DEFAULT_RESOLUTION, METRICS, BenchConfig, default_methods, sample_seed

@@ -4,6 +4,9 @@ Subcommands live in their own modules (``brdfkit/cli/<name>.py``, each defining
 ``command``) and are imported only when run, so ``brdfkit --help`` starts without torch,
 mitsuba or colour-science. Errors a user can fix (:class:`brdfkit.errors.BrdfkitError`)
 become one line on stderr and exit code 2.
+
+May import: any library package, inside the command that needs it; nothing imports the
+CLI (it is the top layer).
 """
 
 from __future__ import annotations

@@ -27,7 +27,9 @@ from brdfkit.cli.common import parse_option
 @click.option("--steps", type=click.IntRange(min=1), default=None,
               help="Optimiser steps [default: 2000 when --minutes is not given].")
 @click.option("--minutes", type=float, default=None,
-              help="Wall-clock budget in minutes; stops at --steps or here, whichever first.")
+              help="A time budget in minutes, turned into a step count once: a few steps are timed, "
+                   "then the run takes as many as fit (at most --steps), recorded in the model file so "
+                   "that --steps N replays it (docs/training.md).")
 @click.option("--seed", type=int, default=0, show_default=True, help="Random seed.")
 @click.option("--device", default="auto", show_default=True,
               help="auto (CUDA when present), cpu or cuda.")

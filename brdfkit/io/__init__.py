@@ -1,6 +1,9 @@
 """Files in and out: the formats brdfkit reads and writes, each checked on reading.
 
 * :mod:`~brdfkit.io.merl`: MERL ``.binary`` tables (Matusik et al. 2003), read and written.
+* :mod:`~brdfkit.io.rgl_bsdf`: RGL ``.bsdf`` files (Dupuy and Jakob 2018; Mitsuba 3,
+  pbrt-v4), read, evaluated and written; its parts (the tensor-file container, the
+  ``Marginal2D`` warps, the parameterization's fit) in :mod:`brdfkit.io.rgl`.
 * :mod:`~brdfkit.io.csvfile`: numeric CSV files with a header, the reading and row
   refusals that sample sets and directions share.
 * :mod:`~brdfkit.io.samples`: sample sets (:class:`~brdfkit.io.samples.SampleSet`) and
@@ -14,5 +17,6 @@
 * :mod:`~brdfkit.io.digest`: the sha256 of a file's bytes.
 
 May import: the ground floor (``errors``, ``atomic``) and :mod:`brdfkit.geometry`;
-numpy, and safetensors inside the functions that read tensors. No torch.
+numpy, safetensors inside the functions that read tensors, colour-science inside
+:func:`brdfkit.io.rgl_bsdf.rgb_to_spectra`. No torch.
 """

@@ -34,6 +34,10 @@ dataclass (``lam`` for ``ipca``; ``steps``, ``lr``, ``patience`` for ``nbrdf``).
 
 A new method is one module defining ``METHOD = Method(...)`` and one line in
 :data:`METHODS` (see DEVELOPERS.md). Importing this package imports no torch.
+
+May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io`,
+:mod:`brdfkit.models` and :mod:`brdfkit.hypernet` (the ``hypernet`` method); the choice
+of a ``-m`` value (:mod:`.choice`) reads the built-ins' manifest.
 """
 
 from __future__ import annotations

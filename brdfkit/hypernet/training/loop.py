@@ -142,8 +142,11 @@ class _Run:
     t_start
         ``time.monotonic()`` at the call of :func:`fit`.
     steps, budget
-        Stop at this step (``None``: no limit) or after this many seconds since
-        ``t_start`` (``None``: no limit).
+        Stop at this step (``None``: no limit); ``budget``: the seconds since ``t_start``
+        of ``--minutes``, turned into ``steps`` before the first step
+        (:mod:`brdfkit.hypernet.training.budget`) and then ``None``.
+    budget_record
+        How ``--minutes`` chose ``steps`` (``None``: it did not), for the model file.
     step, elapsed_before, skipped, resumed_from
         Steps done, seconds spent by the runs this one resumes, steps skipped for a
         non-finite loss, and the steps the training was resumed at.
@@ -174,6 +177,7 @@ class _Run:
     consecutive_bad: int = 0
     recent: collections.deque = dataclasses.field(default_factory=lambda: collections.deque(maxlen=50))
     samples_total: float = 0.0
+    budget_record: dict | None = None
 
     def checkpoint_state(self) -> dict:
         """The state :func:`~brdfkit.hypernet.training.checkpoint.save_checkpoint` writes."""
@@ -314,6 +318,12 @@ def _step(run: _Run, model, sampler, dist, stop, ckpt):
     return interrupt > 0, up > 0
 
 
+class _NoStop:
+    """No stop signal: what :func:`_step` sees while its steps are timed."""
+
+    requested = False
+
+
 def _loop(run: _Run, model, sampler, dist, show, ckpt) -> float:
     """The steps until ``run.steps``, the time budget or a stop signal (then a checkpoint
     and :class:`KeyboardInterrupt`), with periodic checkpoints and the progress bar.
@@ -375,6 +385,7 @@ def _finish(run: _Run, dist, show, output, ckpt, rho_ref, excluded, t_loop, star
             "device": dist.device.type, "options": json.loads(run.opts.identity_json()),
             "resumed_from_steps": run.resumed_from, "rank_fingerprints": fingerprints,
             "reference_from": run.reference_from,  # None: the median of "materials"
+            "budget": run.budget_record,  # how --minutes chose "steps" (None: --steps alone)
             "query_samples_per_s": round(run.samples_total / loop_time, 1) if loop_time > 0 else None}
     if dist.rank == 0:
         save_checkpoint(ckpt, run.checkpoint_state())
@@ -422,6 +433,10 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
     rho_ref = tset.rho_ref
     tset.values = None  # the sampler holds them now (on the device); no second host copy
     start_step = run.step
+    if run.budget is not None:
+        from brdfkit.hypernet.training.budget import fit_steps_from_budget
+
+        fit_steps_from_budget(run, lambda: _step(run, model, sampler, dist, _NoStop(), ckpt), dist, show)
     t_loop = _loop(run, model, sampler, dist, show, ckpt)
     _finish(run, dist, show, output, ckpt, rho_ref, excluded, t_loop, start_step)
     return output

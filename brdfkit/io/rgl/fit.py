@@ -37,7 +37,7 @@ interpolate what is stored):
   readers use, so that a reader's value at a grid node is the material's own (to float32
   rounding). Nodes whose outgoing direction falls below the horizon store 0.
 
-May import: numpy, :mod:`brdfkit.io.rgl.marginal`.
+May import: numpy, :mod:`brdfkit.errors`, :mod:`brdfkit.io.rgl.marginal`.
 """
 
 from __future__ import annotations

@@ -9,10 +9,12 @@ parts are
 - :mod:`.model`: the basis and its fit to samples (:class:`~.model.IpcaModel`; the
   mapping, the channels and the ridge fit are described there);
 - :mod:`.fit`: the basis fitted to training tables, ``brdfkit fit --method ipca``;
-- :mod:`.file`: its file (format ``brdfkit-ipca``), on its own or inside a learnt-prior
-  model file (:mod:`brdfkit.methods.prior.prior_file`);
-- :mod:`.storage`: the compact storage of the bases shipped with the package (float16,
-  every other ``phi_d`` cell).
+- :mod:`.basis_file`: its file (format ``brdfkit-ipca``), on its own or inside a
+  learnt-prior model file (:mod:`brdfkit.methods.prior.prior_file`);
+- :mod:`.basis_storage`: the compact storage of the bases shipped with the package
+  (float16 or int8, every other ``phi_d`` cell).
+
+May import: what :mod:`brdfkit.methods` may; no other method.
 """
 
 from __future__ import annotations

@@ -9,8 +9,10 @@ This package registers the method (:data:`METHOD`); its parts are
 - :mod:`.fit`: its training, ``brdfkit fit --method prior``;
 - :mod:`.training_data`: what the training fits on (the basis, the cells, the held-out
   fold bases, the tensors on the device);
-- :mod:`.file`: its model file (format ``brdfkit-prior``), which holds or names the
+- :mod:`.prior_file`: its model file (format ``brdfkit-prior``), which holds or names the
   PCA basis (:mod:`brdfkit.methods.ipca`).
+
+May import: what :mod:`brdfkit.methods` may, and :mod:`brdfkit.methods.ipca`.
 """
 
 from __future__ import annotations

@@ -165,6 +165,29 @@ def _batch_loss(d: TrainingTensors, net, cfg: PriorConfig, recipe: _Recipe, g, d
     return loss, reg
 
 
+def _steps_for_minutes(recipe: _Recipe, net, opt, avg, g, probe, t_train, say):
+    """``recipe.minutes`` as a step count (:func:`brdfkit.hypernet.training.budget.steps_for_budget`:
+    steps timed on the network, its optimiser, average and generator, then restored)."""
+    import copy
+
+    from brdfkit.hypernet.training.budget import steps_for_budget
+
+    def save():
+        return (copy.deepcopy(net.state_dict()), copy.deepcopy(opt.state_dict()), copy.deepcopy(avg.state_dict()),
+                g.get_state())
+
+    def restore(state):
+        net.load_state_dict(state[0])
+        opt.load_state_dict(state[1])
+        avg.load_state_dict(state[2])
+        g.set_state(state[3])
+
+    left = recipe.minutes * 60 - (time.monotonic() - t_train)
+    steps, record = steps_for_budget(left, probe, save, restore, most=recipe.steps)
+    say(f"--minutes: {steps:,} steps ({record['seconds_per_step']:.3g} s a step); `--steps {steps}` replays this run")
+    return steps, record
+
+
 def _train(d: TrainingTensors, cfg: PriorConfig, recipe: _Recipe, seed, dev, say):
     """Adam on the network of ``cfg`` until ``recipe.steps`` or ``recipe.minutes``, the
     learning rate decayed on a cosine to a tenth. Returns ``(averaged, steps, losses)``:
@@ -178,27 +201,30 @@ def _train(d: TrainingTensors, cfg: PriorConfig, recipe: _Recipe, seed, dev, say
     say(f"training on {d.n_materials} materials, {d.n_cells:,} cells, device {dev}")
     t_train, step, losses, last_say = time.monotonic(), 0, [], time.monotonic()
     steps, lr = recipe.steps, recipe.lr
-    budget = None if recipe.minutes is None else recipe.minutes * 60
-    while (steps is None or step < steps) and (budget is None or time.monotonic() - t_train < budget):
+
+    def one_step(step):
         loss, reg = _batch_loss(d, net, cfg, recipe, g, dev)
         opt.zero_grad()
         (loss + reg).backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
-        frac = step / steps if budget is None else (time.monotonic() - t_train) / budget
-        if steps is not None and budget is not None:
-            frac = max(frac, step / steps)
         for grp in opt.param_groups:
-            grp["lr"] = lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * min(frac, 1.0))))
+            grp["lr"] = lr * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * (min(step / steps, 1.0) if steps else 0.0))))
         opt.step()
         avg.update_parameters(net)
-        losses.append(float(loss.detach()))
+        return float(loss.detach())
+
+    budget_record = None
+    if recipe.minutes is not None:  # a step count chosen once: --steps replays the run
+        steps, budget_record = _steps_for_minutes(recipe, net, opt, avg, g, lambda: one_step(0), t_train, say)
+    while step < steps:
+        losses.append(one_step(step))
         step += 1
         if time.monotonic() - last_say > 30:
             last_say = time.monotonic()
             say(f"step {step}, {step / (last_say - t_train):.1f} steps/s, loss {np.mean(losses[-200:]):.5f}")
     if not losses or not np.isfinite(losses[-1]):
         raise InputError("training gave no finite loss")
-    return avg, step, losses
+    return avg, step, losses, budget_record
 
 
 def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: int = 40, steps: int | None = None,
@@ -276,7 +302,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     recipe = _Recipe(steps=steps, minutes=minutes, batch_materials=batch_materials, query_size=query_size,
                      context_min=context_min, context_max=context_max, mixup=mixup, lr=lr, lambda_w=lambda_w,
                      lambda_z=lambda_z, ema=ema)
-    avg, step, losses = _train(d, cfg, recipe, seed, dev, say)
+    avg, step, losses, budget_record = _train(d, cfg, recipe, seed, dev, say)
     final = prior_net(cfg)
     final.load_state_dict({k: v.detach().cpu() for k, v in avg.module.state_dict().items()})
     final.eval()
@@ -286,6 +312,8 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
                          "lr": lr, "lambda_w": lambda_w, "lambda_z": lambda_z, "ema": ema,
                          "context": [context_min, context_max],
                          "basis": os.path.basename(str(basis)) if basis else None}}
+    if budget_record is not None:  # how --minutes chose "steps"
+        meta["budget"] = budget_record
     save_prior(output, PriorModel(full, final, cfg, meta), **storage)
     say(f"wrote learnt-prior model ({step} steps, {wall / 60:.1f} min, loss {np.mean(losses[-200:]):.5f}) "
         f"to {output}")

@@ -166,7 +166,7 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
     net.eval()
     record = {}
     for k, v in meta.items():
-        if k in ("materials", "steps", "wall_time_s", "command", "seed", "training"):
+        if k in ("materials", "steps", "budget", "wall_time_s", "command", "seed", "training"):
             try:
                 record[k] = json.loads(v)
             except ValueError:
