@@ -180,14 +180,14 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     # The compressions' headers whole (wrapped at the model's name, not cut).
     assert "…" not in report and all(w in report for t in LABELS for w in t.split(" ("))
     # Each compression labelled by kind, in the explanation and the times; the budget said.
-    assert "refined on screen, at most 40 steps" in flat and "brdfkit encode takes at most 120 by default" in flat
+    assert "refined on screen, at most 20 steps" in flat and "brdfkit encode takes at most 40 by default" in flat
     assert "in-sample (merl-rgl-l40, merl-rgl-l7): trained on all 151 MERL + RGL materials, these included" in flat
     assert "unseen (merl80-l40): trained without the 20 MERL test materials" in flat
     for label in LABELS:
-        assert re.search(rf"encode \+ refine \(40 steps\), {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
+        assert re.search(rf"encode \+ refine \(20 steps\), {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
         assert re.search(rf"decode, {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
     assert f"writing into {out}" in proc.stderr.replace("\n", "")
-    assert "compressing (refined on screen, at most 40 steps)" in re.sub(r"\s+", " ", proc.stderr)
+    assert "compressing (refined on screen, at most 20 steps)" in re.sub(r"\s+", " ", proc.stderr)
     assert "materials/  (2 files, 70.0 MB)" in report and "not kept" not in report
 
     # The tables: the material, the four sparse reconstructions, three compressions, a blend.
@@ -212,7 +212,7 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert doc["columns"] == SPARSE_COLUMNS + LABELS and list(doc["errors"]["teflon"]) == doc["columns"]
     assert [(c["column"], c["kind"], c["latent_dim"]) for c in doc["compressions"]] == [
         (LABELS[0], "in-sample", 40), (LABELS[1], "in-sample", 7), (LABELS[2], "unseen", 40)]
-    assert doc["compression_steps"] == 40 and doc["interpolation_model"] == "merl80-l40"
+    assert doc["compression_steps"] == 20 and doc["interpolation_model"] == "merl80-l40"
     assert doc["psnr"]["teflon"].keys() == doc["errors"]["teflon"].keys()  # the renders the tables rank by
     # The sheet and the plot, of the first material.
     for png in ("sheet-violet-rubber.png", "plot-violet-rubber.png"):

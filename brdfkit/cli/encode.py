@@ -19,7 +19,7 @@ from brdfkit.cli.common import model_option, require_model
               help="Refine a table's latent on screen after the encoder's pass (--no-refine: the "
                    "paper's single pass).")
 @click.option("--steps", type=click.IntRange(min=0), default=None,
-              help="Most refinement steps per table [default: 120]; it stops sooner when held-out pixels "
+              help="Most refinement steps per table [default: 40]; it stops sooner when held-out pixels "
                    "stop improving. The same input gives the same bytes, however busy the machine.")
 @click.option("--max-seconds", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Also stop a table's refinement after this many seconds (off by default: a cut result "

@@ -42,9 +42,12 @@ from brdfkit.errors import InputError, require_counts
 
 __all__ = ["DEFAULT_STEPS", "THREADS", "CompressConfig", "CompressResult", "compress_table", "draw_pairs"]
 
-DEFAULT_STEPS = 120
-"""Most Adam steps of the refinement per table by default (``brdfkit encode --steps``):
-about what the earlier 3 s wall-clock budget ran on an idle machine (``docs/model.md``)."""
+DEFAULT_STEPS = 40
+"""Most Adam steps of the refinement per table by default (``brdfkit encode --steps``).
+Measured in the scene suite (``benchmarks/encode_budget.py``, 5 MERL proxies, 64 px, six
+scenes; ``docs/compression.md``): 0 / 20 / 40 / 80 / 120 steps gave 40.73 / 46.84 /
+47.60 / 48.08 / 48.15 dB in 1.2 / 3.5 / 5.0 / 8.1 / 11.7 s an encode on one thread at
+load 2; 40 keeps an encode near 5 s."""
 
 THREADS = 1
 """Torch threads of a compression, fixed so that its result does not depend on the
