@@ -422,6 +422,7 @@ def compression_section(comp, proxies, figure=True, title="Compression (the pape
                            comp["config"], "Compression")
     if figure:
         lines += ["![compression per material](images/bench-compression.png)", ""]
+    lines += highlight_lines(recs, labels)
     for label in labels:
         trained = sum(1 for r in recs if r["method"] == label and r.get("trained_on"))
         total = sum(1 for r in recs if r["method"] == label)
@@ -433,3 +434,33 @@ def compression_section(comp, proxies, figure=True, title="Compression (the pape
                      + f"; {trained} of its {total} materials were in its training set.")
     lines.append("")
     return lines
+
+
+def highlight_lines(recs, labels, worst: int = 3) -> list[str]:
+    """Invented or lost highlights (:func:`brdfkit.evaluation.metrics.highlights`, in the
+    records as ``highlights``): per model, the materials whose peak region (and grazing
+    band) is furthest from the table's, in log10 of the mean luminance."""
+    have = [r for r in recs if isinstance(r.get("highlights"), dict)]
+    if not have:
+        return []
+    out = ["#### Invented or lost highlights", "",
+           "The peak region (`theta_h` < 5 degrees) of each decoded table against the material's, as "
+           "`brdfkit metrics` checks it: log10 of the ratio of their mean luminance below (`peak`) and above "
+           "(`grazing`) `theta_d` = 60 degrees; +0.30 is a peak twice as bright (invented), -1.00 ten times "
+           "darker (lost). Per model, the mean absolute value and the materials furthest off:", "",
+           "| model | mean abs peak | worst peak | mean abs grazing | worst grazing |",
+           "| --- | ---: | --- | ---: | --- |"]
+    for label in labels:
+        rs = [r for r in have if r["method"] == label]
+        cells = []
+        for key in ("peak", "grazing"):
+            vals = [(r["highlights"].get(key), r["material"]) for r in rs if r["highlights"].get(key) is not None]
+            if not vals:
+                cells += ["n/a", "n/a"]
+                continue
+            vals.sort(key=lambda v: -abs(v[0]))
+            cells += [f"{sum(abs(v) for v, _ in vals) / len(vals):.3f}",
+                      ", ".join(f"{m} {v:+.2f}" for v, m in vals[:worst])]
+        out.append(f"| {label} | " + " | ".join(cells) + " |")
+    return out + [""]
+

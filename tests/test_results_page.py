@@ -187,7 +187,7 @@ def test_run_order(runs, tmp_path, monkeypatch, capsys):
     assert results.main(["--proxies", str(proxies), "--runs", str(rdir), "--jobs", "1", "--test-list",
                          str(test_list), "--out", str(tmp_path / "results.md")]) == 0
     cmds = results.plan(str(proxies), str(rdir), str(test_list), 1)
-    assert ran == [cmds["fit80"], cmds["planned"], cmds["uniform"], cmds["sparse"], cmds["fit151"], cmds["compression"],
-                   cmds["fit80k"], cmds["unseen"]]
+    assert ran == [cmds["fit151"], cmds["compression"], cmds["fit80k"], cmds["unseen"], cmds["fit80"],
+                   cmds["planned"], cmds["uniform"], cmds["sparse"]]
     assert sorted(os.listdir(rdir / "all151")) == ["mat-a.binary", "rgl_b_rgb.binary"]
     assert "Done when met:" in capsys.readouterr().out and (tmp_path / "results.md").exists()

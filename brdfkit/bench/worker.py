@@ -139,10 +139,11 @@ class Worker:
     def score(self, table, ref_table, ref_imgs: dict) -> dict:
         """:func:`brdfkit.evaluation.metrics.score` of a reconstruction (rendered here in
         every scene, the renders timed as ``render_s``); the BRDF log RMSE is recorded as
-        ``log_rmse``. In several scenes, the image scores are their means and ``scenes``
-        holds each scene's."""
+        ``log_rmse``, the peak region's check as ``highlights``
+        (:func:`brdfkit.evaluation.metrics.highlights`). In several scenes, the image scores
+        are their means and ``scenes`` holds each scene's."""
         from brdfkit.evaluation.comparison import mean_scores
-        from brdfkit.evaluation.metrics import brdf_log_rmse, score
+        from brdfkit.evaluation.metrics import brdf_log_rmse, highlights, score
 
         t0 = time.perf_counter()
         imgs = self.render(table)
@@ -153,6 +154,7 @@ class Worker:
         if len(per) > 1:
             out["scenes"] = {s: {k: v for k, v in r.items() if k != "brdf_log_rmse"} for s, r in per.items()}
         out["log_rmse"] = brdf_log_rmse(table, ref_table)
+        out["highlights"] = highlights(table, ref_table)
         out["render_s"] = render_s
         return out
 

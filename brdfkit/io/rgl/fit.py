@@ -23,14 +23,16 @@ TOG 37(6), SIGGRAPH Asia 2018) stores a material in the fields a ``.bsdf`` file 
 Three choices of brdfkit's, where the format leaves the writer free (readers only
 interpolate what is stored):
 
-* the warp's density is not the visible normals themselves: their ``u``-space density
-  vanishes like ``u^3`` at the pole ``theta_m = 0``, where every isotropic material has
-  its specular peak, so that a peak's core gets one column of sample space; the
-  Jacobian of ``u`` -> solid angle enters with the power :attr:`FitSettings.pole`
-  (2/3), and a share :attr:`FitSettings.mix` (0.1) of the half vectors of
-  cosine-distributed outgoing directions keeps the broad part of a peaked material
-  covered (the luminance field compensates, so sampling stays proportional to
-  ``f cos``);
+* the warp's density is not the visible normals alone (:func:`_warp_density`): their
+  ``u``-space density vanishes like ``u^3`` at the pole ``theta_m = 0``, where every
+  isotropic material has its specular peak, so that a peak's core gets one column of
+  sample space: the Jacobian of ``u`` -> solid angle enters with the power
+  :attr:`FitSettings.pole` (2/3); a share :attr:`FitSettings.adapt` (0.3) follows the
+  material's own ``f cos`` at each ``theta_i`` (a grazing sheen, which the NDF from
+  retro-reflection does not show), and a share :attr:`FitSettings.mix` (0.1) the half
+  vectors of cosine-distributed outgoing directions, which keeps the broad part of a
+  peaked material covered (the luminance field compensates, so sampling stays
+  proportional to ``f cos``);
 * the NDF is kept above :data:`NDF_FLOOR` of its peak (retro-reflection vanishes at
   ``theta = pi/2``, and a fit's output can be exactly 0), so that ``f / D`` stays finite;
 * every stored value is computed with the ``ndf`` and ``sigma`` *interpolants* the
@@ -78,6 +80,9 @@ class FitSettings:
     mix
         Share of the half vectors of cosine-distributed outgoing directions in the
         warp's density.
+    adapt
+        Share of the half vectors of outgoing directions distributed as the material's
+        own ``Y(f) cos(theta_o)`` at each ``theta_i``.
     pole
         Power of the ``u`` -> solid angle Jacobian in the warp's microfacet part (1: the
         visible normals of Dupuy and Jakob).
@@ -93,6 +98,7 @@ class FitSettings:
     ndf: int = 256
     vndf: tuple = (64, 128)
     mix: float = 0.1
+    adapt: float = 0.3
     pole: float = 2.0 / 3.0
     theta_i_max: float = 89.0
     iterations: int = 60
@@ -106,9 +112,10 @@ class FitSettings:
                 raise InputError(f"{name} must be in [{lo}, {hi}], got {getattr(self, name)!r}")
         if len(self.vndf) != 2 or min(self.vndf) < 2:
             raise InputError(f"vndf must be (rows, columns), each >= 2, got {self.vndf!r}")
-        if not (0.0 <= self.mix < 1.0 and 0.0 <= self.pole <= 1.0 and 0.0 < self.theta_i_max <= 90.0):
-            raise InputError(f"mix in [0, 1), pole in [0, 1], theta_i_max in (0, 90]: got {self.mix!r}, "
-                             f"{self.pole!r}, {self.theta_i_max!r}")
+        if not (0.0 <= self.mix and 0.0 <= self.adapt and self.mix + self.adapt < 1.0
+                and 0.0 <= self.pole <= 1.0 and 0.0 < self.theta_i_max <= 90.0):
+            raise InputError(f"mix, adapt >= 0 with mix + adapt < 1, pole in [0, 1], theta_i_max in (0, 90]: got "
+                             f"{self.mix!r}, {self.adapt!r}, {self.pole!r}, {self.theta_i_max!r}")
         return self
 
 
@@ -235,23 +242,37 @@ def _half_vectors(u_m: np.ndarray, phi_i: float = 0.0) -> np.ndarray:
     return np.stack([np.cos(pm) * np.sin(tm), np.sin(pm) * np.sin(tm), np.cos(tm)], -1)
 
 
-def _warp_density(ndf_nodes, wi, u_m, shape, mix, pole):
+def _warp_density(brdf, ndf_nodes, wi, u_m, shape, settings):
     """The warp's density over ``u`` on the grid ``u_m`` ``(rows * cols, 2)`` for incident
-    ``wi``, ``(rows, cols)``: ``(1 - mix)`` of ``D(m) max(0, wi . m) J^pole`` and ``mix``
-    of the half vectors of cosine-distributed ``wo`` (``max(0, wi . m) cos(theta_o) J``),
-    each normalised on the grid; ``J = 2 pi^2 u sin(theta_m)`` is the Jacobian of ``u`` ->
-    solid angle (``pole = 1``: the visible normals)."""
+    ``wi``, ``(rows, cols)``: a mixture, each part normalised on the grid, of
+
+    * ``D(m) max(0, wi . m) J^pole`` (``pole = 1``: Dupuy and Jakob's visible normals),
+    * the half vectors of outgoing directions distributed as the material's own
+      ``Y(f) cos(theta_o)`` at this ``wi`` (share ``adapt``): what a sampler of ``f cos``
+      draws, so that features of ``f`` that ``D`` (from retro-reflection) does not show,
+      a grazing sheen, get sample space, also with ``J^pole``,
+    * the half vectors of cosine-distributed ``wo`` (share ``mix``),
+
+    where ``J = 2 pi^2 u sin(theta_m)`` is the Jacobian of ``u`` -> solid angle."""
     m = _half_vectors(u_m)
     dot = np.maximum(m @ wi, 0.0)
-    wo_z = 2.0 * dot * m[:, 2] - wi[2]
+    wo = 2.0 * dot[:, None] * m - wi
+    up = wo[:, 2] > 0
     jac = 2.0 * math.pi ** 2 * u_m[:, 0] * np.sin(u2theta(u_m[:, 0]))
-    parts = []
-    d = _interp_u(ndf_nodes, u_m[:, 0])
-    for density in (d * dot * jac ** pole, dot * np.maximum(wo_z, 0.0) * jac):
+    f = np.zeros(u_m.shape[0])
+    if settings.adapt > 0 and up.any():
+        f[up] = np.nan_to_num(brdf(np.broadcast_to(wi, (int(up.sum()), 3)), wo[up]), nan=0.0) @ LUMINANCE
+    cos_o = np.maximum(wo[:, 2], 0.0)
+    shares = (1.0 - settings.mix - settings.adapt, settings.adapt, settings.mix)
+    densities = (_interp_u(ndf_nodes, u_m[:, 0]) * dot * jac ** settings.pole,
+                 np.maximum(f, 0.0) * cos_o * dot * jac ** settings.pole, dot * cos_o * jac)
+    out = np.zeros(shape)
+    for share, density in zip(shares, densities):
         p = density.reshape(shape)
-        total = Marginal2D(p).marg[0, -1]
-        parts.append(p / total if total > 0 else np.zeros(shape))
-    return (1.0 - mix) * parts[0] + mix * parts[1]
+        total = Marginal2D(p).marg[0, -1] if share > 0 else 0.0
+        if total > 0:
+            out += share * p / total
+    return out
 
 
 def fit_fields(brdf, settings: FitSettings = FitSettings()) -> dict:
@@ -295,7 +316,7 @@ def fit_fields(brdf, settings: FitSettings = FitSettings()) -> dict:
     for t, th in enumerate(theta_i):  # isotropic: wi in the xz plane, azimuths relative
         wi = np.array([math.sin(th), 0.0, math.cos(th)])
         sigma_i = float(_interp_u(sigma, theta2u(th)))
-        vndf[0, t] = _warp_density(ndf, wi, grid_u, (rows, cols), settings.mix, settings.pole)
+        vndf[0, t] = _warp_density(brdf, ndf, wi, grid_u, (rows, cols), settings)
         rgb[0, t], lum[0, t] = _slice_values(brdf, ndf, sigma_i, wi, vndf[0, t], nodes, res)
     return {"theta_i": theta_i, "ndf": np.stack([ndf, ndf]), "sigma": np.stack([sigma, sigma]),
             "vndf": vndf, "luminance": lum, "rgb": rgb}
