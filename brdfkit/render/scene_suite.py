@@ -34,9 +34,9 @@ figures are labelled as such in the results.
 
 Each environment is scaled so that the display (which clips at 1,
 :mod:`brdfkit.render.display`) shows its lights without washing out a white Lambertian
-sphere: its brightest pixel is 1.09 in ``reference``, 0.44 in ``backlight`` and ``rim``
-(only the rim is lit), 0.77 in ``small-lights``, 0.67 in ``overcast`` and 0.94 in
-``sunset`` (64 to 96 px quadrature renders).
+sphere: its brightest pixel is 1.09 in ``reference``, 0.46 in ``backlight`` and 0.44 in
+``rim`` (only the rim is lit), 0.77 in ``small-lights``, 0.67 in ``overcast`` and 0.94 in
+``sunset`` (96 px quadrature renders, ``benchmarks/scene_suite.py``).
 
 Examples
 --------
