@@ -137,7 +137,7 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     data.mkdir()
     write_merl(data / "a.binary", material_table(1))
     write_merl(data / "b.binary", material_table(0))
-    opts = TuneOptions(batch=2, pairs_per_pixel=4, turns=(0.0,), query=64, context=64, resolution=8)
+    opts = TuneOptions(batch=2, pairs_per_pixel=4, scenes=("studio-0",), query=64, context=64, resolution=8)
     out = tmp_path / "tuned.safetensors"
     done = tune(d / "model.safetensors", data, out, steps=3, options=opts)
     assert done["steps"] == 3 and done["materials"] == ["a", "b"]
@@ -151,7 +151,7 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     assert api.load_model(out, "cpu").fingerprint == api.load_model(one_go, "cpu").fingerprint
     assert not tmp_leftovers(tmp_path)
     with pytest.raises(InputError, match="another model, data or options"):
-        tune(d / "model.safetensors", data, out, steps=6, options=TuneOptions(batch=1, turns=(0.0,), resolution=8),
+        tune(d / "model.safetensors", data, out, steps=6, options=TuneOptions(batch=1, scenes=("studio-0",), resolution=8),
              resume=True)
     # The learning rates may change on resuming (a second stage at other rates).
     faster = dataclasses.replace(opts, lr_decoder=1e-3, lr_latent=1e-2)
@@ -159,7 +159,7 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["-O", "turns=1.5"], "turns"),
+    (["-O", "scenes=reference"], "scenes"),
     (["-O", "batch=0"], "batch"),
     (["-O", "lr_decoder=x"], "not a number"),
     (["-O", "nope=1"], "unknown tune option"),

@@ -16,7 +16,7 @@ from brdfkit.acquisition.sampling import draw_samples
 from brdfkit.io.merl import write_merl
 from brdfkit.io.samples import write_samples
 
-from conftest import run_brdfkit
+from conftest import run_brdfkit, run_cli
 from helpers_model import make_model, material_table
 
 
@@ -34,45 +34,42 @@ def _busy(n: int):
     return [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(n)]
 
 
-def _run_twice(args, outputs):
-    """The bytes of ``outputs`` after ``brdfkit ARGS`` on two torch threads, then beside
-    two busy processes with the thread count the command line picks for the load (one)."""
+def _run_twice(commands, outputs):
+    """The bytes of ``outputs`` after the ``brdfkit`` ``commands`` on two torch threads,
+    then beside two busy processes with the thread count the command line picks for the
+    load (one)."""
     env = {k: v for k, v in os.environ.items() if k not in ("OMP_NUM_THREADS", "MKL_NUM_THREADS")}
     got = []
     for busy, extra in ((0, {"OMP_NUM_THREADS": "2"}), (2, {})):
         procs = _busy(busy)
         try:
-            r = run_brdfkit(args, env={**env, **extra}, timeout=300)
+            for args in commands:
+                r = run_brdfkit(args, env={**env, **extra}, timeout=300)
+                assert r.returncode == 0, r.stderr
         finally:
             for p in procs:
                 p.kill()
                 p.wait()
-        assert r.returncode == 0, r.stderr
         got.append([open(o, "rb").read() for o in outputs])
         for o in outputs:
             os.remove(o)
     return got
 
 
-def test_encode_gives_the_same_bytes_idle_and_beside_busy_processes(inputs, tmp_path):
-    out = tmp_path / "mat.emb"
-    idle, busy = _run_twice(["encode", inputs / "mat.binary", "-m", inputs / "model.safetensors",
-                             "-o", tmp_path, "--steps", "15"], [out])
+def test_encode_and_sparse_give_the_same_bytes_idle_and_beside_busy_processes(inputs, tmp_path):
+    emb, out, s_emb = tmp_path / "mat.emb", tmp_path / "s.binary", tmp_path / "s.emb"
+    model = inputs / "model.safetensors"
+    idle, busy = _run_twice([["encode", inputs / "mat.binary", "-m", model, "-o", tmp_path, "--steps", "15"],
+                             ["sparse", inputs / "s.csv", "--method", "hypernet", "-m", model, "--refine-target",
+                              "latent", "-o", out, "--emb", s_emb]], [emb, out, s_emb])
     assert idle == busy
     rec = json.loads(idle[0])["refinement"]
     assert rec["stopped"] in ("steps", "converged") and 0 <= rec["best_step"] <= rec["steps"] <= 15
 
 
-def test_sparse_hypernet_gives_the_same_bytes_idle_and_beside_busy_processes(inputs, tmp_path):
-    out, emb = tmp_path / "s.binary", tmp_path / "s.emb"
-    idle, busy = _run_twice(["sparse", inputs / "s.csv", "--method", "hypernet", "-m", inputs / "model.safetensors",
-                             "--refine-target", "latent", "-o", out, "--emb", emb], [out, emb])
-    assert idle == busy
-
-
-def test_max_seconds_cuts_and_says_so(inputs, tmp_path):
-    r = run_brdfkit(["encode", inputs / "mat.binary", "-m", inputs / "model.safetensors", "-o", tmp_path,
-                     "--steps", "100000", "--max-seconds", "0.01"])
-    assert r.returncode == 0, r.stderr
-    assert "--max-seconds cut" in r.stdout + r.stderr
-    assert json.loads((tmp_path / "mat.emb").read_text())["refinement"]["stopped"] in ("max_seconds", "converged")
+def test_max_seconds_cuts_and_says_so(inputs, tmp_path, capsys):
+    code, out, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-m", inputs / "model.safetensors",
+                                      "-o", tmp_path, "--steps", "100000", "--max-seconds", "0.01"])
+    assert code == 0, err
+    assert "--max-seconds cut" in out + err
+    assert json.loads((tmp_path / "mat.emb").read_text())["refinement"]["stopped"] == "max_seconds"

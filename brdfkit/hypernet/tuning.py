@@ -9,12 +9,14 @@ cells, is optimised *together with the decoder* on
     mean_i [ log E_screen(i) ] + map_weight * L_map + lambda_z mean(z^2)
 
 * ``E_screen(i)``: the render-aligned error of :mod:`brdfkit.render.screen` (display MSE
-  of a low-resolution render of the reference scene against the table's own render), the
-  environment turned by one of ``turns`` (a fixed draw of ``pairs_per_pixel`` pairs per
-  pixel, in proportion to the table's integrand, as in :mod:`brdfkit.hypernet.refine_on_screen`). The
-  log makes the loss the *mean PSNR over materials* (a sum of ``-10 log10 MSE``), so a
-  dark material counts as much as a bright one. The turn of half a turn is left out: it is
-  the second scene of ``docs/render-error.md``, on which nothing is tuned.
+  of a low-resolution render against the table's own render) in one of ``scenes``, the
+  objective scenes of the suite (:mod:`brdfkit.render.scene_suite`; never a judged one,
+  issue 28; the built-in models of 2026-11-25 were tuned under the reference environment's
+  turns 0, 0.25 and 0.75 instead), with a fixed draw of ``pairs_per_pixel`` pairs per
+  pixel, in proportion to the table's integrand, as in
+  :mod:`brdfkit.hypernet.refine_on_screen`. The log makes the loss the *mean PSNR over
+  materials* (a sum of ``-10 log10 MSE``), so a dark material counts as much as a bright
+  one.
 * ``L_map``: the paper's cosine-weighted mapped MSE on ``query`` random measured cells,
   which keeps the BRDF right where no render looks.
 
@@ -57,8 +59,9 @@ class TuneOptions:
         Materials per step.
     pairs_per_pixel
         Pairs per pixel of each material's fixed draw (the full 32 px render has ~280).
-    turns
-        Environment turns (fractions of a full turn) the renders are fitted under.
+    scenes
+        The objective scenes the renders are fitted in (default those of
+        :data:`brdfkit.hypernet.refine_on_screen.OBJECTIVE`).
     map_weight
         Weight of the paper's mapped loss.
     lambda_z
@@ -74,7 +77,7 @@ class TuneOptions:
     lr_encoder: float = 3e-4
     batch: int = 4
     pairs_per_pixel: int = 32
-    turns: tuple = (0.0, 0.25, 0.75)
+    scenes: tuple = ("studio-0", "studio-1", "studio-2", "studio-3")
     map_weight: float = 1.0
     lambda_z: float = 1e-3
     query: int = 4096
@@ -87,21 +90,24 @@ class TuneOptions:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(f"tune option {name} must be a finite number >= 0, got {v!r}")
         require_counts(self, _COUNTS, "tune option ")
-        if not self.turns or any(not 0.0 <= float(t) < 1.0 for t in self.turns):
-            raise InputError(f"tune option turns must be fractions of a turn in [0, 1), got {self.turns!r}")
+        from brdfkit.render.scene_suite import OBJECTIVE_SCENES
+
+        if not self.scenes or any(s not in OBJECTIVE_SCENES for s in self.scenes):
+            raise InputError(f"tune option scenes must be objective scenes ({', '.join(OBJECTIVE_SCENES)}), never a "
+                             f"judged one; got {', '.join(map(str, self.scenes)) or 'none'}")
 
     @classmethod
     def parse(cls, given: dict) -> "TuneOptions":
-        """From ``-O KEY=VALUE`` strings (``turns=0,0.25,0.75``)."""
+        """From ``-O KEY=VALUE`` strings (``scenes=studio-0,studio-1``)."""
         fields = {f.name: f for f in dataclasses.fields(cls)}
         out = {}
         for key, value in given.items():
             if key not in fields:
                 raise InputError(f"unknown tune option {key!r}; known: {', '.join(fields)}")
             try:
-                if key == "turns":
+                if key == "scenes":
                     parts = value if isinstance(value, (tuple, list)) else str(value).split(",")
-                    out[key] = tuple(float(v) for v in parts)
+                    out[key] = tuple(str(v).strip() for v in parts)
                 elif key in _COUNTS:
                     out[key] = int(value)
                 else:
@@ -368,7 +374,8 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     from brdfkit.hypernet.training.checkpoint import checkpoint_path, load_checkpoint
     from brdfkit.io.folders import collect_materials
     from brdfkit.hypernet.model_file import save_model
-    from brdfkit.render.screen import rotated_envmap, screen
+    from brdfkit.render.scene_suite import scene_env
+    from brdfkit.render.screen import screen
     from brdfkit.hypernet.training.dataset import TrainingSet
     from brdfkit.runtime import resolve_device
 
@@ -385,7 +392,7 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     refuse_overwrite_of_inputs(output, [*paths, m.path])
     refuse_overwrite_of_inputs(ckpt, [*paths, m.path])
     torch.manual_seed(seed)
-    screens = [screen(dev, opts.resolution, rotated_envmap(float(t)) if t else None) for t in opts.turns]
+    screens = [screen(dev, opts.resolution, scene_env(s)) for s in opts.scenes]
     say(f"reading {len(paths)} materials")
     z0, views = _material_data(m, paths, opts, screens)
     tset = TrainingSet.load(paths, names, reference=m.rho_ref)
