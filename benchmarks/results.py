@@ -12,7 +12,7 @@ jobs):
 
 1. ``RUNS/ipca80.safetensors`` (when missing): ``brdfkit fit --method ipca`` on the 80
    MERL training materials, the materials ``merl80-l40`` was trained on;
-2. the sparse benchmark (``prior``, ``ipca``, ``nbrdf``, ``hypernet``; 3 draws; 128 px)
+2. the sparse benchmark (``prior``, ``ipca``, ``nbrdf``, ``hypernet``; 3 draws; 64 px)
    with uniform samples at N = 40, 160, 400, 2000, 4000 (issue 22's) into
    ``RUNS/bench-uniform``, with samples at the ``render`` design's directions (``brdfkit
    plan``) at N = 20, 40 into ``RUNS/bench-planned``, and the two merged into
@@ -27,8 +27,10 @@ jobs):
    compression of the 20 test materials, which no model here was trained on, by
    ``merl80-l40`` against its PCA-13 and IPCA-8 into ``RUNS/bench-unseen``.
 
-Every bench renders in the scene suite (``--scenes all``, ``docs/render.md``): the
-figures are means over its six scenes, with each scene's in a table beside them.
+Every bench renders in the scene suite (``--scenes all``, ``docs/render.md``) at 64 px
+(six scenes cost six renders a reconstruction: at 128 px the run took about nine hours on
+the 2-core machine): the figures are means over the six scenes, with each scene's in a
+table beside them.
 
 Then (or straight away with ``--skip-run``) it reads the two ``bench.json``, writes the
 page (atomically) and copies the bench figures beside it (``images/bench-*.png``), and
@@ -65,7 +67,7 @@ def plan(proxies: str, runs: str, test_list: str, jobs: int) -> dict:
     sparse = ["brdfkit", "bench", "--data", j(proxies, "merl"), "--test-list", test_list, "-m", "merl80-l40",
               "--ipca", j(runs, "ipca80.safetensors"), "--model-file", "prior=merl80-l40",
               "--methods", "prior,ipca,nbrdf,hypernet", "--seeds", "3"]
-    common = ["--scenes", "all", "--resolution", "128", "--jobs", str(jobs), "--threads", "1", "--device", "cpu",
+    common = ["--scenes", "all", "--resolution", "64", "--jobs", str(jobs), "--threads", "1", "--device", "cpu",
               "--cache", j(runs, "bench-cache")]
     return {
         "ipca80": j(runs, "ipca80.safetensors"), "ipca151": j(runs, "ipca151-13.safetensors"),
