@@ -251,3 +251,32 @@ def test_renderer_digest_covers_every_module_a_reference_render_reads():
         builtins.open = real_open
     assert {"quadrature.py", "scene.py", "envmap.py", "renderable.py", "coordinates.py", "grid.py", "trilinear.py",
             "nodes.py", "pairs.py"} <= set(read)
+
+
+def test_resume_keeps_finished_materials_and_runs_the_rest(setup, tmp_path):
+    from brdfkit.errors import InputError
+
+    cfg = BenchConfig(output=str(tmp_path / "out"), data=str(setup["lib"]), ipca=str(setup["basis"]), n=(40,),
+                      seeds=1, methods=("ipca",), resolution=RES)
+    full = run_bench(cfg, progress=False)
+    assert len(full["records"]) == 3
+    # An interruption after the first material: its records are kept as written, with a
+    # mark the rerun cannot make, and the two others run again to the same figures.
+    path = tmp_path / "out" / "bench.json"
+    part = json.loads(path.read_text())
+    first = dict(part["records"][0], mark="kept")
+    part.update(complete=False, records=[first], elapsed_s=12.5)
+    path.write_text(json.dumps(part))
+    resumed = run_bench(cfg, progress=False, resume=True)
+    assert resumed["complete"] and resumed["elapsed_s"] >= 12.5
+    assert resumed["records"][0] == first
+    key = lambda r: r["material"]  # noqa: E731
+    again = sorted(resumed["records"][1:], key=key)
+    want = sorted((r for r in full["records"] if r["material"] != first["material"]), key=key)
+    assert [(r["material"], r["log_rmse"]) for r in again] == [(r["material"], r["log_rmse"]) for r in want]
+    # Resuming a finished run runs nothing; another configuration is refused.
+    assert len(run_bench(cfg, progress=False, resume=True)["records"]) == 3
+    other = BenchConfig(output=str(tmp_path / "out"), data=str(setup["lib"]), ipca=str(setup["basis"]), n=(160,),
+                        seeds=1, methods=("ipca",), resolution=RES)
+    with pytest.raises(InputError, match="these differ: n"):
+        run_bench(other, progress=False, resume=True)

@@ -60,7 +60,7 @@ def _json_safe(obj):
     return obj
 
 
-def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
+def run_bench(cfg: BenchConfig, progress: bool = True, resume: bool = False) -> dict:
     """Run the benchmark and write its outputs (see the module doc).
 
     Parameters
@@ -69,6 +69,10 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
         :class:`BenchConfig`.
     progress
         Show a Rich progress bar on stderr.
+    resume
+        Go on with an interrupted run in ``cfg.output``: its finished materials are kept
+        (their records as written) and only the others run. The earlier run must have
+        the same configuration (but for ``command`` and ``jobs``) and renderer.
 
     Returns
     -------
@@ -83,7 +87,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     ------
     InputError
         Bad options, missing files or test materials, unreadable model files, unknown
-        built-in model names.
+        built-in model names; with ``resume``, an earlier run of another configuration.
     """
     cfg = cfg.resolved()  # built-in names -> their files, recorded as such
     cfg.validate()
@@ -112,6 +116,9 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
               "records": [], "complete": False, "elapsed_s": 0.0}
     json_path = os.path.join(cfg.output, "bench.json")
     t_start = time.perf_counter()
+    if resume:
+        tasks = _resume(result, json_path, tasks)
+        t_start -= result["elapsed_s"]
 
     def save(complete=False):
         result["complete"] = complete
@@ -124,6 +131,8 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     from brdfkit.runtime import torch_threads
 
     total = sum(per_task[t[0]] for t in tasks)
+    if not tasks:
+        return _finish(dict(result, complete=True), cfg.output, json_path, cfg.group_by_prefix)
     with ProgressBar("loading models", total=total, enabled=progress, count=True, transient=False) as bar:
 
         def done(task, recs):
@@ -148,6 +157,34 @@ def run_bench(cfg: BenchConfig, progress: bool = True) -> dict:
     result["complete"] = True
     result["elapsed_s"] = time.perf_counter() - t_start
     return _finish(result, cfg.output, json_path, cfg.group_by_prefix)
+
+
+_RESUME_FREE = ("command", "jobs")  # config keys that may differ in a resumed run
+
+
+def _resume(result: dict, json_path: str, tasks: list) -> list:
+    """Fill ``result`` with the finished materials of the run in ``json_path``; return
+    the tasks still to run. A material's records are written together when it ends,
+    so a material with records is finished."""
+    if not os.path.exists(json_path):
+        return tasks
+    try:
+        with open(json_path, encoding="utf-8") as f:
+            old = json.load(f)
+        old_cfg, old_records = old["config"], old["records"]
+    except (OSError, ValueError, KeyError, TypeError) as e:
+        raise InputError(f"{json_path}: cannot resume from it ({e})") from None
+    new_cfg = json.loads(json.dumps(_json_safe(result["config"])))
+    differ = sorted(k for k in set(old_cfg) | set(new_cfg)
+                    if k not in _RESUME_FREE and old_cfg.get(k) != new_cfg.get(k))
+    if differ:
+        raise InputError(f"{json_path}: --resume needs the same configuration; these differ: {', '.join(differ)}")
+    if old.get("environment", {}).get("renderer") != result["environment"]["renderer"]:
+        raise InputError(f"{json_path}: --resume needs the same renderer; the earlier run used another")
+    finished = {(r["kind"], r["material"]) for r in old_records}
+    result.update(records=list(old_records), started=old.get("started", result["started"]),
+                  elapsed_s=float(old.get("elapsed_s") or 0.0))
+    return [t for t in tasks if (t[0], t[1]) not in finished]
 
 
 def _run_pool(cfg: BenchConfig, tasks: list, labels: list, done) -> None:

@@ -88,11 +88,14 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--replace", is_flag=True,
               help="With --merge: a method that a later run holds replaces its records in the earlier runs "
                    "(one method re-run after a change).")
+@click.option("--resume", is_flag=True,
+              help="Go on with the interrupted run in OUTPUT: keep its finished materials, run the others "
+                   "(same options but --jobs).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress bar.")
 def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed, methods, sampling, plan_model,
             plan_design, compression_models, compression_data, scenes,
             resolution, jobs, threads, device, nbrdf_steps, ipca_lambda, method_options, group_by_prefix, cache, merge, replace, output,
-            allow_incomplete, quiet):
+            allow_incomplete, resume, quiet):
     """Measure reconstruction error against run time (and compression error).
 
     For each test material of --data, each N, each seed and each --sampling, every method
@@ -140,7 +143,7 @@ def command(data, test_list, model, ipca, model_files, n_list, seeds, first_seed
                       group_by_prefix=group_by_prefix,
                       cache=cache, command="brdfkit bench " + shlex.join(sys.argv[2:] if len(sys.argv) > 1
                                                                          and sys.argv[1] == "bench" else []))
-    result = run_bench(cfg, progress=not quiet)
+    result = run_bench(cfg, progress=not quiet, resume=resume)
     failed = sum("error" in r for r in result["records"])
     out = console()
     out.print(f"wrote {', '.join(result['outputs'])}")
