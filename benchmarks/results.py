@@ -32,6 +32,9 @@ Every bench renders in the scene suite (``--scenes all``, ``docs/render.md``) at
 the 2-core machine): the figures are means over the six scenes, with each scene's in a
 table beside them.
 
+Every bench runs with ``--resume``: after an interruption the same command goes on
+where it stopped (a finished bench is not run again; measure afresh in an empty RUNS).
+
 Then (or straight away with ``--skip-run``) it reads the two ``bench.json``, writes the
 page (atomically) and copies the bench figures beside it (``images/bench-*.png``), and
 prints issue 22's done-when check. Every figure on the page is computed from the records
@@ -68,7 +71,7 @@ def plan(proxies: str, runs: str, test_list: str, jobs: int) -> dict:
               "--ipca", j(runs, "ipca80.safetensors"), "--model-file", "prior=merl80-l40",
               "--methods", "prior,ipca,nbrdf,hypernet", "--seeds", "3"]
     common = ["--scenes", "all", "--resolution", "64", "--jobs", str(jobs), "--threads", "1", "--device", "cpu",
-              "--cache", j(runs, "bench-cache")]
+              "--cache", j(runs, "bench-cache"), "--resume"]
     return {
         "ipca80": j(runs, "ipca80.safetensors"), "ipca151": j(runs, "ipca151-13.safetensors"),
         "ipca80k": j(runs, "ipca80-13.safetensors"),
