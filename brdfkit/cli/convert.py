@@ -8,7 +8,7 @@ from brdfkit.cli.common import model_option
 
 # Defaults of brdfkit.io.rgl.fit.FitSettings, repeated here so that --help imports nothing
 # (tests/test_rgl_bsdf.py checks that they agree).
-RESOLUTION, THETA_I = 64, 24
+RESOLUTION, THETA_I = 64, 48
 
 
 def _given(name: str) -> bool:

@@ -53,7 +53,8 @@ from brdfkit.io.rgl.container import read_tensor_file, write_tensor_file
 from brdfkit.io.rgl.fit import FitSettings, fit_fields, phi2u, theta2u
 from brdfkit.io.rgl.marginal import Marginal2D
 
-__all__ = ["RglBsdf", "read_bsdf", "read_bsdf_table", "write_bsdf", "rgb_to_spectra", "spectral_basis", "FitSettings", "KIND"]
+__all__ = ["RglBsdf", "read_bsdf", "read_bsdf_table", "write_bsdf", "rgb_to_spectra", "spectral_basis",
+           "SPECTRAL_TOLERANCE", "FitSettings", "KIND"]
 
 KIND = "an RGL .bsdf file"
 _FLOAT_FIELDS = ("theta_i", "phi_i", "ndf", "sigma", "vndf", "luminance")
@@ -256,10 +257,10 @@ def read_bsdf(path) -> RglBsdf:
     >>> write_bsdf("white.bsdf", lambertian_table((1.0, 1.0, 1.0)), FitSettings(resolution=16))
     >>> bsdf = read_bsdf("white.bsdf")
     >>> bsdf.theta_i.shape, bsdf.resolution
-    ((24,), 16)
+    ((48,), 16)
     >>> up = np.array([[0.0, 0.0, 1.0]])
-    >>> np.round(bsdf.brdf(up, up) * np.pi, 5)  # albedo 1, at a node of the grid
-    array([[1., 1., 1.]])
+    >>> [round(float(v), 5) for v in bsdf.brdf(up, up)[0] * np.pi]  # albedo 1, at a node of the grid
+    [1.0, 1.0, 1.0]
     """
     path = os.fspath(path)
     fields = read_tensor_file(path, KIND)
@@ -295,20 +296,40 @@ def rgb_to_spectra(rgb: np.ndarray, axis: int = 0):
     -------
     tuple
         ``(spectra, wavelengths)``: the spectra with ``W`` wavelengths on ``axis``, and
-        the wavelengths in nanometres ``(W,)``: 380-780 nm in 10 nm steps (every other
-        sample of the basis, which is smooth: the readers interpolate linearly between
-        wavelengths, and hold the end values outside).
+        the wavelengths in nanometres ``(W,)`` (:func:`spectral_basis`).
     """
     values, wavelengths = spectral_basis()
     moved = np.moveaxis(np.asarray(rgb, np.float64), axis, -1)
     return np.moveaxis(moved @ values.T, -1, axis), wavelengths
 
 
-def spectral_basis():
-    """The basis of :func:`rgb_to_spectra`: ``(values (W, 3), wavelengths (W,) nm)``."""
+SPECTRAL_TOLERANCE = 0.005
+"""How far the readers' linear interpolation of the stored basis may stray from
+colour-science's 5 nm basis (whose three functions sum to 1)."""
+
+
+def spectral_basis(tolerance: float = SPECTRAL_TOLERANCE):
+    """The basis of :func:`rgb_to_spectra` at the wavelengths a file stores: ``(values (W,
+    3), wavelengths (W,) nm)``.
+
+    colour-science's basis is sampled every 5 nm from 380 to 780 nm (81 wavelengths) and
+    has sharp steps (green to red over 10 nm at 585 nm: every other sample would miss
+    them by 0.25). The readers interpolate linearly between the stored wavelengths (and
+    hold the end values outside), so the stored ones are the fewest of the 81, chosen
+    greedily (the worst-interpolated wavelength added until none strays more than
+    ``tolerance``), whose interpolant reproduces all 81 samples: 44 at the default.
+    """
     from colour.recovery import MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019 as basis
 
-    return np.asarray(basis.values, np.float64)[::2], np.asarray(basis.wavelengths, np.float64)[::2]
+    values = np.asarray(basis.values, np.float64)
+    nm = np.asarray(basis.wavelengths, np.float64)
+    keep = [0, nm.size - 1]
+    while True:
+        k = sorted(keep)
+        error = np.abs(np.stack([np.interp(nm, nm[k], values[k, c]) for c in range(3)], -1) - values).max(1)
+        if error.max() <= tolerance:
+            return values[k], nm[k]
+        keep.append(int(error.argmax()))
 
 
 def write_bsdf(path, table, settings: FitSettings = FitSettings(), *, spectral: bool = False,

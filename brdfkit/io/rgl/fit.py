@@ -94,7 +94,7 @@ class FitSettings:
     """
 
     resolution: int = 64
-    theta_i: int = 24
+    theta_i: int = 48
     ndf: int = 256
     vndf: tuple = (64, 128)
     mix: float = 0.1
