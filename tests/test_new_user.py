@@ -114,7 +114,7 @@ def test_mitsuba_tests_skip_with_the_reason_without_libllvm(env):
     skips (saying why), none fails. ``BRDFKIT_LIBLLVM_SEARCH=""`` searches nowhere."""
     environ = {k: v for k, v in os.environ.items() if k != "DRJIT_LIBLLVM_PATH"}
     environ.update(env, OMP_NUM_THREADS="1")
-    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider",
+    r = subprocess.run([sys.executable, "-m", "pytest", "-q", "-rs", "-p", "no:cacheprovider", "-n", "0",
                         "tests/test_stability.py::test_mitsuba_render_of_the_mirror",
                         "tests/test_mitsuba_plugin.py"],
                        cwd=REPO, env=environ, capture_output=True, text=True, timeout=600)
