@@ -177,14 +177,22 @@ def builtin_entry(path):
     """The manifest entry whose hypernetwork or learnt prior is ``path`` (or ``None``)."""
     from brdfkit.models.builtin import read_manifest
 
-    if not path:
+    if not path or not os.path.isfile(path):
         return None
     man = read_manifest()
     for m in man.models:
         files = [m.path] + ([os.path.join(man.folder, m.prior)] if m.prior else [])
-        if os.path.abspath(path) in map(os.path.abspath, files):
+        # the same bytes, wherever the run found them (a checkout of the same commit)
+        if any(os.path.basename(f) == os.path.basename(path) and _digest(f) == _digest(path) for f in files):
             return m
     return None
+
+
+def _digest(path) -> str:
+    import hashlib
+
+    with open(path, "rb") as f:
+        return hashlib.file_digest(f, "sha256").hexdigest()
 
 
 def training_materials(path):
@@ -254,6 +262,11 @@ def _trained(path, prior: bool = False) -> str:
     return f"built-in `{m.name}`, trained on {m.materials_list or m.materials}: CPU, {took}"
 
 
+def _pca_spec(spec) -> bool:
+    """``pca-K``: the leading components of the ``--ipca`` basis, not a model file."""
+    return str(spec).startswith("pca-") and str(spec)[4:].isdigit()
+
+
 def differs_table(sparse: dict, comp: dict) -> list[str]:
     cfg, env, ccfg = sparse["config"], sparse["environment"], comp["config"]
     seeds = sorted({r.get("seed") for r in sparse["records"] if r["kind"] == "sparse"})
@@ -270,9 +283,10 @@ def differs_table(sparse: dict, comp: dict) -> list[str]:
          _trained((cfg.get("models") or {}).get("prior"), prior=True) + "; **not the paper's architecture** "
          "([generalisation.md](generalisation.md), [models.md](models.md))"),
         ("compression models", "7-D and 40-D trained for compression on MERL (and a MERL + RGL variant)",
-         "; ".join(_trained(p) for p in ccfg.get("compression_models") or ()) or "none"),
+         "; ".join(_trained(p) for p in ccfg.get("compression_models") or () if not _pca_spec(p)) or "none"),
         ("IPCA in compression", "protocol not stated",
-         (ipca[0] if ipca else "none") + ", fitted on all the compressed tables"),
+         (f"{ipca[0]} fitted on all the compressed tables; PCA-K is its K leading components (PCA-13 beside "
+          f"40-D, IPCA-8, PCA-2 beside 7-D: the same count of numbers)" if ipca else "none")),
         ("scene for PSNR / Delta E / SSIM", "the paper's renders",
          f"our scene suite ([render.md](render.md)): a sphere under {len(cfg.get('scenes') or ['reference'])} "
          f"procedural HDR environment(s) ({', '.join(cfg.get('scenes') or ['reference'])}), the figures their "

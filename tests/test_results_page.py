@@ -110,7 +110,7 @@ def test_page_from_bench_results(runs, tmp_path):
     assert "N = 40: prior PSNR " in proc.stdout and "Done when met:" in proc.stdout
     # compression: all, MERL and RGL rows of each model, the paper's figure on the IPCA row
     assert "| hypernet 7-D (hyp) | all | 2 |" in page and "| hypernet 7-D (hyp) | RGL | 1 |" in page
-    assert "| ipca 3 components | MERL | 1 | 100.00 | 29.89 |" in page
+    assert "| ipca 3 components | MERL | 1 | 100.00 | - |" in page
     assert "| ipca 3 components | all | 2 | 100.00 ± 0.00 | - |" in page
     assert "2 materials (1 MERL, 1 RGL)" in page
     # the commands, verbatim
@@ -191,3 +191,14 @@ def test_run_order(runs, tmp_path, monkeypatch, capsys):
                    cmds["planned"], cmds["uniform"], cmds["sparse"]]
     assert sorted(os.listdir(rdir / "all151")) == ["mat-a.binary", "rgl_b_rgb.binary"]
     assert "Done when met:" in capsys.readouterr().out and (tmp_path / "results.md").exists()
+
+
+def test_the_papers_ipca_figure_sits_beside_eight_components():
+    import results_page  # benchmarks/ is on sys.path (above)
+
+    assert results_page._paper_comp("pca 8 components (24 numbers)", None) == "29.89"
+    assert results_page._paper_comp("ipca 8 components", None) == "29.89"
+    assert results_page._paper_comp("ipca 13 components", None) == "-"
+    assert results_page._paper_comp("pca 2 components (6 numbers)", None) == "-"
+    assert results_page._paper_comp("hypernet 40-D (merl-rgl-l40)", 40) == "47.68"
+    assert results_page._paper_comp("hypernet 16-D (tiny)", 16) == "-"
