@@ -84,10 +84,14 @@ def _renders(name, doc) -> dict:
     if not groups:
         return {}
     n_mats = len({r["material"] for g in groups.values() for r in g})
+    trained = sum(1 for r in groups.get("encode", []) if r.get("trained_on"))
+    held = "in its training set" if trained and trained == len(groups.get("encode", [])) else \
+        "held out" if not trained else f"{trained} of {len(groups['encode'])} compressions in its training set"
     return {"psnr": {k: round(sum(r["psnr"] for r in g) / len(g), 2) for k, g in groups.items()},
             "delta_e": {k: round(sum(r["delta_e"] for r in g) / len(g), 3) for k, g in groups.items()},
             "scenes": list(cfg.get("scenes") or ["reference"]), "resolution": cfg.get("resolution"),
-            "materials": f"{n_mats} materials of {os.path.basename(str(cfg.get('data') or cfg.get('compression_data')))}"}
+            "materials": f"{n_mats} materials of "
+                         f"{os.path.basename(str(cfg.get('data') or cfg.get('compression_data')))} ({held})"}
 
 
 def main():

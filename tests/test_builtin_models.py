@@ -314,3 +314,30 @@ def test_models_command_with_none_installed(capsys):
     assert out.count("\n") == 1 and "no built-in models installed" in out
     code, out, _ = run_cli(capsys, ["models", "--json"])
     assert code == 0 and json.loads(out)["models"] == []
+
+
+def test_models_command_speaks_in_renders(shelf, tmp_path):
+    """The manifest's ``renders`` (benchmarks/pack_builtin.py from a bench.json) are what
+    ``brdfkit models`` shows first: PSNR / Delta E per N and for encode, and how and on
+    which materials they were measured; a model without them shows dashes."""
+    folder = tmp_path / "builtin"
+    shutil.copytree(shelf[0], folder)
+    doc = json.loads((folder / "manifest.json").read_text())
+    doc["models"][0]["renders"] = {"psnr": {"40": 44.21, "400": 48.5, "encode": 41.97},
+                                   "delta_e": {"40": 0.71, "400": 0.4, "encode": 0.861},
+                                   "scenes": ["reference", "backlight"], "resolution": 64,
+                                   "materials": "20 materials of test20 (held out)"}
+    builtin.write_manifest(folder, doc["models"], default="tiny-a")
+    r = run_brdfkit(["models"], env={**quiet_env(), builtin.BUILTIN_ENV: str(folder), "COLUMNS": "120"})
+    assert r.returncode == 0, r.stderr
+    assert "Validation: renders, PSNR dB / Delta E 2000" in r.stdout
+    row = next(line for line in r.stdout.splitlines() if "tiny-a" in line and "44.2/0.71" in line)
+    assert "48.5/0.40" in row and "42.0/0.86" in row
+    assert "tiny-a: 20 materials of test20 (held out); scenes reference, backlight; 64 px" in r.stdout
+    block = r.stdout.split("Validation: renders")[1].split("\n\n")[0]
+    assert "tiny-a" in block and "tiny-b" not in block  # no figures, so no row in the renders' table
+    # The manifest's field is checked: a render figure that is not a number is refused.
+    doc["models"][0]["renders"]["psnr"]["40"] = "high"
+    (folder / "manifest.json").write_text(json.dumps(doc))
+    r = run_brdfkit(["models"], env={**quiet_env(), builtin.BUILTIN_ENV: str(folder)})
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and "renders" in r.stderr, r.stderr

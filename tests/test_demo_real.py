@@ -298,7 +298,7 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
         seen = []
         _interrupted_sheet(monkeypatch, seen)
         with pytest.raises(KeyboardInterrupt):
-            run_real_demo(out, only=["teflon"], device="cpu", keep_tables=keep)
+            run_real_demo(out, only=["teflon"], device="cpu", keep_tables=keep, resolution=8)
         tables = seen.pop()
         assert [os.path.basename(p) for p in seen] == tiles
         assert all(os.path.basename(os.path.dirname(p)).startswith(".brdfkit-tmp-demo-") for p in seen)

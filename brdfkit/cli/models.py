@@ -50,14 +50,14 @@ def _key(k: str):
 
 
 def _print_renders(out, installed) -> None:
-    """The models' held-out figures as renders: PSNR dB / Delta E 2000 per N (or
-    ``encode``), and how they were measured."""
+    """The models' validation figures as renders: PSNR dB / Delta E 2000 per N (or
+    ``encode``), and how they were measured (which materials, held out or not)."""
     have = [m for m in installed if m.renders.get("psnr")]
     if not have:
         return
     keys = sorted({k for m in have for k in m.renders["psnr"]}, key=_key)
-    out.print("\nValidation: renders of held-out materials, PSNR dB / Delta E 2000 (N: from N samples; "
-              "encode: encode + decode; -: not measured)")
+    out.print("\nValidation: renders, PSNR dB / Delta E 2000 (N: from N samples; encode: encode + decode; "
+              "-: not measured; which materials, below)")
     val = _table(("name", *(f"N={k}" if str(k).isdigit() else str(k) for k in keys)))
     for m in have:
         p, e = m.renders["psnr"], m.renders.get("delta_e", {})
@@ -76,8 +76,9 @@ def _print_renders(out, installed) -> None:
 def command(as_json, check):
     """List the built-in models: the names `-m` takes, with how each was trained.
 
-    Validation figures are renders of held-out materials (PSNR and Delta E 2000 of
-    reconstructions from N samples, or of encode + decode), then the BRDF log RMSE. A
+    Validation figures are renders (PSNR and Delta E 2000) of reconstructions from N
+    samples of held-out materials, or of encode + decode (the materials named, held out
+    or not), then the BRDF log RMSE. A
     model with a learnt prior (column prior) reconstructs sparse samples with it by
     default (`brdfkit sparse`, docs/models.md). The folder is the package's
     brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
