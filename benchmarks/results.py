@@ -179,12 +179,14 @@ def builtin_entry(path):
 
     if not path or not os.path.isfile(path):
         return None
-    man = read_manifest()
+    man, name, digest = read_manifest(), os.path.basename(path), None
     for m in man.models:
         files = [m.path] + ([os.path.join(man.folder, m.prior)] if m.prior else [])
         # the same bytes, wherever the run found them (a checkout of the same commit)
-        if any(os.path.basename(f) == os.path.basename(path) and _digest(f) == _digest(path) for f in files):
-            return m
+        for f in (f for f in files if os.path.basename(f) == name):
+            digest = digest or _digest(path)
+            if _digest(f) == digest:
+                return m
     return None
 
 

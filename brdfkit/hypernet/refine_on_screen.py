@@ -124,12 +124,9 @@ class CompressConfig:
         if not 0.0 <= self.uniform_share <= 1.0:
             raise InputError(f"uniform_share must be in [0, 1], got {self.uniform_share!r}")
         require_counts(self, ("pairs_per_pixel", "check_every", "patience", "resolution"))
-        from brdfkit.render.scene_suite import OBJECTIVE_SCENES, SUITE
+        from brdfkit.render.scene_suite import require_objective
 
-        judged = [s for s in self.scenes if s in SUITE]
-        if not self.scenes or judged or any(s not in OBJECTIVE_SCENES for s in self.scenes):
-            raise InputError(f"refinement scenes must be objective scenes ({', '.join(OBJECTIVE_SCENES)}), "
-                             f"never a judged one; got {', '.join(self.scenes) or 'none'}")
+        require_objective(self.scenes, "refinement scenes")
 
 
 @dataclasses.dataclass

@@ -40,6 +40,7 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError, require_counts
+from brdfkit.hypernet.refine_on_screen import OBJECTIVE
 
 __all__ = ["TuneOptions", "tune"]
 
@@ -77,7 +78,7 @@ class TuneOptions:
     lr_encoder: float = 3e-4
     batch: int = 4
     pairs_per_pixel: int = 32
-    scenes: tuple = ("studio-0", "studio-1", "studio-2", "studio-3")
+    scenes: tuple = OBJECTIVE
     map_weight: float = 1.0
     lambda_z: float = 1e-3
     query: int = 4096
@@ -90,11 +91,9 @@ class TuneOptions:
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(f"tune option {name} must be a finite number >= 0, got {v!r}")
         require_counts(self, _COUNTS, "tune option ")
-        from brdfkit.render.scene_suite import OBJECTIVE_SCENES
+        from brdfkit.render.scene_suite import require_objective
 
-        if not self.scenes or any(s not in OBJECTIVE_SCENES for s in self.scenes):
-            raise InputError(f"tune option scenes must be objective scenes ({', '.join(OBJECTIVE_SCENES)}), never a "
-                             f"judged one; got {', '.join(map(str, self.scenes)) or 'none'}")
+        require_objective(self.scenes, "tune option scenes")
 
     @classmethod
     def parse(cls, given: dict) -> "TuneOptions":

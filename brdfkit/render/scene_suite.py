@@ -58,7 +58,8 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.render.envmap import EnvMap, _smoothstep, _texel_coverage, reference_envmap, uv_to_direction
 
-__all__ = ["SuiteScene", "SUITE", "OBJECTIVE_SCENES", "scene_names", "scene_env", "objective_envmap"]
+__all__ = ["SuiteScene", "SUITE", "OBJECTIVE_SCENES", "scene_names", "scene_env", "objective_envmap",
+           "require_objective"]
 
 _W, _H = 256, 128  # the reference map's size
 
@@ -247,6 +248,17 @@ def scene_names(spec: str) -> list[str]:
 
 
 @functools.lru_cache(maxsize=16)
+def require_objective(scenes, what: str) -> None:
+    """Refuse (:class:`InputError`, one line naming ``what``) scenes an objective may not
+    descend: none given, or any that is not one of :data:`OBJECTIVE_SCENES` (a judged
+    scene of :data:`SUITE` included)."""
+    from brdfkit.errors import InputError
+
+    if not scenes or any(s not in OBJECTIVE_SCENES for s in scenes):
+        raise InputError(f"{what} must be objective scenes ({', '.join(OBJECTIVE_SCENES)}), never a judged one; "
+                         f"got {', '.join(map(str, scenes)) or 'none'}")
+
+
 def scene_env(name: str) -> EnvMap:
     """The environment of the scene called ``name`` (built once per process)."""
     spec = SUITE.get(name) or OBJECTIVE_SCENES.get(name)
