@@ -14,10 +14,12 @@ __all__ = ["console", "ProgressBar"]
 
 
 def console():
-    """A Rich console on stderr."""
+    """A Rich console on stderr. Messages are not cut into lines (``soft_wrap``): Rich
+    breaks a token longer than the rest of a line, a path among them, where the terminal
+    would only wrap it, so a path it printed could not be copied whole."""
     from rich.console import Console
 
-    return Console(stderr=True)
+    return Console(stderr=True, soft_wrap=True)
 
 
 class ProgressBar:
