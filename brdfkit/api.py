@@ -88,16 +88,21 @@ def _load_input(obj, source: str):
 
 
 def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
-           steps: int | None = None, max_seconds: float | None = None) -> Embedding:
+           steps: int | None = None, max_seconds: float | None = None, kind: str | None = None) -> Embedding:
     """Encode a material into an embedding.
 
-    A dense table is compressed by the set encoder's pass over all its measured cells
-    (Gokbudak et al. 2024), then, by default, that latent is refined on screen for at
-    most ``steps`` steps: descended on the render-aligned error and kept only where
-    held-out pixels agree (:func:`brdfkit.hypernet.refine_on_screen.compress_table`; never
-    worse there than the encoder's pass). The same table gives the same latent to the
-    bit, whatever the machine's load. A sample set is encoded by the encoder's pass alone
-    (``brdfkit sparse --method hypernet`` refines on samples).
+    A dense table becomes, by default, a *basis embedding* when the model ships a PCA
+    basis (the built-ins with a learnt prior): the coefficients of its ``latent_dim // 3``
+    leading components, the table's projection refined on screen
+    (:mod:`brdfkit.methods.ipca.embedding`; issue 29: it holds for materials outside the
+    training set, where the hypernetwork's latent does not). Otherwise (``kind="latent"``,
+    or a model without a basis) it is the set encoder's pass over all its measured cells
+    (Gokbudak et al. 2024), then, by default, that latent refined on screen for at most
+    ``steps`` steps: descended on the render-aligned error and kept only where held-out
+    pixels agree (:func:`brdfkit.hypernet.refine_on_screen.compress_table`; never worse
+    there than the encoder's pass). Either way the same table gives the same embedding to
+    the bit, whatever the machine's load. A sample set is encoded by the encoder's pass
+    alone (``brdfkit sparse --method hypernet`` refines on samples).
 
     Parameters
     ----------
@@ -116,19 +121,23 @@ def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
         Most steps of that refinement (default
         :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_STEPS`; 0: none).
     max_seconds
-        A wall-clock cap on the refinement (default none; a capped result depends on
-        the machine's speed: its ``refinement`` record says ``"max_seconds"``).
+        A wall-clock cap on the refinement of a latent (default none; a capped result
+        depends on the machine's speed: its ``refinement`` record says ``"max_seconds"``).
+    kind
+        ``"basis"``, ``"latent"`` or ``None``: a basis embedding when the model ships a
+        basis, else a latent (a sample set always gets a latent).
 
     Returns
     -------
     Embedding
-        float32 latent of the model's size, with the model's fingerprint and the number
-        of samples averaged.
+        float32 latent of the model's size (a basis embedding: ``3 K`` coefficients and
+        its basis's sha256), with the model's fingerprint and the number of samples
+        averaged.
 
     Examples
     --------
     >>> from brdfkit.testing.examples import lambertian_table, tiny_model
-    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")
+    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")  # no basis: a latent
     >>> emb = encode(model, lambertian_table(), refine=False)  # the encoder's one pass
     >>> emb.latent.shape, emb.sample_count
     ((7,), 1111432)
@@ -136,17 +145,18 @@ def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
     >>> encode(model, draw_samples(lambertian_table(), 40, seed=0)).sample_count
     40
     """
-    from brdfkit.hypernet.encoding import encode_samples, encode_table
+    from brdfkit.hypernet.encoding import encode_samples
+    from brdfkit.methods.embedding import encode_table
 
     data, name = _load_input(samples_or_table, source)
     if not isinstance(data, np.ndarray):
+        if kind == "basis":
+            raise InputError(f"{name or 'samples'}: a basis embedding is made from a dense table; a sample set "
+                             f"is encoded as a latent")
+        if kind not in (None, "latent"):
+            raise InputError(f"embedding kind {kind!r}: expected 'basis' or 'latent'")
         return encode_samples(model, data, name)
-    if not refine:
-        return encode_table(model, data, name)
-    from brdfkit.hypernet.refine_on_screen import DEFAULT_STEPS, CompressConfig, compress_table
-
-    cfg = CompressConfig(steps=DEFAULT_STEPS if steps is None else steps, max_seconds=max_seconds)
-    return compress_table(model, data, cfg, name).embedding
+    return encode_table(model, data, name, refine=refine, steps=steps, max_seconds=max_seconds, kind=kind)
 
 
 def decode(model, embedding, *, source: str = "") -> np.ndarray:
@@ -177,14 +187,14 @@ def decode(model, embedding, *, source: str = "") -> np.ndarray:
     >>> table.shape, bool(np.nanmin(table) >= 0)
     ((90, 90, 180, 3), True)
     """
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.methods.embedding import embedding_brdf
 
     name = source
     if isinstance(embedding, (str, os.PathLike)):
         from brdfkit.io.embedding import read_embedding
         name = source or os.fspath(embedding)
         embedding = read_embedding(embedding)
-    return NeuralBRDF.from_embedding(model, embedding, name).to_table()
+    return embedding_brdf(model, embedding, name).to_table()
 
 
 def sparse(model, samples, *, source: str = ""):
@@ -248,6 +258,10 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
         raise InputError(f"t: {t!r} is not a finite number")
     if not allow_extrapolation and not 0.0 <= t <= 1.0:
         raise InputError(f"t = {t:g} is outside [0, 1]; pass allow_extrapolation=True to extrapolate")
+    if a.basis != b.basis:
+        raise ModelMismatchError(
+            f"cannot interpolate a {'basis embedding' if a.basis else 'latent'} ({a.source or 'a'}) with a "
+            f"{'basis embedding' if b.basis else 'latent'} ({b.source or 'b'}): encode both the same way")
     if a.model_fingerprint != b.model_fingerprint or a.latent_dim != b.latent_dim:
         raise ModelMismatchError(
             f"cannot interpolate embeddings of different models: {a.source or 'a'} is from model "
@@ -259,7 +273,7 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
     if not np.isfinite(latent).all():
         raise InputError(f"t = {t:g} extrapolates beyond float32 range")
     return Embedding(latent, a.model_fingerprint,
-                     f"interpolate({a.source or 'a'}, {b.source or 'b'}, t={t:g})", 0)
+                     f"interpolate({a.source or 'a'}, {b.source or 'b'}, t={t:g})", 0, basis=a.basis)
 
 
 def fit(*args, **kwargs):

@@ -9,7 +9,9 @@ suffix      kind          opened as
 ``.bsdf``   ``rgl``       an RGL file (Dupuy and Jakob 2018) evaluated at the MERL grid's
                           directions (:func:`brdfkit.io.rgl_bsdf.read_bsdf_table`)
 ``.emb``    ``embedding`` the hyponet its latent decodes to, with the model that made it
-                          (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`)
+                          (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`), or for a
+                          basis embedding the closed form of the basis that model ships
+                          (:func:`brdfkit.methods.embedding.embedding_brdf`)
 =========== ============= ================================================================
 
 :func:`read_table` gives any of them as a dense table (what ``plot``, ``metrics`` and
@@ -20,8 +22,8 @@ given (``-m``), else the built-in whose fingerprint the first embedding records,
 once for all the files of a command.
 
 May import: the ground floor, :mod:`brdfkit.io`, :mod:`brdfkit.models`,
-:mod:`brdfkit.hypernet` and :mod:`brdfkit.render.renderable`; torch only for an
-embedding or a render.
+:mod:`brdfkit.hypernet`, :mod:`brdfkit.methods.embedding` and :mod:`brdfkit.render.renderable`;
+torch only for an embedding or a render.
 """
 
 from __future__ import annotations
@@ -113,11 +115,12 @@ def read_table(path, models: EmbeddingModel | None = None) -> np.ndarray:
     kind = brdf_kind(path)
     if kind in TABLE_KINDS:
         return _read_table_file(path, kind)
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.io.embedding import read_embedding
 
+    from brdfkit.methods.embedding import embedding_brdf
+
     model = (models or EmbeddingModel()).for_file(path)
-    return NeuralBRDF.from_embedding(model, read_embedding(path), path).to_table()
+    return embedding_brdf(model, read_embedding(path), path).to_table()
 
 
 def load_brdf(path, model_path=None, device=None, model=None):
@@ -152,11 +155,11 @@ def load_brdf(path, model_path=None, device=None, model=None):
         from brdfkit.render.renderable import TableBRDF
 
         return TableBRDF(_read_table_file(path, kind), name=name, device=device)
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.io.embedding import read_embedding
+    from brdfkit.methods.embedding import embedding_brdf
 
     models = model if isinstance(model, EmbeddingModel) else EmbeddingModel(model_path, model=model, device=device)
-    brdf = NeuralBRDF.from_embedding(models.for_file(path), read_embedding(path), name=path)
+    brdf = embedding_brdf(models.for_file(path), read_embedding(path), name=path)
     brdf.name = name
     return brdf
 

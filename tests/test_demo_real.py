@@ -36,8 +36,8 @@ SHIPPED = ["blue-metallic-paint", "teflon", "chrome-steel", "violet-rubber"]
 # The tiny shelf's hypernetworks: name, latent size (the shipped one's), seed.
 SHELF = (("merl80-l40", 40, 0), ("merl-rgl-l40", 40, 2), ("merl-rgl-l7", 7, 1))
 # The compressions' labels: the error columns and errors.json keys, and the sheet's tiles.
-LABELS = ["in-sample 40-D (merl-rgl-l40)", "in-sample 7-D (merl-rgl-l7)", "unseen 40-D (merl80-l40)"]
-TILES = ["in-sample 40-D", "in-sample 7-D", "unseen 40-D"]
+LABELS = ["in-sample basis-39 (merl-rgl-l40)", "in-sample 7-D (merl-rgl-l7)", "unseen basis-39 (merl80-l40)"]
+TILES = ["in-sample basis-39", "in-sample 7-D", "unseen basis-39"]
 SPARSE_COLUMNS = ["prior 40", "prior 400", "ipca 40", "ipca 400"]
 
 

@@ -106,7 +106,8 @@ def compression_labels(latent_dims: dict) -> list[tuple[str, str, str, str]]:
     ----------
     latent_dims
         ``{model: latent size}`` of the loaded models (the labels say what the model
-        files hold, not what their names suggest).
+        files hold, not what their names suggest), or ``{model: text}`` such as
+        ``"basis-39"`` for a model whose default embedding is a basis embedding.
 
     Returns
     -------
@@ -116,11 +117,22 @@ def compression_labels(latent_dims: dict) -> list[tuple[str, str, str, str]]:
         console table, ``errors.json``, the times), ``short`` such as ``in-sample 40-D``
         (the sheet's tiles, the plot's legend; the full labels where two would coincide).
     """
-    short = [f"{kind} {latent_dims[m]}-D" for m, kind in COMPRESSIONS]
+    size = {m: f"{d}-D" if isinstance(d, int) else str(d) for m, d in latent_dims.items()}
+    short = [f"{kind} {size[m]}" for m, kind in COMPRESSIONS]
     full = [f"{s} ({m})" for s, (m, _) in zip(short, COMPRESSIONS)]
     if len(set(short)) < len(short):
         short = full
     return [(m, kind, f, s) for (m, kind), f, s in zip(COMPRESSIONS, full, short)]
+
+
+def _embedding_size(model):
+    """What ``brdfkit encode`` makes of a table with ``model``: ``"basis-39"`` (a basis
+    embedding's numbers) or the latent size."""
+    from brdfkit.methods.ipca.embedding import components_for, model_basis
+
+    if model_basis(model) is not None:
+        return f"basis-{3 * components_for(model.cfg.latent_dim)}"
+    return int(model.cfg.latent_dim)
 
 
 @dataclasses.dataclass
@@ -330,7 +342,7 @@ def _load_models(device) -> _Models:
     ipca = get_method("ipca")
     ipca_model = ipca.load(SPARSE_MODEL)
     hyper = {m: api.load_model(m, device) for m in COMPRESSION_MODELS}
-    comps = compression_labels({m: hyper[m].cfg.latent_dim for m in COMPRESSION_MODELS})
+    comps = compression_labels({m: _embedding_size(hyper[m]) for m in COMPRESSION_MODELS})
     methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
     return _Models(choice, methods, hyper, comps)
 

@@ -96,7 +96,7 @@ def interpolation_strip(model, a, b, output: str | os.PathLike, *, steps: int = 
     from brdfkit.api import interpolate
     from brdfkit.console import ProgressBar
     from brdfkit.io.embedding import check_compatible
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.methods.embedding import embedding_brdf
     from brdfkit.render.file_render import reference_scene
     from brdfkit.render.quadrature import render_many
     from brdfkit.figures.canvas import pyplot, save_png, show_render
@@ -105,7 +105,7 @@ def interpolation_strip(model, a, b, output: str | os.PathLike, *, steps: int = 
     ts = strip_ts(steps)
     blends = [interpolate(a, b, t) for t in ts]  # refuses embeddings of two models first
     check_compatible(a, model, a.source or "A")  # named as the user gave it, not as a blend
-    brdfs = [NeuralBRDF.from_embedding(model, e) for e in blends]
+    brdfs = [embedding_brdf(model, e) for e in blends]
     with ProgressBar(f"quadrature {steps} blends", enabled=progress) as bar:
         done = render_many(brdfs, reference_scene(size), progress=bar if progress else None)
     images = [img for img, _ in done]

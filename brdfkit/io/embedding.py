@@ -56,6 +56,12 @@ class Embedding:
         ``{"steps": int, "best_step": int, "stopped": str}``
         (:class:`brdfkit.hypernet.refine_on_screen.CompressResult`); ``--steps`` of the
         record replays it.
+    basis
+        ``None`` for a hypernetwork latent; else the sha256 hex of the PCA basis file
+        whose coefficients the latent holds (a *basis embedding*,
+        :mod:`brdfkit.methods.ipca.embedding`: ``K`` components times 3 channels,
+        component-major, ``latent_dim = 3 K``), the basis the model named by
+        ``model_fingerprint`` ships with.
     """
 
     latent: np.ndarray
@@ -63,6 +69,7 @@ class Embedding:
     source: str = ""
     sample_count: int = 0
     refinement: dict | None = None
+    basis: str | None = None
 
     def __post_init__(self):
         self.latent = np.asarray(self.latent, dtype=np.float32).reshape(-1)
@@ -86,6 +93,8 @@ def _to_json(emb: Embedding) -> str:
     }
     if emb.refinement is not None:  # absent from files of unrefined latents, as before
         doc["refinement"] = dict(emb.refinement)
+    if emb.basis is not None:  # absent from hypernetwork latents, as before
+        doc["basis"] = emb.basis
     return json.dumps(doc, indent=1) + "\n"
 
 
@@ -163,7 +172,13 @@ def read_embedding(path: str | os.PathLike) -> Embedding:
     count = doc.get("sample_count", 0)
     if not _is_int(count) or count < 0:
         raise FormatError(path, f"'sample_count' must be a non-negative integer, not {count!r}")
-    return Embedding(np.array(latent, dtype=np.float32), fp, source, count, _refinement(path, doc))
+    basis = doc.get("basis")
+    if basis is not None and not (isinstance(basis, str) and len(basis) == 64
+                                  and all(ch in "0123456789abcdef" for ch in basis)):
+        raise FormatError(path, "'basis' must be the sha256 hex (64 characters) of a PCA basis file")
+    if basis is not None and dim % 3:
+        raise FormatError(path, f"a basis embedding holds 3 coefficients a component, not {dim} values")
+    return Embedding(np.array(latent, dtype=np.float32), fp, source, count, _refinement(path, doc), basis)
 
 
 def _refinement(path, doc) -> dict | None:
@@ -197,7 +212,8 @@ def check_compatible(emb: Embedding, model, name: str = "") -> None:
         and both latent sizes.
     """
     model_dim = int(model.cfg.latent_dim)
-    if emb.model_fingerprint == model.fingerprint and emb.latent_dim == model_dim:
+    # A basis embedding's size is the basis's (3 K), checked against the basis when decoded.
+    if emb.model_fingerprint == model.fingerprint and (emb.latent_dim == model_dim or emb.basis is not None):
         return
     what = f"embedding {name}" if name else "embedding"
     where = f"{os.path.basename(model.path)}, " if getattr(model, "path", "") else ""

@@ -63,16 +63,22 @@ def _fit(data, output, *, exclude=(), progress=True, **options):
 
 
 def _compress(model, table, name):
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
-    from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+    """Default ``brdfkit encode`` then ``decode``: a basis embedding when the model ships a
+    basis, else its latent refined on screen."""
+    from brdfkit.methods.embedding import embedding_brdf, encode_table
 
-    return NeuralBRDF.from_embedding(model, compress_table(model, table, CompressConfig(), name).embedding).to_table()
+    return embedding_brdf(model, encode_table(model, table, name), name).to_table()
 
 
 def _describe(model, path):
+    from brdfkit.methods.ipca.embedding import components_for, model_basis
+
     stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    return (f"hypernet {model.cfg.latent_dim}-D ({stem})", model.cfg.latent_dim,
-            set(model.meta.get("materials") or ()))
+    materials = set(model.meta.get("materials") or ())
+    if model_basis(model) is not None:
+        k = components_for(model.cfg.latent_dim)
+        return f"hypernet basis-{3 * k} ({stem})", 3 * k, materials
+    return f"hypernet {model.cfg.latent_dim}-D ({stem})", model.cfg.latent_dim, materials
 
 
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",

@@ -336,6 +336,16 @@ def model_for_embedding(fingerprint: str | None) -> str | None:
     return default_model()
 
 
+def basis_for_model(fingerprint: str | None) -> str | None:
+    """The PCA basis file shipped with the installed built-in whose fingerprint is
+    ``fingerprint`` (a loaded model's), or ``None``: another model, or a built-in
+    without a learnt prior (none ships a basis then)."""
+    for m in builtin_models():
+        if fingerprint and m.fingerprint == fingerprint and m.prior:
+            return resolve_basis(m.name)
+    return None
+
+
 def embedding_model(model_path: str | os.PathLike | None, emb_path: str | os.PathLike) -> str:
     """The model file to decode the embedding file ``emb_path`` with: ``model_path`` (a
     file or a built-in name) when given, else :func:`model_for_embedding` of the

@@ -213,6 +213,8 @@ class IpcaModel:
         ok = np.isfinite(flat).all(axis=1)
         b = np.log((np.clip(flat[ok], 0, None) * w[ok, None] + EPS) /
                    (self.reference[ok, None].astype(np.float64) + EPS)) - self.mean[ok, None]
-        a = self.components[:, ok].T.astype(np.float64)
-        return np.linalg.lstsq(a, b, rcond=None)[0]
+        a = (self.components if ok.all() else self.components[:, ok]).astype(np.float64)
+        # Normal equations (K x K): a tenth of lstsq's time over a million cells. Not
+        # a @ b alone: a stored basis (int8, half phi_d) is orthonormal only to 1e-3.
+        return np.linalg.solve(a @ a.T, a @ b)
 

@@ -1,0 +1,90 @@
+"""Issue 29: PCA coefficients refined on the objective scenes, judged in the suite.
+
+For each material: the least-squares projection onto a basis's ``K`` leading components
+(the PCA-K of ``brdfkit bench``), then :func:`brdfkit.methods.ipca.refine_on_screen.refine_coefficients`
+with ``--steps`` steps; both decoded and scored in the six judged scenes (64 px), none of
+which the refinement descends (it uses ``studio-0..3``). References come from the bench's
+render cache.
+
+    python benchmarks/studies/study_basis_screen.py BASIS FOLDER -k 13 --steps 40 --lr 0.02 -o OUT.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+import numpy as np
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("basis")
+    ap.add_argument("folder")
+    ap.add_argument("-k", type=int, default=13)
+    ap.add_argument("--steps", type=int, nargs="+", default=[40])
+    ap.add_argument("--lr", type=float, default=0.02)
+    ap.add_argument("--trust", type=float, default=0.0)
+    ap.add_argument("--scenes", default="studio-0,studio-1,studio-2,studio-3")
+    ap.add_argument("--skip", default="", help="file of names to leave out")
+    ap.add_argument("--limit", type=int, default=0)
+    ap.add_argument("--every", type=int, default=1, help="every n-th material")
+    ap.add_argument("--cache", default="/work/runs/bench-cache")
+    ap.add_argument("--resolution", type=int, default=64)
+    ap.add_argument("-o", "--output", required=True)
+    a = ap.parse_args(argv)
+
+    import torch
+
+    torch.set_num_threads(1)
+    from brdfkit.bench.config import BenchConfig
+    from brdfkit.bench.worker import Worker
+    from brdfkit.hypernet.refine_on_screen import CompressConfig
+    from brdfkit.io.merl import read_merl
+    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.methods.ipca.refine_on_screen import refine_coefficients
+    from brdfkit.render.scene_suite import scene_names
+
+    cfg = BenchConfig(output=os.path.dirname(os.path.abspath(a.output)), data=None,
+                      scenes=tuple(scene_names("all")), resolution=a.resolution, cache=a.cache)
+    w = Worker(cfg)
+    basis = load_ipca(a.basis).leading(a.k)
+    scenes = tuple(a.scenes.split(","))
+    skip = set(open(a.skip).read().split()) if a.skip else set()
+    names = sorted(f for f in os.listdir(a.folder) if f.endswith(".binary") and f[:-7] not in skip)[::a.every]
+    if a.limit:
+        names = names[:a.limit]
+    out = []
+    for f in names:
+        path = os.path.join(a.folder, f)
+        table = read_merl(path)
+        refs = w.reference(f[:-7], path, table)
+        c0 = basis.project(table)
+        rec = {"material": f[:-7], "projection": _brief(w.score(basis.decode(c0), table, refs))}
+        for steps in a.steps:
+            t0 = time.perf_counter()
+            c, info = refine_coefficients(basis, table, c0, CompressConfig(steps=steps, lr=a.lr, scenes=scenes),
+                                          trust=a.trust)
+            info["seconds"] = time.perf_counter() - t0
+            rec[f"refined{steps}"] = dict(_brief(w.score(basis.decode(c), table, refs)), **info)
+        out.append(rec)
+        print(f, {k: (round(v["psnr"], 2), round(v.get("seconds", 0), 1)) for k, v in rec.items() if k != "material"},
+              flush=True)
+        with open(a.output, "w") as fh:
+            json.dump({"args": vars(a), "records": out}, fh, indent=1)
+    for k in [k for k in out[0] if k != "material"]:
+        ps = [r[k]["psnr"] for r in out]
+        per = {s: round(float(np.mean([r[k]["scenes"][s]["psnr"] for r in out])), 2) for s in out[0][k]["scenes"]}
+        print(k, round(float(np.mean(ps)), 2), round(float(np.mean([r[k]["delta_e"] for r in out])), 3), per)
+
+
+def _brief(score):
+    return {"psnr": score["psnr"], "delta_e": score["delta_e"], "log_rmse": score["log_rmse"],
+            "scenes": {s: {"psnr": v["psnr"], "delta_e": v["delta_e"]} for s, v in score["scenes"].items()}}
+
+
+if __name__ == "__main__":
+    sys.exit(main())
