@@ -16,8 +16,17 @@ from brdfkit.hypernet.refine_on_screen import CompressConfig
 from brdfkit.io.embedding import Embedding, read_embedding, write_embedding
 from brdfkit.materials import synthetic
 from brdfkit.methods.ipca import fit_ipca
-from brdfkit.methods.ipca.embedding import BasisBRDF, basis_coefficients, components_for, encode_basis
-from brdfkit.methods.ipca.refine_on_screen import _prepare, refine_coefficients, trilinear_corners
+from brdfkit.methods.ipca.embedding import (
+    BasisBRDF,
+    basis_coefficients,
+    components_for,
+    encode_basis,
+)
+from brdfkit.methods.ipca.refine_on_screen import (
+    _prepare,
+    refine_coefficients,
+    trilinear_corners,
+)
 
 FP = "ab" * 32
 
@@ -83,7 +92,7 @@ def test_refinement_is_guarded_and_gives_the_same_bytes_on_any_thread_count(basi
     assert rec["steps"] == 10 and rec["heldout"][1] <= rec["heldout"][0]
     if rec["best_step"] == 0:  # the projection is kept when no step helps the held-out pixels
         np.testing.assert_array_equal(a, c0)
-    zero, rec0 = refine_coefficients(basis, held, c0, CompressConfig(steps=0))
+    zero, _ = refine_coefficients(basis, held, c0, CompressConfig(steps=0))
     np.testing.assert_array_equal(zero, c0)
 
 

@@ -53,7 +53,10 @@ def main(argv=None):
     w = Worker(cfg)
     basis = load_ipca(a.basis).leading(a.k)
     scenes = tuple(a.scenes.split(","))
-    skip = set(open(a.skip).read().split()) if a.skip else set()
+    skip = set()
+    if a.skip:
+        with open(a.skip, encoding="utf-8") as fh:
+            skip = set(fh.read().split())
     names = sorted(f for f in os.listdir(a.folder) if f.endswith(".binary") and f[:-7] not in skip)[::a.every]
     if a.limit:
         names = names[:a.limit]
@@ -67,7 +70,7 @@ def main(argv=None):
         for steps in a.steps:
             t0 = time.perf_counter()
             c, info = refine_coefficients(basis, table, c0, CompressConfig(steps=steps, lr=a.lr, scenes=scenes),
-                                          trust=a.trust)
+                                          trust=a.trust)  # --trust defaults to 0 here, not DEFAULT_TRUST
             info["seconds"] = time.perf_counter() - t0
             rec[f"refined{steps}"] = dict(_brief(w.score(basis.decode(c), table, refs)), **info)
         out.append(rec)

@@ -125,16 +125,6 @@ def compression_labels(latent_dims: dict) -> list[tuple[str, str, str, str]]:
     return [(m, kind, f, s) for (m, kind), f, s in zip(COMPRESSIONS, full, short)]
 
 
-def _embedding_size(model):
-    """What ``brdfkit encode`` makes of a table with ``model``: ``"basis-39"`` (a basis
-    embedding's numbers) or the latent size."""
-    from brdfkit.methods.ipca.embedding import components_for, model_basis
-
-    if model_basis(model) is not None:
-        return f"basis-{3 * components_for(model.cfg.latent_dim)}"
-    return int(model.cfg.latent_dim)
-
-
 @dataclasses.dataclass
 class RealDemoResult:
     """What :func:`run_real_demo` measured and wrote.
@@ -342,7 +332,9 @@ def _load_models(device) -> _Models:
     ipca = get_method("ipca")
     ipca_model = ipca.load(SPARSE_MODEL)
     hyper = {m: api.load_model(m, device) for m in COMPRESSION_MODELS}
-    comps = compression_labels({m: _embedding_size(hyper[m]) for m in COMPRESSION_MODELS})
+    from brdfkit.methods.embedding import embedding_size
+
+    comps = compression_labels({m: embedding_size(hyper[m]) for m in COMPRESSION_MODELS})
     methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
     return _Models(choice, methods, hyper, comps)
 

@@ -15,7 +15,7 @@ import numpy as np
 
 from brdfkit.errors import InputError, ModelMismatchError
 
-__all__ = ["KINDS", "encode_table", "embedding_brdf"]
+__all__ = ["KINDS", "embedding_brdf", "embedding_size", "encode_table"]
 
 KINDS = ("basis", "latent")
 """The kinds of embedding ``brdfkit encode --kind`` names."""
@@ -34,7 +34,11 @@ def encode_table(model, table: np.ndarray, name: str = "", *, refine: bool = Tru
     if kind not in (None,) + KINDS:
         raise InputError(f"embedding kind {kind!r}: expected 'basis' or 'latent'")
     if kind != "latent":
-        from brdfkit.methods.ipca.embedding import components_for, encode_basis, model_basis
+        from brdfkit.methods.ipca.embedding import (
+            components_for,
+            encode_basis,
+            model_basis,
+        )
 
         found = model_basis(model)
         if found is None and kind == "basis":
@@ -49,7 +53,11 @@ def encode_table(model, table: np.ndarray, name: str = "", *, refine: bool = Tru
 
     if not refine:
         return encoder_pass(model, table, name)
-    from brdfkit.hypernet.refine_on_screen import DEFAULT_STEPS, CompressConfig, compress_table
+    from brdfkit.hypernet.refine_on_screen import (
+        DEFAULT_STEPS,
+        CompressConfig,
+        compress_table,
+    )
 
     cfg = CompressConfig(steps=DEFAULT_STEPS if steps is None else steps, max_seconds=max_seconds)
     return compress_table(model, table, cfg, name).embedding
@@ -69,7 +77,11 @@ def embedding_brdf(model, emb, name: str = ""):
 
     if emb.basis is None:
         return NeuralBRDF.from_embedding(model, emb, name)
-    from brdfkit.methods.ipca.embedding import BasisBRDF, basis_coefficients, model_basis
+    from brdfkit.methods.ipca.embedding import (
+        BasisBRDF,
+        basis_coefficients,
+        model_basis,
+    )
 
     what = f"embedding {name}" if name else "embedding"
     if emb.model_fingerprint != model.fingerprint:
@@ -82,3 +94,13 @@ def embedding_brdf(model, emb, name: str = ""):
     basis, digest = found
     return BasisBRDF(basis, basis_coefficients(emb, basis, digest, name), name=name or "embedding",
                      device=getattr(model, "device", None))
+
+
+def embedding_size(model):
+    """What :func:`encode_table` makes of a table with ``model`` by default, for labels:
+    ``"basis-39"`` (a basis embedding's numbers) or the latent size (an ``int``)."""
+    from brdfkit.methods.ipca.embedding import components_for, model_basis
+
+    if model_basis(model) is not None:
+        return f"basis-{3 * components_for(model.cfg.latent_dim)}"
+    return int(model.cfg.latent_dim)

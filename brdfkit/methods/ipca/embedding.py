@@ -24,8 +24,15 @@ import numpy as np
 
 from brdfkit.errors import ModelMismatchError
 
-__all__ = ["DEFAULT_STEPS", "encode_basis", "basis_coefficients", "BasisBRDF", "components_for", "model_basis",
-           "basis_fingerprint"]
+__all__ = [
+    "DEFAULT_STEPS",
+    "BasisBRDF",
+    "basis_coefficients",
+    "basis_fingerprint",
+    "components_for",
+    "encode_basis",
+    "model_basis",
+]
 
 DEFAULT_STEPS = 80
 """Most refinement steps of a basis embedding (``brdfkit encode --steps``), chosen with
@@ -78,7 +85,11 @@ def encode_basis(basis, table, *, fingerprint: str, model_fingerprint: str, comp
     """
     from brdfkit.hypernet.refine_on_screen import CompressConfig
     from brdfkit.io.embedding import Embedding
-    from brdfkit.methods.ipca.refine_on_screen import DEFAULT_LR, DEFAULT_TRUST, refine_coefficients
+    from brdfkit.methods.ipca.refine_on_screen import (
+        DEFAULT_LR,
+        DEFAULT_TRUST,
+        refine_coefficients,
+    )
 
     part = basis.leading(components)
     c0 = part.project(table)

@@ -209,7 +209,7 @@ def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
     weight = np.where(weight > 0, weight, 1.0)
     ref = basis.reference[row].astype(np.float64)
     # float32 (the basis's own precision): half the time of float64 a step.
-    f32 = dict(dtype=torch.float32)
+    f32 = {"dtype": torch.float32}
     cells = _Cells(torch.tensor(basis.mean[row], **f32), torch.tensor(basis.components[:, row].T, **f32),
                    torch.tensor((ref + EPS) / weight, **f32), torch.tensor(ref / weight, **f32))
     rw = screen.rw.double().cpu().numpy()[i]
