@@ -20,12 +20,15 @@ jobs):
 3. ``RUNS/all151``, a folder of links to every MERL and RGL proxy (refused when a name
    is in both), and ``RUNS/ipca151-13.safetensors`` (when missing), a 13-component basis
    fitted on it;
-4. the compression benchmark of ``merl-rgl-l40``, ``merl-rgl-l7`` and that basis's
-   leading 13, 8 and 2 components (PCA-13 beside 40-D, IPCA-8, PCA-2 beside 7-D: the
-   same count of numbers) on all 151 tables into ``RUNS/bench-compression``;
+4. the compression benchmark of ``merl-rgl-l40`` (its default ``encode``, a basis
+   embedding of 39 numbers, and ``merl-rgl-l40:latent``, the hypernetwork's 40-D
+   latent), ``merl-rgl-l7`` and that basis's leading 13, 8 and 2 components (PCA-13
+   beside 40-D, IPCA-8, PCA-2 beside 7-D: the same count of numbers) on all 151 tables
+   into ``RUNS/bench-compression``;
 5. ``RUNS/ipca80-13.safetensors`` (when missing) on the 80 training materials, and the
    compression of the 20 test materials, which no model here was trained on, by
-   ``merl80-l40`` against its PCA-13 and IPCA-8 into ``RUNS/bench-unseen``.
+   ``merl80-l40`` (basis embedding and latent) against its PCA-13 and IPCA-8 into
+   ``RUNS/bench-unseen``.
 
 Every bench renders in the scene suite (``--scenes all``, ``docs/render.md``) at 64 px
 (six scenes cost six renders a reconstruction: at 128 px the run took about nine hours on
@@ -85,12 +88,13 @@ def plan(proxies: str, runs: str, test_list: str, jobs: int) -> dict:
                    "-o", j(runs, "bench-sparse")],
         "fit151": ["brdfkit", "fit", "--method", "ipca", j(runs, "all151"), "--components", "13",
                    "-o", j(runs, "ipca151-13.safetensors")],
-        "compression": ["brdfkit", "bench", "--compression-models", "merl-rgl-l40,merl-rgl-l7,pca-8,pca-2",
+        "compression": ["brdfkit", "bench", "--compression-models",
+                        "merl-rgl-l40,merl-rgl-l40:latent,merl-rgl-l7,pca-8,pca-2",
                         "--compression-data", j(runs, "all151"), "--ipca", j(runs, "ipca151-13.safetensors"),
                         *common, "-o", j(runs, "bench-compression")],
         "fit80k": ["brdfkit", "fit", "--method", "ipca", j(proxies, "merl"), "--exclude-list", test_list,
                    "--components", "13", "-o", j(runs, "ipca80-13.safetensors")],
-        "unseen": ["brdfkit", "bench", "--compression-models", "merl80-l40,pca-8",
+        "unseen": ["brdfkit", "bench", "--compression-models", "merl80-l40,merl80-l40:latent,pca-8",
                    "--compression-data", j(runs, "test20"), "--ipca", j(runs, "ipca80-13.safetensors"),
                    *common, "-o", j(runs, "bench-unseen")],
     }
@@ -328,7 +332,7 @@ def compose(sparse: dict, comp: dict, proxies: str, cmds: dict, one: str, figure
              "## Methods", "", *[f"* {page.METHOD_TEXT[m]}" for m in page.methods_of(sparse)
                                  if m in page.METHOD_TEXT],
              *([f"* {page.PLANNED_TEXT}"] if any(m.endswith("(planned)") for m in page.methods_of(sparse))
-               else []), "",
+               else []), f"* {page.COMPRESSION_TEXT}", "",
              *page.sparse_section(sparse)]
     if "bench-error-vs-cpu-time.png" in figures:
         lines += ["![error against CPU time](images/bench-error-vs-cpu-time.png)", "",

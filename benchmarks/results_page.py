@@ -47,6 +47,12 @@ METHOD_TEXT = {
 PLANNED_TEXT = ("**M (planned)**: method M from samples measured at the directions `brdfkit plan -n N -m "
                 "merl80-l40 --design render` chooses for the learnt prior ([planning.md](planning.md)); the same "
                 "directions for every material and method, another plan (seed) per draw.")
+COMPRESSION_TEXT = ("**Compressors**: `hypernet basis-39 (M)` is `brdfkit encode` then `decode` with the built-in "
+                    "M as it runs by default since issue 29, a basis embedding: the coefficients of the 13 leading "
+                    "components of M's PCA basis (39 numbers), refined on the objective scenes' renders "
+                    "([compression.md](compression.md)); `hypernet 40-D (M)` / `7-D` is the hypernetwork's latent "
+                    "(`encode --kind latent`, the paper's compression, refined on screen); `ipca 13 components`, "
+                    "`pca K components`: least-squares projection onto a PCA basis fitted on the same materials.")
 _HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
 
 

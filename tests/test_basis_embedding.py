@@ -160,3 +160,21 @@ def test_a_model_without_a_basis_makes_latents_and_refuses_basis(tmp_path):
     foreign = Embedding(np.zeros(6, np.float32), model.fingerprint, "x", basis=FP)
     with pytest.raises(ModelMismatchError, match="ships no basis"):
         decode(model, foreign)
+
+
+def test_bench_takes_model_latent_entries(tmp_path):
+    from brdfkit.bench.config import BenchConfig, latent_spec
+    from brdfkit.bench.worker import Worker
+    from brdfkit.testing.examples import tiny_model
+
+    assert latent_spec("m.safetensors:latent") == ("m.safetensors", True)
+    assert latent_spec("merl80-l40") == ("merl80-l40", False)
+    model = str(tiny_model(tmp_path / "t.safetensors"))
+    cfg = BenchConfig(output=str(tmp_path / "o"), data=None, compression_models=(f"{model}:latent", model),
+                      compression_data=str(tmp_path), resolution=8)
+    cfg.validate()
+    assert [(path, kind) for _, path, kind in cfg.compressors()] == [(model, "latent"), (model, None)]
+    assert cfg.resolved().compression_models == (f"{model}:latent", model)
+    labels = [label for label, _, _, _ in Worker(cfg).compressors]
+    # a model without a basis compresses into its latent either way
+    assert labels == ["hypernet 7-D (t)", "hypernet 7-D (t)"]

@@ -108,3 +108,28 @@ def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped
     model = set(get_method("hypernet").load("merl80-l40", "cpu").meta.get("materials") or ())
     assert set(bases["merl80-l40"].materials) == model and len(model) == 80
     assert next(m for m in read_manifest().models if m.name == "merl80-l40").materials == 80
+
+
+def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_count(shipped, tmp_path):
+    """Issue 29: a built-in with a basis encodes a table into its basis's coefficients
+    (39 numbers for 40-D), the same bytes whatever the thread count, and decodes it."""
+    from brdfkit.io.merl import write_merl
+    from brdfkit.materials.synthetic import library, table
+
+    write_merl(tmp_path / "m.binary", table(library(6, seed=3, stiff=False)[2]))
+    got = []
+    for threads in ("2", "1"):
+        env = {k: v for k, v in os.environ.items() if k not in ("BRDFKIT_BUILTIN_MODELS", "BRDFKIT_MODEL")}
+        env["OMP_NUM_THREADS"] = threads
+        from conftest import brdfkit_command
+
+        r = subprocess.run([*brdfkit_command(), "encode", "m.binary", "-m", "merl80-l40", "--steps", "10",
+                            "-o", f"t{threads}"], cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+        assert r.returncode == 0, r.stderr
+        assert "basis embedding 13 x 3" in r.stdout + r.stderr
+        got.append((tmp_path / f"t{threads}" / "m.emb").read_bytes())
+    assert got[0] == got[1]
+    doc = json.loads(got[0])
+    assert doc["latent_dim"] == 39 and len(doc["basis"]) == 64 and doc["refinement"]["steps"] <= 10
+    r = _run("decode", os.path.join("t1", "m.emb"), "-o", "d.binary", cwd=tmp_path)
+    assert r.returncode == 0, r.stderr

@@ -7,6 +7,9 @@ which the refinement descends (it uses ``studio-0..3``). References come from th
 render cache.
 
     python benchmarks/studies/study_basis_screen.py BASIS FOLDER -k 13 --steps 40 --lr 0.02 -o OUT.json
+    python benchmarks/studies/study_basis_screen.py table benchmarks/results/2026-11-26-basis-refine-study.json
+
+The second form prints the table of a record that gathers several runs (``docs/compression.md``).
 """
 
 from __future__ import annotations
@@ -20,12 +23,35 @@ import time
 import numpy as np
 
 
+def print_table(path):
+    """Per run of a gathered record and per row (projection, refined N): the suite's mean
+    PSNR and Delta E, each scene's mean PSNR, the materials below their projection."""
+    with open(path, encoding="utf-8") as fh:
+        doc = json.load(fh)
+    scenes = None
+    for name, run in doc["runs"].items():
+        recs = run["records"]
+        scenes = scenes or list(recs[0]["projection"]["scenes"])
+        if name == next(iter(doc["runs"])):
+            print("| run | row | suite PSNR | Delta E | " + " | ".join(scenes) + " | worse than projection |")
+            print("| --- | --- | ---: | ---: | " + " | ".join("---:" for _ in scenes) + " | ---: |")
+        for key in [k for k in recs[0] if k != "material"]:
+            base = np.array([r["projection"]["psnr"] for r in recs])
+            ps = np.array([r[key]["psnr"] for r in recs])
+            per = [np.mean([r[key]["scenes"][s]["psnr"] for r in recs]) for s in scenes]
+            print(f"| {name} ({len(recs)}) | {key} | {ps.mean():.2f} | {np.mean([r[key]['delta_e'] for r in recs]):.3f} | "
+                  + " | ".join(f"{v:.2f}" for v in per) + f" | {int((ps < base - 0.05).sum())} |")
+
+
 def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    if argv[:1] == ["table"]:
+        return print_table(argv[1])
     ap = argparse.ArgumentParser()
     ap.add_argument("basis")
     ap.add_argument("folder")
     ap.add_argument("-k", type=int, default=13)
-    ap.add_argument("--steps", type=int, nargs="+", default=[40])
+    ap.add_argument("--steps", type=int, nargs="*", default=[40], help="refinement budgets (none: the projection only)")
     ap.add_argument("--lr", type=float, default=0.02)
     ap.add_argument("--trust", type=float, default=0.0)
     ap.add_argument("--scenes", default="studio-0,studio-1,studio-2,studio-3")

@@ -10,7 +10,7 @@ from brdfkit.errors import InputError
 from brdfkit.acquisition.protocol import SAMPLINGS, draw_seed
 
 __all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed",
-           "default_methods", "pca_components"]
+           "default_methods", "pca_components", "latent_spec"]
 
 DEFAULT_N = (40, 160, 400, 2000, 4000)
 DEFAULT_METHODS = ("hypernet", "ipca", "nbrdf")
@@ -141,7 +141,7 @@ class BenchConfig:
             cfg, **{f: resolve_for(name, getattr(cfg, f)) for f, name in fields.items() if getattr(cfg, f)},
             models={m: resolve_for(m, p) if p else p for m, p in cfg.models.items()},
             plan_model=_plan_file(cfg.plan_model) if cfg.plan_model else None,
-            compression_models=tuple(p if pca_components(p) else resolve_for("hypernet", p)
+            compression_models=tuple(p if pca_components(p) else _resolve_compressor(p)
                                      for p in cfg.compression_models))
 
     def with_default_methods(self) -> "BenchConfig":
@@ -162,13 +162,15 @@ class BenchConfig:
         hypernetwork models of :attr:`compression_models` and its ``pca-K`` entries (the
         ``ipca`` basis's ``K`` leading components), then every other method that can
         compress and whose model file is given (the PCA basis: its best reconstruction);
-        ``components`` is ``None`` but for ``pca-K``."""
+        ``components`` is ``K`` for ``pca-K``, ``"latent"`` for a ``MODEL:latent`` entry
+        (:func:`latent_spec`), else ``None``."""
         from brdfkit.methods import METHODS
 
         if not self.compression_models:
             return []
         hypernet, ipca = METHODS["hypernet"], METHODS["ipca"]
-        named = [(ipca, self.model_file("ipca"), pca_components(p)) if pca_components(p) else (hypernet, p, None)
+        named = [(ipca, self.model_file("ipca"), pca_components(p)) if pca_components(p)
+                 else (hypernet, latent_spec(p)[0], "latent" if latent_spec(p)[1] else None)
                  for p in self.compression_models]
         return named + [(m, self.model_file(name), None) for name, m in METHODS.items()
                         if m is not hypernet and m.compress_fn is not None and self.model_file(name)]
@@ -246,7 +248,7 @@ class BenchConfig:
             raise InputError(f"--jobs must be at least 1, got {self.jobs}")
         if self.threads is not None and self.threads < 1:
             raise InputError(f"--threads must be at least 1, got {self.threads}")
-        models = [p for p in self.compression_models if not pca_components(p)]
+        models = [latent_spec(p)[0] for p in self.compression_models if not pca_components(p)]
         for f in [self.model, self.ipca, self.plan_model, self.test_list, *models, *self.models.values()]:
             if f:
                 check_input_file(f)
@@ -254,6 +256,26 @@ class BenchConfig:
             if d is not None and not os.path.isdir(d):
                 raise InputError(f"{d}: not a folder of MERL tables")
 
+
+
+LATENT_SUFFIX = ":latent"
+
+
+def latent_spec(spec) -> tuple[str, bool]:
+    """A ``--compression-models`` hypernetwork entry and whether it ends in ``:latent``
+    (``merl80-l40:latent``: the hypernetwork's latent, where the default ``encode`` of a
+    built-in with a basis makes a basis embedding)."""
+    text = str(spec)
+    if text.endswith(LATENT_SUFFIX):
+        return text[:-len(LATENT_SUFFIX)], True
+    return text, False
+
+
+def _resolve_compressor(spec) -> str:
+    from brdfkit.methods.choice import resolve_for
+
+    path, latent = latent_spec(spec)
+    return resolve_for("hypernet", path) + (LATENT_SUFFIX if latent else "")
 
 
 def pca_components(spec) -> int | None:

@@ -75,6 +75,10 @@ class Worker:
         self.trained = {}  # compression label -> names of the materials it was trained on
         for method, path, components in cfg.compressors():
             model = method.load(path, self.device)
+            if components == "latent":  # MODEL:latent, the hypernetwork's own latent
+                from brdfkit.methods.hypernet import latent_compressor
+
+                method, components = latent_compressor(), None
             if components is not None:  # pca-K: the basis's K leading components
                 from brdfkit.methods.ipca import load_ipca
                 from brdfkit.models.builtin import resolve_basis

@@ -56,8 +56,10 @@ def _str_list(value: str | None) -> tuple:
               help="Design of the planned samples (`brdfkit plan --design`).")
 @click.option("--compression-models", default=None,
               help="Hypernetwork models (files or built-in names) to test on encode -> decode, comma-separated "
-                   "(e.g. merl-rgl-l7,m40.safetensors); pca-K: the K leading components of --ipca (pca-13 "
-                   "beside a 40-D latent, pca-2 beside 7-D: the same count of numbers).")
+                   "(e.g. merl-rgl-l7,m40.safetensors), each compressed as `brdfkit encode` does by default "
+                   "(a built-in with a basis: a basis embedding); MODEL:latent: its hypernetwork latent; pca-K: "
+                   "the K leading components of --ipca (pca-13 beside a 40-D latent, pca-2 beside 7-D: the same "
+                   "count of numbers).")
 @click.option("--compression-data", type=click.Path(file_okay=False), default=None,
               help="Folder of MERL tables for the compression benchmark.")
 @click.option("--scenes", default="reference", show_default=True, metavar="all|A,B",

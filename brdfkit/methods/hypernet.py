@@ -70,15 +70,31 @@ def _compress(model, table, name):
     return embedding_brdf(model, encode_table(model, table, name), name).to_table()
 
 
+def _compress_latent(model, table, name):
+    from brdfkit.methods.embedding import embedding_brdf, encode_table
+
+    return embedding_brdf(model, encode_table(model, table, name, kind="latent"), name).to_table()
+
+
+def _describe_latent(model, path):
+    stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
+    return f"hypernet {model.cfg.latent_dim}-D ({stem})", model.cfg.latent_dim, set(model.meta.get("materials") or ())
+
+
+def latent_compressor() -> Method:
+    """The hypernet method compressing into the latent whatever the model ships (a
+    bench's ``MODEL:latent`` entry, :func:`brdfkit.bench.config.latent_spec`)."""
+    return dataclasses.replace(METHOD, compress_fn=_compress_latent, describe_fn=_describe_latent)
+
+
 def _describe(model, path):
     from brdfkit.methods.ipca.embedding import components_for, model_basis
 
+    if model_basis(model) is None:
+        return _describe_latent(model, path)
     stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    materials = set(model.meta.get("materials") or ())
-    if model_basis(model) is not None:
-        k = components_for(model.cfg.latent_dim)
-        return f"hypernet basis-{3 * k} ({stem})", 3 * k, materials
-    return f"hypernet {model.cfg.latent_dim}-D ({stem})", model.cfg.latent_dim, materials
+    k = components_for(model.cfg.latent_dim)
+    return f"hypernet basis-{3 * k} ({stem})", 3 * k, set(model.meta.get("materials") or ())
 
 
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",

@@ -12,9 +12,15 @@ parts are
 - :mod:`.basis_file`: its file (format ``brdfkit-ipca``), on its own or inside a
   learnt-prior model file (:mod:`brdfkit.methods.prior.prior_file`);
 - :mod:`.basis_storage`: the compact storage of the bases shipped with the package
-  (float16 or int8, every other ``phi_d`` cell).
+  (float16 or int8, every other ``phi_d`` cell);
+- :mod:`.refine_on_screen`: a table's coefficients refined on renders of the objective
+  scenes;
+- :mod:`.embedding`: basis embeddings, the default ``brdfkit encode`` of a built-in
+  that ships a basis (issue 29).
 
-May import: what :mod:`brdfkit.methods` may; no other method.
+May import: what :mod:`brdfkit.methods` may (the objective scenes' screens of
+:mod:`brdfkit.hypernet.refine_on_screen` and :mod:`brdfkit.render.screen` included); no
+other method.
 """
 
 from __future__ import annotations
