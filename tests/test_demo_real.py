@@ -36,8 +36,10 @@ SHIPPED = ["blue-metallic-paint", "teflon", "chrome-steel", "violet-rubber"]
 # The tiny shelf's hypernetworks: name, latent size (the shipped one's), seed.
 SHELF = (("merl80-l40", 40, 0), ("merl-rgl-l40", 40, 2), ("merl-rgl-l7", 7, 1))
 # The compressions' labels: the error columns and errors.json keys, and the sheet's tiles.
-LABELS = ["in-sample basis-39 (merl-rgl-l40)", "in-sample 7-D (merl-rgl-l7)", "unseen basis-39 (merl80-l40)"]
-TILES = ["in-sample basis-39", "in-sample 7-D", "unseen basis-39"]
+# The test shelf's merl80-l40 ships a 3-component basis (its learnt prior's): its default
+# embeddings hold 9 numbers; its merl-rgl-l40 has no learnt prior, hence no basis: a latent.
+LABELS = ["in-sample 40-D (merl-rgl-l40)", "in-sample 7-D (merl-rgl-l7)", "unseen basis-9 (merl80-l40)"]
+TILES = ["in-sample 40-D", "in-sample 7-D", "unseen basis-9"]
 SPARSE_COLUMNS = ["prior 40", "prior 400", "ipca 40", "ipca 400"]
 
 
@@ -200,7 +202,9 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert len(set(fingerprints.values())) == 3
     for m, latent, _ in SHELF:
         emb = read_embedding(out / "embeddings" / f"teflon-{m}.emb")
-        assert emb.model_fingerprint == fingerprints[m] and emb.latent_dim == latent
+        # merl80-l40 ships a basis (3 components): a basis embedding of 9 numbers
+        assert emb.model_fingerprint == fingerprints[m] and emb.latent_dim == (9 if m == "merl80-l40" else latent)
+        assert (emb.basis is not None) == (m == "merl80-l40")
         assert (out / "decoded" / f"teflon-{m}.binary").is_file()
     assert sorted(os.listdir(out / "decoded")) == sorted(
         [f"{n}-{m}.binary" for n in ("violet-rubber", "teflon") for m, _, _ in SHELF]
@@ -215,7 +219,7 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert doc["compression_steps"] == 20 and doc["interpolation_model"] == "merl80-l40"
     assert doc["psnr"]["teflon"].keys() == doc["errors"]["teflon"].keys()  # the renders the tables rank by
     # The sheet and the plot, of the first material.
-    for png in ("sheet-violet-rubber.png", "plot-violet-rubber.png"):
+    for png in ("sheet-violet-rubber.png", "sheet-violet-rubber-backlight.png", "plot-violet-rubber.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert not [n for n in os.listdir(out) if n.startswith(".brdfkit-tmp-")]
 
@@ -265,8 +269,10 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
 def test_compression_labels():
     from brdfkit.demos.real_materials import compression_labels
 
-    assert [c[2:] for c in compression_labels({"merl-rgl-l40": 40, "merl-rgl-l7": 7, "merl80-l40": 40})] == \
+    assert [c[2:] for c in compression_labels({"merl-rgl-l40": 40, "merl-rgl-l7": 7, "merl80-l40": "basis-9"})] == \
         list(zip(LABELS, TILES))
+    assert [c[2] for c in compression_labels({"merl-rgl-l40": "basis-39", "merl-rgl-l7": 7, "merl80-l40": 40})] == \
+        ["in-sample basis-39 (merl-rgl-l40)", "in-sample 7-D (merl-rgl-l7)", "unseen 40-D (merl80-l40)"]
     # What the files hold, not what the names say; where short labels would coincide, the full ones.
     got = compression_labels({"merl-rgl-l40": 7, "merl-rgl-l7": 7, "merl80-l40": 16})
     assert [c[2:] for c in got] == [("in-sample 7-D (merl-rgl-l40)",) * 2, ("in-sample 7-D (merl-rgl-l7)",) * 2,
@@ -321,11 +327,12 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
     out = tmp_path / "e"
     code, stdout, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "teflon", "--resolution", "8"])
     assert code == 0, stderr[-3000:]
-    assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples", "sheet-teflon.png"]
+    assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples",
+                                       "sheet-teflon-backlight.png", "sheet-teflon.png"]
     assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", stdout)
     assert "dense tables stay in memory" in re.sub(r"\s+", " ", stderr)
-    assert "rendering teflon and 5 reconstructions" in re.sub(r"\s+", " ", stderr)
-    assert "comparison sheet (6 renders, 8 px)" in stdout
+    assert "rendering teflon and 5 reconstructions in the backlight scene" in re.sub(r"\s+", " ", stderr)
+    assert "comparison sheets, reference and backlight (12 renders, 8 px)" in re.sub(r"\s+", " ", stdout)
 
 
 def test_no_builtin_models_is_one_line_pointing_at_train(tmp_path):

@@ -18,15 +18,18 @@ from brdfkit.cli.render import threads_option
               help="Output PNG: renders in a row with their errors, error images below.")
 @click.option("--resolution", type=click.IntRange(min=16, max=4096), default=None,
               help="Size of the reference-scene renders of BRDF inputs (default 256).")
+@click.option("--scene", default="reference", show_default=True,
+              help="The suite scene BRDF inputs are rendered in (docs/render.md: reference, backlight, rim, "
+                   "small-lights, overcast, sunset).")
 @click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
 @threads_option
 @click.option("--quiet", is_flag=True, help="No progress bars.")
-def command(ref, preds, model_path, sheet, resolution, as_json, threads, quiet):
+def command(ref, preds, model_path, sheet, resolution, scene, as_json, threads, quiet):
     """Compare predictions PRED... with the reference REF on one sheet.
 
     REF comes first (unlike `brdfkit metrics PRED REF`). Inputs are MERL .binary tables,
     RGL .bsdf files, .emb embeddings (with -m MODEL) or .exr images of the same size; BRDFs are rendered
-    in the reference scene. The sheet shows the renders in a row, each prediction
+    in the reference scene (--scene: another of the suite). The sheet shows the renders in a row, each prediction
     labelled with PSNR, Delta E 2000, SSIM and the BRDF log RMSE against REF (the
     numbers of `brdfkit metrics`), and the per-pixel Delta E 2000 under each
     (docs/compare.md).
@@ -42,7 +45,7 @@ def command(ref, preds, model_path, sheet, resolution, as_json, threads, quiet):
     # Threads are set on the first render: a sheet of images never imports torch.
     rows = comparison_sheet(ref, preds, sheet, model_path=model_path, resolution=resolution,
                             progress=not quiet and not as_json,
-                            before_torch=lambda: set_torch_threads(threads))
+                            before_torch=lambda: set_torch_threads(threads), scene=scene)
     if as_json:
         click.echo(json.dumps({"reference": ref, "predictions": rows}))
     else:

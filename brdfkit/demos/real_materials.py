@@ -433,7 +433,8 @@ def _times(clock, models: _Models, names, files, refine_steps, renders, resoluti
     times.append((f"write the MERL tables{where} ({files.n_tables})", clock.total("write tables")))
     times.append(("plot", clock.total("plot")))
     if files.scratch is not None:
-        times.append((f"comparison sheet ({renders} renders, {resolution} px)", clock.total("sheet")))
+        times.append((f"comparison sheets, reference and backlight ({2 * renders} renders, {resolution} px)",
+                      clock.total("sheet")))
     return times
 
 

@@ -107,11 +107,17 @@ class DemoFiles:
         return self.written[-1]
 
 
+SHEET_SCENES = ("reference", "backlight")
+"""The scenes the comparison sheets render in: the reference, and the backlit rim where
+compressions fail first (issue 29: the latent lost 5 dB there; ``docs/compression.md``)."""
+
+
 def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dict, inputs: dict,
                   tiles: dict, resolution: int) -> tuple[str, str | None]:
     """The plot of ``shown`` (``{label: (90, 90, 180, 3) table}``, the material first;
     :func:`brdfkit.figures.brdf_plot.plot_brdfs`) and, when ``files`` has a scratch folder,
-    the comparison sheet (:func:`brdfkit.figures.comparison_sheet.comparison_sheet`) of the
+    the comparison sheets (:func:`brdfkit.figures.comparison_sheet.comparison_sheet`, one in
+    each of :data:`SHEET_SCENES`: ``sheet-NAME.png``, ``sheet-NAME-backlight.png``) of the
     sheet's ``inputs`` (``{result key: path}``) in the order of ``tiles`` (``{result key:
     label}``, the reference first), rendered at ``resolution`` pixels, of the material
     ``name``; progress on the console ``err``.
@@ -119,7 +125,7 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
     Returns
     -------
     tuple
-        ``(plot path, sheet path)``, the latter ``None`` without a sheet.
+        ``(plot path, reference-scene sheet path)``, the latter ``None`` without a sheet.
     """
     from brdfkit.figures.brdf_plot import plot_brdfs
 
@@ -134,10 +140,12 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
 
     sheet_path = os.path.join(files.out_dir, f"sheet-{name}.png")
     preds = [inputs[k] for k in tiles if k != "reference"]
-    err.print(f"rendering {name} and {len(preds)} reconstructions ({resolution} px): {sheet_path}")
-    with clock("sheet"):
-        comparison_sheet(inputs["reference"], preds, sheet_path, resolution=resolution)
-    files.written.append(sheet_path)
+    for scene in SHEET_SCENES:
+        path = sheet_path if scene == "reference" else os.path.join(files.out_dir, f"sheet-{name}-{scene}.png")
+        err.print(f"rendering {name} and {len(preds)} reconstructions in the {scene} scene ({resolution} px): {path}")
+        with clock("sheet"):
+            comparison_sheet(inputs["reference"], preds, path, resolution=resolution, scene=scene)
+        files.written.append(path)
     return plot_path, sheet_path
 
 

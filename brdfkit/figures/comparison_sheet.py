@@ -1,5 +1,6 @@
-"""Comparison sheets: reference-scene renders of predictions beside their reference, each
-labelled with its errors, and a false-colour error image under each.
+"""Comparison sheets: renders of predictions beside their reference, each labelled with
+its errors, and a false-colour error image under each; in the reference scene or another
+scene of the suite.
 
 One PNG: the first column is the reference, then one column per prediction. The top row
 holds the renders as displayed (:func:`brdfkit.render.display.display_encode`: exposure 1,
@@ -41,7 +42,7 @@ def _caption(scores: dict) -> str:
 def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
                      output: str | os.PathLike, *, model_path: str | os.PathLike | None = None,
                      resolution: int | None = None, progress: bool = True, dpi: int = 110,
-                     before_torch=None) -> dict:
+                     before_torch=None, scene: str = "reference") -> dict:
     """Render, score and draw ``preds`` against ``ref`` into the PNG ``output``.
 
     Parameters
@@ -62,6 +63,9 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     before_torch
         Called once before the first render (:class:`brdfkit.evaluation.comparison.FileLoader`): a
         sheet of images only never imports torch.
+    scene
+        The suite scene BRDF inputs are rendered in (:mod:`brdfkit.render.scene_suite`;
+        default the reference scene).
 
     Returns
     -------
@@ -73,7 +77,9 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     from brdfkit.evaluation.comparison import FileLoader
     from brdfkit.evaluation.metrics import delta_e_2000_map, score
     from brdfkit.figures.brdf_plot import input_labels
+    from brdfkit.render.scene_suite import scene_env
 
+    scene_env(scene)  # an unknown scene is refused before anything is read or rendered
     ref = os.fspath(ref)
     preds = [os.fspath(p) for p in preds]
     if not preds:
@@ -83,18 +89,18 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
         check_input_file(path)
         loader.check(path)
     is_image = {p: p.lower().endswith(".exr") for p in [ref, *preds]}
-    img_ref = loader.image(ref) if is_image[ref] else None
+    img_ref = loader.image(ref, scene=scene) if is_image[ref] else None
     size = None if img_ref is None else img_ref.shape[0]
     brdfs = [p for p in [ref, *preds] if not is_image[p]]
     if len(brdfs) > 1:
-        loader.renders(brdfs, size)  # all BRDF inputs in one quadrature pass (then cached)
+        loader.renders(brdfs, size, scene)  # all BRDF inputs in one quadrature pass (then cached)
     if img_ref is None:
-        img_ref = loader.image(ref)
+        img_ref = loader.image(ref, scene=scene)
     table_ref = None if is_image[ref] else loader.table(ref)
     labels = input_labels([ref, *preds])
     rows, images, maps = {}, [], []
     for label, path in zip(labels[1:], preds):
-        img = loader.image(path, size)
+        img = loader.image(path, size, scene)
         if img.shape != img_ref.shape:
             raise InputError(f"{path}, {ref}: image sizes differ ({img.shape[1]}x{img.shape[0]} "
                              f"and {img_ref.shape[1]}x{img_ref.shape[0]})")
@@ -120,7 +126,7 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
         bare_axes(ax)
     cb = fig.colorbar(im, ax=axes[1, 1:].tolist(), shrink=0.9, aspect=20, pad=0.02)
     cb.set_label("Delta E 2000", fontsize=9)
-    fig.suptitle("Reference scene, quadrature renders (exposure 1, sRGB)", fontsize=10)
+    fig.suptitle(f"{scene[:1].upper()}{scene[1:]} scene, quadrature renders (exposure 1, sRGB)", fontsize=10)
 
     save_png(fig, output)
     return rows

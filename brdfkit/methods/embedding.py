@@ -47,7 +47,7 @@ def encode_table(model, table: np.ndarray, name: str = "", *, refine: bool = Tru
         if found is not None:
             basis, digest = found
             return encode_basis(basis, table, fingerprint=digest, model_fingerprint=model.fingerprint,
-                                components=components_for(model.cfg.latent_dim), source=name,
+                                components=components_for(model.cfg.latent_dim, basis), source=name,
                                 steps=(steps if refine else 0))
     from brdfkit.hypernet.encoding import encode_table as encoder_pass
 
@@ -101,6 +101,7 @@ def embedding_size(model):
     ``"basis-39"`` (a basis embedding's numbers) or the latent size (an ``int``)."""
     from brdfkit.methods.ipca.embedding import components_for, model_basis
 
-    if model_basis(model) is not None:
-        return f"basis-{3 * components_for(model.cfg.latent_dim)}"
+    found = model_basis(model)
+    if found is not None:
+        return f"basis-{3 * components_for(model.cfg.latent_dim, found[0])}"
     return int(model.cfg.latent_dim)

@@ -90,10 +90,11 @@ def latent_compressor() -> Method:
 def _describe(model, path):
     from brdfkit.methods.ipca.embedding import components_for, model_basis
 
-    if model_basis(model) is None:
+    found = model_basis(model)
+    if found is None:
         return _describe_latent(model, path)
     stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    k = components_for(model.cfg.latent_dim)
+    k = components_for(model.cfg.latent_dim, found[0])
     return f"hypernet basis-{3 * k} ({stem})", 3 * k, set(model.meta.get("materials") or ())
 
 

@@ -40,10 +40,12 @@ DEFAULT_STEPS = 80
 training materials (``docs/compression.md``, issue 29)."""
 
 
-def components_for(latent_dim: int) -> int:
+def components_for(latent_dim: int, basis=None) -> int:
     """Components per channel of a model's basis embedding: as many as its latent holds
-    numbers (``latent_dim // 3``; 13 for the 40-D built-ins, 39 numbers)."""
-    return max(1, int(latent_dim) // 3)
+    numbers (``latent_dim // 3``; 13 for the 40-D built-ins, 39 numbers), at most the
+    basis's own (when given)."""
+    k = max(1, int(latent_dim) // 3)
+    return k if basis is None else min(k, basis.n_components)
 
 
 @functools.lru_cache(maxsize=4)
