@@ -297,7 +297,8 @@ def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_
         _interpolate(names[0], names[1], embs, models, files, clock, err)
 
     name = names[0]
-    plot_path, sheet_path = write_figures(files, err, clock, name, shown, sheet_inputs, tiles, resolution)
+    plot_path, sheet_path = write_figures(files, err, clock, name, shown, sheet_inputs, tiles, resolution,
+                                          compressions=COMPRESSION_MODELS)
     times = _times(clock, models, names, files, refine_steps, len(tiles), resolution)
     files.written.append(_write_errors(out_dir, models, columns, rows, refine_steps, seed, scored))
     times.append(("whole demo", time.monotonic() - t_all))
@@ -433,7 +434,7 @@ def _times(clock, models: _Models, names, files, refine_steps, renders, resoluti
     times.append((f"write the MERL tables{where} ({files.n_tables})", clock.total("write tables")))
     times.append(("plot", clock.total("plot")))
     if files.scratch is not None:
-        times.append((f"comparison sheets, reference and backlight ({2 * renders} renders, {resolution} px)",
+        times.append((f"comparison sheets, reference and backlight ({2 * renders - 2} renders, {resolution} px)",
                       clock.total("sheet")))
     return times
 

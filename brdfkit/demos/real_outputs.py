@@ -113,14 +113,15 @@ compressions fail first (issue 29: the latent lost 5 dB there; ``docs/compressio
 
 
 def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dict, inputs: dict,
-                  tiles: dict, resolution: int) -> tuple[str, str | None]:
+                  tiles: dict, resolution: int, compressions=()) -> tuple[str, str | None]:
     """The plot of ``shown`` (``{label: (90, 90, 180, 3) table}``, the material first;
     :func:`brdfkit.figures.brdf_plot.plot_brdfs`) and, when ``files`` has a scratch folder,
     the comparison sheets (:func:`brdfkit.figures.comparison_sheet.comparison_sheet`, one in
     each of :data:`SHEET_SCENES`: ``sheet-NAME.png``, ``sheet-NAME-backlight.png``) of the
     sheet's ``inputs`` (``{result key: path}``) in the order of ``tiles`` (``{result key:
     label}``, the reference first), rendered at ``resolution`` pixels, of the material
-    ``name``; progress on the console ``err``.
+    ``name``; the backlit sheet shows the keys of ``compressions`` only; progress on the
+    console ``err``.
 
     Returns
     -------
@@ -138,13 +139,18 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
         return plot_path, None
     from brdfkit.figures.comparison_sheet import comparison_sheet
 
+    from brdfkit.evaluation.comparison import FileLoader
+
     sheet_path = os.path.join(files.out_dir, f"sheet-{name}.png")
     preds = [inputs[k] for k in tiles if k != "reference"]
+    loader = FileLoader(None, resolution, True)  # one reading of the tables for both sheets
     for scene in SHEET_SCENES:
         path = sheet_path if scene == "reference" else os.path.join(files.out_dir, f"sheet-{name}-{scene}.png")
-        err.print(f"rendering {name} and {len(preds)} reconstructions in the {scene} scene ({resolution} px): {path}")
+        # the second scene shows the compressions (the sparse reconstructions are on the first)
+        shown = preds if scene == "reference" else [inputs[k] for k in tiles if k in compressions]
+        err.print(f"rendering {name} and {len(shown)} reconstructions in the {scene} scene ({resolution} px): {path}")
         with clock("sheet"):
-            comparison_sheet(inputs["reference"], preds, path, resolution=resolution, scene=scene)
+            comparison_sheet(inputs["reference"], shown, path, resolution=resolution, scene=scene, loader=loader)
         files.written.append(path)
     return plot_path, sheet_path
 

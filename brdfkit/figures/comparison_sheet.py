@@ -42,7 +42,7 @@ def _caption(scores: dict) -> str:
 def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
                      output: str | os.PathLike, *, model_path: str | os.PathLike | None = None,
                      resolution: int | None = None, progress: bool = True, dpi: int = 110,
-                     before_torch=None, scene: str = "reference") -> dict:
+                     before_torch=None, scene: str = "reference", loader=None) -> dict:
     """Render, score and draw ``preds`` against ``ref`` into the PNG ``output``.
 
     Parameters
@@ -66,6 +66,10 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     scene
         The suite scene BRDF inputs are rendered in (:mod:`brdfkit.render.scene_suite`;
         default the reference scene).
+    loader
+        A :class:`brdfkit.evaluation.comparison.FileLoader` to read and render through
+        (``model_path``, ``resolution``, ``progress`` and ``before_torch`` are then its
+        own): sheets of the same files in several scenes read each file once.
 
     Returns
     -------
@@ -84,7 +88,7 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     preds = [os.fspath(p) for p in preds]
     if not preds:
         raise InputError("compare: give a reference and at least one prediction")
-    loader = FileLoader(model_path, resolution, progress, before_torch=before_torch)
+    loader = loader or FileLoader(model_path, resolution, progress, before_torch=before_torch)
     for path in [ref, *preds]:  # every input readable before the first render
         check_input_file(path)
         loader.check(path)
