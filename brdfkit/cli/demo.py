@@ -112,10 +112,12 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
 
     Four MERL materials the benchmark model never saw (shipped as their published NBRDF
     fits) are reconstructed from 40 and 400 samples (learnt prior, and IPCA beside it),
-    compressed by three hypernetworks (in-sample 40-D and 7-D: trained on them, the
-    paper's protocol; unseen 40-D: not), each refined on screen for 1 s, and blended;
-    prints the errors and times, and writes the samples, embeddings, errors, a comparison
-    sheet and a plot into OUT (--keep-tables: the dense tables too, 1.2 GB).
+    compressed by three built-ins (in-sample: trained on them, the paper's protocol;
+    unseen: not) as `brdfkit encode` does (the 40-D ones' basis embeddings, the 7-D one's
+    latent), each refined on screen for at most 20 steps, and blended; prints the errors
+    and times, and writes the samples, embeddings, errors, comparison sheets (reference
+    scene, and the compressions under backlight) and a plot into OUT (--keep-tables: the
+    dense tables too, 1.2 GB).
     About a minute on 2 idle CPU cores. With --train: trains a small model on synthetic
     materials instead (about 5 minutes). See docs/demo.md.
     """

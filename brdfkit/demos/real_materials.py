@@ -60,9 +60,8 @@ COMPRESSION_KINDS = {"in-sample": "trained on all 151 MERL + RGL materials, thes
                      "unseen": "trained without the 20 MERL test materials"}
 """What each kind of :data:`COMPRESSIONS` means, for the output."""
 COMPRESSION_STEPS = 20
-"""Most steps each compression's latent is refined on screen (``brdfkit encode`` takes at
-most :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_STEPS`, 40): 12 refinements (four
-materials, three models), so the demo stays about a minute."""
+"""Most refinement steps of each compression (``brdfkit encode``: 80 for a basis embedding,
+40 for a latent): 12 refinements (four materials, three models), the demo about a minute."""
 INTERPOLATION_MODEL = "merl80-l40"
 """The compression model whose embeddings are blended (one of :data:`COMPRESSION_MODELS`).
 The unseen one, not ``merl-rgl-l40``: its latent space is the one the sparse
