@@ -15,7 +15,7 @@ import numpy as np
 
 from brdfkit.errors import InputError, ModelMismatchError
 
-__all__ = ["KINDS", "embedding_brdf", "embedding_size", "encode_table"]
+__all__ = ["KINDS", "basis_components", "embedding_brdf", "embedding_size", "encode_table"]
 
 KINDS = ("basis", "latent")
 """The kinds of embedding ``brdfkit encode --kind`` names."""
@@ -96,12 +96,17 @@ def embedding_brdf(model, emb, name: str = ""):
                      device=getattr(model, "device", None))
 
 
-def embedding_size(model):
-    """What :func:`encode_table` makes of a table with ``model`` by default, for labels:
-    ``"basis-39"`` (a basis embedding's numbers) or the latent size (an ``int``)."""
+def basis_components(model) -> int | None:
+    """Components per channel of ``model``'s default basis embedding, or ``None`` (it
+    ships no basis: its default is the latent)."""
     from brdfkit.methods.ipca.embedding import components_for, model_basis
 
     found = model_basis(model)
-    if found is not None:
-        return f"basis-{3 * components_for(model.cfg.latent_dim, found[0])}"
-    return int(model.cfg.latent_dim)
+    return None if found is None else components_for(model.cfg.latent_dim, found[0])
+
+
+def embedding_size(model):
+    """What :func:`encode_table` makes of a table with ``model`` by default, for labels:
+    ``"basis-39"`` (a basis embedding's numbers) or the latent size (an ``int``)."""
+    k = basis_components(model)
+    return int(model.cfg.latent_dim) if k is None else f"basis-{3 * k}"

@@ -8,6 +8,7 @@ through :func:`brdfkit.api.encode`, which takes paths, tables and sample sets al
 from __future__ import annotations
 
 import dataclasses
+import functools
 import os
 
 from brdfkit.errors import InputError
@@ -62,40 +63,31 @@ def _fit(data, output, *, exclude=(), progress=True, **options):
     return fit(data, output, exclude=exclude, progress=progress, **options)
 
 
-def _compress(model, table, name):
-    """Default ``brdfkit encode`` then ``decode``: a basis embedding when the model ships a
-    basis, else its latent refined on screen."""
+def _compress(model, table, name, kind=None):
+    """``brdfkit encode`` then ``decode``: by default a basis embedding when the model
+    ships a basis, else its latent refined on screen; ``kind="latent"``: the latent."""
     from brdfkit.methods.embedding import embedding_brdf, encode_table
 
-    return embedding_brdf(model, encode_table(model, table, name), name).to_table()
+    return embedding_brdf(model, encode_table(model, table, name, kind=kind), name).to_table()
 
 
-def _compress_latent(model, table, name):
-    from brdfkit.methods.embedding import embedding_brdf, encode_table
+def _describe(model, path, kind=None):
+    """The bench's label of the compression, its numbers and the model's materials."""
+    from brdfkit.methods.embedding import basis_components
 
-    return embedding_brdf(model, encode_table(model, table, name, kind="latent"), name).to_table()
-
-
-def _describe_latent(model, path):
     stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    return f"hypernet {model.cfg.latent_dim}-D ({stem})", model.cfg.latent_dim, set(model.meta.get("materials") or ())
+    materials = set(model.meta.get("materials") or ())
+    k = None if kind == "latent" else basis_components(model)
+    if k is None:
+        return f"hypernet {model.cfg.latent_dim}-D ({stem})", model.cfg.latent_dim, materials
+    return f"hypernet basis-{3 * k} ({stem})", 3 * k, materials
 
 
 def latent_compressor() -> Method:
     """The hypernet method compressing into the latent whatever the model ships (a
     bench's ``MODEL:latent`` entry, :func:`brdfkit.bench.config.latent_spec`)."""
-    return dataclasses.replace(METHOD, compress_fn=_compress_latent, describe_fn=_describe_latent)
-
-
-def _describe(model, path):
-    from brdfkit.methods.ipca.embedding import components_for, model_basis
-
-    found = model_basis(model)
-    if found is None:
-        return _describe_latent(model, path)
-    stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    k = components_for(model.cfg.latent_dim, found[0])
-    return f"hypernet basis-{3 * k} ({stem})", 3 * k, set(model.meta.get("materials") or ())
+    return dataclasses.replace(METHOD, compress_fn=functools.partial(_compress, kind="latent"),
+                               describe_fn=functools.partial(_describe, kind="latent"))
 
 
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",

@@ -24,6 +24,7 @@ threads: the same table and basis give the same coefficients to the bit.
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -123,16 +124,26 @@ class _Pairs:
     def render(self, c):
         """Image ``(P, 3)`` float32 of coefficients ``c`` (differentiable)."""
         rho = self.cells.rho(c)
-        img = _SparseProduct.apply(self.matrix, self.transposed, rho.T.reshape(-1, 1))
+        img = _sparse_product().apply(self.matrix, self.transposed, rho.T.reshape(-1, 1))
         return img.reshape(3, self.pixels).T
+
+
+def _csr_tensor(crow, col, values, shape, dtype):
+    """``torch.sparse_csr_tensor`` without its "CSR support is in beta" warning (the
+    product is all that is used)."""
+    import warnings
+
+    import torch
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", UserWarning)
+        return torch.sparse_csr_tensor(crow, col, values, shape, dtype=dtype)
 
 
 def _csr(rows, cols, vals, shape):
     """A float32 CSR tensor of COO entries (duplicates summed), built in NumPy: torch's
     own COO product is 25 times slower than a CSR one on a CPU, and CSR has no autograd
-    of its transpose (:class:`_SparseProduct` takes both)."""
-    import warnings
-
+    of its transpose (:func:`_sparse_product` takes both)."""
     import torch
 
     key = rows.astype(np.int64) * shape[1] + cols
@@ -140,31 +151,23 @@ def _csr(rows, cols, vals, shape):
     summed = np.bincount(inv.reshape(-1), weights=vals, minlength=uniq.size)
     r, c = uniq // shape[1], uniq % shape[1]
     crow = np.searchsorted(r, np.arange(shape[0] + 1))
-    with warnings.catch_warnings():  # "CSR support is in beta": the product is all that is used
-        warnings.simplefilter("ignore", UserWarning)
-        return torch.sparse_csr_tensor(torch.from_numpy(crow), torch.from_numpy(c), torch.from_numpy(summed),
-                                       shape, dtype=torch.float32)
+    return _csr_tensor(torch.from_numpy(crow), torch.from_numpy(c), torch.from_numpy(summed), shape, torch.float32)
 
 
 def _transpose(matrix):
     """The CSR tensor of a CSR tensor's transpose (its CSC structure, read as CSR)."""
-    import warnings
-
-    import torch
-
     csc = matrix.to_sparse_csc()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        return torch.sparse_csr_tensor(csc.ccol_indices(), csc.row_indices(), csc.values(),
-                                       (matrix.shape[1], matrix.shape[0]), dtype=matrix.dtype)
+    return _csr_tensor(csc.ccol_indices(), csc.row_indices(), csc.values(), (matrix.shape[1], matrix.shape[0]),
+                       matrix.dtype)
 
 
+@functools.lru_cache(maxsize=1)
 def _sparse_product():
+    """The autograd function ``matrix @ x`` with the gradient ``transposed @ g`` (both
+    CSR), made on first use (torch is imported only then)."""
     import torch
 
     class SparseProduct(torch.autograd.Function):
-        """``matrix @ x`` with the gradient ``transposed @ g`` (both CSR)."""
-
         @staticmethod
         def forward(ctx, matrix, transposed, x):
             ctx.transposed = transposed
@@ -175,21 +178,6 @@ def _sparse_product():
             return None, None, ctx.transposed @ g
 
     return SparseProduct
-
-
-class _Lazy:
-    """The autograd function, made on first use (torch is imported only then)."""
-
-    def __init__(self, make):
-        self.make, self.fn = make, None
-
-    def apply(self, *args):
-        if self.fn is None:
-            self.fn = self.make()
-        return self.fn.apply(*args)
-
-
-_SparseProduct = _Lazy(_sparse_product)
 
 
 def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
