@@ -54,10 +54,13 @@ from brdfkit.io.rgl.fit import FitSettings, fit_fields, phi2u, theta2u
 from brdfkit.io.rgl.marginal import Marginal2D
 
 __all__ = ["RglBsdf", "read_bsdf", "read_bsdf_table", "write_bsdf", "rgb_to_spectra", "spectral_basis",
-           "SPECTRAL_TOLERANCE", "FitSettings", "KIND"]
+           "SPECTRAL_TOLERANCE", "FitSettings", "KIND", "ROUNDING", "RULES", "DEFAULT_RULE"]
 
 KIND = "an RGL .bsdf file"
 _FLOAT_FIELDS = ("theta_i", "phi_i", "ndf", "sigma", "vndf", "luminance")
+ROUNDING = 1e-6
+"""A density field's value at or above ``-ROUNDING`` times the field's largest magnitude
+is rounding of zero (float32 holds 7 digits) and read as 0; one below it is refused."""
 _RANKS = {"theta_i": 1, "phi_i": 1, "ndf": 2, "sigma": 2, "vndf": 4, "luminance": 4, "rgb": 5,
           "description": 1, "jacobian": 1}
 
@@ -134,33 +137,97 @@ class RglBsdf:
         out[up] = spec
         return out
 
-    def brdf(self, wi, wo) -> np.ndarray:
-        """The BRDF ``f(wi, wo)`` in 1/sr ``(M, 3)``, non-negative: :meth:`eval` divided by
-        the larger of the two cosines, with the more grazing direction as the one the
-        parameterization is conditioned on (reciprocity; the division stays well
-        conditioned), negative values clipped to 0."""
+    def conditioned(self, wi, wo):
+        """The BRDF conditioned on each direction of a pair: ``(f_wi, f_wo)``, 1/sr
+        ``(M, 3)`` each, ``f_wi = eval(wi, wo) / cos(theta_o)`` (the parameterization
+        conditioned on ``wi``) and ``f_wo = eval(wo, wi) / cos(theta_i)``; 0 where a
+        direction is at or below the horizon, or where a file's warp has an empty row
+        (NaN in Mitsuba too). A measured file is not reciprocal: the two differ."""
         wi = np.asarray(wi, np.float64).reshape(-1, 3)
         wo = np.asarray(wo, np.float64).reshape(-1, 3)
-        swap = wi[:, 2] > wo[:, 2]
-        cond = np.where(swap[:, None], wo, wi)
-        other = np.where(swap[:, None], wi, wo)
+        up = ((wi[:, 2] > 0) & (wo[:, 2] > 0))[:, None]
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-            f = self.eval(cond, other) / other[:, 2:3]
-        # NaN where a file's warp has an empty row (what Mitsuba would return too): 0
-        return np.where((other[:, 2:3] > 0) & np.isfinite(f), np.maximum(f, 0.0), 0.0)
+            a = self.eval(wi, wo) / wo[:, 2:3]
+            b = self.eval(wo, wi) / wi[:, 2:3]
+        return np.where(up & np.isfinite(a), a, 0.0), np.where(up & np.isfinite(b), b, 0.0)
 
-    def to_table(self) -> np.ndarray:
-        """The material at the MERL grid's directions (Matusik et al. 2003): float64
-        ``(90, 90, 180, 3)``, 1/sr, NaN where either direction is below the horizon."""
+    def brdf(self, wi, wo, rule: str = "least-squares") -> np.ndarray:
+        """A reciprocal BRDF ``f(wi, wo) = f(wo, wi)`` in 1/sr ``(M, 3)``, non-negative,
+        from the two conditionings ``a`` (on ``wi``) and ``b`` (on ``wo``) of
+        :meth:`conditioned` by ``rule`` (:data:`RULES`):
+
+        * ``least-squares``: ``(a cos_o^2 + b cos_i^2) / (cos_o^2 + cos_i^2)``, the value
+          whose ``f cos`` is nearest, in the mean square, to what a renderer computes
+          with either direction toward the camera (``a cos_o`` with the camera at
+          ``wi``, ``b cos_i`` with it at ``wo``). Each conditioning weighs by the cosine
+          it was divided by, so the one divided by a grazing cosine (where a file's
+          interpolants are least exact) counts least;
+        * ``mean``: ``(a + b) / 2``;
+        * ``grazing``: the one conditioned on the more grazing direction (divided by the
+          larger cosine; what brdfkit read before it measured these rules);
+        * ``steep``: the one conditioned on the direction nearer the normal.
+
+        ``docs/rgl-bsdf.md`` measures them against renders of the file itself."""
+        if rule not in RULES:
+            raise InputError(f"unknown reciprocity rule {rule!r}; known: {', '.join(RULES)}")
+        wi = np.asarray(wi, np.float64).reshape(-1, 3)
+        wo = np.asarray(wo, np.float64).reshape(-1, 3)
+        a, b = (np.maximum(f, 0.0) for f in self.conditioned(wi, wo))
+        return _combine(a, b, wi[:, 2:3], wo[:, 2:3], rule)
+
+    def reciprocal_table(self, rule: str = "least-squares"):
+        """The material at the MERL grid's directions (Matusik et al. 2003) made
+        reciprocal by ``rule`` (:meth:`brdf`), and the file's non-reciprocity.
+
+        Returns
+        -------
+        tuple
+            ``(table, non_reciprocity)``: float64 ``(90, 90, 180, 3)``, 1/sr, NaN where
+            either direction is below the horizon; and the log RMS between the two
+            conditionings ``a`` and ``b`` over the measurable cells and the 3 channels,
+            ``sqrt(mean((ln(1 + a c) - ln(1 + b c))^2))`` with ``c = cos theta_i cos
+            theta_o`` (``a c`` and ``b c`` are the file's own values, ``f cos`` of one
+            direction times the other's cosine: no division by a grazing cosine, and
+            the mapping of :func:`brdfkit.evaluation.metrics.brdf_log_rmse` but for the
+            second cosine). 0 for a reciprocal file.
+        """
+        if rule not in RULES:
+            raise InputError(f"unknown reciprocity rule {rule!r}; known: {', '.join(RULES)}")
         wi, wo = _grid_pairs()
-        up = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-        cells = np.flatnonzero(up)
+        cells = np.flatnonzero((wi[:, 2] > 0) & (wo[:, 2] > 0))
         table = np.full((wi.shape[0], 3), np.nan)
-        step = 1 << 18
+        square, step = 0.0, 1 << 18
         for s in range(0, cells.size, step):
             idx = cells[s:s + step]
-            table[idx] = self.brdf(wi[idx], wo[idx])
-        return table.reshape(TABLE_SHAPE)
+            a, b = (np.maximum(f, 0.0) for f in self.conditioned(wi[idx], wo[idx]))
+            ci, co = wi[idx, 2:3], wo[idx, 2:3]
+            table[idx] = _combine(a, b, ci, co, rule)
+            square += float(np.sum((np.log1p(a * ci * co) - np.log1p(b * ci * co)) ** 2))
+        return table.reshape(TABLE_SHAPE), float(np.sqrt(square / max(1, 3 * cells.size)))
+
+    def to_table(self, rule: str = "least-squares") -> np.ndarray:
+        """The material at the MERL grid's directions, reciprocal by ``rule``: float64
+        ``(90, 90, 180, 3)``, 1/sr, NaN where either direction is below the horizon
+        (:meth:`reciprocal_table`)."""
+        return self.reciprocal_table(rule)[0]
+
+
+RULES = ("least-squares", "mean", "grazing", "steep")
+"""The rules that make a measured file's two conditionings one reciprocal BRDF
+(:meth:`RglBsdf.brdf`), the default first."""
+DEFAULT_RULE = RULES[0]
+"""The rule of ``brdfkit convert`` and of every table read from a ``.bsdf`` file."""
+
+
+def _combine(a, b, cos_i, cos_o, rule):
+    """``rule`` applied to the conditionings on ``wi`` (``a``) and on ``wo`` (``b``),
+    ``(M, 3)`` each, non-negative; ``cos_i``, ``cos_o`` ``(M, 1)``, positive."""
+    if rule == "least-squares":
+        wa, wb = cos_o * cos_o, cos_i * cos_i
+        return (a * wa + b * wb) / (wa + wb)
+    if rule == "mean":
+        return 0.5 * (a + b)
+    return np.where((cos_i > cos_o) == (rule == "grazing"), b, a)
 
 
 def _grid_pairs():
@@ -217,7 +284,11 @@ def _check_fields(fields: dict, path: str) -> None:
             bad = "NaN" if np.isnan(a).any() else "infinite"
             raise FormatError(path, f"field '{name}' holds {bad} values")
         if name != "rgb" and name != "phi_i" and (a < 0).any():
-            raise FormatError(path, f"field '{name}' holds negative values ({float(a.min()):.3g})")
+            # RGL's own files hold a few float32 rounding residues below zero (ilm_solo_m_68's
+            # luminance: -3.98e-10 against a largest value near 1): zero, not a reason to refuse.
+            if float(a.min()) < -ROUNDING * float(np.abs(a).max()):
+                raise FormatError(path, f"field '{name}' holds negative values ({float(a.min()):.3g})")
+            fields[name] = np.maximum(a, np.float32(0))
     for name in ("theta_i", "phi_i"):
         if (np.diff(fields[name].astype(np.float64)) <= 0).any():
             raise FormatError(path, f"field '{name}' is not strictly increasing")
@@ -268,10 +339,11 @@ def read_bsdf(path) -> RglBsdf:
     return RglBsdf(fields, path)
 
 
-def read_bsdf_table(path) -> np.ndarray:
-    """An RGL ``.bsdf`` file at the MERL grid: float64 ``(90, 90, 180, 3)`` in 1/sr, NaN
-    below the horizon (:meth:`RglBsdf.to_table`)."""
-    return read_bsdf(path).to_table()
+def read_bsdf_table(path, rule: str = DEFAULT_RULE) -> np.ndarray:
+    """An RGL ``.bsdf`` file at the MERL grid, made reciprocal by ``rule``
+    (:meth:`RglBsdf.brdf`): float64 ``(90, 90, 180, 3)`` in 1/sr, NaN below the horizon
+    (:meth:`RglBsdf.to_table`)."""
+    return read_bsdf(path).to_table(rule)
 
 
 def rgb_to_spectra(rgb: np.ndarray, axis: int = 0):
