@@ -6,8 +6,11 @@ brdfkit's commands take BRDFs as files of these kinds (:data:`KINDS`):
 suffix      kind          opened as
 =========== ============= ================================================================
 ``.binary`` ``merl``      the dense table it holds (:func:`brdfkit.io.merl.read_merl`)
-``.bsdf``   ``rgl``       an RGL file (Dupuy and Jakob 2018) evaluated at the MERL grid's
-                          directions (:func:`brdfkit.io.rgl_bsdf.read_bsdf_table`)
+``.bsdf``   ``rgl``       an RGL file (Dupuy and Jakob 2018): for a render, evaluated as
+                          Mitsuba 3 evaluates it, conditioned on the view
+                          (:class:`brdfkit.render.measured.MeasuredBRDF`); as a table, at the
+                          MERL grid's directions made reciprocal by the least-squares
+                          rule (:func:`brdfkit.io.rgl_bsdf.read_bsdf_table`)
 ``.emb``    ``embedding`` the hyponet its latent decodes to, with the model that made it
                           (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`), or for a
                           basis embedding the closed form of the basis that model ships
@@ -17,12 +20,13 @@ suffix      kind          opened as
 :func:`read_table` gives any of them as a dense table (what ``plot``, ``metrics`` and
 ``compare`` score); :func:`load_brdf` as a renderable BRDF, which evaluates only the
 directions a render queries (an embedding is never decoded to a dense table for a
-render). An embedding's model comes from :class:`EmbeddingModel`: the one a command was
+render, nor is an RGL file, which a table would make reciprocal). An embedding's model comes from :class:`EmbeddingModel`: the one a command was
 given (``-m``), else the built-in whose fingerprint the first embedding records, loaded
 once for all the files of a command.
 
 May import: the ground floor, :mod:`brdfkit.io`, :mod:`brdfkit.models`,
-:mod:`brdfkit.hypernet`, :mod:`brdfkit.methods.embedding` and :mod:`brdfkit.render.renderable`;
+:mod:`brdfkit.hypernet`, :mod:`brdfkit.methods.embedding`, :mod:`brdfkit.render.renderable` and
+:mod:`brdfkit.render.measured`;
 torch only for an embedding or a render.
 """
 
@@ -129,8 +133,8 @@ def load_brdf(path, model_path=None, device=None, model=None):
     Parameters
     ----------
     path
-        A MERL ``.binary`` table, an RGL ``.bsdf`` file (rendered as its table at the
-        MERL grid) or an embedding ``.emb``.
+        A MERL ``.binary`` table, an RGL ``.bsdf`` file (evaluated straight from the
+        file, conditioned on the view as Mitsuba 3 does) or an embedding ``.emb``.
     model_path
         The model (``.safetensors``, or a built-in name) an ``.emb`` was made with;
         ``None``: the installed built-in whose fingerprint the embedding records, else
@@ -143,15 +147,21 @@ def load_brdf(path, model_path=None, device=None, model=None):
 
     Returns
     -------
-    brdfkit.render.renderable.TableBRDF or brdfkit.hypernet.neural_brdf.NeuralBRDF
-        With ``name`` set to the file stem.
+    TableBRDF, MeasuredBRDF or NeuralBRDF
+        (:mod:`brdfkit.render.renderable`, :mod:`brdfkit.render.measured`,
+        :mod:`brdfkit.hypernet.neural_brdf`), with ``name`` set to the file stem.
     """
     from brdfkit.atomic import check_input_file
 
     path = check_input_file(path)
     name = os.path.splitext(os.path.basename(path))[0]
     kind = brdf_kind(path)
-    if kind in TABLE_KINDS:
+    if kind == "rgl":
+        from brdfkit.io.rgl_bsdf import read_bsdf
+        from brdfkit.render.measured import MeasuredBRDF
+
+        return MeasuredBRDF(read_bsdf(path), name=name)
+    if kind == "merl":
         from brdfkit.render.renderable import TableBRDF
 
         return TableBRDF(_read_table_file(path, kind), name=name, device=device)
@@ -169,7 +179,7 @@ OUTPUT_KINDS = {".binary": "merl", ".bsdf": "rgl"}
 
 
 def convert(src, dst, *, models: EmbeddingModel | None = None, settings=None, spectral: bool = False,
-            description: str | None = None) -> dict:
+            description: str | None = None, reciprocity: str = "least-squares") -> dict:
     """Convert a BRDF file into a MERL ``.binary`` table or an RGL ``.bsdf`` file.
 
     Parameters
@@ -189,11 +199,17 @@ def convert(src, dst, *, models: EmbeddingModel | None = None, settings=None, sp
         (Mitsuba's RGB variants); :func:`brdfkit.io.rgl_bsdf.rgb_to_spectra`.
     description
         The ``.bsdf`` file's description (default: brdfkit and the input's name).
+    reciprocity
+        How a ``.bsdf`` input's two conditionings become the one value per reciprocal
+        pair a table holds (:data:`brdfkit.io.rgl_bsdf.RULES`; default ``least-squares``).
 
     Returns
     -------
     dict
-        ``{"input_kind", "output_kind", "bytes", "read_s", "write_s"}``.
+        ``{"input_kind", "output_kind", "bytes", "read_s", "write_s"}``, and for a
+        ``.bsdf`` input ``"non_reciprocity"`` (the log RMS between its two
+        conditionings, :meth:`brdfkit.io.rgl_bsdf.RglBsdf.reciprocal_table`) and
+        ``"reciprocity"``, the rule applied.
 
     Raises
     ------
@@ -219,7 +235,14 @@ def convert(src, dst, *, models: EmbeddingModel | None = None, settings=None, sp
         settings.check()
     check_input_file(src)
     t0 = time.perf_counter()
-    table = read_table(src, models)
+    extra = {}
+    if in_kind == "rgl":
+        from brdfkit.io.rgl_bsdf import read_bsdf
+
+        table, asymmetry = read_bsdf(src).reciprocal_table(reciprocity)
+        extra = {"non_reciprocity": asymmetry, "reciprocity": reciprocity}
+    else:
+        table = read_table(src, models)
     t1 = time.perf_counter()
     if out_kind == "merl":
         from brdfkit.io.merl import write_merl
@@ -232,4 +255,4 @@ def convert(src, dst, *, models: EmbeddingModel | None = None, settings=None, sp
             description = f"brdfkit: {os.path.basename(src)}"
         write_bsdf(dst, table, settings or FitSettings(), spectral=spectral, description=description)
     return {"input_kind": in_kind, "output_kind": out_kind, "bytes": os.path.getsize(dst),
-            "read_s": t1 - t0, "write_s": time.perf_counter() - t1}
+            "read_s": t1 - t0, "write_s": time.perf_counter() - t1, **extra}

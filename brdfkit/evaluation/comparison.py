@@ -131,7 +131,9 @@ class FileLoader:
         if todo:
             embs = [p for p in todo.values() if p.lower().endswith(".emb")]
             model = self.model(embs[0]) if embs else None
-            tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(TABLE_SUFFIXES)}
+            # A .bsdf is rendered from the file itself, as Mitsuba renders it (its table is
+            # reciprocal, the file is not); .binary tables are read once per loader.
+            tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(".binary")}
             self._torch_needed()
             images = files.render_brdf_files(list(todo.values()), resolution=settings.resolution,
                                              progress=self.progress, model=model, tables=tables, scene=scene)

@@ -8,6 +8,8 @@ Modules, one concept each:
 * :mod:`.envmap`: the procedural HDR environment map;
 * :mod:`.renderable`: BRDFs a renderer evaluates (dense tables, stacks of them; a neural
   BRDF is :class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`);
+* :mod:`.measured`: an RGL ``.bsdf`` file evaluated straight from the file, conditioned
+  on the view as Mitsuba 3's ``measured`` BSDF is;
 * :mod:`.nodes`, :mod:`.pairs`: the quadrature's node sets and its (pixel, node) pairs;
 * :mod:`.quadrature`: the noise-free reference renderer (torch, no path tracing);
 * :mod:`.screen`: the render-aligned error, a small render of a table or, differentiably,
