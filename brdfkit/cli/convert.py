@@ -9,6 +9,7 @@ from brdfkit.cli.common import model_option
 # Defaults of brdfkit.io.rgl.fit.FitSettings, repeated here so that --help imports nothing
 # (tests/test_rgl_bsdf.py checks that they agree).
 RESOLUTION, THETA_I = 64, 48
+RULES = ("least-squares", "mean", "grazing", "steep")  # brdfkit.io.rgl_bsdf.RULES, the default first
 
 
 def _given(name: str) -> bool:
@@ -31,12 +32,18 @@ def _given(name: str) -> bool:
               help=".bsdf: write spectra (pbrt-v4, Mitsuba's spectral variants; Mallett and Yuksel 2019) "
                    "instead of RGB (Mitsuba's RGB variants).")
 @click.option("--description", default=None, help=".bsdf: the file's description (default: its source).")
-def command(source, model_path, output, resolution, theta_i, spectral, description):
+@click.option("--reciprocity", type=click.Choice(RULES), default=RULES[0], show_default=True,
+              help="A .bsdf input: how its two conditionings (on either direction of a pair; a "
+                   "measurement is not reciprocal) become the one value a table holds per reciprocal pair: "
+                   "their mean weighted by the squared cosine each was divided by (nearest to the renders in "
+                   "the mean square), their plain mean, or the one conditioned on the more grazing or the "
+                   "steeper direction (docs/rgl-bsdf.md measures them).")
+def command(source, model_path, output, resolution, theta_i, spectral, description, reciprocity):
     """Convert the BRDF file IN into OUT: a MERL .binary table or an RGL .bsdf file.
 
     IN is a MERL .binary table, an RGL .bsdf file (isotropic, RGB: evaluated at the MERL
-    grid's directions) or an embedding .emb (decoded with -m MODEL, default the
-    built-in it names). A .bsdf is written in the adaptive parameterization of Dupuy
+    grid's directions, made reciprocal by --reciprocity; its non-reciprocity is printed)
+    or an embedding .emb (decoded with -m MODEL, default the built-in it names). A .bsdf is written in the adaptive parameterization of Dupuy
     and Jakob 2018, as Mitsuba 3's `measured` BSDF and pbrt-v4's `measured` material
     read it (docs/rgl-bsdf.md).
     """
@@ -57,7 +64,11 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
 
         settings = FitSettings(resolution=resolution, theta_i=theta_i)
     report = convert(source, output, models=EmbeddingModel(model_path), settings=settings, spectral=spectral,
-                     description=description)
+                     description=description, reciprocity=reciprocity)
+    if "non_reciprocity" in report:
+        console().print(f"{source}: non-reciprocity {report['non_reciprocity']:.4f} (log RMS between the file "
+                        f"conditioned on either direction, over the MERL grid); made reciprocal by the "
+                        f"{reciprocity} rule (--reciprocity)", soft_wrap=True)
     what = "MERL table" if report["output_kind"] == "merl" else \
         f"RGL .bsdf, {'spectral' if spectral else 'RGB'}, {resolution} x {resolution} x {theta_i} theta_i"
     console().print(f"wrote {output} ({what}, {report['bytes'] / 1e6:.2f} MB) from {source}: read "
