@@ -10,6 +10,11 @@
   their CSV files.
 * :mod:`~brdfkit.io.directions`: measurement directions without values
   (:class:`~brdfkit.io.directions.DirectionSet`) and their CSV files.
+* :mod:`~brdfkit.io.measurements`: measurements as instruments write them (angle
+  conventions in radians or degrees, RGB or spectral values) checked into sample sets;
+  :mod:`~brdfkit.io.pbrt_brdf`: pbrt-v2 / Cornell ``.brdf`` spectral samples;
+  :mod:`~brdfkit.io.spectral`: spectra to linear sRGB (colour-science);
+  :mod:`~brdfkit.io.sample_files`: any sample file by one reader (``read_sample_file``).
 * :mod:`~brdfkit.io.embedding`: embedding files (``.emb``, JSON).
 * :mod:`~brdfkit.io.tensorfile`: the one checked safetensors reader (model files,
   reference tables, PCA bases); never unpickles.
@@ -18,5 +23,5 @@
 
 May import: the ground floor (``errors``, ``atomic``) and :mod:`brdfkit.geometry`;
 numpy, safetensors inside the functions that read tensors, colour-science inside
-:func:`brdfkit.io.rgl_bsdf.rgb_to_spectra`. No torch.
+:func:`brdfkit.io.rgl_bsdf.rgb_to_spectra` and :mod:`brdfkit.io.spectral`'s functions. No torch.
 """

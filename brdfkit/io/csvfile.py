@@ -68,7 +68,8 @@ def read_csv_table(path: str | os.PathLike, column_sets: dict, *, expected: str,
     Parameters
     ----------
     column_sets
-        ``{kind: column names}``, tried in order.
+        ``{kind: column names}``, tried in order; or a function of the header's column
+        names (lower case, stripped) returning such a dict (empty: no set matches).
     expected
         What the header should name, for messages (``"a,b or c,d"``).
     noun
@@ -115,10 +116,12 @@ def read_csv_table(path: str | os.PathLike, column_sets: dict, *, expected: str,
     if all(_is_number(c) for c in columns):
         raise FormatError(path, f"line {header_line}: no header; the first line must name the columns "
                                 f"({expected})")
+    if callable(column_sets):  # sets that depend on the header (wavelength columns)
+        column_sets = column_sets(columns)
     kind = next((k for k, want in column_sets.items() if set(columns) == set(want) and len(columns) == len(want)),
                 None)
     if kind is None:
-        known = set().union(*column_sets.values())
+        known = set().union(*column_sets.values()) if column_sets else set()
         unknown = [c for c in columns if c not in known]
         what = f"unknown column(s) {', '.join(repr(c) for c in unknown)}" if unknown else \
             f"columns {','.join(columns)} are not a known set"

@@ -52,6 +52,9 @@ class SampleSet:
         float64 ``(N, 3)``, BRDF in physical units (1/sr), non-negative.
     source
         Where the samples came from (a file name), for provenance in outputs.
+    note
+        What reading them did that a user should know (a spectral file's conversion to
+        RGB), for messages; empty for an RGB sample CSV.
     """
 
     theta_h: np.ndarray
@@ -59,6 +62,7 @@ class SampleSet:
     phi_d: np.ndarray
     rgb: np.ndarray
     source: str = ""
+    note: str = ""
 
     def __len__(self) -> int:
         return int(self.rgb.shape[0])
