@@ -33,9 +33,11 @@ def _model_from_env() -> bool:
               help="What --refine fits: the latent only, or then the hyponet's weights too "
                    "[default: weights; latent with --emb, since refined weights have no embedding].")
 def command(samples, model_path, output, emb_path, method, refine, refine_target):
-    """Reconstruct a dense MERL table from the sample set SAMPLES (.csv).
+    """Reconstruct a dense MERL table from the sample set SAMPLES (.csv or .brdf).
 
-    Make a sample set with `brdfkit sample`; its format is in docs/formats.md.
+    Make a sample set with `brdfkit sample`, or bring an instrument's: a pbrt-v2 /
+    Cornell .brdf file, or a CSV with angles in radians or degrees and RGB or one
+    column per wavelength (converted to linear sRGB); the formats are in docs/formats.md.
     Cells below the horizon are written as -1. Without -m the default built-in model is
     used (`brdfkit models`): its learnt prior (method prior) when it has one, else its
     hypernetwork. The message line says which method and model ran.
@@ -45,7 +47,7 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     from brdfkit.errors import InputError
     from brdfkit.io.merl import write_merl
     from brdfkit.methods.choice import choose
-    from brdfkit.io.samples import read_samples
+    from brdfkit.io.sample_files import read_sample_file
 
     if method != _AUTO and not METHODS[method].needs_model and _model_from_env():
         model_path = None  # $BRDFKIT_MODEL names a model, not meant for this method
@@ -74,7 +76,7 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
-    data = read_samples(samples)
+    data = read_sample_file(samples)
     options = METHODS[method].make_options(**given)
     table, emb = METHODS[method].sparse(data, model_path, options=options)
     write_merl(output, table)
@@ -85,4 +87,6 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     how = ""
     if method == "hypernet":
         how = f"; refined on the samples ({options.refine_target})" if options.refine else "; not refined"
+    if data.note:
+        click.echo(f"{samples}: {data.note}", err=True)
     click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used}){how}", err=True)
