@@ -32,6 +32,7 @@ COMMANDS = {
     "decode": "Expand an embedding into a dense MERL table.",
     "convert": "Convert MERL .binary <-> RGL .bsdf (Mitsuba 3, pbrt-v4).",
     "sparse": "Reconstruct a dense MERL table from sparse samples.",
+    "validate": "Held-out error of sparse reconstructions on real measurements.",
     "interpolate": "Blend two embeddings (material editing).",
     "render": "Render a BRDF in the reference scene or a Mitsuba scene.",
     "metrics": "Image and BRDF-space errors between predictions and references.",

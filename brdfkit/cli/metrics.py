@@ -69,7 +69,8 @@ def command(ctx, paths, model_path, as_json, resolution, scenes, threads, quiet)
     """Compare PRED with REF: PSNR, Delta E 2000, SSIM and the BRDF log RMSE.
 
     PRED and REF are BRDF files (MERL .binary, RGL .bsdf, or .emb with -m MODEL), which are first
-    rendered in the reference scene by the quadrature renderer, EXR images of the same
+    rendered in the reference scene by the quadrature renderer (an RGL .bsdf straight
+    from the file, as Mitsuba 3 renders it), EXR images of the same
     size, or two folders whose files (.binary, .bsdf, .emb, .exr) are matched by file stem.
     Image metrics use the display encoding of docs/render.md (exposure 1, clipped,
     sRGB) over the whole image; PSNR of identical images is reported as 100 dB.
@@ -78,6 +79,10 @@ def command(ctx, paths, model_path, as_json, resolution, scenes, threads, quiet)
     peak/grazing (log10, two BRDF files) is the peak region's brightness against the
     reference's, below and above theta_d = 60 degrees: +0.3 a highlight twice as bright
     (invented), -1 ten times darker (lost); docs/render.md.
+
+    REF may also be a sample file (.csv, or a pbrt-v2 / Cornell .brdf): PRED is then
+    scored at its measurements' directions (log RMSE and relative luminance error, as
+    `brdfkit validate` scores held-out samples; docs/formats.md).
 
     --json prints {"psnr", "delta_e", "ssim", "brdf_log_rmse", "highlights"} for a pair and
     {"materials": {name: {...}}, "mean": {...}} for folders. With --scenes the image
@@ -94,6 +99,15 @@ def command(ctx, paths, model_path, as_json, resolution, scenes, threads, quiet)
     if len(paths) != 2:
         raise InputError(f"metrics: expected PRED REF, got {len(paths)} path(s)")
     pred, ref = paths
+    if os.path.splitext(ref)[1].lower() in (".csv", ".brdf") and not os.path.isdir(ref):
+        from brdfkit.evaluation.holdout import score_at_samples
+
+        result = score_at_samples(pred, ref, model_path)
+        click.echo(json.dumps(result) if as_json else
+                   f"{pred} at the {result['covered']} of {result['samples']} samples of {ref} it has a value at: "
+                   f"log RMSE {result['log_rmse']:.4f}, luminance error {_fmt(result['luminance_error'], 4)} "
+                   f"(median {_fmt(result['luminance_error_median'], 4)})")
+        return
     from brdfkit.evaluation.comparison import FileLoader, compare_files, compare_folders, mean_scores
     from brdfkit.render.scene_suite import scene_names
     from brdfkit.runtime import set_torch_threads
