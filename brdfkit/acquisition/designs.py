@@ -113,6 +113,14 @@ class CandidatePool:
         where[cells] = np.arange(cells.size)
         return cls(cells, np.ascontiguousarray(rows, np.float32), where, basis, likelihood)
 
+    def restricted(self, keep) -> "CandidatePool":
+        """The pool of the cells where ``keep`` (bool ``(P,)``) is set: a design run on
+        it chooses among them only (its moves, too)."""
+        cells = self.cells[keep]
+        where = np.full(N_CELLS, -1, np.int64)
+        where[cells] = np.arange(cells.size)
+        return CandidatePool(cells, np.ascontiguousarray(self.rows[keep]), where, self.basis, self.likelihood)
+
 
 def _cond2(gram_batch: np.ndarray, rank: int) -> np.ndarray:
     """Squared condition numbers ``(B,)`` of matrices whose Gram matrices ``A^T A`` are

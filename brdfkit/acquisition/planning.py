@@ -182,7 +182,8 @@ def condition_number(rows: np.ndarray) -> float:
     return float(s[0] / low) if low > 1e-12 * s[0] else float("inf")
 
 
-def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, seed: int = 0, **options) -> Plan:
+def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, seed: int = 0, within=None,
+                    **options) -> Plan:
     """Choose ``n`` measurement directions with a design.
 
     Parameters
@@ -199,6 +200,11 @@ def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, se
         A name of :data:`DESIGNS`.
     seed
         Seeds everything random in the design.
+    within
+        A :class:`~brdfkit.io.samples.SampleSet` (an instrument's measurements, or the
+        configurations it can reach): the directions are chosen among its own, in
+        distinct cells (the design runs on the cells they fall in; ``uniform`` draws
+        them at random), and returned at the samples' own angles.
     options
         The design's options (``nielsen``: ``evaluations``, :data:`~brdfkit.acquisition.designs.DEFAULT_EVALUATIONS`;
         ``refine``, ``True``; ``render``: ``draws``,
@@ -237,8 +243,37 @@ def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, se
         raise InputError(f"number of directions must be at least 1, got {n}")
     basis, label, likelihood = (None, None, None) if model is None and not d.needs_basis else plan_target(model)
     pool = CandidatePool.of(basis, likelihood) if basis is not None and d.needs_basis else None
-    cells = np.asarray(d.choose(pool, n, seed, **options), np.int64)
-    th, td, pd = cell_angles(cells)
+    if within is None:
+        cells = np.asarray(d.choose(pool, n, seed, **options), np.int64)
+        th, td, pd = cell_angles(cells)
+    else:
+        cells, (th, td, pd) = _choose_within(within, d, pool, n, seed, options)
     directions = DirectionSet(th, td, pd, f"plan {design} N={n} seed={seed}")
     cond = None if basis is None else condition_number(design_rows(basis, directions))
     return Plan(directions, cells, design, int(seed), label, None if basis is None else basis.n_components, cond)
+
+
+def _choose_within(samples, design, pool, n, seed, options):
+    """Cells and the samples' own angles of ``n`` of ``samples``' directions, one per
+    cell, chosen by ``design`` among the cells they fall in (``pool`` restricted to them;
+    a design without a basis: at random by ``seed``)."""
+    from brdfkit.geometry import cell_index
+
+    own = cell_index(samples.theta_h, samples.theta_d, samples.phi_d)
+    cells, first = np.unique(own, return_index=True)
+    if pool is not None:
+        keep = np.isin(pool.cells, cells)
+        if not keep.any():
+            raise InputError(f"{samples.source}: none of its directions is in a cell the PCA basis covers")
+        pool = pool.restricted(keep)
+        if n > pool.cells.size:
+            raise InputError(f"{n} directions asked for, but {samples.source} has directions in only "
+                             f"{pool.cells.size} cells the basis covers")
+        chosen = np.asarray(design.choose(pool, n, seed, **options), np.int64)
+    else:
+        if n > cells.size:
+            raise InputError(f"{n} directions asked for, but {samples.source} has directions in only "
+                             f"{cells.size} cells")
+        chosen = np.sort(np.random.default_rng(seed).choice(cells, size=n, replace=False))
+    idx = first[np.searchsorted(cells, chosen)]
+    return chosen, (samples.theta_h[idx], samples.theta_d[idx], samples.phi_d[idx])

@@ -32,8 +32,11 @@ def _given(name: str) -> bool:
               help="render: materials drawn from the basis's prior to average the render error over [default: 16].")
 @click.option("--candidates", type=click.IntRange(min=1), default=None,
               help="render: cells considered, drawn at random from the basis's [default: 100000].")
+@click.option("--within", type=click.Path(dir_okay=False), default=None, metavar="SAMPLES",
+              help="Choose among the directions of this sample file (an instrument's measurements or reachable "
+                   "configurations: .csv or pbrt-v2 .brdf), one per cell of the MERL grid, at their own angles.")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output directions CSV.")
-def command(n, model, design, seed, evaluations, refine, draws, candidates, output):
+def command(n, model, design, seed, evaluations, refine, draws, candidates, within, output):
     """Write N measurement directions chosen for the reconstruction with a PCA basis.
 
     The CSV (docs/formats.md, "Directions CSV") gives each direction pair as the
@@ -48,16 +51,21 @@ def command(n, model, design, seed, evaluations, refine, draws, candidates, outp
     from brdfkit.io.directions import write_directions
     from brdfkit.acquisition.planning import plan_directions
 
-    refuse_overwrite_of_inputs(output, [model] if model else [])
+    refuse_overwrite_of_inputs(output, [p for p in (model, within) if p])
     given = {"nielsen": ("evaluations", "refine"), "render": ("draws", "candidates")}
     values = {"evaluations": evaluations, "refine": refine, "draws": draws, "candidates": candidates}
     options = {k: v for k, v in values.items() if _given(k)}
     wrong = [k for k in options if k not in given.get(design, ())]
     if wrong:
         raise InputError(f"{' and '.join('--' + k for k in wrong)} do not apply to --design {design}")
-    plan = plan_directions(model, n, design=design, seed=seed, **options)
+    samples = None
+    if within:
+        from brdfkit.io.sample_files import read_sample_file
+
+        samples = read_sample_file(within)
+    plan = plan_directions(model, n, design=design, seed=seed, within=samples, **options)
     write_directions(output, plan.directions, comments=[
-        f"brdfkit plan: {plan.describe()}",
+        f"brdfkit plan: {plan.describe()}" + (f"; among the {len(samples)} directions of {within}" if within else ""),
         "theta_h,theta_d,phi_d: Rusinkiewicz angles in radians; wi, wo: unit vectors, z the surface normal, "
         "phi_h = 0 (any rotation about the normal measures the same)"])
     console().print(f"wrote {len(plan)} directions to {output} ({plan.describe()})")
