@@ -121,8 +121,9 @@ def _check_range(table: CsvTable, values, name: str, degrees: bool, polar: bool,
     shown = ("[0, 90]" if polar else "[-360, 360]") if degrees else ("[0, pi/2]" if polar else "[-2 pi, 2 pi]")
     problem = f"{name} outside {shown} {unit}"
     if bad.any() and not degrees:
+        # Degrees: beyond any angle's radians (2 pi) somewhere, and within degrees' range.
         in_deg = (values >= -_TINY_SLACK) & (values <= 90 + _TINY_SLACK) if polar else np.abs(values) <= 360
-        if in_deg.all():
+        if in_deg.all() and float(np.abs(values).max()) > 2 * math.pi:
             problem += f" ({float(values[bad][0]):g}: these look like degrees; {hint})"
     table.refuse(bad, problem)
 
