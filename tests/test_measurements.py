@@ -37,6 +37,8 @@ def test_spectra_to_rgb_is_colour_sciences_conversion():
                                colour.MSDS_CMFS["CIE 1931 2 Degree Standard Observer"], colour.SDS_ILLUMINANTS["D65"])
     direct = np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB) @ (xyz / 100)
     np.testing.assert_allclose(v @ m, direct, rtol=1e-10)
+    for uneven in ([400.0, 550.0, 700.0], [395.0, 420.0, 455.0, 500.0, 560.0, 600.0, 650.0, 705.5]):
+        np.testing.assert_allclose(np.ones(len(uneven)) @ spectral_to_rgb_matrix(uneven), 1.0, atol=3e-4)
     blue = np.where(WAVELENGTHS < 470, 1.0, 0.0)  # outside the sRGB gamut: red goes negative
     rgb, clipped = spectra_to_rgb(blue[None], WAVELENGTHS)
     assert clipped >= 1 and rgb.min() == 0.0 and rgb[0, 2] > rgb[0, 1]

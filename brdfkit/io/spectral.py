@@ -10,7 +10,8 @@ linear sRGB as a reflectance spectrum does under the sRGB white (colour-science)
 2. the sums by ASTM E308-15's tristimulus weighting factors when the wavelengths are
    evenly spaced at 1, 5, 10 or 20 nm (``colour.sd_to_XYZ``'s default; its practice for a
    range narrower than 360-780 nm adds the weights outside it to the end wavelengths),
-   else after colour-science's interpolation to 1 nm;
+   else by integration every nanometre of the values interpolated linearly between the
+   given wavelengths (colour-science holding the end values beyond them);
 3. IEC 61966-2-1 sRGB's ``XYZ -> RGB`` matrix, no transfer function (linear).
 
 Every step is linear in ``rho``, so the conversion is one ``(W, 3)`` matrix per set of
@@ -83,9 +84,10 @@ def _matrix(wavelengths: tuple) -> np.ndarray:
             sd = colour.SpectralDistribution(dict(zip(wl, unit)))
             if even:
                 xyz = colour.sd_to_XYZ(sd, cmfs, illuminant, method="ASTM E308")
-            else:
-                sd = sd.copy().interpolate(colour.SpectralShape(wl[0], wl[-1], 1) if wl[-1] - wl[0] >= 1 else sd.shape)
-                xyz = colour.sd_to_XYZ(sd, cmfs, illuminant, method="Integration")
+            else:  # linear between the given wavelengths, every nanometre
+                grid = np.arange(np.ceil(wl[0]), np.floor(wl[-1]) + 1.0)
+                fine = colour.SpectralDistribution(np.interp(grid, wl, unit), grid)
+                xyz = colour.sd_to_XYZ(fine, cmfs, illuminant, method="Integration")
             out[j] = xyz / 100.0  # colour-science scales a perfect reflector's Y to 100
     to_rgb = np.asarray(colour.RGB_COLOURSPACES["sRGB"].matrix_XYZ_to_RGB, np.float64)
     return out @ to_rgb.T
