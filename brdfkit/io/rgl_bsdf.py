@@ -31,10 +31,12 @@ interpolating the values there, and (``jacobian = 1``) multiplying by
 :func:`write_bsdf` fits the parameterization to a MERL table
 (:mod:`brdfkit.io.rgl.fit`) and writes it, RGB or spectral.
 
-brdfkit reads isotropic RGB files; a spectral file, or an anisotropic one, is refused
-in one line, as is anything malformed. Negative RGB values, which RGL's RGB files hold
-where a spectral measurement lies outside the sRGB gamut, are clipped to 0 in the
-tables as the reference loader does.
+brdfkit reads isotropic RGB files; a spectral or anisotropic file is refused in one
+line, as is anything malformed; density values within float32 rounding of zero
+(:data:`ROUNDING`) are read as 0. A measured file is not reciprocal: a table of it
+(:meth:`RglBsdf.reciprocal_table`) combines the two conditionings by a rule
+(:data:`RULES`); a render evaluates the file itself (:mod:`brdfkit.render.measured`).
+Negative RGB values (a spectrum outside the sRGB gamut) are clipped to 0 in the tables.
 
 May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io.rgl`; numpy;
 colour-science inside :func:`rgb_to_spectra`.
@@ -164,10 +166,9 @@ class RglBsdf:
           interpolants are least exact) counts least;
         * ``mean``: ``(a + b) / 2``;
         * ``grazing``: the one conditioned on the more grazing direction (divided by the
-          larger cosine; what brdfkit read before it measured these rules);
-        * ``steep``: the one conditioned on the direction nearer the normal.
-
-        ``docs/rgl-bsdf.md`` measures them against renders of the file itself."""
+          larger cosine; brdfkit's rule before these were measured);
+        * ``steep``: the one conditioned on the direction nearer the normal
+        (``docs/rgl-bsdf.md`` measures them against renders of the file itself)."""
         if rule not in RULES:
             raise InputError(f"unknown reciprocity rule {rule!r}; known: {', '.join(RULES)}")
         wi = np.asarray(wi, np.float64).reshape(-1, 3)
@@ -182,14 +183,12 @@ class RglBsdf:
         Returns
         -------
         tuple
-            ``(table, non_reciprocity)``: float64 ``(90, 90, 180, 3)``, 1/sr, NaN where
-            either direction is below the horizon; and the log RMS between the two
-            conditionings ``a`` and ``b`` over the measurable cells and the 3 channels,
-            ``sqrt(mean((ln(1 + a c) - ln(1 + b c))^2))`` with ``c = cos theta_i cos
-            theta_o`` (``a c`` and ``b c`` are the file's own values, ``f cos`` of one
-            direction times the other's cosine: no division by a grazing cosine, and
-            the mapping of :func:`brdfkit.evaluation.metrics.brdf_log_rmse` but for the
-            second cosine). 0 for a reciprocal file.
+            ``(table, non_reciprocity)``: float64 ``(90, 90, 180, 3)``, 1/sr, NaN below
+            the horizon; the log RMS between the conditionings ``a``, ``b`` over the
+            measurable cells and channels, ``sqrt(mean((ln(1 + a c) - ln(1 + b c))^2))``,
+            ``c = cos theta_i cos theta_o`` (``a c``, ``b c``: the file's own ``f cos``
+            times the other cosine, no division by a grazing one; ``brdf_log_rmse``'s
+            mapping but for the second cosine), 0 for a reciprocal file.
         """
         if rule not in RULES:
             raise InputError(f"unknown reciprocity rule {rule!r}; known: {', '.join(RULES)}")
@@ -206,9 +205,7 @@ class RglBsdf:
         return table.reshape(TABLE_SHAPE), float(np.sqrt(square / max(1, 3 * cells.size)))
 
     def to_table(self, rule: str = "least-squares") -> np.ndarray:
-        """The material at the MERL grid's directions, reciprocal by ``rule``: float64
-        ``(90, 90, 180, 3)``, 1/sr, NaN where either direction is below the horizon
-        (:meth:`reciprocal_table`)."""
+        """The table of :meth:`reciprocal_table`, without the non-reciprocity."""
         return self.reciprocal_table(rule)[0]
 
 
