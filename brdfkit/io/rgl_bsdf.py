@@ -140,11 +140,10 @@ class RglBsdf:
         return out
 
     def conditioned(self, wi, wo):
-        """The BRDF conditioned on each direction of a pair: ``(f_wi, f_wo)``, 1/sr
-        ``(M, 3)`` each, ``f_wi = eval(wi, wo) / cos(theta_o)`` (the parameterization
-        conditioned on ``wi``) and ``f_wo = eval(wo, wi) / cos(theta_i)``; 0 where a
-        direction is at or below the horizon, or where a file's warp has an empty row
-        (NaN in Mitsuba too). A measured file is not reciprocal: the two differ."""
+        """``(f_wi, f_wo)``, 1/sr ``(M, 3)`` each: ``eval(wi, wo) / cos(theta_o)`` (the
+        parameterization conditioned on ``wi``) and ``eval(wo, wi) / cos(theta_i)``, which
+        differ for a measured file; 0 at or below the horizon or where a file's warp has
+        an empty row (NaN in Mitsuba too)."""
         wi = np.asarray(wi, np.float64).reshape(-1, 3)
         wo = np.asarray(wo, np.float64).reshape(-1, 3)
         up = ((wi[:, 2] > 0) & (wo[:, 2] > 0))[:, None]
