@@ -209,15 +209,13 @@ class RglBsdf:
 
 
 RULES = ("least-squares", "mean", "grazing", "steep")
-"""The rules that make a measured file's two conditionings one reciprocal BRDF
-(:meth:`RglBsdf.brdf`), the default first."""
+"""The rules of :meth:`RglBsdf.brdf` (two conditionings to one reciprocal BRDF), the default first."""
 DEFAULT_RULE = RULES[0]
 """The rule of ``brdfkit convert`` and of every table read from a ``.bsdf`` file."""
 
 
 def _combine(a, b, cos_i, cos_o, rule):
-    """``rule`` applied to the conditionings on ``wi`` (``a``) and on ``wo`` (``b``),
-    ``(M, 3)`` each, non-negative; ``cos_i``, ``cos_o`` ``(M, 1)``, positive."""
+    """``rule`` on the conditionings ``a`` (on ``wi``), ``b`` (on ``wo``), ``(M, 3)``; cosines ``(M, 1)``."""
     if rule == "least-squares":
         wa, wb = cos_o * cos_o, cos_i * cos_i
         return (a * wa + b * wb) / (wa + wb)
