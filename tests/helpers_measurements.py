@@ -117,8 +117,9 @@ def bad_measurement_files(folder) -> dict:
     csv("wavelength_count", "\n".join([lines[0]] + [",".join(r.split(",")[:-1]) for r in lines[1:]]) + "\n",
         "line 2: 34 fields, the header names 35")
     csv("theta_range", csv_text(wide, good, header), "line 8: theta_o outside [0, pi/2] radians (1 such row)")
+    shown = float(f"{deg[0][0]:.9g}")  # as the CSV holds it
     csv("degrees", csv_text(angles, good, header, degrees=True),
-        f"line 2: theta_i outside [0, pi/2] radians ({float(f'{deg[0][0]:.9g}'):g}: these look like degrees; name the columns "
+        f"line 2: theta_i outside [0, pi/2] radians ({shown:g}: these look like degrees; name the columns "
         f"theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg) ({int((deg[0] > np.pi / 2).sum())} such rows)")
     csv("radians_as_degrees", csv_text(angles, good, tuple(f"{c}_deg" for c in header)),
         f"columns theta_i_deg,theta_o_deg hold no polar angle above {max(angles[0].max(), angles[2].max()):.4g}: "

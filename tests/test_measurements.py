@@ -55,7 +55,8 @@ def test_brdf_file_and_every_csv_convention_read_the_same(tmp_path):
     deg = read_sample_file(write_csv(tmp_path / "deg.csv", n, degrees=True))
     wi = np.stack([np.sin(ti) * np.cos(pi_), np.sin(ti) * np.sin(pi_), np.cos(ti)], -1)
     wo = np.stack([np.sin(to) * np.cos(po), np.sin(to) * np.sin(po), np.cos(to)], -1)
-    (tmp_path / "vec.csv").write_text(csv_text((*wi.T, *wo.T), values, ("wi_x", "wi_y", "wi_z", "wo_x", "wo_y", "wo_z")))
+    vectors = ("wi_x", "wi_y", "wi_z", "wo_x", "wo_y", "wo_z")
+    (tmp_path / "vec.csv").write_text(csv_text((*wi.T, *wo.T), values, vectors))
     rgb = brdf.rgb  # the same colours as r,g,b columns
     (tmp_path / "rgb.csv").write_text(csv_text((ti, pi_, to, po), rgb, value_names=("b", "r", "g")))
     nm = read_sample_file(tmp_path / "vec.csv")

@@ -43,9 +43,10 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
 
     IN is a MERL .binary table, an RGL .bsdf file (isotropic, RGB: evaluated at the MERL
     grid's directions, made reciprocal by --reciprocity; its non-reciprocity is printed)
-    or an embedding .emb (decoded with -m MODEL, default the built-in it names). A .bsdf is written in the adaptive parameterization of Dupuy
-    and Jakob 2018, as Mitsuba 3's `measured` BSDF and pbrt-v4's `measured` material
-    read it (docs/rgl-bsdf.md).
+    or an embedding .emb (decoded with -m MODEL, default the built-in it names). A
+    .bsdf is written in the adaptive parameterization of Dupuy and Jakob 2018, as
+    Mitsuba 3's `measured` BSDF and pbrt-v4's `measured` material read it
+    (docs/rgl-bsdf.md).
     """
     import os
 
