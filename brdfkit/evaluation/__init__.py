@@ -5,8 +5,11 @@
   ``brdfkit metrics``, ``compare`` and ``bench`` all call.
 * :mod:`~brdfkit.evaluation.comparison`: files against files (``brdfkit metrics``): the
   reading and rendering of each input once, folders matched by name.
+* :mod:`~brdfkit.evaluation.holdout`: held-out error on measurements (``brdfkit
+  validate``): a fraction of a sample file held out, the reconstruction from the rest
+  scored at it; a BRDF file scored at a sample file's directions.
 
-May import: everything below it (the ground floor, geometry, io, render, brdf_file and,
-through it, the hypernetwork). colour-science is imported inside the functions that
+May import: everything below it (the ground floor, geometry, io, render, the methods'
+registry, brdf_file and, through it, the hypernetwork). colour-science is imported inside the functions that
 need it.
 """
