@@ -1,5 +1,6 @@
-"""Render a BRDF file (``.binary`` MERL table, or ``.emb`` with its model): the work of
-``brdfkit render`` and of ``brdfkit metrics`` for BRDF inputs.
+"""Render a BRDF file (``.binary`` MERL table, RGL ``.bsdf`` straight from the file as
+Mitsuba 3 renders it, or ``.emb`` with its model): the work of ``brdfkit render`` and of
+``brdfkit metrics`` for BRDF inputs.
 
 Three renderers (``docs/render.md``): the deterministic quadrature of the reference
 scene (:mod:`.quadrature`, the default), the reference scene path-traced by Mitsuba 3,
@@ -34,7 +35,7 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
     Parameters
     ----------
     paths
-        ``.binary`` / ``.emb`` files.
+        ``.binary`` / ``.bsdf`` / ``.emb`` files.
     resolution, progress, model, scene
         As for :func:`render_brdf_file`.
     tables
@@ -71,7 +72,7 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
 def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mitsuba: bool = False,
                      spp: int | None = None, supersample: int = 1, scene_file=None, bsdf_id: str | None = None,
                      progress: bool = True, model=None, scene: str = "reference"):
-    """Render a ``.binary`` / ``.emb`` file.
+    """Render a ``.binary`` / ``.bsdf`` / ``.emb`` file.
 
     Parameters
     ----------
