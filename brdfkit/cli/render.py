@@ -48,7 +48,9 @@ def command(brdf, model_path, output, png, mitsuba, scene, bsdf_id, spp, resolut
     every run. --scene NAME puts the sphere under another scene of the suite.
     --mitsuba path-traces the same scene with Mitsuba 3 and the `brdfkit` BSDF plugin;
     --scene FILE.xml --bsdf-id NAME renders your own Mitsuba scene with the BRDF bound
-    to the BSDF of that id.
+    to the BSDF of that id. An RGL .bsdf is evaluated straight from the file,
+    conditioned on the direction toward the camera, as Mitsuba 3's `measured` plugin
+    evaluates it (a measured file is not reciprocal; docs/rgl-bsdf.md).
     """
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import InputError
