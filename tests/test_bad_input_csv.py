@@ -107,13 +107,22 @@ def small_limit(monkeypatch):
     monkeypatch.setattr(samples_mod, "MAX_ROWS", 3)
 
 
+def _sparse_message(name):
+    """``sparse`` reads any sample file (``read_sample_file``): a header that is not the
+    sample CSV's is a measurement CSV's, whose messages list every column set it takes."""
+    from brdfkit.io.measurements import EXPECTED
+
+    return {"no_header": f"line 1: no header; the first line must name the columns ({EXPECTED})",
+            "unknown_columns": f"line 1: unknown column(s) 'phi', 'red'; expected {EXPECTED}"}.get(name, BAD_CSV[name][1])
+
+
 @pytest.mark.parametrize("name", sorted(BAD_CSV))
 def test_bad_csv_through_sparse(good, bad_csv, tmp_path, capsys, small_limit, name):
     out, emb = tmp_path / "out.binary", tmp_path / "out.emb"
     code, _, err = run_cli(capsys, ["sparse", bad_csv[name], "-m", good / "model.safetensors", "-o", out,
                               "--emb", emb])
     assert code == 2
-    assert one_error_line(err) == f"brdfkit: error: {bad_csv[name]}: {BAD_CSV[name][1]}"
+    assert one_error_line(err) == f"brdfkit: error: {bad_csv[name]}: {_sparse_message(name)}"
     nothing_written(tmp_path, out, emb)
 
 
