@@ -143,6 +143,34 @@ def bsdf_seed() -> bytes:
     return _take(path)
 
 
+@functools.lru_cache(maxsize=None)
+def brdf_seed() -> bytes:
+    # a pbrt-v2 / Cornell .brdf file: 31 wavelengths, three samples
+    values = " ".join(f"{0.01 * (k % 7) + 0.001:.6f}" for k in range(31))
+    rows = "".join(f"{ti} 0 {to} {po} {values}\n" for ti, to, po in ((0.5, 0.3, 3.1), (1.2, 1.0, -0.5), (0.1, 0, 0)))
+    return ("# num wls\n31\n\n# wls\n" + " ".join(str(w) for w in range(400, 701, 10)) + "\n\n" + rows).encode()
+
+
+@functools.lru_cache(maxsize=None)
+def measurement_csv_seed() -> bytes:
+    # a measurement CSV: angles in degrees, one column per wavelength
+    head = "theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg," + ",".join(f"{w}nm" for w in range(400, 701, 20))
+    rows = ["30,0,30,180," + ",".join(["0.2"] * 16), "60,0,10,45," + ",".join(["1e-3"] * 16)]
+    return ("# a comment\n" + head + "\n" + "\n".join(rows) + "\n").encode()
+
+
+def _read_pbrt_brdf(path):
+    from brdfkit.io.pbrt_brdf import read_pbrt_brdf
+
+    return read_pbrt_brdf(path)
+
+
+def _read_measurement_csv(path):
+    from brdfkit.io.sample_files import read_measurement_csv
+
+    return read_measurement_csv(path)
+
+
 def _read_model(path):
     from brdfkit.hypernet.model_file import load_model
 
@@ -189,6 +217,8 @@ PARSERS = {p.name: p for p in (
     Parser("read_merl", _read_merl, ".binary", merl_seed),
     Parser("read_bsdf", _read_bsdf, ".bsdf", bsdf_seed),
     Parser("read_samples", _read_samples, ".csv", csv_seed),
+    Parser("read_pbrt_brdf", _read_pbrt_brdf, ".brdf", brdf_seed),
+    Parser("read_measurement_csv", _read_measurement_csv, ".csv", measurement_csv_seed),
     Parser("read_embedding", _read_embedding, ".emb", embedding_seed),
     Parser("load_model", _read_model, ".safetensors", model_seed, safetensors=True),
     Parser("load_reference", _read_reference, ".safetensors", reference_seed, safetensors=True),
