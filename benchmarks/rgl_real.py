@@ -1,0 +1,206 @@
+"""RGL's own measured files (``*_rgb.bsdf``): do they load, what does a MERL table of one
+lose, and does brdfkit render one as Mitsuba 3 does?
+
+The files are RGL's material database's (Dupuy and Jakob 2018), fetched from public
+repositories; their licence keeps them out of the repository. They are read from the
+folder ``$BRDFKIT_REAL_DATA/rgl`` (every ``*_rgb.bsdf`` in it). Jobs (any combination):
+
+* ``--load``: every file read and checked; its non-reciprocity (the log RMS between its
+  two conditionings over the MERL grid, :meth:`brdfkit.io.rgl_bsdf.RglBsdf.reciprocal_table`).
+* ``--tables``: the loss of a MERL table: each file's quadrature render (the reference
+  scene, ``--px``, 4 x 4 points a pixel) straight from the file (conditioned on the view,
+  as Mitsuba does) against the renders of its MERL tables, one per reciprocity rule
+  (:data:`brdfkit.io.rgl_bsdf.RULES`); PSNR over the sphere less its silhouette pixels.
+* ``--mitsuba NAME ...``: Mitsuba 3's ``measured`` plugin path-traces the file (``scalar_rgb``,
+  ``--spp``, ``--px``) against brdfkit's quadrature render of the file (4 x 4 points a
+  pixel: Mitsuba box-filters a pixel) and of its tables (the ``mean`` rule, and the
+  ``grazing`` rule, which is what brdfkit rendered before the file was evaluated directly).
+  ``--seeds 2`` also renders each name with a second seed (Mitsuba's own noise
+  floor, per material), and ``--control TABLE`` writes a MERL table as a ``.bsdf`` and compares
+  brdfkit's render of that file with Mitsuba's (the renderers' agreement on a file
+  brdfkit wrote).
+
+``--json PATH`` writes the record: the command, the machine, the load average at start
+and end, every row; no path of the machine (files by name). Example (the figures of
+``docs/rgl-bsdf.md``)::
+
+    BRDFKIT_REAL_DATA=DATA nice python benchmarks/rgl_real.py --load --tables \\
+        --mitsuba cardboard_rgb paper_white_rgb vch_golden_yellow_rgb ilm_solo_m_68_rgb chm_mint_rgb \\
+        --seeds 2 --control PROXIES/merl/teflon.binary --json benchmarks/results/DATE-rgl-real.json
+
+Benchmarks import nothing from ``tests/``; one torch thread (``--threads``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import os
+import sys
+import tempfile
+import time
+
+from common import load_average, machine, set_threads
+
+SUPERSAMPLE = 4
+
+
+def _files():
+    root = os.environ.get("BRDFKIT_REAL_DATA")
+    if not root or not os.path.isdir(os.path.join(root, "rgl")):
+        sys.exit("rgl_real.py: error: set BRDFKIT_REAL_DATA to a folder holding rgl/*_rgb.bsdf")
+    folder = os.path.join(root, "rgl")
+    return {n[:-5]: os.path.join(folder, n) for n in sorted(os.listdir(folder)) if n.endswith("_rgb.bsdf")}
+
+
+def _scene(px):
+    from brdfkit.render.scene import REFERENCE
+
+    return dataclasses.replace(REFERENCE, resolution=px, supersample=SUPERSAMPLE)
+
+
+def inner_mask(px):
+    """Pixels whose every sample point lies on the sphere: the sphere less its silhouette."""
+    return _scene(px).pixel_normals()[1].all(2)
+
+
+def _psnr(img, ref, mask):
+    """PSNR over ``mask`` less the pixels not finite in either image (Mitsuba's
+    ``measured`` returns NaN where a file's warp has an empty row; brdfkit returns 0)."""
+    import numpy as np
+
+    from brdfkit.evaluation.metrics import psnr
+
+    ok = mask & np.isfinite(img).all(-1) & np.isfinite(ref).all(-1)
+    return round(psnr(np.nan_to_num(img), np.nan_to_num(ref), ok), 3)
+
+
+def _nonfinite(img, mask):
+    import numpy as np
+
+    return int((~np.isfinite(img).all(-1) & mask).sum())
+
+
+def _renders(path, px, rules):
+    """brdfkit's quadrature renders of a file: straight from it, and of its table per rule."""
+    from brdfkit.brdf_file import load_brdf
+    from brdfkit.io.rgl_bsdf import read_bsdf
+    from brdfkit.render.quadrature import render, render_many
+    from brdfkit.render.renderable import TableBRDF
+
+    t0 = time.perf_counter()
+    direct, _ = render(load_brdf(path), _scene(px))
+    t1 = time.perf_counter()
+    bsdf = read_bsdf(path)
+    tables = [TableBRDF(bsdf.to_table(rule), device="cpu") for rule in rules]
+    images = dict(zip(rules, (img for img, _ in render_many(tables, _scene(px)))))
+    return direct, images, round(t1 - t0, 1)
+
+
+def load(files):
+    from brdfkit.io.rgl_bsdf import read_bsdf
+
+    rows = []
+    for name, path in files.items():
+        t0 = time.perf_counter()
+        bsdf = read_bsdf(path)
+        _, asym = bsdf.reciprocal_table()
+        rows.append({"material": name, "resolution": bsdf.resolution, "theta_i": int(bsdf.theta_i.size),
+                     "non_reciprocity": round(asym, 4), "read_s": round(time.perf_counter() - t0, 2)})
+        print(rows[-1], flush=True)
+    return rows
+
+
+def tables(files, px):
+    from brdfkit.io.rgl_bsdf import RULES
+
+    mask = inner_mask(px)
+    rows = []
+    for i, (name, path) in enumerate(files.items(), 1):
+        direct, images, seconds = _renders(path, px, RULES)
+        rows.append({"material": name, "direct_render_s": seconds,
+                     **{f"psnr_{rule}": _psnr(images[rule], direct, mask) for rule in RULES}})
+        print(f"[{i}/{len(files)}]", rows[-1], flush=True)
+    return rows
+
+
+def mitsuba(files, names, px, spp, seeds, control, folder):
+    from brdfkit.testing.mitsuba_measured import measured_render
+
+    mask = inner_mask(px)
+    rows = []
+    todo = [(n, files[n]) for n in names]
+    if control:
+        from brdfkit.io.merl import read_merl
+        from brdfkit.io.rgl_bsdf import write_bsdf
+
+        written = os.path.join(folder, "control.bsdf")
+        write_bsdf(written, read_merl(control))
+        todo.append((f"control: {os.path.basename(control)} written by brdfkit", written))
+    for k, (name, path) in enumerate(todo):  # the control last
+        t0 = time.perf_counter()
+        ref = measured_render(path, resolution=px, spp=spp, seed=0, timeout=7200)
+        row = {"material": name, "px": px, "spp": spp, "mitsuba_s": round(time.perf_counter() - t0, 1),
+               "load": load_average(), "mitsuba_nonfinite_pixels": _nonfinite(ref, mask)}
+        direct, images, seconds = _renders(path, px, ("least-squares", "grazing"))
+        row.update(psnr_direct=_psnr(direct, ref, mask),
+                   psnr_table_least_squares=_psnr(images["least-squares"], ref, mask),
+                   psnr_table_grazing=_psnr(images["grazing"], ref, mask), direct_render_s=seconds)
+        if seeds > 1 and k < len(names):
+            other = measured_render(path, resolution=px, spp=spp, seed=1, timeout=7200)
+            row["psnr_mitsuba_seed_0_vs_1"] = _psnr(other, ref, mask)
+            row["mitsuba_nonfinite_pixels_seed_1"] = _nonfinite(other, mask)
+            row["psnr_direct_vs_seed_1"] = _psnr(direct, other, mask)
+        rows.append(row)
+        print(row, flush=True)
+    return rows
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--load", action="store_true", help="read every file; its non-reciprocity")
+    ap.add_argument("--tables", action="store_true", help="the loss of a MERL table, per rule, on every file")
+    ap.add_argument("--mitsuba", nargs="*", default=None, metavar="NAME", help="Mitsuba's render of these files")
+    ap.add_argument("--seeds", type=int, default=1, help="2: a second Mitsuba render of each name (noise floor)")
+    ap.add_argument("--control", default=None, metavar="TABLE", help="a MERL table written as .bsdf: the control")
+    ap.add_argument("--px", type=int, default=64)
+    ap.add_argument("--spp", type=int, default=16384)
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--json", default=None)
+    args = ap.parse_args(argv)
+    set_threads(args.threads)
+    files = _files()
+    missing = [n for n in args.mitsuba or [] if n not in files]
+    if missing:
+        sys.exit(f"rgl_real.py: error: not in $BRDFKIT_REAL_DATA/rgl: {', '.join(missing)}")
+    argv_shown = [os.path.basename(a) if os.path.isabs(a) else a for a in sys.argv[1:]]
+    record = {"command": " ".join(["BRDFKIT_REAL_DATA=DATA python benchmarks/rgl_real.py", *argv_shown]),
+              "files": sorted(files), "px": args.px, "supersample": SUPERSAMPLE,
+              "mask": "pixels whose 16 sample points all lie on the sphere"}
+    load0, t0 = load_average(), time.time()
+
+    def save():  # after each job: a crash late in a long run keeps what was measured
+        record.update(machine=machine(), load_start=load0, load_end=load_average(),
+                      seconds=round(time.time() - t0, 1))
+        if args.json:
+            with open(args.json + ".tmp", "w") as f:
+                json.dump(record, f, indent=1)
+                f.write("\n")
+            os.replace(args.json + ".tmp", args.json)
+
+    with tempfile.TemporaryDirectory(prefix="rgl-real-") as folder:
+        if args.mitsuba is not None:
+            record["mitsuba"] = {"rows": mitsuba(files, args.mitsuba, args.px, args.spp, args.seeds, args.control,
+                                                 folder)}
+            save()
+        if args.load:
+            record["load"] = {"rows": load(files)}
+            save()
+        if args.tables:
+            record["tables"] = {"rows": tables(files, args.px)}
+    save()
+
+
+if __name__ == "__main__":
+    main()
