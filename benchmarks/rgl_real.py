@@ -76,6 +76,14 @@ def _psnr(img, ref, mask):
     return round(psnr(np.nan_to_num(img), np.nan_to_num(ref), ok), 3)
 
 
+def _mean(img, mask):
+    """Mean linear RGB over ``mask`` (finite pixels), 5 digits."""
+    import numpy as np
+
+    ok = mask & np.isfinite(img).all(-1)
+    return [round(float(v), 5) for v in img[ok].mean(0)]
+
+
 def _nonfinite(img, mask):
     import numpy as np
 
@@ -144,7 +152,8 @@ def mitsuba(files, names, px, spp, seeds, control, folder):
         row = {"material": name, "px": px, "spp": spp, "mitsuba_s": round(time.perf_counter() - t0, 1),
                "load": load_average(), "mitsuba_nonfinite_pixels": _nonfinite(ref, mask)}
         direct, images, seconds = _renders(path, px, ("least-squares", "grazing"))
-        row.update(psnr_direct=_psnr(direct, ref, mask),
+        row.update(mean_mitsuba=_mean(ref, mask), mean_direct=_mean(direct, mask),
+                   psnr_direct=_psnr(direct, ref, mask),
                    psnr_table_least_squares=_psnr(images["least-squares"], ref, mask),
                    psnr_table_grazing=_psnr(images["grazing"], ref, mask), direct_render_s=seconds)
         if seeds > 1 and k < len(names):
