@@ -34,7 +34,7 @@ def _training(args):
 
 
 def tune_lambda(args) -> None:
-    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.basis import fit_basis
     from brdfkit.io.merl import read_merl
     from brdfkit.evaluation.metrics import brdf_log_rmse
     from brdfkit.acquisition.sampling import draw_samples
@@ -43,7 +43,7 @@ def tune_lambda(args) -> None:
     val = train[::4]
     fit = [f for f in train if f not in val]
     t = time.perf_counter()
-    basis = fit_ipca(fit, args.components)
+    basis = fit_basis(fit, args.components)
     print(f"basis: {len(fit)} materials, {time.perf_counter() - t:.1f} s; validation: {len(val)}", flush=True)
     res: dict = {}
     for f in val:

@@ -47,12 +47,12 @@ METHOD_TEXT = {
 PLANNED_TEXT = ("**M (planned)**: method M from samples measured at the directions `brdfkit plan -n N -m "
                 "merl80-l40 --design render` chooses for the learnt prior ([planning.md](planning.md)); the same "
                 "directions for every material and method, another plan (seed) per draw.")
-COMPRESSION_TEXT = ("**Compressors**: `hypernet basis-39 (M)` is `brdfkit encode` then `decode` with the built-in "
-                    "M as it runs by default since issue 29, a basis embedding: the coefficients of the 13 leading "
-                    "components of M's PCA basis (39 numbers), refined on the objective scenes' renders "
-                    "([compression.md](compression.md)); `hypernet 40-D (M)` / `7-D` is the hypernetwork's latent "
-                    "(`encode --kind latent`, the paper's compression, refined on screen); `ipca 13 components`, "
-                    "`pca K components`: least-squares projection onto a PCA basis fitted on the same materials.")
+COMPRESSION_TEXT = ("**Compressors**: `basis-39 (B)` is `brdfkit encode` then `decode` with the built-in "
+                    "M as it runs by default, a basis embedding: the coefficients of the 13 leading components of "
+                    "M's PCA basis B (39 numbers), refined on the objective scenes' renders "
+                    "([compression.md](compression.md)); `latent-40 (M)` / `latent-7` is the hypernetwork's latent "
+                    "(`encode --kind latent`, the paper's compression, refined on screen); `pca-K (3K numbers, B)`, "
+                    "`pca-K (3K numbers)`: least-squares projection onto a PCA basis fitted on the same materials.")
 _HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
 
 
@@ -377,13 +377,17 @@ def family_of(name: str, proxies: str) -> str:
 
 
 def _paper_comp(label: str, latent) -> str:
-    """The paper's figure beside a row: its IPCA beside the 8-component one (Nielsen et
-    al.'s IPCA-8, the brief's baseline), none beside the other component counts."""
-    words = label.split()
-    if words[0] in ("pca", "ipca"):
-        got = PAPER_COMPRESSION[("ipca", None)] if len(words) > 1 and words[1] == "8" else None
+    """The paper's figure beside a row: its IPCA beside the 8-component PCA (Nielsen et al.'s
+    IPCA-8, the brief's baseline), its hypernetwork beside a latent of its size
+    (``latent-40 (M)``; the older labels ``hypernet 40-D (M)`` too), none beside the rest."""
+    head = label.split()[0]
+    if head.startswith("pca-") or head in ("pca", "ipca"):
+        k = head[4:] if head.startswith("pca-") else (label.split() + [""])[1]
+        got = PAPER_COMPRESSION[("ipca", None)] if k == "8" else None
+    elif head.startswith("latent-") or head == "hypernet":
+        got = PAPER_COMPRESSION.get(("hypernet", latent))
     else:
-        got = PAPER_COMPRESSION.get((words[0], latent))
+        got = None
     return "-" if got is None else f"{got:.2f}"
 
 

@@ -120,7 +120,7 @@ def main(argv=None):
                     model = NeuralModel(net, cfg, rho_ref, weights_fingerprint(net), {}, torch.device("cpu"), ckpt)
                     errs = []
                     for n in held:
-                        table, _ = api.sparse(model, samples[n])
+                        table, _ = api.sparse(samples[n], model)
                         errs.append(brdf_log_rmse(table, tables[n]))
                     point = (float(state["elapsed"]), int(state["step"]), float(np.mean(errs)))
                     curve.append(point)

@@ -52,23 +52,23 @@ def main(argv: list[str]) -> int:
         # 1. Encode every table from all its measured cells.
         embs = {}
         for path in paths:
-            emb = brdfkit.encode(model, path)
+            emb = brdfkit.encode(path, model)
             brdfkit.write_embedding(path.replace(".binary", ".emb"), emb)
             embs[os.path.basename(path)] = emb
-            print(f"  {emb.source}: {emb.sample_count:,} cells -> {emb.latent_dim} numbers "
+            print(f"  {emb.source}: {emb.sample_count:,} cells -> {emb.size} numbers "
                   f"({os.path.getsize(path.replace('.binary', '.emb'))} bytes as .emb)")
 
         # 2. Decode one back into a dense table (NaN below the horizon) and write it.
         name = os.path.basename(paths[0])
         original = brdfkit.read_merl(paths[0])
         emb = brdfkit.read_embedding(paths[0].replace(".binary", ".emb"))
-        decoded = brdfkit.decode(model, emb)
+        decoded = brdfkit.decode(emb, model)
         brdfkit.write_merl(os.path.join(tmp, "decoded.binary"), decoded)
         print(f"decode {name}: log-RMSE {brdf_log_rmse(decoded, original):.4f}")
 
         # 3. Sparse reconstruction from 400 measurements.
         samples = brdfkit.draw_samples(original, 400, seed=0, source=name)
-        sparse_table, sparse_emb = brdfkit.sparse(model, samples)
+        sparse_table, sparse_emb = brdfkit.sparse(samples, model)
         print(f"sparse {name} from {len(samples)} samples: log-RMSE "
               f"{brdf_log_rmse(sparse_table, original):.4f}")
 

@@ -1,4 +1,4 @@
-"""Compact storage of a PCA basis (:mod:`brdfkit.methods.ipca.basis_storage`) and the
+"""Compact storage of a PCA basis (:mod:`brdfkit.basis.storage`) and the
 version-2 basis file that uses it (float16, every other ``phi_d`` cell), with version-1
 files still read."""
 
@@ -11,8 +11,8 @@ import pytest
 
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
-from brdfkit.methods.ipca.basis_storage import check_half, compact, expand
-from brdfkit.methods.ipca import IPCA_VERSION, IpcaModel, basis_tensors, load_ipca, save_ipca
+from brdfkit.basis.storage import check_half, compact, expand
+from brdfkit.basis import BASIS_VERSION, PcaBasis, basis_tensors, load_basis, save_basis
 
 _TENSORS = ("cells", "reference", "mean", "components", "sigma")
 
@@ -54,7 +54,7 @@ def basis():
     comp = (rng.normal(size=(3, 1)) * np.cos(row / 300.0 + np.arange(3)[:, None])
             + 0.01 * rng.normal(size=(3, cells.size))).astype(np.float32) / np.sqrt(cells.size)
     sigma = np.array([30.0, 8.0, 2.0], np.float32)
-    return IpcaModel(cells, reference, mean, comp.astype(np.float32), sigma, ["a", "b"])
+    return PcaBasis(cells, reference, mean, comp.astype(np.float32), sigma, ["a", "b"])
 
 
 # --- compact / expand ------------------------------------------------------------------------
@@ -127,12 +127,12 @@ def test_check_half_refuses_values_float16_cannot_hold(tmp_path):
     check_half("b.safetensors", [np.array([65504.0, -65504.0]), np.zeros((2, 0))])
     with pytest.raises(InputError, match=r"b.safetensors: .*float16's range \(65504\)"):
         check_half("b.safetensors", [np.zeros(3), np.array([[1.0, -70000.0]])])
-    big = IpcaModel(np.array([0, 2], np.int64), np.array([1.0, 1e5], np.float32), np.zeros(2, np.float32),
+    big = PcaBasis(np.array([0, 2], np.int64), np.array([1.0, 1e5], np.float32), np.zeros(2, np.float32),
                     np.ones((1, 2), np.float32), np.ones(1, np.float32), [])
     with pytest.raises(InputError, match="float16"):
-        save_ipca(tmp_path / "big.safetensors", big, half=True)
+        save_basis(tmp_path / "big.safetensors", big, half=True)
     assert not (tmp_path / "big.safetensors").exists()
-    save_ipca(tmp_path / "big.safetensors", big)  # float32 holds it
+    save_basis(tmp_path / "big.safetensors", big)  # float32 holds it
 
 
 # --- the basis file ---------------------------------------------------------------------------
@@ -148,17 +148,17 @@ def _raw(path):
 
 def test_half_stride_two_file_round_trip(basis, tmp_path):
     full, packed = tmp_path / "full.safetensors", tmp_path / "packed.safetensors"
-    save_ipca(full, basis)
-    save_ipca(packed, basis, half=True, phi_stride=2)
+    save_basis(full, basis)
+    save_basis(packed, basis, half=True, phi_stride=2)
     tensors, meta = _raw(packed)
-    assert meta["version"] == IPCA_VERSION == "2"
+    assert meta["version"] == BASIS_VERSION == "2"
     assert meta["phi_d_stride"] == "2" and meta["dtype"] == "float16"
     assert tensors["components"].dtype == np.float16 and tensors["sigma"].dtype == np.float32
     assert "cells" not in tensors and tensors["cell_mask"].dtype == np.uint8
     np.testing.assert_array_equal(_stored_cells(tensors), basis.cells[(basis.cells % 2) == 0])
     assert packed.stat().st_size < 0.3 * full.stat().st_size
 
-    a, b = load_ipca(full), load_ipca(packed)
+    a, b = load_basis(full), load_basis(packed)
     # The same cells as stride 1, less the odd cells with no stored even neighbour (none
     # is added).
     idx = np.searchsorted(a.cells, b.cells)
@@ -193,7 +193,7 @@ def test_int8_storage(basis, tmp_path):
     """int8 components with a scale per block of cells: each value within half a step
     (1/254) of the largest in its block, in half the bytes of float16; the
     reference and mean as in float16 storage."""
-    from brdfkit.methods.ipca.basis_storage import INT8_BLOCK, dequantize, quantize
+    from brdfkit.basis.storage import INT8_BLOCK, dequantize, quantize
 
     q, scale = quantize(basis.components)
     assert q.dtype == np.int8 and scale.shape == (3, -(-basis.cells.size // INT8_BLOCK))
@@ -203,25 +203,25 @@ def test_int8_storage(basis, tmp_path):
     assert np.array_equal(quantize(np.zeros((2, 10)))[0], np.zeros((2, 10), np.int8))  # no 0 / 0
 
     f16, i8 = tmp_path / "f16.safetensors", tmp_path / "i8.safetensors"
-    save_ipca(f16, basis, half=True, phi_stride=2)
-    save_ipca(i8, basis, half=True, phi_stride=2, int8=True)
+    save_basis(f16, basis, half=True, phi_stride=2)
+    save_basis(i8, basis, half=True, phi_stride=2, int8=True)
     # the components take half the bytes (the scales 1/128 of that again)
     assert f16.stat().st_size - i8.stat().st_size > 0.49 * _raw(f16)[0]["components"].nbytes
     tensors, meta = _raw(i8)
     assert meta["dtype"] == "int8" and tensors["components"].dtype == np.int8
-    a, b = load_ipca(f16), load_ipca(i8)
+    a, b = load_basis(f16), load_basis(i8)
     np.testing.assert_array_equal(a.cells, b.cells)
     np.testing.assert_array_equal(a.reference, b.reference)
     np.testing.assert_array_equal(a.mean, b.mean)
     assert np.abs(a.components - b.components).max() < 0.01 * np.abs(a.components).max()
     with pytest.raises(ValueError, match="int8 storage of a basis goes with half"):
-        save_ipca(tmp_path / "x.safetensors", basis, int8=True)
+        save_basis(tmp_path / "x.safetensors", basis, int8=True)
     for broken in ({k: v for k, v in tensors.items() if k != "component_scales"},
                    {**tensors, "component_scales": tensors["component_scales"][:, :-1]},
                    {**tensors, "component_scales": np.full_like(tensors["component_scales"], np.nan)}):
         _save_raw(tmp_path / "bad.safetensors", broken, meta)
         with pytest.raises(FormatError, match="bad.safetensors: .*(component_scales|scales)"):
-            load_ipca(tmp_path / "bad.safetensors")
+            load_basis(tmp_path / "bad.safetensors")
 
 
 @pytest.mark.parametrize("half,stride,int8", [(True, 2, False), (True, 1, False), (False, 2, False),
@@ -230,16 +230,16 @@ def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, ha
     """What ``brdfkit.methods.prior.fit`` relies on: a basis read back from compact storage and stored the
     same way again is bit-identical, so a model trained on it sees what it ships with."""
     first, second = tmp_path / "a.safetensors", tmp_path / "b.safetensors"
-    save_ipca(first, basis, half=half, phi_stride=stride, int8=int8)
-    back = load_ipca(first)
-    save_ipca(second, back, half=half, phi_stride=stride, int8=int8)
+    save_basis(first, basis, half=half, phi_stride=stride, int8=int8)
+    back = load_basis(first)
+    save_basis(second, back, half=half, phi_stride=stride, int8=int8)
     t1, m1 = _raw(first)
     t2, m2 = _raw(second)
     assert m1 == m2 and sorted(t1) == sorted(t2)
     for k in t1:
         assert t1[k].dtype == t2[k].dtype
         np.testing.assert_array_equal(t1[k], t2[k])
-    again = load_ipca(second)
+    again = load_basis(second)
     for k in _TENSORS:
         np.testing.assert_array_equal(getattr(again, k), getattr(back, k))
     # The same through the prefixed tensors a learnt-prior file stores inside itself.
@@ -274,7 +274,7 @@ def test_version_1_files_still_load(basis, tmp_path):
     path = tmp_path / "v1.safetensors"
     _save_raw(path, {"cells": basis.cells, "reference": basis.reference, "mean": basis.mean,
                      "components": basis.components, "sigma": basis.sigma}, _v1_meta(basis))
-    back = load_ipca(path)
+    back = load_basis(path)
     for k in _TENSORS:
         np.testing.assert_array_equal(getattr(back, k), getattr(basis, k))
     assert back.materials == basis.materials
@@ -282,18 +282,18 @@ def test_version_1_files_still_load(basis, tmp_path):
     meta["version"] = "3"
     _save_raw(path, {k: getattr(basis, k) for k in _TENSORS}, meta)
     with pytest.raises(FormatError, match="version '3' is not supported"):
-        load_ipca(path)
+        load_basis(path)
 
 
 def test_bad_storage_metadata_and_odd_cells_are_format_errors(basis, tmp_path):
     good = tmp_path / "good.safetensors"
-    save_ipca(good, basis, half=True, phi_stride=2)
+    save_basis(good, basis, half=True, phi_stride=2)
     tensors, meta = _raw(good)
     for bad in ("3", "0", "", "two", "2.0"):
         path = tmp_path / "stride.safetensors"
         _save_raw(path, tensors, {**meta, "phi_d_stride": bad})
         with pytest.raises(FormatError, match="stride.safetensors: .*phi_d_stride"):
-            load_ipca(path)
+            load_basis(path)
     # An odd phi_d cell in a stride-2 file, named by the mask or by index.
     cells = _stored_cells(tensors).copy()
     cells[5] += 1  # still sorted and in range
@@ -305,12 +305,12 @@ def test_bad_storage_metadata_and_odd_cells_are_format_errors(basis, tmp_path):
         odd.update(where)
         _save_raw(path, odd, meta)
         with pytest.raises(FormatError, match="odd.safetensors: .*even phi_d"):
-            load_ipca(path)
+            load_basis(path)
     bad = {k: v for k, v in tensors.items() if k != "cell_mask"}
     bad["cell_mask"] = np.packbits(mask)[:-1]
     _save_raw(path, bad, meta)
     with pytest.raises(FormatError, match="odd.safetensors: .*cell mask"):
-        load_ipca(path)
+        load_basis(path)
     # The same tensors declared stride 1 are a valid (if odd) basis.
     _save_raw(path, odd, {**meta, "phi_d_stride": "1"})
-    assert load_ipca(path).cells.size == cells.size
+    assert load_basis(path).cells.size == cells.size

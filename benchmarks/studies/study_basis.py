@@ -12,7 +12,7 @@ materials:
   (``brdfkit fit --method ipca PROXIES --exclude-list TEST+VALIDATION --components K``), scored on the 16 validation ones;
 * samples: :func:`brdfkit.acquisition.sampling.draw_samples` (uniform over the Rusinkiewicz angles),
   draws ``--seeds``;
-* fits: ``ipca`` (the basis's own ridge fit, :meth:`IpcaModel.coefficients`), ``solve``
+* fits: ``ipca`` (the basis's own ridge fit, :meth:`PcaBasis.coefficients`), ``solve``
   (the learnt prior's closed form :func:`~brdfkit.methods.prior.model.solve` without a
   network, the likelihood ``weight``/``s2``/``lam``), ``proj`` (least squares on the whole
   table: the ceiling), ``prior`` (a learnt-prior file's own fit, its network included;
@@ -86,7 +86,7 @@ def ensemble_coefficients(models, samples):
 def joint_fit(basis, samples, s2: float, lam: float, moments):
     """The energy likelihood's closed form with a joint Gaussian prior over each component's
     three channel coefficients, covariance ``moments (K, 3, 3)`` (module docstring)."""
-    from brdfkit.methods.ipca import EPS
+    from brdfkit.basis import EPS
     from brdfkit.methods.prior.model import sample_rows
 
     ok, tab, w, cos, rho, _ = sample_rows(basis, samples)
@@ -128,7 +128,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     from brdfkit.io.merl import read_merl
-    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.basis import load_basis
     from brdfkit.methods.prior.prior_file import is_prior_file as _is_prior
     from brdfkit.methods.prior.prior_file import load_prior
     from brdfkit.evaluation.metrics import brdf_log_rmse, dark_at_grazing
@@ -142,7 +142,7 @@ def main(argv=None):
             priors[k] = [load_prior(x) for x in f.split("+")]
             bases[k] = priors[k][0].basis
         else:
-            bases[k] = load_ipca(f)
+            bases[k] = load_basis(f)
         if any(h.startswith("joint:") for h in args.fits):
             moments[k] = channel_moments(bases[k], args.proxies)
     sc = screen()

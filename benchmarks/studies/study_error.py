@@ -249,10 +249,11 @@ def reconstructions(name, table, args, models):
         model = models["compress:" + mname]
         t = time.perf_counter()
         if args.compress_steps > 0:
-            from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+            from brdfkit.hypernet.refine_on_screen import compress_table
+            from brdfkit.render.objective import ObjectiveConfig
             from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
-            res = compress_table(model, table, CompressConfig(steps=args.compress_steps), source=name)
+            res = compress_table(model, table, ObjectiveConfig(steps=args.compress_steps), source=name)
             pred = NeuralBRDF.from_embedding(model, res.embedding, name).to_table()
             extra = {"steps": res.steps, "best_step": res.best_step, "heldout": list(res.heldout),
                      "refine_s": res.seconds}
@@ -263,7 +264,7 @@ def reconstructions(name, table, args, models):
             pred = NeuralBRDF.from_embedding(model, res.encoder, name).to_table()
             yield f"compress-{mname}-enc", None, None, pred, time.perf_counter() - t, {"decode_only": True}
         else:
-            pred = decode(model, encode(model, table, source=name), source=name)
+            pred = decode(encode(table, model, source=name), model, source=name)
             yield f"compress-{mname}", None, None, pred, time.perf_counter() - t, {}
 
 

@@ -42,7 +42,7 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
     """
     import os
 
-    from brdfkit.brdf_file import OUTPUT_KINDS, EmbeddingModel, convert
+    from brdfkit.brdf_file import OUTPUT_KINDS, EmbeddingDecoders, convert
     from brdfkit.console import console
     from brdfkit.errors import InputError
 
@@ -56,7 +56,7 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
         from brdfkit.io.rgl.fit import FitSettings
 
         settings = FitSettings(resolution=resolution, theta_i=theta_i)
-    report = convert(source, output, models=EmbeddingModel(model_path), settings=settings, spectral=spectral,
+    report = convert(source, output, models=EmbeddingDecoders(model_path), settings=settings, spectral=spectral,
                      description=description)
     what = "MERL table" if report["output_kind"] == "merl" else \
         f"RGL .bsdf, {'spectral' if spectral else 'RGB'}, {resolution} x {resolution} x {theta_i} theta_i"

@@ -40,6 +40,7 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     used (`brdfkit models`): its learnt prior (method prior) when it has one, else its
     hypernetwork. The message line says which method and model ran.
     """
+    from brdfkit.api import sparse
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.io.embedding import write_embedding
     from brdfkit.errors import InputError
@@ -74,9 +75,9 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
+    options = METHODS[method].make_options(**given)  # refused before the samples are read
     data = read_samples(samples)
-    options = METHODS[method].make_options(**given)
-    table, emb = METHODS[method].sparse(data, model_path, options=options)
+    table, emb = sparse(data, model_path, method=method, **given)
     write_merl(output, table)
     if emb_path:
         write_embedding(emb_path, emb)

@@ -222,7 +222,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
         The built-in models are not installed (:func:`check_models`), an unknown
         material, a bad resolution or step count.
     """
-    from brdfkit.hypernet.refine_on_screen import CompressConfig
+    from brdfkit.render.objective import ObjectiveConfig
     from brdfkit.demos.synthetic_training import scratch_folder
 
     check_models()
@@ -230,7 +230,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
     if not 8 <= resolution <= 1024:
         raise InputError(f"--resolution must be between 8 and 1024 pixels, got {resolution}")
     refine_steps = COMPRESSION_STEPS if steps is None else steps
-    CompressConfig(steps=refine_steps)  # its one-line refusal, before any work
+    ObjectiveConfig(steps=refine_steps)  # its one-line refusal, before any work
     out_dir = os.path.abspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     # The sheet takes its tiles' labels from its inputs' file stems, so it renders files
@@ -314,7 +314,8 @@ class _Models:
     methods: list
     """``[(label, method, loaded model)]`` of the sparse reconstructions: the choice, IPCA."""
     hyper: dict
-    """``{name: hypernetwork}`` of :data:`COMPRESSION_MODELS`."""
+    """``{name: decoder}`` of :data:`COMPRESSION_MODELS` (:class:`brdfkit.methods.embedding.Decoder`:
+    the basis of a built-in that ships one, else its hypernetwork)."""
     comps: list
     """``[(model, kind, label, short)]`` of the compressions (:func:`compression_labels`)."""
 
@@ -322,7 +323,6 @@ class _Models:
 def _load_models(device) -> _Models:
     """Load the sparse reconstructions' methods (:data:`SPARSE_MODEL`'s default, and IPCA
     on its basis) and the compression hypernetworks on ``device``."""
-    from brdfkit import api
     from brdfkit.methods import get_method
     from brdfkit.methods.choice import AUTO, choose
 
@@ -331,10 +331,10 @@ def _load_models(device) -> _Models:
     sparse_model = sparse_method.load(choice.path, device)
     ipca = get_method("ipca")
     ipca_model = ipca.load(SPARSE_MODEL)
-    hyper = {m: api.load_model(m, device) for m in COMPRESSION_MODELS}
-    from brdfkit.methods.embedding import embedding_size
+    from brdfkit.methods.embedding import choose_decoder
 
-    comps = compression_labels({m: embedding_size(hyper[m]) for m in COMPRESSION_MODELS})
+    hyper = {m: choose_decoder(None, m, device) for m in COMPRESSION_MODELS}
+    comps = compression_labels({m: f"basis-{_size(d)}" if d.kind == "basis" else _size(d) for m, d in hyper.items()})
     methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
     return _Models(choice, methods, hyper, comps)
 
@@ -379,9 +379,9 @@ def _material(name, ref, models: _Models, files, clock, tiles: dict, seed, devic
     row = [found[f"{label} {n}"] for label, _, _ in models.methods for n in SAMPLE_COUNTS]
     for m, _, label, short in models.comps:
         with clock(f"encode {m}"):
-            emb = api.encode(models.hyper[m], ref, source=name, refine=refine_steps > 0, steps=refine_steps)
+            emb = api.encode(ref, models.hyper[m], source=name, refine=refine_steps > 0, steps=refine_steps)
         with clock(f"decode {m}"):
-            dec = api.decode(models.hyper[m], emb)
+            dec = api.decode(emb, models.hyper[m])
         with clock("score"):
             row.append(brdf_log_rmse(dec, ref))
         tables[label] = dec
@@ -404,7 +404,7 @@ def _interpolate(a, b, embs, models: _Models, files, clock, err) -> None:
     err.print(f"interpolating {a} and {b} at t = 0.5 ({m})")
     with clock("interpolate"):
         mix = api.interpolate(embs[a], embs[b], 0.5)
-        mixed = api.decode(models.hyper[m], mix)
+        mixed = api.decode(mix, models.hyper[m])
     stem = f"{a}+{b}-t0.5-{m}"
     write_embedding(files.keep("embeddings", stem + ".emb"), mix)
     files.table("decoded", stem, mixed)
@@ -438,6 +438,13 @@ def _times(clock, models: _Models, names, files, refine_steps, renders, resoluti
     return times
 
 
+def _size(decoder) -> int:
+    """Numbers per material of ``decoder``'s embeddings by default."""
+    from brdfkit.methods.embedding import get_kind
+
+    return get_kind(decoder.kind).default_size(decoder.obj)
+
+
 def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, scored) -> str:
     """``OUT/errors.json`` (:func:`brdfkit.demos.real_outputs.write_errors`) with what
     made its figures; returns its path."""
@@ -445,7 +452,8 @@ def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, s
 
     made = {"sparse_model": SPARSE_MODEL, "sparse_method": models.choice.method,
             "compression_models": list(COMPRESSION_MODELS),
-            "compressions": [{"column": label, "model": m, "kind": kind, "latent_dim": models.hyper[m].cfg.latent_dim}
+            "compressions": [{"column": label, "model": m, "kind": kind, "embedding": models.hyper[m].kind,
+                              "size": _size(models.hyper[m])}
                              for m, kind, label, _ in models.comps],
             "compression_steps": refine_steps, "interpolation_model": INTERPOLATION_MODEL, "seed": seed}
     return write_errors(out_dir, made, columns, rows, scored)

@@ -40,7 +40,7 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError, require_counts
-from brdfkit.hypernet.refine_on_screen import OBJECTIVE
+from brdfkit.render.objective import OBJECTIVE
 
 __all__ = ["TuneOptions", "tune"]
 
@@ -62,7 +62,7 @@ class TuneOptions:
         Pairs per pixel of each material's fixed draw (the full 32 px render has ~280).
     scenes
         The objective scenes the renders are fitted in (default those of
-        :data:`brdfkit.hypernet.refine_on_screen.OBJECTIVE`).
+        :data:`brdfkit.render.objective.OBJECTIVE`).
     map_weight
         Weight of the paper's mapped loss.
     lambda_z
@@ -118,18 +118,18 @@ class TuneOptions:
 
 def _material_data(model, paths, opts, screens):
     """Per material: the encoder's latent, and per screen the table's image and the fixed
-    pair draw ``(idx, weight)`` (:func:`brdfkit.hypernet.refine_on_screen.draw_pairs`)."""
+    pair draw ``(idx, weight)`` (:func:`brdfkit.render.objective.draw_pairs`)."""
     import torch
 
-    from brdfkit.hypernet.refine_on_screen import CompressConfig, draw_pairs
+    from brdfkit.render.objective import ObjectiveConfig, draw_pairs
     from brdfkit.io.merl import read_merl
     from brdfkit.hypernet.encoding import encode_table
 
-    cfg = CompressConfig(pairs_per_pixel=opts.pairs_per_pixel, uniform_share=0.25)
+    cfg = ObjectiveConfig(pairs_per_pixel=opts.pairs_per_pixel, uniform_share=0.25)
     latents, per = [], []
     for i, p in enumerate(paths):
         table = read_merl(p)
-        latents.append(np.asarray(encode_table(model, table).latent, np.float32))
+        latents.append(np.asarray(encode_table(model, table).values, np.float32))
         views = []
         for k, sc in enumerate(screens):
             with torch.no_grad():

@@ -57,8 +57,8 @@ def _compress(model, table, name):
 
 def _describe(model, path):
     stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    return (f"prior {model.basis.n_components} components ({stem})", model.basis.n_components,
-            set(model.meta.get("materials") or ()))
+    k = model.basis.n_components
+    return f"pca-{k} ({3 * k} numbers, {stem})", 3 * k, set(model.meta.get("materials") or ())
 
 
 METHOD = Method("prior", "PCA basis fitted around a learnt prior: a set encoder of the samples gives the "

@@ -37,7 +37,7 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError
-from brdfkit.methods.ipca import DEFAULT_COMPONENTS, EPS
+from brdfkit.basis import DEFAULT_COMPONENTS, EPS
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, solve
 from brdfkit.methods.prior.training_data import TrainingTensors, fold_bases, main_basis, to_device, training_cells
 

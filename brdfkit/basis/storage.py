@@ -44,7 +44,7 @@ def expand(cells: np.ndarray, arrays: list) -> tuple[np.ndarray, list]:
     """Inverse of :func:`compact` with ``stride = 2``: the even ``phi_d`` cells as
     stored, each odd one the mean of its two even neighbours (wrapping at pi), or the
     one of them that is stored (cells where the cosine weight ``cos_i cos_o`` is 0 are
-    left out, as :func:`~.fit.fit_ipca` leaves them out); float32 arrays
+    left out, as :func:`~.fit.fit_basis` leaves them out); float32 arrays
     over the returned sorted cells."""
     cells = np.asarray(cells, np.int64)
     if ((cells % N_PHI_D) % 2).any():
