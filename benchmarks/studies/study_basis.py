@@ -22,8 +22,11 @@ materials:
   likelihood and a joint prior over the three channels of each component: its ``3 x 3``
   second moments over the basis's training materials, projected onto the basis).
 
-    python benchmarks/studies/study_basis.py --proxies /work/proxies \
+    python benchmarks/studies/study_basis.py --proxies proxies \
         --basis 8=b8.safetensors 16=b16.safetensors 32=b32.safetensors --n 40 160 400 4000 --seeds 0 1
+
+(``proxies`` holds ``merl/`` and ``rgl/``, made by ``python ../shared/tools/nbrdf_to_merl.py merl
+proxies/merl`` and ``... rgl proxies/rgl``.)
 """
 
 from __future__ import annotations
