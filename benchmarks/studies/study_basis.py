@@ -5,7 +5,7 @@ Issue 22 asks the default ``brdfkit sparse`` to beat 8-component IPCA (Nielsen e
 at its own ceiling (the projection of the whole table); a larger basis raises the ceiling
 but has more coefficients to fit from few samples. This study measures both, with the
 render-aligned error of :mod:`brdfkit.render.screen` (32 px reference scene; Spearman
-0.996 with 128 px reference PSNR, ``docs/render-error.md``), never touching the 20 test
+0.996 with 128 px reference PSNR, ``docs/notes/render-error.md``), never touching the 20 test
 materials:
 
 * bases fitted on the 64 MERL training materials outside ``benchmarks/validation.txt``

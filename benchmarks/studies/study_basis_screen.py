@@ -9,7 +9,7 @@ render cache.
     python benchmarks/studies/study_basis_screen.py BASIS FOLDER -k 13 --steps 40 --lr 0.02 -o OUT.json
     python benchmarks/studies/study_basis_screen.py table benchmarks/results/2026-11-26-basis-refine-study.json
 
-The second form prints the table of a record that gathers several runs (``docs/compression.md``).
+The second form prints the table of a record that gathers several runs (``docs/notes/compression.md``).
 """
 
 from __future__ import annotations
