@@ -14,8 +14,11 @@ one in ``docs/baselines.md``) and, with ``--json``, writes every measurement.
 
 Example (the figures in docs/baselines.md)::
 
-    python benchmarks/baselines_time.py --data /work/proxy/merl \\
-        --test-list ../shared/data/merl-test.txt --materials 5 --basis /tmp/basis.safetensors
+    python benchmarks/baselines_time.py --data proxies/merl \\
+        --test-list ../shared/data/merl-test.txt --materials 5 --basis basis.safetensors
+
+(``proxies/merl``: the reference proxies, made by
+``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl``; ``docs/data.md``.)
 """
 
 from __future__ import annotations

@@ -13,8 +13,11 @@ most 6000 steps, patience 400; prints error, steps and seconds per (N, lr).
 
 Example (the figures in docs/baselines.md)::
 
-    python benchmarks/baselines_tune.py lambda --data /work/proxy/merl --test-list ../shared/data/merl-test.txt
-    python benchmarks/baselines_tune.py nbrdf-lr --data /work/proxy/merl --test-list ../shared/data/merl-test.txt
+    python benchmarks/baselines_tune.py lambda --data proxies/merl --test-list ../shared/data/merl-test.txt
+    python benchmarks/baselines_tune.py nbrdf-lr --data proxies/merl --test-list ../shared/data/merl-test.txt
+
+(``proxies/merl``: the reference proxies, made by
+``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl``; ``docs/data.md``.)
 """
 
 from __future__ import annotations

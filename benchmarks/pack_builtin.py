@@ -11,7 +11,7 @@ prior's mean log RMSE per N from uniform samples (held-out materials only), and 
 renders' figures (``renders``: PSNR and Delta E per N, and ``encode`` from a compression
 run of the model), as ``brdfkit models`` shows them.
 
-    python benchmarks/pack_builtin.py --src /work/models --dst brdfkit/models \
+    python benchmarks/pack_builtin.py --src runs/models --dst brdfkit/models \
         --validation merl80-l40=bench-sparse/bench.json
     python benchmarks/pack_builtin.py --dst brdfkit/models --validation-only \
         --validation merl80-l40=bench-sparse/bench.json     # the manifest's figures alone

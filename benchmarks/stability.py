@@ -1,4 +1,4 @@
-"""Re-measure the figures of docs/stability.md (stiff materials, extreme inputs).
+"""Re-measure the figures of docs/notes/stability.md (stiff materials, extreme inputs).
 
     python benchmarks/stability.py              # everything, ~3-5 minutes on 2 cores
     python benchmarks/stability.py encode csv   # some sections only

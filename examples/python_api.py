@@ -38,7 +38,7 @@ def main(argv: list[str]) -> int:
 
     # The library leaves torch's thread pool as it is; size it to the idle cores first, as
     # the command line does (on a busy machine torch's default of one thread per core made
-    # this script 10x slower: 104-143 s against 10.7 s; docs/performance.md).
+    # this script 10x slower: 104-143 s against 10.7 s; docs/notes/performance.md).
     brdfkit.set_torch_threads()
 
     model = brdfkit.load_model(argv[0])

@@ -186,6 +186,12 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert "…" not in report and all(w in report for t in LABELS for w in t.split(" ("))
     # Each compression labelled by kind, in the explanation and the times; the budget said.
     assert "refined on screen, at most 20 steps" in flat and "brdfkit encode takes at most 40 by default" in flat
+    # What each kind of column holds: the basis's coefficients (80 steps in encode), or a latent.
+    assert ("basis-K: the full table compressed, as brdfkit encode does by default, into K numbers, the "
+            "coefficients of the PCA basis the model ships") in flat
+    assert "brdfkit encode takes at most 80 by default" in flat
+    assert "K-D: the full table compressed into the hypernetwork's K-D latent" in flat
+    assert "by a hypernetwork (" not in flat
     assert "in-sample (merl-rgl-l40, merl-rgl-l7): trained on all 151 MERL + RGL materials, these included" in flat
     assert "unseen (merl80-l40): trained without the 20 MERL test materials" in flat
     for label in LABELS:
@@ -341,6 +347,19 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
     assert "rendering teflon and 5 reconstructions in the reference scene" in re.sub(r"\s+", " ", stderr)
     assert "rendering teflon and 3 reconstructions in the backlight scene" in re.sub(r"\s+", " ", stderr)
     assert "comparison sheets, reference and backlight (10 renders, 8 px)" in re.sub(r"\s+", " ", stdout)
+
+
+def test_sheets_render_at_128_px_by_default():
+    """At 64 px a sphere is a blocky disc: the sheets and the renders the tables rank by
+    are 128 px unless --resolution says otherwise."""
+    import inspect
+
+    from brdfkit.cli.demo import command
+    from brdfkit.demos.real_materials import SHEET_RESOLUTION, run_real_demo
+
+    assert SHEET_RESOLUTION >= 128
+    assert inspect.signature(run_real_demo).parameters["resolution"].default == SHEET_RESOLUTION
+    assert next(p for p in command.params if p.name == "resolution").default == SHEET_RESOLUTION
 
 
 def test_no_builtin_models_is_one_line_pointing_at_train(tmp_path):

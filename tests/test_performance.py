@@ -1,4 +1,4 @@
-"""The performance shortcuts (docs/performance.md) compute the same numbers as the plain
+"""The performance shortcuts (docs/notes/performance.md) compute the same numbers as the plain
 definitions they replace."""
 
 from __future__ import annotations

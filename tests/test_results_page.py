@@ -1,4 +1,4 @@
-"""``benchmarks/results.py``, the generator of ``docs/results.md``: the page from two real
+"""``benchmarks/results.py``, the generator of ``docs/notes/results.md``: the page from two real
 (tiny) bench results with ``--skip-run``, issue 22's done-when check, the links folder.
 
 The bench results are real runs on a tiny budget: one synthetic material, N = 40, one

@@ -1,4 +1,4 @@
-"""Numerical stability on stiff materials and extreme inputs (issue 6, docs/stability.md).
+"""Numerical stability on stiff materials and extreme inputs (issue 6, docs/notes/stability.md).
 
 Stiff materials are built with :class:`brdfkit.materials.synthetic.Material`: a silver GGX mirror
 with ``alpha = 0.002`` (values up to 6.5e7 1/sr) and a black Lambertian (albedo 1e-3,
@@ -160,7 +160,7 @@ def test_interpolation_and_extrapolation_stay_finite(trained, stiff):
         assert _finite_where_measured(table, model.rho_ref), t
         assert np.nanmax(table) <= RHO_MAX
     # far out the hyponet predicts mapped values past 88.7, where expm1 overflows float32:
-    # without from_mapped's clamp these tables held infinity (docs/stability.md)
+    # without from_mapped's clamp these tables held infinity (docs/notes/stability.md)
     assert max(peak[-1000.0], peak[1000.0]) > 88.8, peak
 
 
@@ -249,7 +249,7 @@ def test_million_samples_bounded_time_and_memory(model, stiff):
         tracemalloc.stop()
     assert emb.sample_count == 1_000_000 and np.isfinite(emb.values).all()
     # NumPy temporaries (HD vectors, reference values, cell indices): a few times the
-    # input, never the per-sample activations (those are chunked; docs/stability.md).
+    # input, never the per-sample activations (those are chunked; docs/notes/stability.md).
     assert peak < 4 * input_bytes, (peak, input_bytes)
     assert seconds < 60, seconds
 

@@ -5,7 +5,7 @@ Issue 22 asks the default ``brdfkit sparse`` to beat 8-component IPCA (Nielsen e
 at its own ceiling (the projection of the whole table); a larger basis raises the ceiling
 but has more coefficients to fit from few samples. This study measures both, with the
 render-aligned error of :mod:`brdfkit.render.screen` (32 px reference scene; Spearman
-0.996 with 128 px reference PSNR, ``docs/render-error.md``), never touching the 20 test
+0.996 with 128 px reference PSNR, ``docs/notes/render-error.md``), never touching the 20 test
 materials:
 
 * bases fitted on the 64 MERL training materials outside ``benchmarks/validation.txt``
@@ -22,8 +22,11 @@ materials:
   likelihood and a joint prior over the three channels of each component: its ``3 x 3``
   second moments over the basis's training materials, projected onto the basis).
 
-    python benchmarks/studies/study_basis.py --proxies /work/proxies \
+    python benchmarks/studies/study_basis.py --proxies proxies \
         --basis 8=b8.safetensors 16=b16.safetensors 32=b32.safetensors --n 40 160 400 4000 --seeds 0 1
+
+(``proxies`` holds ``merl/`` and ``rgl/``, made by ``python ../shared/tools/nbrdf_to_merl.py merl
+proxies/merl`` and ``... rgl proxies/rgl``.)
 """
 
 from __future__ import annotations

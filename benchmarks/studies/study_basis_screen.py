@@ -9,7 +9,7 @@ render cache.
     python benchmarks/studies/study_basis_screen.py BASIS FOLDER -k 13 --steps 40 --lr 0.02 -o OUT.json
     python benchmarks/studies/study_basis_screen.py table benchmarks/results/2026-11-26-basis-refine-study.json
 
-The second form prints the table of a record that gathers several runs (``docs/compression.md``).
+The second form prints the table of a record that gathers several runs (``docs/notes/compression.md``).
 """
 
 from __future__ import annotations
@@ -58,7 +58,8 @@ def main(argv=None):
     ap.add_argument("--skip", default="", help="file of names to leave out")
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--every", type=int, default=1, help="every n-th material")
-    ap.add_argument("--cache", default="/work/runs/bench-cache")
+    ap.add_argument("--cache", default=os.path.join("runs", "bench-cache"),
+                    help="folder of the reference renders, shareable between runs (default runs/bench-cache)")
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("-o", "--output", required=True)
     a = ap.parse_args(argv)

@@ -59,10 +59,11 @@ the table gives its mean over materials, the JSON also its minimum and the poole
 correlation over every (material, reconstruction) pair. The ``(judge)`` rows rank by the
 reference scene's 128 px judges themselves: the ceiling the rotated columns allow.
 
-    python benchmarks/studies/study_error.py --proxies /work/proxies --n 40 400 4000 --seeds 0 \
+    python benchmarks/studies/study_error.py --proxies proxies --n 40 400 4000 --seeds 0 \
         --px 128 --json study_error.json
 
-(tables ``PROXIES/NAME.binary`` or ``PROXIES/merl/NAME.binary``). Smoke test:
+(tables ``PROXIES/NAME.binary`` or ``PROXIES/merl/NAME.binary``; ``proxies/merl`` is made by
+``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl``). Smoke test:
 ``--materials alum-bronze --n 40 --px 32``.
 """
 

@@ -55,6 +55,8 @@ class SamplingProtocol:
     design
         ``planned``: the design (:data:`brdfkit.acquisition.designs.DESIGNS`).
 
+    Notes
+    -----
     The plan of each ``(N, draw)`` is made once and kept (a second or so each).
     """
 

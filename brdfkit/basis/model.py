@@ -36,7 +36,7 @@ channel by channel with the same basis.
 
 Basis
 -----
-PCA over the cells measured by at least one training table (:mod:`.fit`), ``K``
+PCA over the cells measured by at least one training table (:mod:`brdfkit.basis.fit`), ``K``
 components kept; the basis is stored in its own file (:mod:`.basis_file`).
 
 Reconstruction

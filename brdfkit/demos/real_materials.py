@@ -8,17 +8,17 @@ the built-in models (``docs/models.md``), none of which needs training here:
   with ``brdfkit sparse``'s default method on ``merl80-l40`` (its learnt prior,
   :func:`brdfkit.methods.choice.choose`), which never saw these materials, and with
   IPCA on the same PCA basis beside it (Nielsen et al. 2015);
-* compression of the full table by three hypernetworks (:data:`COMPRESSIONS`), each
-  encode refined on screen for at most :data:`COMPRESSION_STEPS` steps
-  (:func:`brdfkit.api.encode`, :func:`brdfkit.hypernet.refine_on_screen.compress_table`), then decoded,
-  of two kinds, labelled as such wherever they appear:
+* compression of the full table by three built-ins (:data:`COMPRESSIONS`) as ``brdfkit
+  encode`` makes it (:func:`brdfkit.api.encode`): the 40-D ones' basis embeddings (39
+  coefficients of the PCA basis they ship), the 7-D one's latent, each refined on screen
+  for at most :data:`COMPRESSION_STEPS` steps, then decoded; of two kinds, labelled so:
 
-  - *in-sample*: ``merl-rgl-l40`` (40 numbers) and ``merl-rgl-l7`` (7 numbers), trained
+  - *in-sample*: ``merl-rgl-l40`` (39 numbers) and ``merl-rgl-l7`` (7 numbers), fitted
     on all 151 MERL + RGL proxies, these four included: the paper's compression protocol
     (Gokbudak et al. 2024, Sec. 4.2), a compression model being trained on what it
     compresses;
-  - *unseen*: ``merl80-l40`` (40 numbers), trained without the 20 test materials: how
-    well a 40-D latent holds a material that the model never saw;
+  - *unseen*: ``merl80-l40`` (39 numbers), its basis fitted without the 20 test
+    materials: how well the basis holds a material that the model never saw;
 
 * an interpolation of two materials' ``merl80-l40`` embeddings at ``t = 0.5``
   (:data:`INTERPOLATION_MODEL`);
@@ -50,10 +50,10 @@ __all__ = ["SPARSE_MODEL", "COMPRESSIONS", "COMPRESSION_MODELS", "COMPRESSION_KI
 SPARSE_MODEL = "merl80-l40"
 """The built-in of the sparse reconstructions (trained without the test materials)."""
 COMPRESSIONS = (("merl-rgl-l40", "in-sample"), ("merl-rgl-l7", "in-sample"), ("merl80-l40", "unseen"))
-"""The built-in hypernetworks that compress the full tables, in the demo's order, each with
-its kind: ``in-sample`` (the demo's materials were in its training set) or ``unseen``
-(they were not). Labels add the latent size: ``in-sample 40-D (merl-rgl-l40)``
-(:func:`compression_labels`)."""
+"""The built-ins that compress the full tables, in the demo's order, each with its kind:
+``in-sample`` (the demo's materials were in its training set) or ``unseen`` (they were
+not). Labels say what the embedding holds (:func:`compression_labels`): ``in-sample
+basis-39 (merl-rgl-l40)`` (39 coefficients of its basis), ``in-sample 7-D (merl-rgl-l7)``."""
 COMPRESSION_MODELS = tuple(m for m, _ in COMPRESSIONS)
 COMPRESSION_KINDS = {"in-sample": "trained on all 151 MERL + RGL materials, these included (the paper's "
                                   "compression protocol)",
@@ -61,16 +61,16 @@ COMPRESSION_KINDS = {"in-sample": "trained on all 151 MERL + RGL materials, thes
 """What each kind of :data:`COMPRESSIONS` means, for the output."""
 COMPRESSION_STEPS = 20
 """Most refinement steps of each compression (``brdfkit encode``: 80 for a basis embedding,
-40 for a latent): 12 refinements (four materials, three models), the demo about a minute."""
+40 for a latent): 12 refinements (four materials, three models) in the demo's minute and a half."""
 INTERPOLATION_MODEL = "merl80-l40"
 """The compression model whose embeddings are blended (one of :data:`COMPRESSION_MODELS`).
-The unseen one, not ``merl-rgl-l40``: its latent space is the one the sparse
-reconstructions use, and editing materials that the model never saw is what a user does
+The unseen one, not ``merl-rgl-l40``: its basis is the one the sparse reconstructions'
+learnt prior uses, and editing materials that the model never saw is what a user does
 with their own measurements, which no built-in was trained on."""
 SAMPLE_COUNTS = (40, 400)
-SHEET_RESOLUTION = 64
-"""Render size of the comparison sheet, pixels: its six quadrature renders of 64 px took
-6.2 s on the project's idle 2-core machine (``docs/demo.md``)."""
+SHEET_RESOLUTION = 128
+"""Render size of the comparison sheets and of the renders the error tables rank by, pixels:
+at 128 a sphere is round, at 64 a blocky disc; the demo prints the renders' seconds."""
 
 
 def demo_materials() -> list[str]:

@@ -2,8 +2,8 @@
 Sec. 5) in one PNG.
 
 ``steps`` materials evenly spaced from embedding A (``t = 0``) to B (``t = 1``), each the
-latent blend ``(1 - t) z_A + t z_B`` (:func:`brdfkit.api.interpolate`) decoded by the
-model (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`) and rendered in the reference scene by the
+blend ``(1 - t) A + t B`` (:func:`brdfkit.api.interpolate`: of the basis's coefficients, or
+of the hypernetwork's latents) decoded by the model and rendered in the reference scene by the
 quadrature renderer, all in one pass (:func:`brdfkit.render.quadrature.render_many`).
 The renders sit side by side, one screen pixel per render pixel, each labelled with its
 ``t``; a caption names A and B. ``brdfkit interpolate A B --sheet strip.png`` draws it.
@@ -113,7 +113,8 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     names = [os.path.basename(e.source) if e.source else n for e, n in ((a, "A"), (b, "B"))]
     fig = pyplot().figure(dpi=dpi)
     labels = [fig.text(0, 0, _label(t), ha="center", va="bottom", fontsize=FONT_PT) for t in ts]
-    caption = fig.text(0, 0, f"A = {names[0]}, B = {names[1]}: {a.kind} (1 - t) A + t B, reference scene",
+    blended = "basis coefficients" if a.kind == "basis" else a.kind
+    caption = fig.text(0, 0, f"A = {names[0]}, B = {names[1]}: {blended} (1 - t) A + t B, reference scene",
                        ha="center", va="bottom", fontsize=FONT_PT, color="0.3")
     renderer = fig.canvas.get_renderer()
     text_px = [math.ceil(x.get_window_extent(renderer).width) for x in (*labels, caption)]
