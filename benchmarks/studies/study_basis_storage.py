@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing
 import os
 import sys
 import tempfile
@@ -40,6 +41,9 @@ VARIANTS = {  # name: (w_floor, storage of save_basis)
 }
 """Each storage apart on the full-precision basis, and the shipped one (all together)."""
 
+FLOORS = {f"floor-{f:g}": (f, {}) for f in (0.0, 0.005, 0.01, 0.02, 0.05, 0.1)}
+"""``--variants floors``: the mapping's grazing floor alone, full precision."""
+
 
 def _names(folder):
     return sorted(f[:-7] for f in os.listdir(folder) if f.endswith(".binary"))
@@ -50,22 +54,43 @@ def _read_list(path):
         return [w for line in f for w in [line.split("#")[0].strip()] if w]
 
 
-def fit_variants(train_paths, names, k):
-    """``{variant: PcaBasis}``: the bases with and without the floor, stored each way."""
-    from brdfkit.basis import fit_basis, load_basis, save_basis
+def fit_variants(train_paths, names, k, folder, variants=None):
+    """Fit a basis for each floor of ``variants`` (default :data:`VARIANTS`), store each
+    variant in ``folder`` (``VARIANT.safetensors``) and return ``{variant: path}``."""
+    from brdfkit.basis import fit_basis, save_basis
 
+    variants = variants or VARIANTS
     fitted = {}
-    for floor in sorted({f for f, _ in VARIANTS.values()}):
+    for floor in sorted({f for f, _ in variants.values()}):
         t = time.perf_counter()
         fitted[floor] = fit_basis(train_paths, k, names=names, w_floor=floor)
         print(f"fitted w_floor={floor}: {time.perf_counter() - t:.0f} s", file=sys.stderr)
     out = {}
-    with tempfile.TemporaryDirectory() as tmp:
-        for name, (floor, storage) in VARIANTS.items():
-            path = os.path.join(tmp, f"{name}.safetensors")
-            save_basis(path, fitted[floor], **storage)
-            out[name] = load_basis(path)
+    for name, (floor, storage) in variants.items():
+        out[name] = os.path.join(folder, f"{name}.safetensors")
+        save_basis(out[name], fitted[floor], **storage)
     return out
+
+
+_BASES = {}
+
+
+def _init(paths, device):
+    """Pool initializer: every variant loaded once per process."""
+    from brdfkit.basis import load_basis
+
+    _BASES.update({v: load_basis(p) for v, p in paths.items()})
+    _BASES["_device"] = device
+
+
+def _task(args):
+    path, ks, scenes, resolution = args
+    from brdfkit.io.merl import read_merl
+
+    t = time.perf_counter()
+    bases = {v: b for v, b in _BASES.items() if v != "_device"}
+    scores = score_material(read_merl(path), bases, ks, scenes, resolution, _BASES["_device"])
+    return os.path.splitext(os.path.basename(path))[0], scores, time.perf_counter() - t
 
 
 def score_material(table, bases, ks, scenes, resolution, device):
@@ -102,7 +127,7 @@ def print_table(path):
     print("| --- | ---: | --- | ---: | ---: | ---: | " + " | ".join("---:" for _ in scenes) + " |")
     for name, recs in doc["sets"].items():
         for k in doc["k"]:
-            for v in VARIANTS:
+            for v in doc["variants"]:
                 rows = [r["scores"][v][str(k)] for r in recs]
                 per = [np.mean([r["scenes"][s]["psnr"] for r in rows]) for s in scenes]
                 print(f"| {name} ({len(rows)}) | {k} ({3 * k}) | {v} | {np.mean([r['psnr'] for r in rows]):.2f} | "
@@ -123,33 +148,42 @@ def main(argv=None):
     ap.add_argument("--scenes", default="all")
     ap.add_argument("--every", type=int, default=1, help="every n-th material of each set")
     ap.add_argument("--device", default=None)
+    ap.add_argument("--jobs", type=int, default=1, help="worker processes (each loads every variant)")
+    ap.add_argument("--variants", choices=("storage", "floors"), default="storage",
+                    help="storage: each storage apart (VARIANTS); floors: the grazing floor alone (FLOORS)")
+    ap.add_argument("--keep", default=None, help="folder to keep the variants' basis files in")
     ap.add_argument("-o", "--output", required=True)
     a = ap.parse_args(argv)
-    from brdfkit.io.merl import read_merl
     from brdfkit.render.scene_suite import scene_names
     from brdfkit.runtime import resolve_device
 
-    device = resolve_device(a.device)
+    device = str(resolve_device(a.device))
     test = set(_read_list(a.test_list))
     train = [n for n in _names(a.train) if n not in test]
-    bases = fit_variants([os.path.join(a.train, n + ".binary") for n in train], train, max(a.k))
     scenes = scene_names(a.scenes)
+    variants = FLOORS if a.variants == "floors" else VARIANTS
     doc = {"train": os.path.basename(os.path.normpath(a.train)), "train_count": len(train), "k": a.k,
            "resolution": a.resolution, "scenes": scenes, "variants": {v: {"w_floor": f, **s} for v, (f, s) in
-                                                                     VARIANTS.items()},
-           "device": str(device), "sets": {}}
-    for spec in a.sets:
-        name, folder = spec.split("=", 1)
-        names = [n for n in _names(folder) if (n in test) == (name == "merl-test")][::a.every]
-        recs = []
-        for i, n in enumerate(names):
-            t = time.perf_counter()
-            recs.append({"material": n, "scores": score_material(read_merl(os.path.join(folder, n + ".binary")),
-                                                                 bases, a.k, scenes, a.resolution, device)})
-            print(f"{name} {i + 1}/{len(names)} {n}: {time.perf_counter() - t:.1f} s", file=sys.stderr)
-        doc["sets"][name] = recs
-        with open(a.output, "w", encoding="utf-8") as f:
-            json.dump(doc, f, indent=1)
+                                                                     variants.items()},
+           "device": device, "sets": {}}
+    with tempfile.TemporaryDirectory() as tmp:
+        if a.keep:
+            os.makedirs(a.keep, exist_ok=True)
+        paths = fit_variants([os.path.join(a.train, n + ".binary") for n in train], train, max(a.k), a.keep or tmp,
+                             variants)
+        ctx = multiprocessing.get_context("spawn")
+        with ctx.Pool(a.jobs, initializer=_init, initargs=(paths, device)) as pool:
+            for spec in a.sets:
+                name, folder = spec.split("=", 1)
+                names = [n for n in _names(folder) if (n in test) == (name == "merl-test")][::a.every]
+                tasks = [(os.path.join(folder, n + ".binary"), a.k, scenes, a.resolution) for n in names]
+                recs = []
+                for n, scores, sec in pool.imap(_task, tasks):
+                    recs.append({"material": n, "scores": scores})
+                    print(f"{name} {len(recs)}/{len(names)} {n}: {sec:.1f} s", file=sys.stderr)
+                doc["sets"][name] = recs
+                with open(a.output, "w", encoding="utf-8") as f:
+                    json.dump(doc, f, indent=1)
     print_table(a.output)
 
 

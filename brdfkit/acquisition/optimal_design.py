@@ -29,7 +29,7 @@ averaged over materials drawn from the basis's prior (``draws`` of them, and the
 material), i.e. over the spread of the training materials the basis was fitted to.
 
 ``J`` comes from :class:`brdfkit.render.screen.Screen`, the 32 px render whose PSNR ranks
-reconstructions as the 128 px reference renders do (``docs/render-error.md``), of the
+reconstructions as the 128 px reference renders do (``docs/notes/render-error.md``), of the
 reference scene and of the same scene with the environment turned half a turn
 (``scenes``): the plan should not serve one lighting only.
 

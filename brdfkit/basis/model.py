@@ -22,9 +22,9 @@ fit --method ipca -O w_floor=W``; Nielsen's mapping is ``w_floor = 0``). Why: ``
 floor of ``eps / w`` in BRDF units, which grows without bound towards grazing angles
 (``w`` about 5e-3 at ``theta_h = 86 deg``: 0.2 /sr), so there every value of a dark or
 diffuse material maps to nearly the same ``x'``; the basis cannot tell them apart, and the
-inverse turns a small error of ``x'`` into 0 (issue 22 measured reconstructions of 0
+inverse turns a small error of ``x'`` into 0 (``docs/notes/generalisation.md`` measured reconstructions of 0
 where the data hold 4e-3 to 1e-2). The floor caps it at ``eps / w_floor``
-(``docs/generalisation.md`` measures it on renders). Cells on the horizon (``cos_i
+(``docs/notes/generalisation.md`` measures it on renders). Cells on the horizon (``cos_i
 cos_o = 0``) stay outside the basis.
 
 Channels

@@ -28,7 +28,7 @@ def _model_from_env() -> bool:
                    "hypernetwork; a model file's own method.")
 @click.option("--refine/--no-refine", default=None,
               help="Method hypernet: refine the encoded material on its samples, early-stopped on "
-                   "held-out ones (docs/generalisation.md) [default: refine].")
+                   "held-out ones (docs/notes/generalisation.md) [default: refine].")
 @click.option("--refine-target", type=click.Choice(["latent", "weights"]), default=None,
               help="What --refine fits: the latent only, or then the hyponet's weights too "
                    "[default: weights; latent with --emb, since refined weights have no embedding].")

@@ -105,7 +105,7 @@ def brdf_log_rmse(pred, ref) -> float:
 def dark_at_grazing(pred, ref, above_deg: float = 80.0) -> float:
     """Share of the measured cells with ``theta_h > above_deg`` (degrees) where a channel
     of ``pred`` is below a tenth of ``ref``: a reconstruction "orders of magnitude below
-    the data at grazing angles" (issue 22), which cosine-weighted errors and renders
+    the data at grazing angles" (``docs/notes/generalisation.md``), which cosine-weighted errors and renders
     barely see. Both ``(90, 90, 180, 3)`` tables in 1/sr; cells where ``ref`` is below
     1e-4 /sr (black there) or either is NaN are not counted; 0 when none is left."""
     from brdfkit.geometry import grid_angles

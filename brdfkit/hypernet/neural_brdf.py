@@ -177,7 +177,7 @@ class NeuralBRDF:
         activation buffer carries a constant row of ones and each layer's bias is an
         extra column of ``W^T``, so a layer is one plain ``mm`` into a preallocated
         buffer: ``addmm`` with a broadcast bias cost a third more than the products
-        themselves (``docs/performance.md``).
+        themselves (``docs/notes/performance.md``).
 
         Returns
         -------

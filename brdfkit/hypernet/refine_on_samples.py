@@ -8,7 +8,7 @@ optimises, on the same samples,
   prior ``prior * mean((z - z0)^2)`` towards the encoder's answer;
 * ``weights``: after that, the decoded hyponet's own weights ``W`` (6 -> 60 x 4 -> 3),
   with a prior ``prior * sum(|W - W0|^2) / sum(|W0|^2)`` towards the decoded ones, which
-  reaches functions no latent decodes to (issue 12: the latent space does not contain
+  reaches functions no latent decodes to (``docs/notes/generalisation.md``: the latent space does not contain
   unseen materials).
 
 The data term is the evaluation metric's own (:func:`brdfkit.evaluation.metrics.brdf_log_rmse`):
@@ -18,7 +18,7 @@ samples of the input: a ``holdout`` share of the samples is set aside, the fit o
 rest is scored on them every ``check_every`` steps, and the step count with the lowest
 held-out error (0 included: refinement may be declined) is then run again on all samples.
 Fewer than ``min_samples`` samples are not refined (too few to hold any out).
-``docs/generalisation.md`` measures it against the encoder alone and the learnt prior.
+``docs/notes/generalisation.md`` measures it against the encoder alone and the learnt prior.
 """
 
 from __future__ import annotations

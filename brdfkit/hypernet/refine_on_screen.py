@@ -17,7 +17,7 @@ whatever the caller's setting: the same table, model and version give the same l
 the bit, however loaded the machine is (a wall-clock cap, ``max_seconds``, is only applied
 when asked for, and the result says when it cut).
 
-``docs/render-error.md`` measures the error (rank correlation with 128 px renders on two
+``docs/notes/render-error.md`` measures the error (rank correlation with 128 px renders on two
 scenes), ``docs/model.md`` the error against encode time.
 """
 

@@ -1,7 +1,7 @@
-"""Screen tuning: a trained hypernetwork's auto-decoder stage, fitted on renders (issue 21).
+"""Screen tuning: a trained hypernetwork's auto-decoder stage, fitted on renders.
 
 The paper trains the hypernetwork on its mapped loss alone (Gokbudak et al. 2024, eq. 3),
-and its compressions render 10 dB below an 8-component PCA (issue 21). :func:`tune`
+and its compressions render 10 dB below an 8-component PCA (``docs/notes/compression.md``). :func:`tune`
 continues a trained model as an **auto-decoder** (Park et al. 2019, DeepSDF): one latent
 ``z_i`` per training material, initialised by the set encoder's pass over the material's
 cells, is optimised *together with the decoder* on
@@ -10,9 +10,9 @@ cells, is optimised *together with the decoder* on
 
 * ``E_screen(i)``: the render-aligned error of :mod:`brdfkit.render.screen` (display MSE
   of a low-resolution render against the table's own render) in one of ``scenes``, the
-  objective scenes of the suite (:mod:`brdfkit.render.scene_suite`; never a judged one,
-  issue 28; the built-in models of 2026-11-25 were tuned under the reference environment's
-  turns 0, 0.25 and 0.75 instead), with a fixed draw of ``pairs_per_pixel`` pairs per
+  objective scenes of the suite (:mod:`brdfkit.render.scene_suite`; never a judged one;
+  the shipped built-in models were tuned under the reference environment's turns 0, 0.25
+  and 0.75 instead), with a fixed draw of ``pairs_per_pixel`` pairs per
   pixel, in proportion to the table's integrand, as in
   :mod:`brdfkit.hypernet.refine_on_screen`. The log makes the loss the *mean PSNR over
   materials* (a sum of ``-10 log10 MSE``), so a dark material counts as much as a bright

@@ -5,7 +5,7 @@ parts: its hypernetwork, and optionally a learnt prior and the PCA basis that pr
 fitted with. A built-in name therefore names a different file for each method
 (:func:`resolve_for`); a path is the file as it is. ``--method auto``, ``brdfkit
 sparse``'s default, picks the method too (:func:`choose`): a built-in's learnt prior
-when it has one (the better sparse reconstruction, ``docs/generalisation.md``), else its
+when it has one (the better sparse reconstruction, ``docs/notes/generalisation.md``), else its
 hypernetwork; a file by the format its header records.
 """
 

@@ -27,7 +27,7 @@ class HypernetOptions(MethodOptions):
     ones (:func:`brdfkit.hypernet.refine_on_samples.refine`; off: the paper's one encoder pass);
     ``refine_target``: ``latent`` or ``weights`` (the latent, then the hyponet's weights).
     On the validation split refining beat the encoder alone at every N, and ``weights``
-    beat ``latent`` at N = 40 and 4000 and tied it at 400 (``docs/generalisation.md``,
+    beat ``latent`` at N = 40 and 4000 and tied it at 400 (``docs/notes/generalisation.md``,
     Lever 4)."""
 
     refine: bool = True

@@ -20,7 +20,7 @@ lives here:
    refinement runs on :data:`THREADS` torch thread(s) whatever the caller's setting: the
    same table and model give the same numbers to the bit, however loaded the machine is.
 
-``docs/render-error.md`` measures how the error ranks reconstructions as the judged
+``docs/notes/render-error.md`` measures how the error ranks reconstructions as the judged
 scenes' renders do.
 """
 
@@ -37,7 +37,7 @@ __all__ = ["OBJECTIVE", "THREADS", "ObjectiveConfig", "ObjectiveView", "draw_pai
 OBJECTIVE = ("studio-0", "studio-1", "studio-2", "studio-3")
 """The scenes a refinement descends: four of the suite's objective scenes, none of them
 judged. Chosen by ``benchmarks/studies/study_error.py --judges suite``
-(``docs/render-error.md``): over 10 test materials and 120 reconstructions, their
+(``docs/notes/render-error.md``): over 10 test materials and 120 reconstructions, their
 render-aligned error ranks reconstructions as the five held-out scenes' mean does with
 Spearman 0.966 (PSNR) / 0.959 (Delta E), the reference scene's own 0.930 / 0.908, the
 BRDF log RMSE 0.647 / 0.638."""

@@ -1,6 +1,6 @@
 """The learnt prior as a reconstruction method: a PCA basis fitted in closed form around
 the prior mean a set encoder reads from the samples. ``brdfkit sparse``'s default with
-the built-in models (``docs/generalisation.md`` says why it is not the paper's decoder).
+the built-in models (``docs/notes/generalisation.md`` says why it is not the paper's decoder).
 
 This package registers the method (:data:`METHOD`); its parts are
 
@@ -62,7 +62,7 @@ def _describe(model, path):
 
 
 METHOD = Method("prior", "PCA basis fitted around a learnt prior: a set encoder of the samples gives the "
-                "coefficients' prior mean (brdfkit's default, docs/generalisation.md)",
+                "coefficients' prior mean (brdfkit's default, docs/notes/generalisation.md)",
                 "learnt-prior model (.safetensors from `brdfkit fit --method prior`, or a built-in name)",
                 options=PriorOptions, load_model=_load, reconstruct_fn=_reconstruct, fit_fn=_fit,
                 fit_options=FIT_OPTIONS,

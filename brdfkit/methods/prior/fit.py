@@ -2,7 +2,7 @@
 
 The recipe is the one
 ``benchmarks/studies/study_residual.py --coef --align --prior --mixup 0.5`` ranked first
-on the validation split (``docs/generalisation.md``):
+on the validation split (``docs/notes/generalisation.md``):
 
 - **Basis**: the ``K``-component PCA basis of the training tables (or a given basis
   file, e.g. the one shipped with the package).

@@ -37,7 +37,7 @@ channel and component: where the samples leave the network sure of a coefficient
 fit is held to its prior mean more tightly, where they do not it is let loose. Trained
 through the closed form like the mean. Off by default and in the built-ins: on the
 validation split it fitted the training materials better and rendered worse at every N
-(``docs/generalisation.md``, Lever 8).
+(``docs/notes/generalisation.md``, Lever 8).
 """
 
 from __future__ import annotations
