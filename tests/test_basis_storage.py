@@ -11,7 +11,7 @@ import pytest
 
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
-from brdfkit.basis.storage import check_half, compact, expand
+from brdfkit.basis.storage import GRAZING_FULL, check_half, compact, expand
 from brdfkit.basis import BASIS_VERSION, PcaBasis, basis_tensors, load_basis, save_basis
 
 _TENSORS = ("cells", "reference", "mean", "components", "sigma")
@@ -59,15 +59,17 @@ def basis():
 
 # --- compact / expand ------------------------------------------------------------------------
 
-def test_compact_keeps_even_cells_and_expand_restores_the_neighbour_mean():
-    rows = (0, 7, 7921)  # rows above the horizon at every phi_d
+def test_compact_keeps_even_and_grazing_cells_and_expand_restores_the_neighbour_mean():
+    rows = (0, 7, 7921)  # rows above the horizon at every phi_d; 7921 near the horizon
     assert _above_horizon()[list(rows)].all()
     cells = _rows_cells(rows, np.arange(N_PHI_D))
     rng = np.random.default_rng(0)
     vec = rng.normal(size=cells.size).astype(np.float32)
     mat = rng.normal(size=(2, cells.size)).astype(np.float32)
     kept, (kv, km) = compact(cells, [vec, mat], 2)
-    even = (cells % 2) == 0
+    grazing = grid_cosine_weight()[cells] < GRAZING_FULL
+    assert grazing.any() and not grazing[cells < 8 * N_PHI_D].any()
+    even = ((cells % 2) == 0) | grazing  # the cells stored
     np.testing.assert_array_equal(kept, cells[even])
     np.testing.assert_array_equal(kv, vec[even])
     np.testing.assert_array_equal(km, mat[:, even])
@@ -80,7 +82,7 @@ def test_compact_keeps_even_cells_and_expand_restores_the_neighbour_mean():
     np.testing.assert_allclose(ev[~even], _neighbour_mean(kept, kv, cells[~even]), rtol=0, atol=1e-6)
     np.testing.assert_allclose(em[:, ~even], _neighbour_mean(kept, km, cells[~even]), rtol=0, atol=1e-6)
     # The wrap: phi_d index 179 lies between 178 and 0 (phi_d is periodic with period pi).
-    for r in rows:
+    for r in rows[:2]:
         i179, i178, i0 = (np.searchsorted(cells, r * N_PHI_D + p) for p in (179, 178, 0))
         assert ev[i179] == np.float32(0.5) * (vec[i178] + vec[i0])
 
@@ -90,8 +92,9 @@ def test_compact_keeps_even_cells_and_expand_restores_the_neighbour_mean():
     np.testing.assert_array_equal(sv, vec)
     with pytest.raises(ValueError, match="stride"):
         compact(cells, [vec], 3)
-    with pytest.raises(ValueError, match="even"):
-        expand(cells, [vec])
+    every, (xv,) = expand(cells, [vec])  # every cell stored: every cell as stored
+    np.testing.assert_array_equal(every, cells)
+    np.testing.assert_array_equal(xv, vec)
 
 
 def test_expand_next_to_missing_cells_and_the_horizon():
@@ -155,7 +158,8 @@ def test_half_stride_two_file_round_trip(basis, tmp_path):
     assert meta["phi_d_stride"] == "2" and meta["dtype"] == "float16"
     assert tensors["components"].dtype == np.float16 and tensors["sigma"].dtype == np.float32
     assert "cells" not in tensors and tensors["cell_mask"].dtype == np.uint8
-    np.testing.assert_array_equal(_stored_cells(tensors), basis.cells[(basis.cells % 2) == 0])
+    stored = ((basis.cells % 2) == 0) | (grid_cosine_weight()[basis.cells] < GRAZING_FULL)
+    np.testing.assert_array_equal(_stored_cells(tensors), basis.cells[stored])
     assert packed.stat().st_size < 0.3 * full.stat().st_size
 
     a, b = load_basis(full), load_basis(packed)
@@ -174,7 +178,7 @@ def test_half_stride_two_file_round_trip(basis, tmp_path):
     np.testing.assert_array_equal(b.sigma, basis.sigma)
     assert b.materials == basis.materials
 
-    even = (b.cells % 2) == 0
+    even = ((b.cells % 2) == 0) | (grid_cosine_weight()[b.cells] < GRAZING_FULL)  # the stored cells
     for name in ("reference", "mean", "components"):
         orig, got = getattr(basis, name)[..., idx], getattr(b, name)
         assert got.dtype == np.float32
@@ -183,7 +187,8 @@ def test_half_stride_two_file_round_trip(basis, tmp_path):
         assert (np.abs(got[..., even] - orig[..., even]) <= tol[..., even]).all(), name
         # Restored cells: the mean of the rounded neighbours, close to the true value of a
         # basis smooth in phi_d.
-        np.testing.assert_allclose(got[..., ~even], _neighbour_mean(b.cells[even], got[..., even], b.cells[~even]),
+        pairs = (b.cells % 2) == 0
+        np.testing.assert_allclose(got[..., ~even], _neighbour_mean(b.cells[pairs], got[..., pairs], b.cells[~even]),
                                    rtol=1e-6, atol=1e-9)
         scale = np.abs(orig).max()
         assert np.abs(got[..., ~even] - orig[..., ~even]).max() < 0.05 * scale, name
@@ -304,7 +309,7 @@ def test_bad_storage_metadata_and_odd_cells_are_format_errors(basis, tmp_path):
         odd = {k: v for k, v in tensors.items() if k != "cell_mask"}
         odd.update(where)
         _save_raw(path, odd, meta)
-        with pytest.raises(FormatError, match="odd.safetensors: .*even phi_d"):
+        with pytest.raises(FormatError, match="odd.safetensors: .*odd phi_d cells only near the horizon"):
             load_basis(path)
     bad = {k: v for k, v in tensors.items() if k != "cell_mask"}
     bad["cell_mask"] = np.packbits(mask)[:-1]

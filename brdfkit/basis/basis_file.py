@@ -21,9 +21,9 @@ import numpy as np
 
 from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.errors import FormatError
-from brdfkit.geometry import N_CELLS, N_PHI_D
+from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
 from brdfkit.basis.model import EPS, PcaBasis
-from brdfkit.basis.storage import INT8_BLOCK, check_half, compact, dequantize, expand, quantize
+from brdfkit.basis.storage import GRAZING_FULL, INT8_BLOCK, check_half, compact, dequantize, expand, quantize
 
 __all__ = ["BASIS_FORMAT", "BASIS_VERSION", "basis_tensors", "is_basis_format", "save_basis", "load_basis",
            "read_basis", "storage_of"]
@@ -176,7 +176,9 @@ def read_basis(f, path: str, prefix: str = "") -> PcaBasis:
     cells = cells.astype(np.int64)
     per_cell = [t["reference"].astype(np.float32), t["mean"].astype(np.float32), comp.astype(np.float32)]
     if stride == "2":
-        if ((cells % N_PHI_D) % 2).any():
-            raise FormatError(path, "a half-phi_d PCA basis may hold only cells of even phi_d index")
+        odd = (cells % N_PHI_D) % 2 == 1
+        if (grid_cosine_weight()[cells[odd]] >= GRAZING_FULL).any():
+            raise FormatError(path, "a half-phi_d PCA basis may hold odd phi_d cells only near the horizon "
+                                    f"(cosine weight below {GRAZING_FULL})")
         cells, per_cell = expand(cells, per_cell)
     return PcaBasis(cells, *per_cell, t["sigma"].astype(np.float32), list(materials), w_floor)
