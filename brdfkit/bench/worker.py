@@ -133,9 +133,11 @@ class Worker:
         every scene, the renders timed as ``render_s``); the BRDF log RMSE is recorded as
         ``log_rmse``, the peak region's check as ``highlights``
         (:func:`brdfkit.evaluation.metrics.highlights`). In several scenes, the image scores
-        are their means and ``scenes`` holds each scene's."""
+        are their means and ``scenes`` holds each scene's. ``darkest_ratio`` is the smallest
+        ratio of the reconstruction to the data where the data are at least 1 /sr
+        (:func:`brdfkit.evaluation.metrics.darkest_ratio`: below 1e-3, a black corner)."""
         from brdfkit.evaluation.comparison import mean_scores
-        from brdfkit.evaluation.metrics import brdf_log_rmse, highlights, score
+        from brdfkit.evaluation.metrics import brdf_log_rmse, darkest_ratio, highlights, score
 
         t0 = time.perf_counter()
         imgs = self.render(table)
@@ -147,6 +149,7 @@ class Worker:
             out["scenes"] = {s: {k: v for k, v in r.items() if k != "brdf_log_rmse"} for s, r in per.items()}
         out["log_rmse"] = brdf_log_rmse(table, ref_table)
         out["highlights"] = highlights(table, ref_table)
+        out["darkest_ratio"] = darkest_ratio(table, ref_table)
         out["render_s"] = render_s
         return out
 
