@@ -114,7 +114,7 @@ def _decoder(kind: str | None, model, device):
     if kind not in (None, "latent"):
         raise InputError(f"model {model.fingerprint[:12]} ships no PCA basis (only the installed built-ins with a "
                          f"learnt prior do); encode a latent instead")
-    return Decoder("latent", model, model.fingerprint, getattr(model, "path", ""), model.short_fingerprint)
+    return Decoder.of_model(model)
 
 
 def encode(data, model=None, *, kind: str | None = None, size: int | None = None, steps: int | None = None,

@@ -99,7 +99,7 @@ class EmbeddingDecoders:
 
         given = self._given
         if given is not None and not isinstance(given, Decoder):  # a loaded hypernetwork
-            given = Decoder("latent", given, given.fingerprint, getattr(given, "path", ""), given.short_fingerprint)
+            given = Decoder.of_model(given)
         if given is not None and given.kind == emb.kind and given.digest == emb.decoder:
             return given
         if self._before_load is not None:

@@ -33,7 +33,7 @@ def main(argv: list[str]) -> int:
 
     import brdfkit
     from brdfkit.evaluation.metrics import brdf_log_rmse
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.methods.embedding import decoder_for, open_embedding
     from brdfkit.materials.synthetic import write_library
 
     # The library leaves torch's thread pool as it is; size it to the idle cores first, as
@@ -72,11 +72,13 @@ def main(argv: list[str]) -> int:
         print(f"sparse {name} from {len(samples)} samples: log-RMSE "
               f"{brdf_log_rmse(sparse_table, original):.4f}")
 
-        # 4. Interpolate two materials and evaluate the blend at a few direction pairs.
+        # 4. Interpolate two materials and evaluate the blend at a few direction pairs
+        #    (a renderable BRDF of either kind of embedding, from the decoder that made it).
         a, b = embs[os.path.basename(paths[1])], embs[os.path.basename(paths[2])]
+        decoder = decoder_for(a, argv[0])
         for t in (0.0, 0.3, 1.0):
             mix = brdfkit.interpolate(a, b, t)
-            brdf = NeuralBRDF.from_embedding(model, mix)
+            brdf = open_embedding(mix, decoder)
             wi = torch.tensor([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
             wo = torch.tensor([[0.0, 0.0, 1.0], [-0.6, 0.0, 0.8]])
             values = brdf.eval_dirs(wi, wo).cpu().numpy()

@@ -51,6 +51,12 @@ class Decoder:
     path: str
     label: str
 
+    @classmethod
+    def of_model(cls, model) -> "Decoder":
+        """The latent decoder of a hypernetwork loaded already
+        (:class:`~brdfkit.hypernet.loaded.NeuralModel`)."""
+        return cls("latent", model, model.fingerprint, getattr(model, "path", ""), model.short_fingerprint)
+
     @property
     def sizes(self) -> tuple:
         """The sizes (numbers per material) its embeddings may have."""
