@@ -14,8 +14,11 @@ one in ``docs/baselines.md``) and, with ``--json``, writes every measurement.
 
 Example (the figures in docs/baselines.md)::
 
-    python benchmarks/baselines_time.py --data /work/proxy/merl \\
-        --test-list ../shared/data/merl-test.txt --materials 5 --basis /tmp/basis.safetensors
+    python benchmarks/baselines_time.py --data proxies/merl \\
+        --test-list ../shared/data/merl-test.txt --materials 5 --basis basis.safetensors
+
+(``proxies/merl``: the reference proxies, made by
+``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl``; ``docs/data.md``.)
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ def main(argv=None) -> int:
 
     import torch
 
-    from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
+    from brdfkit.basis import fit_basis, load_basis, save_basis
     from brdfkit.methods.nbrdf import DEFAULT_STEPS, fit_nbrdf
     from brdfkit.io.merl import read_merl
     from brdfkit.evaluation.metrics import brdf_log_rmse
@@ -61,14 +64,14 @@ def main(argv=None) -> int:
            "train_materials": len(train), "rows": []}
 
     if args.basis and os.path.exists(args.basis):
-        basis = load_ipca(args.basis)
+        basis = load_basis(args.basis)
         out["ipca_fit_s"] = None
     else:
         t = time.perf_counter()
-        basis = fit_ipca(train, args.components)
+        basis = fit_basis(train, args.components)
         out["ipca_fit_s"] = time.perf_counter() - t
         if args.basis:
-            save_ipca(args.basis, basis)
+            save_basis(args.basis, basis)
     steps = args.nbrdf_steps or DEFAULT_STEPS
 
     for name in chosen:

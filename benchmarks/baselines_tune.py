@@ -13,8 +13,11 @@ most 6000 steps, patience 400; prints error, steps and seconds per (N, lr).
 
 Example (the figures in docs/baselines.md)::
 
-    python benchmarks/baselines_tune.py lambda --data /work/proxy/merl --test-list ../shared/data/merl-test.txt
-    python benchmarks/baselines_tune.py nbrdf-lr --data /work/proxy/merl --test-list ../shared/data/merl-test.txt
+    python benchmarks/baselines_tune.py lambda --data proxies/merl --test-list ../shared/data/merl-test.txt
+    python benchmarks/baselines_tune.py nbrdf-lr --data proxies/merl --test-list ../shared/data/merl-test.txt
+
+(``proxies/merl``: the reference proxies, made by
+``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl``; ``docs/data.md``.)
 """
 
 from __future__ import annotations
@@ -34,7 +37,7 @@ def _training(args):
 
 
 def tune_lambda(args) -> None:
-    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.basis import fit_basis
     from brdfkit.io.merl import read_merl
     from brdfkit.evaluation.metrics import brdf_log_rmse
     from brdfkit.acquisition.sampling import draw_samples
@@ -43,7 +46,7 @@ def tune_lambda(args) -> None:
     val = train[::4]
     fit = [f for f in train if f not in val]
     t = time.perf_counter()
-    basis = fit_ipca(fit, args.components)
+    basis = fit_basis(fit, args.components)
     print(f"basis: {len(fit)} materials, {time.perf_counter() - t:.1f} s; validation: {len(val)}", flush=True)
     res: dict = {}
     for f in val:

@@ -1,4 +1,4 @@
-"""What the compact storage of a PCA basis costs (``brdfkit.methods.ipca.basis_storage``).
+"""What the compact storage of a PCA basis costs (``brdfkit.basis.storage``).
 
 Fits the 8-component basis to the MERL training proxies less the fixed validation split,
 stores it as shipped (float16, every other ``phi_d`` cell) and as float32, reads both
@@ -18,7 +18,7 @@ import tempfile
 import numpy as np
 
 from brdfkit.geometry import N_CELLS
-from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
+from brdfkit.basis import fit_basis, load_basis, save_basis
 from brdfkit.acquisition.sampling import draw_samples
 
 import common
@@ -39,14 +39,14 @@ def main():
     lib = load_library(args.proxies)
     val = validation_materials()
     train = [n for n in lib.names if n not in val and not n.startswith("rgl:")]
-    basis = fit_ipca([lib.table(n) for n in train], 8, names=train)
+    basis = fit_basis([lib.table(n) for n in train], 8, names=train)
     with tempfile.TemporaryDirectory() as tmp:
         variants = {}
         for label, kw in (("float32, all cells", {}), ("float16, all cells", {"half": True}),
                           ("float16, half phi_d", {"half": True, "phi_stride": 2})):
             path = os.path.join(tmp, "b.safetensors")
-            save_ipca(path, basis, **kw)
-            variants[label] = (load_ipca(path), os.path.getsize(path))
+            save_basis(path, basis, **kw)
+            variants[label] = (load_basis(path), os.path.getsize(path))
         print(f"{'storage':22s} {'MB':>6s} " + " ".join(f"N={n:>5d}" for n in args.n) + "  projection")
         for label, (model, size) in variants.items():
             errs = {n: [] for n in args.n}

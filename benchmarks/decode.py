@@ -120,7 +120,7 @@ def against_bound(model, thread_counts, args, tmp) -> int:
         naive, _ = common.mm_chain(shapes, cells, cells, device=device)
         load_before = common.load_average()
         fns = {"decode": nb.to_table, "bound": blocked,
-               "decode_write": lambda: write_merl(out_path, api.decode(model, emb)),
+               "decode_write": lambda: write_merl(out_path, api.decode(emb, model)),
                "write": lambda: write_merl(out_path, table), "naive": naive}
         if threads > 1 and args.multi_repeat:
             # Extra threads on a busy machine take seconds per call: decode and bound only.
@@ -189,7 +189,7 @@ def per_operation(model, table, thread_counts, repeat) -> int:
               f"{model.cfg.hypo_layers}, latent {model.cfg.latent_dim}, decode block {kernels.DECODE_BLOCK}, "
               f"encode chunk {kernels.ENCODE_CHUNK}")
         for name, n, fn in (("decode (to_table)", f"{cells:,} cells", nb.to_table),
-                            ("encode dense table", f"{cells:,} cells", lambda: api.encode(model, table)),
+                            ("encode dense table", f"{cells:,} cells", lambda: api.encode(table, model)),
                             ("eval_dirs", "262,144 pairs", lambda: nb.eval_dirs(wi, wo))):
             wall, cpu = timed(fn)
             print(f"{name:18s} {n:>15s}: wall min {min(wall):.3f} s, median {statistics.median(wall):.3f} s;"

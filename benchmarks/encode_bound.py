@@ -126,7 +126,7 @@ def main(argv=None):
 
             flops = enc_flops + sum(f for _, f in dec)
             t = common.best_of({"network": network, "bound": bound, "module": module,
-                                "library": lambda: NeuralBRDF.from_embedding(model, api.encode(model, s))},
+                                "library": lambda: NeuralBRDF.from_embedding(model, api.encode(s, model))},
                                args.repeat, warmup=2)
             r = {"n": n, "network_s": t["network"], "bound_mm_s": t["bound"], "library_s": t["library"],
                  "model_definition_s": t["module"],

@@ -46,7 +46,8 @@ def main():
     from common import load_average, machine
 
     from brdfkit.api import load_model
-    from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+    from brdfkit.hypernet.refine_on_screen import compress_table
+    from brdfkit.render.objective import ObjectiveConfig
     from brdfkit.io.merl import read_merl
     from brdfkit.evaluation.metrics import brdf_log_rmse, delta_e_2000, psnr
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
@@ -71,7 +72,7 @@ def main():
                 if steps == 0:
                     emb, held, ran, stopped = encode_table(model, table, name), None, 0, "encoder"
                 else:
-                    r = compress_table(model, table, CompressConfig(steps=steps), name)
+                    r = compress_table(model, table, ObjectiveConfig(steps=steps), name)
                     emb, held, ran, stopped = r.embedding, r.heldout, r.steps, r.stopped
                 seconds = time.perf_counter() - t
                 pred = NeuralBRDF.from_embedding(model, emb).to_table()

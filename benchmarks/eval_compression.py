@@ -42,13 +42,14 @@ def _compressor(spec):
 
 def _encode(model, table, name, kind, config):
     """``brdfkit encode``'s embedding, with ``config`` (``--config``) overriding the
-    refinement's :class:`~brdfkit.hypernet.refine_on_screen.CompressConfig` fields."""
+    refinement's :class:`~brdfkit.render.objective.ObjectiveConfig` fields."""
     from brdfkit import api
-    from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+    from brdfkit.hypernet.refine_on_screen import compress_table
+    from brdfkit.render.objective import ObjectiveConfig
 
     if kind != "hypernet" or not config:
-        return api.encode(model, table, source=name, refine=kind == "hypernet")
-    return compress_table(model, table, CompressConfig(**config), name).embedding
+        return api.encode(table, model, source=name, refine=kind == "hypernet")
+    return compress_table(model, table, ObjectiveConfig(**config), name).embedding
 
 
 def _work(args):
@@ -81,7 +82,7 @@ def _work(args):
             if kind == "ipca":
                 pred = METHODS["ipca"].compress_fn(m, table, name)
             else:
-                pred = api.decode(m, _encode(m, table, name, kind, config))
+                pred = api.decode(_encode(m, table, name, kind, config), m)
             secs.append(time.perf_counter() - t)
             preds.append(pred)
         imgs = render_many([TableBRDF(table, device="cpu")] + [TableBRDF(p, device="cpu") for p in preds], scene)
@@ -103,7 +104,7 @@ def main():
     ap.add_argument("--jobs", type=int, default=1)
     ap.add_argument("--floor", type=float, default=35.0, help="count materials below this PSNR")
     ap.add_argument("--config", nargs="*", default=[], metavar="KEY=VALUE",
-                    help="refinement settings (CompressConfig fields, numbers) instead of the defaults")
+                    help="refinement settings (ObjectiveConfig fields, numbers) instead of the defaults")
     ap.add_argument("--json", default=None)
     args = ap.parse_args()
     from common import load_average, machine

@@ -85,7 +85,7 @@ def main():
         from brdfkit import api
         from brdfkit.hypernet.packing import load_builtin
         hyper = load_builtin(args.hypernet, device="cpu")
-        variants["hypernet"] = lambda s: api.sparse(hyper, s)[0]
+        variants["hypernet"] = lambda s: api.sparse(s, hyper)[0]
     rows = [(k, s) for k in variants for s in protocols]  # one table row per method and sampling
     errs = {r: {n: [] for n in args.n} for r in rows}
     psnrs = {r: {n: [] for n in args.n} for r in rows}

@@ -2,7 +2,7 @@
 """Per-pair cost of a table render's BRDF evaluations, against the same code at another git
 revision, in one process: the trilinear lookup (:class:`brdfkit.geometry.trilinear.TrilinearTable`)
 and the whole :meth:`brdfkit.render.renderable.TableBRDF.eval_dirs` (directions -> Rusinkiewicz
-angles -> lookup; issue 14 item 1, ``docs/performance.md``).
+angles -> lookup; issue 14 item 1, ``docs/notes/performance.md``).
 
 The direction pairs are those the quadrature evaluates in the reference scene at
 ``--resolution``, in its blocks and column-major as it hands them over (every
@@ -15,7 +15,7 @@ as it was up to this lookup's change
 in interleaved rounds, best of ``--repeat`` (process CPU time; another job on the machine
 slows both alike), and their results compared bit for bit (exit status 1 if they differ).
 
-Example (the figures of docs/performance.md, "Table lookup")::
+Example (the figures of docs/notes/performance.md, "Table lookup")::
 
     python benchmarks/lookup.py --against c198071 --resolution 256 --threads 1 --repeat 7
 """

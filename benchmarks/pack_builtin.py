@@ -11,7 +11,7 @@ prior's mean log RMSE per N from uniform samples (held-out materials only), and 
 renders' figures (``renders``: PSNR and Delta E per N, and ``encode`` from a compression
 run of the model), as ``brdfkit models`` shows them.
 
-    python benchmarks/pack_builtin.py --src /work/models --dst brdfkit/models \
+    python benchmarks/pack_builtin.py --src runs/models --dst brdfkit/models \
         --validation merl80-l40=bench-sparse/bench.json
     python benchmarks/pack_builtin.py --dst brdfkit/models --validation-only \
         --validation merl80-l40=bench-sparse/bench.json     # the manifest's figures alone
@@ -106,7 +106,7 @@ def main():
     if not args.validation_only and not args.src:
         ap.error("--src is required (unless --validation-only)")
 
-    from brdfkit.methods.prior.prior_file import pack_prior
+    from brdfkit.methods.prior.prior_file import basis_entry, pack_prior
     from brdfkit.models.builtin import write_manifest
     from brdfkit.hypernet.packing import manifest_entry, pack_model
 
@@ -166,6 +166,7 @@ def main():
         if prior:
             entry["prior"] = prior
             entry["prior_fingerprint"] = pack_prior(os.path.join(args.src, prior), os.path.join(args.dst, prior), basis)
+            entry.update(basis_entry(os.path.join(args.dst, prior)))
         entries.append(entry)
         print(f"{name}: {os.path.getsize(dst) / 1e6:.2f} MB" + (f" + prior {os.path.getsize(os.path.join(args.dst, prior)) / 1e6:.2f} MB" if prior else ""))
     order = [m[0] for m in MODELS]

@@ -31,7 +31,7 @@ synthetic tables), and the finer one against brute-force integration (a 800 x 16
 lat-long grid of directions, closed-form GGX) at four sphere normals, where the default
 quadrature's error is reported too.
 
-Examples (the figures in docs/render.md and docs/performance.md)::
+Examples (the figures in docs/render.md and docs/notes/performance.md)::
 
     python benchmarks/render.py --threads 2 --resolution 256 --spp 16 --repeat 2
     python benchmarks/render.py --resolution 256 --spp 4

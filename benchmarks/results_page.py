@@ -1,4 +1,4 @@
-"""The page ``docs/results.md``, composed from two ``brdfkit bench`` results.
+"""The page ``docs/notes/results.md``, composed from two ``brdfkit bench`` results.
 
 Everything that depends on a number is computed here from the records of the sparse
 and compression ``bench.json`` (means and spreads by :func:`brdfkit.bench.summarise`,
@@ -35,9 +35,9 @@ METHOD_TEXT = {
              "prior mean of its coefficients that a set encoder predicts. Not the paper's architecture "
              "([generalisation.md](generalisation.md)).",
     "ipca": "**ipca**: the PCA baseline (Nielsen et al. 2015), a basis fitted on the same 80 training "
-            "materials, ridge fit to the samples ([baselines.md](baselines.md)).",
+            "materials, ridge fit to the samples ([baselines.md](../baselines.md)).",
     "nbrdf": "**nbrdf**: a 6-21-21-3 NBRDF network (Sztrajman et al. 2021) fitted to the samples of each "
-             "material from scratch ([baselines.md](baselines.md)).",
+             "material from scratch ([baselines.md](../baselines.md)).",
     "hypernet": "**hypernet**: the paper's method, the encoder / decoder of the built-in `merl80-l40` "
                 "(set encoder of the samples, hypernetwork decoder of a neural BRDF), as `brdfkit sparse "
                 "--method hypernet` runs it: then refined on the samples (the latent, then the hyponet's "
@@ -45,14 +45,14 @@ METHOD_TEXT = {
                 "[generalisation.md](generalisation.md), Lever 4).",
 }
 PLANNED_TEXT = ("**M (planned)**: method M from samples measured at the directions `brdfkit plan -n N -m "
-                "merl80-l40 --design render` chooses for the learnt prior ([planning.md](planning.md)); the same "
+                "merl80-l40 --design render` chooses for the learnt prior ([planning.md](../planning.md)); the same "
                 "directions for every material and method, another plan (seed) per draw.")
-COMPRESSION_TEXT = ("**Compressors**: `hypernet basis-39 (M)` is `brdfkit encode` then `decode` with the built-in "
-                    "M as it runs by default since issue 29, a basis embedding: the coefficients of the 13 leading "
-                    "components of M's PCA basis (39 numbers), refined on the objective scenes' renders "
-                    "([compression.md](compression.md)); `hypernet 40-D (M)` / `7-D` is the hypernetwork's latent "
-                    "(`encode --kind latent`, the paper's compression, refined on screen); `ipca 13 components`, "
-                    "`pca K components`: least-squares projection onto a PCA basis fitted on the same materials.")
+COMPRESSION_TEXT = ("**Compressors**: `basis-39 (B)` is `brdfkit encode` then `decode` with the built-in "
+                    "M as it runs by default, a basis embedding: the coefficients of the 13 leading components of "
+                    "M's PCA basis B (39 numbers), refined on the objective scenes' renders "
+                    "([compression.md](compression.md)); `latent-40 (M)` / `latent-7` is the hypernetwork's latent "
+                    "(`encode --kind latent`, the paper's compression, refined on screen); `pca-K (3K numbers, B)`, "
+                    "`pca-K (3K numbers)`: least-squares projection onto a PCA basis fitted on the same materials.")
 _HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
 
 
@@ -74,7 +74,7 @@ def scene_section(rows, key_cols, cfg, what: str) -> list[str]:
     if len(scenes) < 2:
         return []
     return [f"#### {what}, per scene: PSNR (dB) / Delta E 2000", "",
-            "Each scene of the suite ([render.md](render.md#the-scene-suite)). Today's built-in models were "
+            "Each scene of the suite ([render.md](../render.md#the-scene-suite)). Today's built-in models were "
             "tuned on renders of the **reference** environment (issue 21): its column is in-sample for them "
             "and given for continuity. No objective fitted the others (`brdfkit encode` refines on the "
             "objective scenes `studio-0..3`, never a judged one; [render-error.md](render-error.md)).", "",
@@ -377,13 +377,17 @@ def family_of(name: str, proxies: str) -> str:
 
 
 def _paper_comp(label: str, latent) -> str:
-    """The paper's figure beside a row: its IPCA beside the 8-component one (Nielsen et
-    al.'s IPCA-8, the brief's baseline), none beside the other component counts."""
-    words = label.split()
-    if words[0] in ("pca", "ipca"):
-        got = PAPER_COMPRESSION[("ipca", None)] if len(words) > 1 and words[1] == "8" else None
+    """The paper's figure beside a row: its IPCA beside the 8-component PCA (Nielsen et al.'s
+    IPCA-8, the brief's baseline), its hypernetwork beside a latent of its size
+    (``latent-40 (M)``; the older labels ``hypernet 40-D (M)`` too), none beside the rest."""
+    head = label.split()[0]
+    if head.startswith("pca-") or head in ("pca", "ipca"):
+        k = head[4:] if head.startswith("pca-") else (label.split() + [""])[1]
+        got = PAPER_COMPRESSION[("ipca", None)] if k == "8" else None
+    elif head.startswith("latent-") or head == "hypernet":
+        got = PAPER_COMPRESSION.get(("hypernet", latent))
     else:
-        got = PAPER_COMPRESSION.get((words[0], latent))
+        got = None
     return "-" if got is None else f"{got:.2f}"
 
 

@@ -22,8 +22,11 @@ Four jobs (any combination in one run):
 ``--json PATH`` writes the record (command, machine, load average at start and end,
 every row). Example (the figures of docs/rgl-bsdf.md)::
 
-    python benchmarks/rgl_roundtrip.py --data /work/px/merl /work/px/rgl --roundtrip \\
+    python benchmarks/rgl_roundtrip.py --data proxies/merl proxies/rgl --roundtrip \\
         --json benchmarks/results/2026-11-26-rgl-roundtrip.json
+
+(``proxies/merl``, ``proxies/rgl``: the reference proxies, made by
+``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl`` and ``... rgl proxies/rgl``.)
 
 Benchmarks import nothing from ``tests/``; one torch thread (``--threads``).
 """

@@ -5,7 +5,7 @@ count as a user sees them), prints its table, and writes its JSON; this driver m
 them into ``--out`` (default ``perf-results.json``) with the machine, the load average
 before and after each, and each one's wall time. Settings are sized to finish in under
 10 minutes on the 2-core project machine under the load of two training runs; see
-``docs/performance.md`` for what each measures and the full-size settings.
+``docs/notes/performance.md`` for what each measures and the full-size settings.
 
 Usage::
 

@@ -1,4 +1,4 @@
-"""Re-measure the figures of docs/stability.md (stiff materials, extreme inputs).
+"""Re-measure the figures of docs/notes/stability.md (stiff materials, extreme inputs).
 
     python benchmarks/stability.py              # everything, ~3-5 minutes on 2 cores
     python benchmarks/stability.py encode csv   # some sections only
@@ -91,11 +91,11 @@ def section_encode(folder):
         model, _, _ = common.untrained_model(folder, config=config,
                                              name=f"m-{'tiny' if config else 'paper'}.safetensors")
         s = draw_samples(tables()["mirror"], 1_000_000, seed=3)
-        api.encode(model, draw_samples(tables()["mirror"], 10, seed=0))  # warm up
-        emb, sec, peak = _traced(lambda: api.encode(model, s))
+        api.encode(draw_samples(tables()["mirror"], 10, seed=0), model)  # warm up
+        emb, sec, peak = _traced(lambda: api.encode(s, model))
         print(f"  {label:18s} 10^6 samples: {sec:.2f} s, NumPy peak {peak:.0f} MB "
               f"(input {sum(a.nbytes for a in (s.theta_h, s.theta_d, s.phi_d, s.rgb)) / 2**20:.0f} MB), "
-              f"finite {bool(np.isfinite(emb.latent).all())}")
+              f"finite {bool(np.isfinite(emb.values).all())}")
 
 
 def section_csv(folder):
@@ -195,8 +195,8 @@ def section_extrapolate(folder, steps=300):
     from brdfkit.acquisition.sampling import draw_samples
 
     model, _ = _fit(folder, os.path.join(folder, "x.safetensors"), steps)
-    a = api.encode(model, draw_samples(tables()["mirror"], 400, seed=4))
-    b = api.encode(model, draw_samples(tables()["black"], 400, seed=4))
+    a = api.encode(draw_samples(tables()["mirror"], 400, seed=4), model)
+    b = api.encode(draw_samples(tables()["black"], 400, seed=4), model)
     probe = torch.from_numpy(np.ascontiguousarray(grid_hd()[::97]))
     for t in (-1000.0, -100.0, -10.0, -3.0, 0.5, 3.0, 10.0, 100.0, 1000.0):
         nb = NeuralBRDF.from_embedding(model, api.interpolate(a, b, t, allow_extrapolation=True))

@@ -13,7 +13,7 @@ evaluates each new one as the user would use the model: per held-out material,
 printed with the time at which it *stops improving*: the first evaluation after which no
 later one is more than ``--tol`` (relative) better than the best so far.
 
-Limits (``docs/performance.md``): the evaluator shares the CPU with the training process
+Limits (``docs/notes/performance.md``): the evaluator shares the CPU with the training process
 (one torch thread, a few seconds per evaluation), so the training clock runs a little
 slow; a checkpoint overwritten before the evaluator got to it is skipped; synthetic
 materials are easier and fewer than MERL's 80, so the times say how fast ``fit`` gets
@@ -120,7 +120,7 @@ def main(argv=None):
                     model = NeuralModel(net, cfg, rho_ref, weights_fingerprint(net), {}, torch.device("cpu"), ckpt)
                     errs = []
                     for n in held:
-                        table, _ = api.sparse(model, samples[n])
+                        table, _ = api.sparse(samples[n], model)
                         errs.append(brdf_log_rmse(table, tables[n]))
                     point = (float(state["elapsed"]), int(state["step"]), float(np.mean(errs)))
                     curve.append(point)

@@ -1,14 +1,17 @@
-"""The library interface: load a model, encode, decode, reconstruct from sparse samples,
-interpolate, train.
-
-Everything a user does with a trained hypernetwork (Gokbudak et al. 2024) in a few calls::
+"""The library interface: encode, decode, reconstruct from sparse samples, interpolate,
+train, each the same job, with the same defaults and the same bytes, as the command of its
+name::
 
     import brdfkit
-    model = brdfkit.load_model("model.safetensors")     # or a built-in's name
-    emb = brdfkit.encode(model, "teflon.binary")        # a MERL table -> 40 numbers
-    table = brdfkit.decode(model, emb)                   # -> (90, 90, 180, 3), 1/sr
-    table, emb = brdfkit.sparse(model, "samples.csv")    # N measurements -> dense table
+    emb = brdfkit.encode("teflon.binary")                # a MERL table -> 39 numbers
+    emb21 = brdfkit.encode("teflon.binary", size=21)     # or 21
+    table = brdfkit.decode(emb)                          # -> (90, 90, 180, 3), 1/sr
+    table, _ = brdfkit.sparse("samples.csv")             # N measurements -> dense table
     mix = brdfkit.interpolate(emb_a, emb_b, 0.3)         # material editing
+
+``model`` is ``None`` (the default built-in, or for an embedding the built-in part whose
+digest it records), a built-in's name, a file, or an object already loaded
+(:func:`load_model` for a hypernetwork).
 
 Errors about what was passed in are :class:`~brdfkit.errors.InputError` (or its
 subclasses ``FormatError`` and ``ModelMismatchError``) with a one-line message.
@@ -87,148 +90,231 @@ def _load_input(obj, source: str):
                      f"table, or the path of a .binary or .csv file")
 
 
-def encode(model, samples_or_table, *, source: str = "", refine: bool = True,
-           steps: int | None = None, max_seconds: float | None = None, kind: str | None = None) -> Embedding:
-    """Encode a material into an embedding.
+def _decoder(kind: str | None, model, device):
+    """The :class:`~brdfkit.methods.embedding.Decoder` ``encode`` uses: ``model`` a name,
+    a path or ``None`` (:func:`~brdfkit.methods.embedding.choose_decoder`), a decoder as
+    it is, or a loaded hypernetwork (its built-in's basis unless ``kind="latent"``, when
+    it ships one; else its latent)."""
+    from brdfkit.methods.embedding import Decoder, choose_decoder, get_kind
 
-    A dense table becomes, by default, a *basis embedding* when the model ships a PCA
-    basis (the built-ins with a learnt prior): the coefficients of its ``latent_dim // 3``
-    leading components, the table's projection refined on screen
-    (:mod:`brdfkit.methods.ipca.embedding`; issue 29: it holds for materials outside the
-    training set, where the hypernetwork's latent does not). Otherwise (``kind="latent"``,
-    or a model without a basis) it is the set encoder's pass over all its measured cells
-    (Gokbudak et al. 2024), then, by default, that latent refined on screen for at most
-    ``steps`` steps: descended on the render-aligned error and kept only where held-out
-    pixels agree (:func:`brdfkit.hypernet.refine_on_screen.compress_table`; never worse
-    there than the encoder's pass). Either way the same table gives the same embedding to
-    the bit, whatever the machine's load. A sample set is encoded by the encoder's pass
-    alone (``brdfkit sparse --method hypernet`` refines on samples).
+    if model is None or isinstance(model, (str, os.PathLike)):
+        return choose_decoder(kind, model, device)
+    if isinstance(model, Decoder):
+        if kind is not None and get_kind(kind).name != model.kind:
+            raise InputError(f"--kind {kind}: the given decoder is a {model.kind} one")
+        return model
+    if not hasattr(model, "fingerprint") or not hasattr(model, "cfg"):
+        raise InputError(f"model: expected a name, a path, a Decoder or a loaded hypernetwork, not a "
+                         f"{type(model).__name__}")
+    from brdfkit.models.builtin import builtin_models
+
+    entry = next((m for m in builtin_models() if m.fingerprint == model.fingerprint), None)
+    if kind != "latent" and entry is not None and entry.basis:
+        return choose_decoder("basis", entry.name, device)
+    if kind not in (None, "latent"):
+        raise InputError(f"model {model.fingerprint[:12]} ships no PCA basis (only the installed built-ins with a "
+                         f"learnt prior do); encode a latent instead")
+    return Decoder.of_model(model)
+
+
+def encode(data, model=None, *, kind: str | None = None, size: int | None = None, steps: int | None = None,
+           refine: bool = True, max_seconds: float | None = None, source: str = "", device=None) -> Embedding:
+    """Encode a material into an embedding (``brdfkit encode``).
+
+    A dense table becomes, by default, a *basis embedding* when the model is a built-in
+    that ships a PCA basis: the coefficients of the basis's leading components, the
+    table's projection refined on renders of the objective scenes
+    (:mod:`brdfkit.basis.coefficients`; it holds for materials outside the training set,
+    where a hypernetwork's latent does not). With ``kind="latent"`` (or a model that is a
+    hypernetwork file) it is the hypernetwork's latent: the set encoder's pass over all
+    measured cells (Gokbudak et al. 2024), refined on the same renders
+    (:func:`brdfkit.hypernet.refine_on_screen.compress_table`). Either way the same table
+    gives the same embedding to the bit, whatever the machine's load. A sample set is
+    encoded by the hypernetwork's encoder pass alone (``brdfkit sparse`` reconstructs
+    from samples).
 
     Parameters
     ----------
+    data
+        A dense table ``(90, 90, 180, 3)`` in 1/sr with NaN where unmeasured (all measured
+        cells are used), a :class:`~brdfkit.io.samples.SampleSet` (any ``N >= 1``), or the
+        path of a MERL ``.binary``, an RGL ``.bsdf`` or a ``.csv`` sample set.
     model
-        :class:`~brdfkit.hypernet.loaded.NeuralModel` (from :func:`load_model`).
-    samples_or_table
-        A :class:`~brdfkit.io.samples.SampleSet` (any ``N >= 1``), a dense table
-        ``(90, 90, 180, 3)`` in 1/sr with NaN where unmeasured (all measured cells are
-        used), or the path of a MERL ``.binary``, an RGL ``.bsdf`` or a ``.csv`` sample set.
+        A built-in's name, a basis or hypernetwork file, a loaded hypernetwork
+        (:func:`load_model`), a :class:`~brdfkit.methods.embedding.Decoder`, or ``None``:
+        the default built-in.
+    kind
+        ``"basis"``, ``"latent"`` or ``None`` (module text above;
+        :data:`brdfkit.methods.embedding.KINDS`).
+    size
+        Numbers per material (a basis embedding: ``3 K``, default 39; a latent: the
+        model's latent size).
+    steps
+        Most refinement steps (``None``: the kind's default; 0: none).
+    refine
+        ``False``: no refinement (the projection, or the paper's single encoder pass).
+    max_seconds
+        A wall-clock cap on a latent's refinement (default none; a capped result depends
+        on the machine's speed: its ``refinement`` record says ``"max_seconds"``).
     source
         Provenance recorded in the embedding; defaults to the file name or the sample
         set's source.
-    refine
-        Refine a table's latent on screen (``False``: the paper's single pass).
-    steps
-        Most steps of that refinement (default
-        :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_STEPS`; 0: none).
-    max_seconds
-        A wall-clock cap on the refinement of a latent (default none; a capped result
-        depends on the machine's speed: its ``refinement`` record says ``"max_seconds"``).
-    kind
-        ``"basis"``, ``"latent"`` or ``None``: a basis embedding when the model ships a
-        basis, else a latent (a sample set always gets a latent).
+    device
+        Torch device of a model loaded here (default: CUDA when available, else CPU).
 
     Returns
     -------
     Embedding
-        float32 latent of the model's size (a basis embedding: ``3 K`` coefficients and
-        its basis's sha256), with the model's fingerprint and the number of samples
-        averaged.
+        ``size`` float32 values of its kind, the decoder's digest, the number of samples
+        it was made from.
 
     Examples
     --------
-    >>> from brdfkit.testing.examples import lambertian_table, tiny_model
+    >>> from brdfkit.testing.examples import lambertian_table, tiny_basis_file, tiny_model
+    >>> emb = encode(lambertian_table(), tiny_basis_file("tiny-basis.safetensors"), size=6, steps=0)
+    >>> emb.kind, emb.size
+    ('basis', 6)
     >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")  # no basis: a latent
-    >>> emb = encode(model, lambertian_table(), refine=False)  # the encoder's one pass
-    >>> emb.latent.shape, emb.sample_count
-    ((7,), 1111432)
+    >>> emb = encode(lambertian_table(), model, refine=False)  # the encoder's one pass
+    >>> emb.kind, emb.size, emb.sample_count
+    ('latent', 7, 1111432)
     >>> from brdfkit.acquisition.sampling import draw_samples
-    >>> encode(model, draw_samples(lambertian_table(), 40, seed=0)).sample_count
+    >>> encode(draw_samples(lambertian_table(), 40, seed=0), model).sample_count
     40
     """
-    from brdfkit.hypernet.encoding import encode_samples
-    from brdfkit.methods.embedding import encode_table
+    from brdfkit.methods.embedding import encode_with
 
-    data, name = _load_input(samples_or_table, source)
+    data, name = _load_input(data, source)
     if not isinstance(data, np.ndarray):
-        if kind == "basis":
-            raise InputError(f"{name or 'samples'}: a basis embedding is made from a dense table; a sample set "
-                             f"is encoded as a latent")
         if kind not in (None, "latent"):
-            raise InputError(f"embedding kind {kind!r}: expected 'basis' or 'latent'")
-        return encode_samples(model, data, name)
-    return encode_table(model, data, name, refine=refine, steps=steps, max_seconds=max_seconds, kind=kind)
+            raise InputError(f"{name or 'samples'}: a {kind} embedding is made from a dense table; a sample set is "
+                             f"encoded as a hypernetwork latent")
+        dec = _decoder("latent", model, device)
+        from brdfkit.hypernet.encoding import encode_samples
+
+        return encode_samples(dec.obj, data, name)
+    return encode_with(_decoder(kind, model, device), data, source=name, size=size, steps=steps,
+                       max_seconds=max_seconds, refine=refine)
 
 
-def decode(model, embedding, *, source: str = "") -> np.ndarray:
-    """Decode an embedding into a dense table.
+def decode(embedding, model=None, *, source: str = "", device=None) -> np.ndarray:
+    """Decode an embedding into a dense table (``brdfkit decode``).
 
     Parameters
     ----------
-    model
-        The model that made the embedding (else
-        :class:`~brdfkit.errors.ModelMismatchError`).
     embedding
         :class:`Embedding` or the path of an ``.emb`` file.
+    model
+        The decoder that made it: a built-in's name, a file, a loaded hypernetwork or a
+        :class:`~brdfkit.methods.embedding.Decoder`; ``None``: the installed built-in part
+        whose digest the embedding records (another decoder:
+        :class:`~brdfkit.errors.ModelMismatchError`).
     source
         The name messages give the embedding (default: its path, when given one).
+    device
+        Torch device of a model loaded here.
 
     Returns
     -------
     numpy.ndarray
-        float64 ``(90, 90, 180, 3)``, 1/sr, NaN where the model's reference table is
-        unmeasured (below the horizon).
+        float64 ``(90, 90, 180, 3)``, 1/sr, NaN where unmeasured (below the horizon).
 
     Examples
     --------
     >>> import numpy as np
-    >>> from brdfkit.testing.examples import lambertian_table, tiny_model
-    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")
-    >>> table = decode(model, encode(model, lambertian_table(), refine=False))
+    >>> from brdfkit.testing.examples import lambertian_table, tiny_basis_file
+    >>> basis = tiny_basis_file("tiny-basis.safetensors")
+    >>> table = decode(encode(lambertian_table(), basis, size=6, steps=0), basis)
     >>> table.shape, bool(np.nanmin(table) >= 0)
     ((90, 90, 180, 3), True)
     """
-    from brdfkit.methods.embedding import embedding_brdf
+    from brdfkit.methods.embedding import Decoder, decoder_for, open_embedding
 
     name = source
     if isinstance(embedding, (str, os.PathLike)):
         from brdfkit.io.embedding import read_embedding
+
         name = source or os.fspath(embedding)
         embedding = read_embedding(embedding)
-    return embedding_brdf(model, embedding, name).to_table()
+    if model is not None and not isinstance(model, (str, os.PathLike, Decoder)):
+        model = _decoder(embedding.kind, model, device)
+    dec = model if isinstance(model, Decoder) else decoder_for(embedding, model, device, name)
+    return open_embedding(embedding, dec, name).to_table()
 
 
-def sparse(model, samples, *, source: str = ""):
-    """Reconstruct a dense table from sparse measurements (the paper's main use).
+def _method_of(model) -> str:
+    """The reconstruction method of a loaded model: a hypernetwork, a PCA basis (IPCA) or
+    a learnt prior."""
+    from brdfkit.basis.model import PcaBasis
+
+    if isinstance(model, PcaBasis):
+        return "ipca"
+    if hasattr(model, "fingerprint") and hasattr(model, "cfg") and hasattr(model, "rho_ref"):
+        return "hypernet"
+    if hasattr(model, "basis") and hasattr(model, "net"):
+        return "prior"
+    raise InputError(f"model: expected a name, a path or a loaded model, not a {type(model).__name__}")
+
+
+def sparse(samples, model=None, *, method: str = "auto", seed: int = 0, device=None, **options):
+    """Reconstruct a dense table from sparse measurements (``brdfkit sparse``): the same
+    method, model and bytes as the command line.
 
     Parameters
     ----------
     samples
         :class:`~brdfkit.io.samples.SampleSet` or the path of a ``.csv`` sample set.
+    model
+        A built-in's name or a model file; ``None``: the default built-in
+        (:func:`brdfkit.methods.choice.choose`); or a model loaded already (a
+        hypernetwork, a :class:`~brdfkit.basis.model.PcaBasis`, a learnt prior).
+    method
+        ``"auto"`` (a built-in's learnt prior when it has one, else its hypernetwork; a
+        file's own method) or a name of :data:`brdfkit.methods.METHODS`.
+    seed
+        Drives any randomness of the method.
+    options
+        The method's options by name (:class:`brdfkit.methods.Method`).
 
     Returns
     -------
     tuple
         ``(table, embedding)``: float64 ``(90, 90, 180, 3)`` in 1/sr (NaN below the
-        horizon) and the :class:`Embedding` it was decoded from.
+        horizon) and the :class:`Embedding` it was decoded from, or ``None`` for a method
+        that makes none (the learnt prior, IPCA, NBRDF).
 
     Examples
     --------
     >>> from brdfkit.acquisition.sampling import draw_samples
-    >>> from brdfkit.testing.examples import lambertian_table, tiny_model
-    >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")
-    >>> table, emb = sparse(model, draw_samples(lambertian_table(), 40, seed=0))
-    >>> table.shape, emb.sample_count
-    ((90, 90, 180, 3), 40)
+    >>> from brdfkit.testing.examples import lambertian_table, tiny_basis_file
+    >>> basis = tiny_basis_file("tiny-basis.safetensors")
+    >>> table, emb = sparse(draw_samples(lambertian_table(), 40, seed=0), basis, method="ipca")
+    >>> table.shape, emb is None
+    ((90, 90, 180, 3), True)
     """
-    if isinstance(samples, (str, os.PathLike)) and not os.fspath(samples).lower().endswith(".csv"):
-        raise InputError(f"{os.fspath(samples)}: sparse reconstruction takes a .csv sample set "
-                         f"(make one with `brdfkit sample`)")
-    emb = encode(model, samples, source=source)
-    return decode(model, emb), emb
+    from brdfkit.methods import METHODS
+    from brdfkit.methods.choice import choose
+
+    if isinstance(samples, (str, os.PathLike)):
+        if not os.fspath(samples).lower().endswith(".csv"):
+            raise InputError(f"{os.fspath(samples)}: sparse reconstruction takes a .csv sample set "
+                             f"(make one with `brdfkit sample`)")
+        from brdfkit.io.samples import read_samples
+
+        samples = read_samples(samples)
+    if model is not None and not isinstance(model, (str, os.PathLike)):  # loaded already
+        m = METHODS[_method_of(model) if method == "auto" else method]
+        return m.sparse(samples, model, seed=seed, device=device, options=m.make_options(**options))
+    choice = choose(method, model)
+    m = METHODS[choice.method]
+    if m.needs_model and choice.path is None:
+        raise InputError(f"method {choice.method!r} needs a {m.model_kind} (-m); no default built-in is installed")
+    return m.sparse(samples, choice.path, seed=seed, device=device, options=m.make_options(**options))
 
 
 def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool = False) -> Embedding:
-    """Blend two embeddings of the same model: ``(1 - t) a + t b``.
+    """Blend two embeddings of the same kind, decoder and size: ``(1 - t) a + t b``
+    (``brdfkit interpolate``; for a basis embedding, a blend of the log-mapped tables).
 
     Computed in float64 and rounded to float32, so ``t = 0`` gives ``a`` and ``t = 1``
     gives ``b`` exactly.
@@ -236,18 +322,18 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
     Raises
     ------
     ModelMismatchError
-        The embeddings come from different models (fingerprints or latent sizes differ).
+        The embeddings differ in kind, decoder or size.
     InputError
         ``t`` not a finite number, or outside ``[0, 1]`` without ``allow_extrapolation``.
 
     Examples
     --------
     >>> import numpy as np
-    >>> a = Embedding(np.zeros(7, np.float32), "f" * 64, "a", 0)
-    >>> b = Embedding(np.ones(7, np.float32), "f" * 64, "b", 0)
-    >>> interpolate(a, b, 0.25).latent.tolist()
-    [0.25, 0.25, 0.25, 0.25, 0.25, 0.25, 0.25]
-    >>> interpolate(a, b, 0.0).latent is not a.latent, bool((interpolate(a, b, 1.0).latent == b.latent).all())
+    >>> a = Embedding(np.zeros(6, np.float32), "basis", "f" * 64, "a")
+    >>> b = Embedding(np.ones(6, np.float32), "basis", "f" * 64, "b")
+    >>> interpolate(a, b, 0.25).values.tolist()
+    [0.25, 0.25, 0.25, 0.25, 0.25, 0.25]
+    >>> interpolate(a, b, 0.0).values is not a.values, bool((interpolate(a, b, 1.0).values == b.values).all())
     (True, True)
     """
     try:
@@ -258,22 +344,19 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
         raise InputError(f"t: {t!r} is not a finite number")
     if not allow_extrapolation and not 0.0 <= t <= 1.0:
         raise InputError(f"t = {t:g} is outside [0, 1]; pass allow_extrapolation=True to extrapolate")
-    if a.basis != b.basis:
+    if a.kind != b.kind:
+        raise ModelMismatchError(f"cannot interpolate a {a.kind} embedding ({a.source or 'a'}) with a {b.kind} one "
+                                 f"({b.source or 'b'}): encode both the same way")
+    if a.decoder != b.decoder or a.size != b.size:
         raise ModelMismatchError(
-            f"cannot interpolate a {'basis embedding' if a.basis else 'latent'} ({a.source or 'a'}) with a "
-            f"{'basis embedding' if b.basis else 'latent'} ({b.source or 'b'}): encode both the same way")
-    if a.model_fingerprint != b.model_fingerprint or a.latent_dim != b.latent_dim:
-        raise ModelMismatchError(
-            f"cannot interpolate embeddings of different models: {a.source or 'a'} is from model "
-            f"{a.model_fingerprint[:12]} (latent {a.latent_dim}), {b.source or 'b'} from model "
-            f"{b.model_fingerprint[:12]} (latent {b.latent_dim})")
-    la = a.latent.astype(np.float64)
-    lb = b.latent.astype(np.float64)
+            f"cannot interpolate embeddings of different decoders or sizes: {a.source or 'a'} is {a.size} numbers "
+            f"of decoder {a.decoder[:12]}, {b.source or 'b'} {b.size} of decoder {b.decoder[:12]}")
+    la = a.values.astype(np.float64)
+    lb = b.values.astype(np.float64)
     latent = ((1.0 - t) * la + t * lb).astype(np.float32)
     if not np.isfinite(latent).all():
         raise InputError(f"t = {t:g} extrapolates beyond float32 range")
-    return Embedding(latent, a.model_fingerprint,
-                     f"interpolate({a.source or 'a'}, {b.source or 'b'}, t={t:g})", 0, basis=a.basis)
+    return Embedding(latent, a.kind, a.decoder, f"interpolate({a.source or 'a'}, {b.source or 'b'}, t={t:g})", 0)
 
 
 def fit(*args, **kwargs):

@@ -11,18 +11,19 @@ suffix      kind          opened as
                           (:class:`brdfkit.render.measured.MeasuredBRDF`); as a table, at the
                           MERL grid's directions made reciprocal by the least-squares
                           rule (:func:`brdfkit.io.rgl_bsdf.read_bsdf_table`)
-``.emb``    ``embedding`` the hyponet its latent decodes to, with the model that made it
-                          (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`), or for a
-                          basis embedding the closed form of the basis that model ships
-                          (:func:`brdfkit.methods.embedding.embedding_brdf`)
+``.emb``    ``embedding`` what its decoder makes of it: a basis embedding's closed form
+                          (:class:`brdfkit.basis.coefficients.BasisBRDF`), a latent's
+                          hyponet (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`);
+                          :func:`brdfkit.methods.embedding.open_embedding`
 =========== ============= ================================================================
 
 :func:`read_table` gives any of them as a dense table (what ``plot``, ``metrics`` and
 ``compare`` score); :func:`load_brdf` as a renderable BRDF, which evaluates only the
 directions a render queries (an embedding is never decoded to a dense table for a
-render, nor is an RGL file, which a table would make reciprocal). An embedding's model comes from :class:`EmbeddingModel`: the one a command was
-given (``-m``), else the built-in whose fingerprint the first embedding records, loaded
-once for all the files of a command.
+render, nor is an RGL file, which a table would make reciprocal). An embedding's decoder
+comes from :class:`EmbeddingDecoders`: the one a command was given (``-m``), else the
+installed built-in part whose digest the embedding records, each loaded once for all
+the files of a command.
 
 May import: the ground floor, :mod:`brdfkit.io`, :mod:`brdfkit.models`,
 :mod:`brdfkit.hypernet`, :mod:`brdfkit.methods.embedding`, :mod:`brdfkit.render.renderable` and
@@ -38,7 +39,7 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["KINDS", "TABLE_KINDS", "OUTPUT_KINDS", "brdf_kind", "EmbeddingModel", "read_table", "load_brdf", "convert"]
+__all__ = ["KINDS", "TABLE_KINDS", "OUTPUT_KINDS", "brdf_kind", "EmbeddingDecoders", "read_table", "load_brdf", "convert"]
 
 KINDS = {".binary": "merl", ".bsdf": "rgl", ".emb": "embedding"}
 """BRDF file suffixes and their kinds."""
@@ -72,59 +73,66 @@ def _read_table_file(path, kind: str) -> np.ndarray:
     return read_bsdf_table(path)
 
 
-class EmbeddingModel:
-    """The model that ``.emb`` files decode with, loaded once, on first need.
+class EmbeddingDecoders:
+    """The decoders ``.emb`` files decode with, each loaded once, on first need.
 
     Parameters
     ----------
     model_path
-        A model file or a built-in name (``-m``); ``None``: the installed built-in whose
-        fingerprint the first embedding asked about records, else the default built-in
-        (:func:`brdfkit.models.builtin.embedding_model`).
+        A ``-m`` value (a built-in's name or a decoder file): each embedding takes the part
+        of its kind it names (:func:`brdfkit.methods.embedding.decoder_for`); ``None``: the
+        installed built-in part whose digest the embedding records.
     model
-        An already loaded :class:`~brdfkit.hypernet.loaded.NeuralModel` (instead of
-        ``model_path``).
+        An already loaded decoder (a :class:`~brdfkit.methods.embedding.Decoder`, or a
+        :class:`~brdfkit.hypernet.loaded.NeuralModel` for latents), instead of ``model_path``.
     device
-        Torch device of the model (default: CUDA if available, else CPU).
+        Torch device of a hypernetwork (default: CUDA if available, else CPU).
     before_load
-        Called once, before the model is loaded (the first use of torch): ``brdfkit
-        metrics`` sizes torch's thread pool there.
+        Called once, before the first decoder is loaded (the first use of torch for a
+        latent): ``brdfkit metrics`` sizes torch's thread pool there.
     """
 
     def __init__(self, model_path=None, *, model=None, device=None, before_load=None):
         self.model_path = model_path
         self.device = device
-        self._model = model
+        self._given = model
         self._before_load = before_load
 
-    def for_file(self, emb_path):
-        """The model of the embedding file ``emb_path`` (loaded on the first call)."""
-        if self._model is None:
-            from brdfkit.hypernet.model_file import load_model
-            from brdfkit.models.builtin import embedding_model
+    def decoder(self, emb, name: str = ""):
+        """The :class:`~brdfkit.methods.embedding.Decoder` of embedding ``emb`` (checked)."""
+        from brdfkit.methods.embedding import Decoder, decoder_for
 
-            path = embedding_model(self.model_path, emb_path)
-            if self._before_load is not None:
-                hook, self._before_load = self._before_load, None
-                hook()
-            self._model = load_model(path, device=self.device)
-        return self._model
+        given = self._given
+        if given is not None and not isinstance(given, Decoder):  # a loaded hypernetwork
+            given = Decoder.of_model(given)
+        if given is not None and given.kind == emb.kind and given.digest == emb.decoder:
+            return given
+        if self._before_load is not None:
+            hook, self._before_load = self._before_load, None
+            hook()
+        return decoder_for(emb, self.model_path, self.device, name)
+
+    def open(self, path, name: str | None = None):
+        """The renderable BRDF of the embedding file ``path`` (``eval_dirs``, ``to_table``)."""
+        from brdfkit.io.embedding import read_embedding
+        from brdfkit.methods.embedding import open_embedding
+
+        emb = read_embedding(path)
+        brdf = open_embedding(emb, self.decoder(emb, os.fspath(path)), os.fspath(path))  # messages name the file
+        if name:
+            brdf.name = name
+        return brdf
 
 
-def read_table(path, models: EmbeddingModel | None = None) -> np.ndarray:
+def read_table(path, models: EmbeddingDecoders | None = None) -> np.ndarray:
     """A BRDF file as a dense table: float64 ``(90, 90, 180, 3)``, 1/sr, NaN where
     unmeasured; an RGL ``.bsdf`` evaluated at the grid's directions; an embedding decoded
-    by its model (``models``: default, the built-in it names)."""
+    by its decoder (``models``: default, the built-in part whose digest it records)."""
     path = os.fspath(path)
     kind = brdf_kind(path)
     if kind in TABLE_KINDS:
         return _read_table_file(path, kind)
-    from brdfkit.io.embedding import read_embedding
-
-    from brdfkit.methods.embedding import embedding_brdf
-
-    model = (models or EmbeddingModel()).for_file(path)
-    return embedding_brdf(model, read_embedding(path), path).to_table()
+    return (models or EmbeddingDecoders()).open(path).to_table()
 
 
 def load_brdf(path, model_path=None, device=None, model=None):
@@ -136,20 +144,20 @@ def load_brdf(path, model_path=None, device=None, model=None):
         A MERL ``.binary`` table, an RGL ``.bsdf`` file (evaluated straight from the
         file, conditioned on the view as Mitsuba 3 does) or an embedding ``.emb``.
     model_path
-        The model (``.safetensors``, or a built-in name) an ``.emb`` was made with;
-        ``None``: the installed built-in whose fingerprint the embedding records, else
-        the default built-in (:func:`brdfkit.models.builtin.model_for_embedding`).
+        The decoder (a built-in's name or a file) an ``.emb`` was made with; ``None``:
+        the installed built-in part whose digest the embedding records.
     device
         Torch device (default: CUDA if available, else CPU).
     model
-        An already loaded :class:`~brdfkit.hypernet.loaded.NeuralModel` (instead of
-        ``model_path``), or an :class:`EmbeddingModel`.
+        An already loaded decoder (instead of ``model_path``), or an
+        :class:`EmbeddingDecoders`.
 
     Returns
     -------
-    TableBRDF, MeasuredBRDF or NeuralBRDF
+    TableBRDF, MeasuredBRDF, BasisBRDF or NeuralBRDF
         (:mod:`brdfkit.render.renderable`, :mod:`brdfkit.render.measured`,
-        :mod:`brdfkit.hypernet.neural_brdf`), with ``name`` set to the file stem.
+        :mod:`brdfkit.basis.coefficients`, :mod:`brdfkit.hypernet.neural_brdf`), with
+        ``name`` set to the file stem.
     """
     from brdfkit.atomic import check_input_file
 
@@ -165,20 +173,15 @@ def load_brdf(path, model_path=None, device=None, model=None):
         from brdfkit.render.renderable import TableBRDF
 
         return TableBRDF(_read_table_file(path, kind), name=name, device=device)
-    from brdfkit.io.embedding import read_embedding
-    from brdfkit.methods.embedding import embedding_brdf
-
-    models = model if isinstance(model, EmbeddingModel) else EmbeddingModel(model_path, model=model, device=device)
-    brdf = embedding_brdf(models.for_file(path), read_embedding(path), name=path)
-    brdf.name = name
-    return brdf
+    models = model if isinstance(model, EmbeddingDecoders) else EmbeddingDecoders(model_path, model=model, device=device)
+    return models.open(path, name)
 
 
 OUTPUT_KINDS = {".binary": "merl", ".bsdf": "rgl"}
 """What :func:`convert` writes (an ``.emb`` is made by ``brdfkit encode``)."""
 
 
-def convert(src, dst, *, models: EmbeddingModel | None = None, settings=None, spectral: bool = False,
+def convert(src, dst, *, models: EmbeddingDecoders | None = None, settings=None, spectral: bool = False,
             description: str | None = None, reciprocity: str = "least-squares") -> dict:
     """Convert a BRDF file into a MERL ``.binary`` table or an RGL ``.bsdf`` file.
 

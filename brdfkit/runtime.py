@@ -13,7 +13,7 @@ torch runs its CPU operators on one OpenMP thread per core. When other processes
 keep the cores busy, those threads wait for each other at every operator: on the 2-core
 project machine at load average 11, ``brdfkit sparse`` took 57 s wall with torch's two
 threads and 9.7 s with one (a dense decode: 11.3 s against 0.64 s;
-``docs/performance.md``). :func:`set_default_threads` therefore sizes the OpenMP pool to
+``docs/notes/performance.md``). :func:`set_default_threads` therefore sizes the OpenMP pool to
 the cores that are idle by the 1-minute load average, before torch is imported, unless
 the user chose (``OMP_NUM_THREADS``).
 

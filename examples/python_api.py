@@ -33,12 +33,12 @@ def main(argv: list[str]) -> int:
 
     import brdfkit
     from brdfkit.evaluation.metrics import brdf_log_rmse
-    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+    from brdfkit.methods.embedding import decoder_for, open_embedding
     from brdfkit.materials.synthetic import write_library
 
     # The library leaves torch's thread pool as it is; size it to the idle cores first, as
     # the command line does (on a busy machine torch's default of one thread per core made
-    # this script 10x slower: 104-143 s against 10.7 s; docs/performance.md).
+    # this script 10x slower: 104-143 s against 10.7 s; docs/notes/performance.md).
     brdfkit.set_torch_threads()
 
     model = brdfkit.load_model(argv[0])
@@ -52,31 +52,33 @@ def main(argv: list[str]) -> int:
         # 1. Encode every table from all its measured cells.
         embs = {}
         for path in paths:
-            emb = brdfkit.encode(model, path)
+            emb = brdfkit.encode(path, model)
             brdfkit.write_embedding(path.replace(".binary", ".emb"), emb)
             embs[os.path.basename(path)] = emb
-            print(f"  {emb.source}: {emb.sample_count:,} cells -> {emb.latent_dim} numbers "
+            print(f"  {emb.source}: {emb.sample_count:,} cells -> {emb.size} numbers "
                   f"({os.path.getsize(path.replace('.binary', '.emb'))} bytes as .emb)")
 
         # 2. Decode one back into a dense table (NaN below the horizon) and write it.
         name = os.path.basename(paths[0])
         original = brdfkit.read_merl(paths[0])
         emb = brdfkit.read_embedding(paths[0].replace(".binary", ".emb"))
-        decoded = brdfkit.decode(model, emb)
+        decoded = brdfkit.decode(emb, model)
         brdfkit.write_merl(os.path.join(tmp, "decoded.binary"), decoded)
         print(f"decode {name}: log-RMSE {brdf_log_rmse(decoded, original):.4f}")
 
         # 3. Sparse reconstruction from 400 measurements.
         samples = brdfkit.draw_samples(original, 400, seed=0, source=name)
-        sparse_table, sparse_emb = brdfkit.sparse(model, samples)
+        sparse_table, sparse_emb = brdfkit.sparse(samples, model)
         print(f"sparse {name} from {len(samples)} samples: log-RMSE "
               f"{brdf_log_rmse(sparse_table, original):.4f}")
 
-        # 4. Interpolate two materials and evaluate the blend at a few direction pairs.
+        # 4. Interpolate two materials and evaluate the blend at a few direction pairs
+        #    (a renderable BRDF of either kind of embedding, from the decoder that made it).
         a, b = embs[os.path.basename(paths[1])], embs[os.path.basename(paths[2])]
+        decoder = decoder_for(a, argv[0])
         for t in (0.0, 0.3, 1.0):
             mix = brdfkit.interpolate(a, b, t)
-            brdf = NeuralBRDF.from_embedding(model, mix)
+            brdf = open_embedding(mix, decoder)
             wi = torch.tensor([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
             wo = torch.tensor([[0.0, 0.0, 1.0], [-0.6, 0.0, 0.8]])
             values = brdf.eval_dirs(wi, wo).cpu().numpy()

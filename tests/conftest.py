@@ -84,10 +84,10 @@ def good(tmp_path_factory):
     make_model(d / "other.safetensors", seed=1)
     write_inputs(d, "samples.csv")
     m = api.load_model(d / "model.safetensors", "cpu")
-    write_embedding(d / "a.emb", api.encode(m, d / "samples.csv"))
-    write_embedding(d / "b.emb", api.encode(m, draw_samples(material_table(0), 200, seed=0), source="w"))
+    write_embedding(d / "a.emb", api.encode(d / "samples.csv", m))
+    write_embedding(d / "b.emb", api.encode(draw_samples(material_table(0), 200, seed=0), m, source="w"))
     o = api.load_model(d / "other.safetensors", "cpu")
-    write_embedding(d / "other.emb", api.encode(o, d / "samples.csv"))
+    write_embedding(d / "other.emb", api.encode(d / "samples.csv", o))
     return d
 
 

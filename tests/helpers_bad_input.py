@@ -164,27 +164,25 @@ def bad_embedding_files(folder, good_doc: dict, other_doc: dict) -> dict:
         (folder / name).write_text(raw if raw is not None else json.dumps(doc))
         return folder / name
 
-    fp = good_doc["model_fingerprint"]
+    fp = good_doc["decoder"]
     (folder / "folder.emb").mkdir()
     return {
         "missing": (folder / "missing.emb", "no such file"),
         "directory": (folder / "folder.emb", "is a directory, expected a file"),
         "empty": (put("empty.emb", raw=""),
                   "not an embedding file: not JSON text (Expecting value: line 1 column 1 (char 0))"),
-        "not_json": (put("not-json.emb", raw="latent = [1, 2, 3]\n"),
+        "not_json": (put("not-json.emb", raw="values = [1, 2, 3]\n"),
                      "not an embedding file: not JSON text (Expecting value: line 1 column 1 (char 0))"),
-        "wrong_version": (put("v2.emb", {**good_doc, "version": 2}),
-                          "embedding version 2 is not supported (this brdfkit reads version 1)"),
-        "latent_length": (put("length.emb", {**good_doc, "latent": good_doc["latent"][:-1]}),
-                          f"latent has {len(good_doc['latent']) - 1} values but latent_dim is "
-                          f"{good_doc['latent_dim']}"),
-        "latent_dim": (put("dim.emb", {**good_doc, "latent_dim": 5, "latent": good_doc["latent"][:5]}),
-                       f"embedding {{path}} was made by model {fp[:12]} (latent 5), not by the given model "
-                       f"{fp[:12]} (model.safetensors, latent 7); encode the material again with this model"),
+        "wrong_version": (put("v3.emb", {**good_doc, "version": 3}),
+                          "embedding version 3 is not supported (this brdfkit reads versions 1, 2)"),
+        "latent_length": (put("length.emb", {**good_doc, "values": good_doc["values"][:-1]}),
+                          f"values has {len(good_doc['values']) - 1} values but size is {good_doc['size']}"),
+        "latent_dim": (put("dim.emb", {**good_doc, "size": 5, "values": good_doc["values"][:5]}),
+                       f"embedding {{path}} (latent, 5 numbers, decoder {fp[:12]}) was not made by the given model "
+                       f"{fp[:12]} (latent 7); encode the material again with this model"),
         "other_model": (put("other-model.emb", other_doc),
-                        f"embedding {{path}} was made by model {other_doc['model_fingerprint'][:12]} (latent 7), "
-                        f"not by the given model {fp[:12]} (model.safetensors, latent 7); encode the material "
-                        f"again with this model"),
+                        f"embedding {{path}} was made with latent decoder {other_doc['decoder'][:12]}, not with "
+                        f"model.safetensors ({fp[:12]}); encode the material again with it"),
     }
 
 

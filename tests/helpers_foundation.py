@@ -64,7 +64,7 @@ def random_stored(seed: int = 0) -> np.ndarray:
 
 def proxy_material(tmp_path_factory, name: str = "teflon") -> Path:
     """A genuine MERL table decoded from the shared NBRDF fits, written once per test
-    session into pytest's temporary folder (never into the repository or /work/proxy).
+    session into pytest's temporary folder (never into the repository or a proxies folder).
     Skips the test when ``../shared`` is absent."""
     if not NBRDF_TO_MERL.exists():
         pytest.skip(f"reference data absent ({SHARED})")

@@ -49,18 +49,18 @@ def _shuffled(s: SampleSet, seed=0) -> SampleSet:
 def test_permutation_invariance(models, table):
     samples = draw_samples(table, 4000, seed=0)
     for name in ("tiny", "default"):
-        a = api.encode(models[name], samples)
-        b = api.encode(models[name], _shuffled(samples))
-        np.testing.assert_allclose(a.latent, b.latent, rtol=0, atol=1e-5)
+        a = api.encode(samples, models[name])
+        b = api.encode(_shuffled(samples), models[name])
+        np.testing.assert_allclose(a.values, b.values, rtol=0, atol=1e-5)
 
 
 @pytest.mark.parametrize("n", [1, 2, 40, 4000])
 def test_any_number_of_samples(models, table, n):
     m = models["default"]
-    e = api.encode(m, draw_samples(table, n, seed=n))
-    assert e.latent.shape == (40,) and e.latent.dtype == np.float32
-    assert np.isfinite(e.latent).all()
-    assert e.sample_count == n and e.model_fingerprint == m.fingerprint
+    e = api.encode(draw_samples(table, n, seed=n), m)
+    assert e.values.shape == (40,) and e.values.dtype == np.float32
+    assert np.isfinite(e.values).all()
+    assert e.sample_count == n and e.decoder == m.fingerprint
 
 
 def test_encoder_matches_model_definition(models, table):
@@ -74,7 +74,7 @@ def test_encoder_matches_model_definition(models, table):
     mapped = torch.tensor(to_mapped(s.rgb, ref), dtype=torch.float32)[None]
     with torch.no_grad():
         z = m.net.encode(hd, mapped)[0].numpy()
-    np.testing.assert_allclose(api.encode(m, s).latent, z, rtol=1e-5, atol=1e-6)
+    np.testing.assert_allclose(api.encode(s, m).values, z, rtol=1e-5, atol=1e-6)
 
 
 def test_chunking_does_not_change_the_embedding(models, table, monkeypatch):
@@ -82,20 +82,20 @@ def test_chunking_does_not_change_the_embedding(models, table, monkeypatch):
 
     m = models["tiny"]
     s = draw_samples(table, 5000, seed=2)
-    whole = api.encode(m, s).latent
+    whole = api.encode(s, m).values
     monkeypatch.setattr(neural, "ENCODE_CHUNK", 777)
-    np.testing.assert_allclose(api.encode(m, s).latent, whole, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(api.encode(s, m).values, whole, rtol=0, atol=1e-6)
 
 
 def test_dense_table_uses_all_measured_cells(models, table):
     m = models["tiny"]
-    e = api.encode(m, table, source="t", refine=False)  # the paper's pass (refined: test_compression)
+    e = api.encode(table, m, source="t", refine=False)  # the paper's pass (refined: test_compression)
     measured = np.isfinite(table).all(-1)
     assert e.sample_count == int(measured.sum()) and e.source == "t"
     # Same as encoding those cells as a sample set at the grid angles.
     idx = np.flatnonzero(measured.reshape(-1))
     s = SampleSet(*cell_angles(idx), table.reshape(-1, 3)[idx])
-    np.testing.assert_allclose(api.encode(m, s).latent, e.latent, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(api.encode(s, m).values, e.values, rtol=0, atol=1e-5)
 
 
 def test_encode_from_paths(models, table, tmp_path):
@@ -103,27 +103,27 @@ def test_encode_from_paths(models, table, tmp_path):
     write_merl(tmp_path / "mat.binary", table)
     s = draw_samples(table, 200, seed=3)
     write_samples(tmp_path / "s.csv", s)
-    e_bin = api.encode(m, tmp_path / "mat.binary", refine=False)
+    e_bin = api.encode(tmp_path / "mat.binary", m, refine=False)
     assert e_bin.source == "mat.binary"
-    np.testing.assert_allclose(e_bin.latent, api.encode(m, table, refine=False).latent, atol=1e-6)
-    e_csv = api.encode(m, str(tmp_path / "s.csv"))
+    np.testing.assert_allclose(e_bin.values, api.encode(table, m, refine=False).values, atol=1e-6)
+    e_csv = api.encode(str(tmp_path / "s.csv"), m)
     assert e_csv.source == "s.csv" and e_csv.sample_count == 200
-    np.testing.assert_allclose(e_csv.latent, api.encode(m, s).latent, atol=1e-6)
+    np.testing.assert_allclose(e_csv.values, api.encode(s, m).values, atol=1e-6)
 
 
 def test_encode_bad_inputs(models, tmp_path):
     m = models["tiny"]
     with pytest.raises(InputError, match="cannot encode a list"):
-        api.encode(m, [1, 2, 3])
+        api.encode([1, 2, 3], m)
     with pytest.raises(InputError, match="shape"):
-        api.encode(m, np.zeros((10, 3)))
+        api.encode(np.zeros((10, 3)), m)
     with pytest.raises(InputError, match="no measured cells"):
-        api.encode(m, np.full((90, 90, 180, 3), np.nan))
+        api.encode(np.full((90, 90, 180, 3), np.nan), m)
     with pytest.raises(InputError, match="no such file"):
-        api.encode(m, tmp_path / "missing.binary")
+        api.encode(tmp_path / "missing.binary", m)
     (tmp_path / "junk.binary").write_bytes(b"junk")
     with pytest.raises(InputError, match="not a MERL table"):
-        api.encode(m, tmp_path / "junk.binary")
+        api.encode(tmp_path / "junk.binary", m)
 
 
 def test_reference_at_grid_and_between(models):
@@ -156,7 +156,7 @@ def test_reference_fallback_where_unmeasured(tmp_path):
 def test_decode_shape_nan_pattern_non_negative(models, table):
     for name in ("tiny", "default"):
         m = models[name]
-        out = api.decode(m, api.encode(m, draw_samples(table, 100, seed=1)))
+        out = api.decode(api.encode(draw_samples(table, 100, seed=1), m), m)
         assert out.shape == (90, 90, 180, 3) and out.dtype == np.float64
         unmeasured = ~np.isfinite(m.rho_ref).all(-1)
         np.testing.assert_array_equal(np.isnan(out).any(-1), unmeasured)
@@ -169,11 +169,11 @@ def test_decode_matches_model_definition(models, table):
     from brdfkit.hypernet.network import hyponet_forward
 
     m = models["default"]
-    e = api.encode(m, draw_samples(table, 500, seed=4))
-    out = api.decode(m, e).reshape(-1, 3)
+    e = api.encode(draw_samples(table, 500, seed=4), m)
+    out = api.decode(e, m).reshape(-1, 3)
     idx = np.flatnonzero(np.isfinite(out).all(1))[::501]
     with torch.no_grad():
-        w = m.net.hyponet_weights(torch.from_numpy(e.latent)[None])
+        w = m.net.hyponet_weights(torch.from_numpy(e.values)[None])
         mapped = hyponet_forward(w, torch.from_numpy(grid_hd()[idx])[None])[0].double().numpy()
     expect = from_mapped(mapped, m.rho_ref.reshape(-1, 3)[idx].astype(np.float64))
     np.testing.assert_allclose(out[idx], expect, rtol=1e-4, atol=1e-6)
@@ -181,7 +181,7 @@ def test_decode_matches_model_definition(models, table):
 
 def test_eval_dirs_and_eval_hd_agree_with_table(models, table):
     m = models["default"]
-    nb = NeuralBRDF.from_embedding(m, api.encode(m, draw_samples(table, 300, seed=6)))
+    nb = NeuralBRDF.from_embedding(m, api.encode(draw_samples(table, 300, seed=6), m))
     out = nb.to_table().reshape(-1, 3)
     idx = np.flatnonzero(np.isfinite(out).all(1))[::997]
     wi, wo = io_from_half_diff(*cell_angles(idx))
@@ -197,7 +197,7 @@ def test_eval_dirs_and_eval_hd_agree_with_table(models, table):
 
 def test_eval_dirs_below_horizon_is_zero(models, table):
     m = models["tiny"]
-    nb = NeuralBRDF.from_embedding(m, api.encode(m, draw_samples(table, 50, seed=7)))
+    nb = NeuralBRDF.from_embedding(m, api.encode(draw_samples(table, 50, seed=7), m))
     up = torch.tensor([[0.0, 0.0, 1.0], [0.6, 0.0, 0.8]])
     down = torch.tensor([[0.0, 0.0, -1.0], [0.6, 0.0, -0.8]])
     assert (nb.eval_dirs(up, down) == 0).all() and (nb.eval_dirs(down, up) == 0).all()
@@ -205,62 +205,64 @@ def test_eval_dirs_below_horizon_is_zero(models, table):
 
 
 def test_decode_refuses_other_models_embedding(models, table):
-    e = api.encode(models["tiny"], draw_samples(table, 10))
+    e = api.encode(draw_samples(table, 10), models["tiny"])
     with pytest.raises(ModelMismatchError, match="latent 7"):
-        api.decode(models["tiny2"], e)
+        api.decode(e, models["tiny2"])
     with pytest.raises(ModelMismatchError):
-        api.decode(models["default"], e)
+        api.decode(e, models["default"])
 
 
 def test_decode_from_emb_path(models, table, tmp_path):
     from brdfkit.io.embedding import write_embedding
 
     m = models["tiny"]
-    e = api.encode(m, draw_samples(table, 10))
+    e = api.encode(draw_samples(table, 10), m)
     write_embedding(tmp_path / "a.emb", e)
-    np.testing.assert_array_equal(api.decode(m, tmp_path / "a.emb"), api.decode(m, e))
+    np.testing.assert_array_equal(api.decode(tmp_path / "a.emb", m), api.decode(e, m))
 
 
 def test_sparse(models, table, tmp_path):
     m = models["tiny"]
     s = draw_samples(table, 400, seed=8)
-    out, e = api.sparse(m, s)
-    np.testing.assert_array_equal(out, api.decode(m, api.encode(m, s)))
+    out, e = api.sparse(s, m, refine=False)  # the paper's one pass (refined: test_refine)
+    np.testing.assert_array_equal(out, api.decode(api.encode(s, m), m))
     assert e.sample_count == 400
     write_samples(tmp_path / "s.csv", s)
-    out2, _ = api.sparse(m, tmp_path / "s.csv")
+    out2, _ = api.sparse(tmp_path / "s.csv", m, refine=False)
     np.testing.assert_allclose(out2, out, rtol=1e-5, atol=1e-7)
     with pytest.raises(InputError, match=".csv sample set"):
-        api.sparse(m, tmp_path / "x.binary")
+        api.sparse(tmp_path / "x.binary", m)
+    with pytest.raises(InputError, match="takes the option"):
+        api.sparse(s, m, lam=0.1)
 
 
 def test_interpolate_endpoints_exact(models, table):
     m = models["default"]
-    a = api.encode(m, draw_samples(table, 50, seed=1))
-    b = api.encode(m, draw_samples(material_table(0), 50, seed=2))
-    np.testing.assert_array_equal(api.interpolate(a, b, 0.0).latent, a.latent)
-    np.testing.assert_array_equal(api.interpolate(a, b, 1.0).latent, b.latent)
+    a = api.encode(draw_samples(table, 50, seed=1), m)
+    b = api.encode(draw_samples(material_table(0), 50, seed=2), m)
+    np.testing.assert_array_equal(api.interpolate(a, b, 0.0).values, a.values)
+    np.testing.assert_array_equal(api.interpolate(a, b, 1.0).values, b.values)
     mid = api.interpolate(a, b, 0.5)
-    np.testing.assert_allclose(mid.latent, (a.latent.astype(np.float64) + b.latent) / 2, rtol=1e-6)
-    assert mid.model_fingerprint == m.fingerprint and mid.latent.dtype == np.float32
-    assert api.decode(m, mid).shape == (90, 90, 180, 3)
+    np.testing.assert_allclose(mid.values, (a.values.astype(np.float64) + b.values) / 2, rtol=1e-6)
+    assert mid.decoder == m.fingerprint and mid.values.dtype == np.float32
+    assert api.decode(mid, m).shape == (90, 90, 180, 3)
 
 
 def test_interpolate_refusals(models, table):
-    a = api.encode(models["tiny"], draw_samples(table, 20))
-    b = api.encode(models["tiny"], draw_samples(table, 20, seed=9))
+    a = api.encode(draw_samples(table, 20), models["tiny"])
+    b = api.encode(draw_samples(table, 20, seed=9), models["tiny"])
     for t in (-0.1, 1.5):
         with pytest.raises(InputError, match="outside"):
             api.interpolate(a, b, t)
         e = api.interpolate(a, b, t, allow_extrapolation=True)
-        np.testing.assert_allclose(e.latent, (1 - t) * a.latent.astype(np.float64) + t * b.latent, rtol=1e-6)
+        np.testing.assert_allclose(e.values, (1 - t) * a.values.astype(np.float64) + t * b.values, rtol=1e-6)
     for t in (float("nan"), float("inf"), "abc"):
         with pytest.raises(InputError):
             api.interpolate(a, b, t, allow_extrapolation=True)
-    other = api.encode(models["tiny2"], draw_samples(table, 20))
-    with pytest.raises(ModelMismatchError, match="different models"):
+    other = api.encode(draw_samples(table, 20), models["tiny2"])
+    with pytest.raises(ModelMismatchError, match="different decoders"):
         api.interpolate(a, other, 0.5)
-    wrong_dim = Embedding(np.zeros(5, np.float32), a.model_fingerprint)
+    wrong_dim = Embedding(np.zeros(5, np.float32), "latent", a.decoder)
     with pytest.raises(ModelMismatchError):
         api.interpolate(a, wrong_dim, 0.5)
 

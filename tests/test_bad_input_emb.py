@@ -38,7 +38,7 @@ def test_bad_embedding_through_interpolate(good, bad_embs, tmp_path, capsys, nam
     assert code == 2
     line = one_error_line(err)
     if name == "other_model":  # without a model: the two embeddings disagree
-        assert "cannot interpolate embeddings of different models" in line and str(path) in line
+        assert "cannot interpolate embeddings of different decoders" in line and str(path) in line
     else:
         check_emb_line(line, path, message)
     assert os.listdir(tmp_path) == []
@@ -50,7 +50,7 @@ def test_embedding_of_another_latent_size_through_interpolate_binary(good, bad_e
     code, _, err = run_cli(capsys, ["interpolate", path, path, "--t", "0.5", "-o", tmp_path / "x.emb",
                               "--binary", tmp_path / "x.binary", "-m", good / "model.safetensors"])
     assert code == 2
-    assert "(latent 5), not by the given model" in one_error_line(err)
+    assert "(latent, 5 numbers, decoder" in one_error_line(err)
     assert os.listdir(tmp_path) == []
 
 

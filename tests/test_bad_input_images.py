@@ -90,4 +90,4 @@ def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, mon
         code, _, err = run_cli(capsys, ["metrics", *args, "--json"])
         assert code == 2
         line = one_error_line(err)
-        assert (str(bad) in line) if bad else ("other.emb was made by model" in line), line
+        assert (str(bad) in line) if bad else ("other.emb was made with latent decoder" in line), line

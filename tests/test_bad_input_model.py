@@ -66,14 +66,14 @@ def test_bad_model_through_every_command(good, bad_models, tmp_path, capsys, com
 
 
 @pytest.mark.parametrize("name, message", [
-    ("model", "not a brdfkit PCA basis (format 'brdfkit-model', expected 'brdfkit-ipca')"),
+    ("model", "not a brdfkit PCA basis (format 'brdfkit-model', expected 'brdfkit-basis')"),
     ("empty", "not a valid safetensors file (Error while deserializing header: header too small)"),
     ("pickle", "not a valid safetensors file (Error while deserializing header: "),
     ("truncated_header", "not a valid safetensors file (Error while deserializing header: "),
     ("merl_table", "not a valid safetensors file (Error while deserializing header: "),
 ])
 def test_bad_basis_through_sparse_ipca(good, bad_models, tmp_path, capsys, name, message):
-    # The PCA baseline takes its basis with -m. Regression: load_ipca wrapped its own
+    # The PCA baseline takes its basis with -m. Regression: load_basis wrapped its own
     # "not a brdfkit PCA basis" error again ("not a valid safetensors file (x: not a ...)").
     path = good / "model.safetensors" if name == "model" else bad_models[name][0]
     code, _, err = run_cli(capsys, ["sparse", good / "samples.csv", "--method", "ipca", "-m", path,
@@ -118,13 +118,13 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
 def test_ipca_basis_with_materials_not_a_list(tmp_path):
     # Found by benchmarks/fuzz_parsers.py: metadata materials = "5" raised a TypeError.
     from brdfkit.testing.fuzzing import ipca_seed
-    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.basis import load_basis
 
     for bad in ("5", "null", '{"a": 1}', "[1, 2]"):
         path = tmp_path / "basis.safetensors"
         path.write_bytes(rewrite_header(ipca_seed(), lambda h: h["__metadata__"].update(materials=bad)))
         with pytest.raises(FormatError, match="'materials' is not a list of names"):
-            load_ipca(path)
+            load_basis(path)
 
 
 def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):

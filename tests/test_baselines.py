@@ -12,7 +12,7 @@ import pytest
 
 from brdfkit.materials import synthetic
 from brdfkit.methods import METHODS, get_method
-from brdfkit.methods.ipca import fit_ipca, load_ipca, save_ipca
+from brdfkit.basis import fit_basis, load_basis, save_basis
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import HALF_PI, io_from_half_diff, valid_mask
 from brdfkit.evaluation.metrics import brdf_log_rmse
@@ -55,7 +55,7 @@ def library(lobes):
 @pytest.fixture(scope="module")
 def basis(library):
     train, _ = library
-    return fit_ipca(train, n_components=4, names=[f"m{i}" for i in range(len(train))])
+    return fit_basis(train, n_components=4, names=[f"m{i}" for i in range(len(train))])
 
 
 # --- IPCA -------------------------------------------------------------------------------------
@@ -64,8 +64,8 @@ def test_ipca_leading_components_are_the_smaller_fit(library):
     """A basis's leading components are the basis a smaller fit to the same tables gives
     (what the IPCA baseline takes from a built-in basis of 32 components)."""
     train = library[0][:6]
-    small = fit_ipca(train, n_components=4, names=[f"m{i}" for i in range(len(train))])
-    big = fit_ipca(train, n_components=5, names=[f"m{i}" for i in range(len(train))]).leading(4)
+    small = fit_basis(train, n_components=4, names=[f"m{i}" for i in range(len(train))])
+    big = fit_basis(train, n_components=5, names=[f"m{i}" for i in range(len(train))]).leading(4)
     np.testing.assert_allclose(big.sigma, small.sigma, rtol=1e-5)
     cos = np.sum(big.components * small.components, axis=1) / (
         np.linalg.norm(big.components, axis=1) * np.linalg.norm(small.components, axis=1))
@@ -131,8 +131,8 @@ def test_ipca_arbitrary_angles_and_tiny_sample_sets(basis, lobes, library):
 
 def test_ipca_save_load_round_trip(basis, library, tmp_path):
     path = tmp_path / "basis.safetensors"
-    save_ipca(path, basis)
-    back = load_ipca(path)
+    save_basis(path, basis)
+    back = load_basis(path)
     for k in ("cells", "reference", "mean", "components", "sigma"):
         np.testing.assert_array_equal(getattr(back, k), getattr(basis, k))
     assert back.materials == basis.materials
@@ -145,27 +145,27 @@ def test_ipca_load_refuses_other_files(basis, tmp_path):
     text = tmp_path / "notes.safetensors"
     text.write_text("not a safetensors file\n")
     with pytest.raises(FormatError, match="notes.safetensors"):
-        load_ipca(text)
+        load_basis(text)
     good = tmp_path / "b.safetensors"
-    save_ipca(good, basis)
+    save_basis(good, basis)
     cut = tmp_path / "cut.safetensors"
     cut.write_bytes(good.read_bytes()[:100000])
     with pytest.raises(FormatError, match="cut.safetensors"):
-        load_ipca(cut)
+        load_basis(cut)
     from brdfkit.hypernet.mapping import save_reference
     ref = tmp_path / "ref.safetensors"
     save_reference(ref, np.zeros((90, 90, 180, 3), np.float32))
     with pytest.raises(FormatError, match="not a brdfkit PCA basis"):
-        load_ipca(ref)
+        load_basis(ref)
     with pytest.raises(InputError, match="no such file"):
-        load_ipca(tmp_path / "missing.safetensors")
+        load_basis(tmp_path / "missing.safetensors")
 
 
 def test_ipca_fit_refuses_too_many_components(library):
     with pytest.raises(InputError, match="components"):
-        fit_ipca(library[0][:2], n_components=8)
+        fit_basis(library[0][:2], n_components=8)
     with pytest.raises(InputError, match="shape"):
-        fit_ipca([np.zeros((3, 3))], n_components=1)
+        fit_basis([np.zeros((3, 3))], n_components=1)
 
 
 # --- NBRDF ------------------------------------------------------------------------------------
@@ -252,7 +252,7 @@ def test_registry_names_and_uniform_interface(basis, library, tmp_path):
         get_method("pca")
     ipca = get_method("ipca")
     path = tmp_path / "basis.safetensors"
-    save_ipca(path, basis)
+    save_basis(path, basis)
     samples = draw_samples(library[1], 500, seed=2)
     np.testing.assert_array_equal(ipca.reconstruct(samples, str(path)), basis.reconstruct(samples))
     np.testing.assert_array_equal(ipca.reconstruct(samples, ipca.load(path), lam=0.5),
@@ -291,7 +291,7 @@ def cli_files(tmp_path_factory, library):
     return d
 
 
-def test_cli_fit_ipca_then_sparse(cli_files, capsys, monkeypatch):
+def test_cli_fit_basis_then_sparse(cli_files, capsys, monkeypatch):
     from brdfkit.io.merl import read_merl
     from brdfkit.io.samples import read_samples
 
@@ -300,7 +300,7 @@ def test_cli_fit_ipca_then_sparse(cli_files, capsys, monkeypatch):
     code, _, err = run_cli(capsys, ["fit", "--method", "ipca", d / "data", "--exclude-list", d / "exclude.txt",
                                     "--components", 5, "-o", d / "basis.safetensors"])
     assert code == 0, err
-    basis = load_ipca(d / "basis.safetensors")
+    basis = load_basis(d / "basis.safetensors")
     assert basis.materials == ["mat-0", "mat-1", "mat-2"] and basis.n_components == 5
 
     code, _, err = run_cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-m", d / "basis.safetensors",
@@ -340,8 +340,8 @@ def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library
 
 
 def test_registry_hypernet_is_api_sparse(library, tmp_path):
-    """The registry's ``hypernet`` entry without refinement is exactly
-    ``brdfkit.api.sparse``, and refined it is :func:`brdfkit.hypernet.refine_on_samples.refine` (an
+    """The registry's ``hypernet`` entry is exactly ``brdfkit.api.sparse`` with that
+    method, refined or not, and refined it is :func:`brdfkit.hypernet.refine_on_samples.refine` (an
     untrained tiny model is enough to check the plumbing)."""
     from brdfkit import api
 
@@ -351,7 +351,9 @@ def test_registry_hypernet_is_api_sparse(library, tmp_path):
     method = get_method("hypernet")
     model = method.load(tmp_path / "model.safetensors", device="cpu")
     samples = draw_samples(library[1], 100, seed=0)
-    np.testing.assert_array_equal(method.reconstruct(samples, model, refine=False), api.sparse(model, samples)[0])
+    np.testing.assert_array_equal(method.reconstruct(samples, model, refine=False),
+                                  api.sparse(samples, model, refine=False)[0])
+    np.testing.assert_array_equal(method.reconstruct(samples, model), api.sparse(samples, model)[0])
     from brdfkit.hypernet.refine_on_samples import RefineConfig, refine
 
     np.testing.assert_array_equal(method.reconstruct(samples, model),
@@ -364,7 +366,7 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
     """Each method's options dataclass holds its defaults and refuses what it does not
     take; ``reconstruct(samples, method=...)`` is the method's own call."""
     from brdfkit.methods import reconstruct
-    from brdfkit.methods.ipca import DEFAULT_LAMBDA
+    from brdfkit.basis import DEFAULT_LAMBDA
     from brdfkit.methods.nbrdf import DEFAULT_STEPS
 
     assert get_method("ipca").defaults() == {"lam": DEFAULT_LAMBDA}
@@ -380,7 +382,7 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
     with pytest.raises(InputError, match="lam"):
         get_method("ipca").make_options(lam=-1.0)
     path = tmp_path / "basis.safetensors"
-    save_ipca(path, basis)
+    save_basis(path, basis)
     samples = draw_samples(library[1], 300, seed=4)
     np.testing.assert_array_equal(reconstruct(samples, method="ipca", model=path, lam=0.5),
                                   basis.reconstruct(samples, lam=0.5))
@@ -398,19 +400,19 @@ def test_ipca_weight_floor(library, tmp_path):
     from brdfkit.evaluation.metrics import dark_at_grazing
 
     train, held = library
-    floor = fit_ipca(train, n_components=4, w_floor=0.1)
-    plain = fit_ipca(train, n_components=4)
+    floor = fit_basis(train, n_components=4, w_floor=0.1)
+    plain = fit_basis(train, n_components=4)
     th = np.array([0.0, 1.45, 1.6])  # the last below the horizon
     np.testing.assert_allclose(floor.weight(th, 0 * th, 0 * th), [1.0, 0.1, 0.0], atol=1e-12)
     np.testing.assert_allclose(plain.weight(th[:2], 0 * th[:2], 0 * th[:2]), [1.0, np.cos(1.45) ** 2])
     path = tmp_path / "floor.safetensors"
-    save_ipca(path, floor, half=True, phi_stride=2)
-    assert load_ipca(path).w_floor == 0.1 and load_ipca(tmp_path / "floor.safetensors").n_components == 4
-    save_ipca(tmp_path / "plain.safetensors", plain)
-    assert load_ipca(tmp_path / "plain.safetensors").w_floor == 0.0
+    save_basis(path, floor, half=True, phi_stride=2)
+    assert load_basis(path).w_floor == 0.1 and load_basis(tmp_path / "floor.safetensors").n_components == 4
+    save_basis(tmp_path / "plain.safetensors", plain)
+    assert load_basis(tmp_path / "plain.safetensors").w_floor == 0.0
     samples = draw_samples(held, 2000, seed=0)
     dark_floor = dark_at_grazing(floor.reconstruct(samples), held)
     dark_plain = dark_at_grazing(plain.reconstruct(samples), held)
     assert dark_floor <= dark_plain and dark_floor < 0.01, (dark_floor, dark_plain)
     with pytest.raises(InputError, match=r"w_floor must be in \[0, 1\)"):
-        fit_ipca(train, n_components=2, w_floor=1.0)
+        fit_basis(train, n_components=2, w_floor=1.0)

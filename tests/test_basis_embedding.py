@@ -1,6 +1,6 @@
-"""Basis embeddings (issue 29): a table as the coefficients of a PCA basis, refined on
-renders of the objective scenes; the refinement's render model against the renderer's
-own, its guard and its bytes; the embedding file, interpolation and decode."""
+"""Basis embeddings: a table as the coefficients of a PCA basis, refined on renders of the
+objective scenes; the refinement's render model against the renderer's own, its guard and
+its bytes; sizes; the embedding file, interpolation and decode; the kinds' registry."""
 
 from __future__ import annotations
 
@@ -12,17 +12,12 @@ import pytest
 from brdfkit.errors import FormatError, InputError, ModelMismatchError
 from brdfkit.geometry import N_CELLS
 from brdfkit.geometry.trilinear import lookup_trilinear
-from brdfkit.hypernet.refine_on_screen import CompressConfig
+from brdfkit.render.objective import ObjectiveConfig
 from brdfkit.io.embedding import Embedding, read_embedding, write_embedding
 from brdfkit.materials import synthetic
-from brdfkit.methods.ipca import fit_ipca
-from brdfkit.methods.ipca.embedding import (
-    BasisBRDF,
-    basis_coefficients,
-    components_for,
-    encode_basis,
-)
-from brdfkit.methods.ipca.refine_on_screen import (
+from brdfkit.basis import fit_basis
+from brdfkit.basis.coefficients import BasisBRDF, basis_sizes, check_coefficients, encode_coefficients
+from brdfkit.basis.refine_on_screen import (
     _prepare,
     refine_coefficients,
     trilinear_corners,
@@ -40,7 +35,7 @@ def basis_and_table():
     train = [np.asarray(rng.uniform(0.02, 0.8, 3))[None, None, None, :] / np.pi + rng.uniform(0.3, 1.5) * lobe
              for i in range(6)]
     held = np.array([0.5, 0.3, 0.1])[None, None, None, :] / np.pi + 0.7 * lobe
-    return fit_ipca(train, n_components=4, names=[f"m{i}" for i in range(6)]), held
+    return fit_basis(train, n_components=4, names=[f"m{i}" for i in range(6)]), held
 
 
 def test_trilinear_corners_give_the_lookup():
@@ -80,7 +75,7 @@ def test_refinement_is_guarded_and_gives_the_same_bytes_on_any_thread_count(basi
 
     basis, held = basis_and_table
     c0 = basis.project(held)
-    cfg = CompressConfig(steps=10, lr=0.06, resolution=12, check_every=2)
+    cfg = ObjectiveConfig(steps=10, lr=0.06, resolution=12, check_every=2)
     before = torch.get_num_threads()
     try:
         torch.set_num_threads(2)
@@ -93,58 +88,75 @@ def test_refinement_is_guarded_and_gives_the_same_bytes_on_any_thread_count(basi
     assert rec["steps"] == 10 and rec["heldout"][1] <= rec["heldout"][0]
     if rec["best_step"] == 0:  # the projection is kept when no step helps the held-out pixels
         np.testing.assert_array_equal(a, c0)
-    zero, _ = refine_coefficients(basis, held, c0, CompressConfig(steps=0))
+    zero, _ = refine_coefficients(basis, held, c0, ObjectiveConfig(steps=0))
     np.testing.assert_array_equal(zero, c0)
 
 
-def test_encode_basis_decodes_through_the_basis_and_round_trips(basis_and_table, tmp_path):
+def test_encode_coefficients_decodes_through_the_basis_and_round_trips(basis_and_table, tmp_path):
     basis, held = basis_and_table
-    emb = encode_basis(basis, held, fingerprint=FP, model_fingerprint="cd" * 32, components=3, source="held",
-                       steps=0)
-    assert emb.latent_dim == 9 and emb.basis == FP and emb.refinement is None
-    np.testing.assert_allclose(emb.latent.reshape(3, 3), basis.leading(3).project(held), rtol=1e-6)
+    emb = encode_coefficients(basis, held, digest=FP, size=9, source="held", steps=0)
+    assert (emb.kind, emb.size, emb.decoder, emb.refinement) == ("basis", 9, FP, None)
+    np.testing.assert_allclose(emb.values.reshape(3, 3), basis.leading(3).project(held), rtol=1e-6)
     write_embedding(tmp_path / "h.emb", emb)
     back = read_embedding(tmp_path / "h.emb")
-    assert back.basis == FP and back.latent.tobytes() == emb.latent.tobytes()
-    coeffs = basis_coefficients(back, basis, FP)
+    assert back.decoder == FP and back.kind == "basis" and back.values.tobytes() == emb.values.tobytes()
+    coeffs = check_coefficients(back, basis, FP)
     table = BasisBRDF(basis, coeffs).to_table()
     np.testing.assert_array_equal(table, basis.leading(3).decode(coeffs))
     with pytest.raises(ModelMismatchError, match="basis abababab"):
-        basis_coefficients(back, basis, "ef" * 32)
-    big = Embedding(np.zeros(15, np.float32), "cd" * 32, basis=FP)
-    with pytest.raises(ModelMismatchError, match="5 components a channel; the basis has 4"):
-        basis_coefficients(big, basis, FP)
-    assert components_for(40) == 13 and components_for(7) == 2
+        check_coefficients(back, basis, "ef" * 32)
+    big = Embedding(np.zeros(15, np.float32), "basis", FP)
+    with pytest.raises(ModelMismatchError, match="15 numbers; a basis of 4 components decodes 3, 6, ... 12"):
+        check_coefficients(big, basis, FP)
 
 
-def test_embedding_files_of_a_basis_are_checked(tmp_path):
-    good = Embedding(np.arange(6, dtype=np.float32), "cd" * 32, "x", 0, basis=FP)
-    write_embedding(tmp_path / "g.emb", good)
-    doc = json.loads((tmp_path / "g.emb").read_text())
-    assert doc["basis"] == FP
-    for value, msg in (("xyz", "sha256 hex"), (5, "sha256 hex")):
-        (tmp_path / "b.emb").write_text(json.dumps(dict(doc, basis=value)))
-        with pytest.raises(FormatError, match=msg):
-            read_embedding(tmp_path / "b.emb")
-    (tmp_path / "b.emb").write_text(json.dumps(dict(doc, latent=[0.0] * 5, latent_dim=5)))
-    with pytest.raises(FormatError, match="3 coefficients a component"):
-        read_embedding(tmp_path / "b.emb")
-    plain = json.loads(json.dumps(doc))
-    del plain["basis"]
-    (tmp_path / "p.emb").write_text(json.dumps(plain))
-    assert read_embedding(tmp_path / "p.emb").basis is None
+def test_every_size_of_the_basis_and_no_other(basis_and_table):
+    basis, held = basis_and_table
+    assert list(basis_sizes(basis)) == [3, 6, 9, 12]
+    for size in basis_sizes(basis):
+        emb = encode_coefficients(basis, held, digest=FP, size=size, steps=0)
+        assert emb.size == size
+    assert encode_coefficients(basis, held, digest=FP, steps=0).size == 12  # 39 by default, at most the basis's
+    for size in (2, 15, 7):
+        with pytest.raises(InputError, match=f"of {size} numbers"):
+            encode_coefficients(basis, held, digest=FP, size=size, steps=0)
 
 
-def test_interpolation_keeps_the_basis_and_refuses_mixing_kinds():
+def test_interpolation_keeps_the_kind_and_refuses_mixing_kinds():
     from brdfkit.api import interpolate
 
-    a = Embedding(np.zeros(6, np.float32), "cd" * 32, "a", basis=FP)
-    b = Embedding(np.ones(6, np.float32), "cd" * 32, "b", basis=FP)
+    a = Embedding(np.zeros(6, np.float32), "basis", FP, "a")
+    b = Embedding(np.ones(6, np.float32), "basis", FP, "b")
     mid = interpolate(a, b, 0.5)
-    assert mid.basis == FP and mid.latent.tolist() == [0.5] * 6
-    latent = Embedding(np.ones(6, np.float32), "cd" * 32, "c")
-    with pytest.raises(ModelMismatchError, match="basis embedding"):
+    assert (mid.kind, mid.decoder, mid.values.tolist()) == ("basis", FP, [0.5] * 6)
+    latent = Embedding(np.ones(6, np.float32), "latent", FP, "c")
+    with pytest.raises(ModelMismatchError, match="basis embedding .* latent one"):
         interpolate(a, latent, 0.5)
+
+
+def test_basis_files_encode_and_decode_through_the_library_and_the_registry(basis_and_table, tmp_path):
+    """A basis file of one's own is a decoder: ``encode(table, basis_file)`` makes a basis
+    embedding that names the file's SHA-256, and ``decode`` refuses another basis."""
+    from brdfkit.api import decode, encode
+    from brdfkit.basis import save_basis
+    from brdfkit.io.digest import file_digest
+    from brdfkit.methods.embedding import KINDS, choose_decoder, get_kind
+
+    basis, held = basis_and_table
+    save_basis(tmp_path / "b.safetensors", basis)
+    emb = encode(held, tmp_path / "b.safetensors", size=6, steps=0)
+    assert emb.kind == "basis" and emb.decoder == file_digest(tmp_path / "b.safetensors")
+    np.testing.assert_array_equal(decode(emb, tmp_path / "b.safetensors"), basis.leading(2).decode(emb.values.reshape(2, 3)))
+    save_basis(tmp_path / "other.safetensors", basis.leading(3))
+    with pytest.raises(ModelMismatchError, match="encode the material again"):
+        decode(emb, tmp_path / "other.safetensors")
+    with pytest.raises(InputError, match="is not among the installed built-in"):
+        decode(emb)  # no -m, and no built-in has this digest
+    assert set(KINDS) == {"basis", "latent"} and choose_decoder(None, tmp_path / "b.safetensors").kind == "basis"
+    with pytest.raises(InputError, match="a basis decoder, not a latent one"):
+        choose_decoder("latent", tmp_path / "b.safetensors")
+    with pytest.raises(InputError, match="unknown embedding kind 'pca'"):
+        get_kind("pca")
 
 
 def test_a_model_without_a_basis_makes_latents_and_refuses_basis(tmp_path):
@@ -152,30 +164,39 @@ def test_a_model_without_a_basis_makes_latents_and_refuses_basis(tmp_path):
     from brdfkit.testing.examples import lambertian_table, tiny_model
 
     model = load_model(tiny_model(tmp_path / "tiny.safetensors"), device="cpu")
-    emb = encode(model, lambertian_table(), refine=False)
-    assert emb.basis is None and emb.latent_dim == 7
+    emb = encode(lambertian_table(), model, refine=False)
+    assert emb.kind == "latent" and emb.size == 7
     with pytest.raises(InputError, match="ships no PCA basis"):
-        encode(model, lambertian_table(), kind="basis")
+        encode(lambertian_table(), model, kind="basis")
     with pytest.raises(InputError, match="kind 'pca'"):
-        encode(model, lambertian_table(), kind="pca")
-    foreign = Embedding(np.zeros(6, np.float32), model.fingerprint, "x", basis=FP)
-    with pytest.raises(ModelMismatchError, match="ships no basis"):
-        decode(model, foreign)
+        encode(lambertian_table(), tmp_path / "tiny.safetensors", kind="pca")
+    foreign = Embedding(np.zeros(6, np.float32), "basis", model.fingerprint, "x")
+    with pytest.raises(InputError, match="ships no PCA basis"):
+        decode(foreign, model)
 
 
-def test_bench_takes_model_latent_entries(tmp_path):
-    from brdfkit.bench.config import BenchConfig, latent_spec
+def test_bench_takes_model_kind_size_entries(tmp_path, basis_and_table):
+    from brdfkit.basis import save_basis
+    from brdfkit.bench.config import BenchConfig, compression_entry
     from brdfkit.bench.worker import Worker
     from brdfkit.testing.examples import tiny_model
 
-    assert latent_spec("m.safetensors:latent") == ("m.safetensors", True)
-    assert latent_spec("merl80-l40") == ("merl80-l40", False)
+    assert compression_entry("m.safetensors:latent") == ("m.safetensors", "latent", None)
+    assert compression_entry("merl80-l40") == ("merl80-l40", None, None)
+    assert compression_entry("b.safetensors:basis-21") == ("b.safetensors", "basis", 21)
+    with pytest.raises(InputError, match="unknown embedding kind"):
+        compression_entry("m:pca")
     model = str(tiny_model(tmp_path / "t.safetensors"))
-    cfg = BenchConfig(output=str(tmp_path / "o"), data=None, compression_models=(f"{model}:latent", model),
-                      compression_data=str(tmp_path), resolution=8)
+    basis = str(tmp_path / "b.safetensors")
+    save_basis(basis, basis_and_table[0])
+    cfg = BenchConfig(output=str(tmp_path / "o"), data=None, compression_models=(f"{model}:latent", model,
+                      f"{basis}:basis-6", basis), compression_data=str(tmp_path), resolution=8)
     cfg.validate()
-    assert [(path, kind) for _, path, kind in cfg.compressors()] == [(model, "latent"), (model, None)]
-    assert cfg.resolved().compression_models == (f"{model}:latent", model)
-    labels = [label for label, _, _, _ in Worker(cfg).compressors]
-    # a model without a basis compresses into its latent either way
-    assert labels == ["hypernet 7-D (t)", "hypernet 7-D (t)"]
+    resolved = cfg.resolved()
+    assert resolved.compression_models == (f"{model}:latent-7", f"{model}:latent-7", f"{basis}:basis-6",
+                                           f"{basis}:basis-12")
+    labels = [label for label, _, _ in Worker(resolved).compressors]
+    assert labels == ["latent-7 (t)", "latent-7 (t)", "basis-6 (b)", "basis-12 (b)"]
+    with pytest.raises(InputError, match="--size 9: latent embeddings of t.safetensors hold 7 numbers"):
+        BenchConfig(output=str(tmp_path / "o"), compression_models=(f"{model}:latent-9",),
+                    compression_data=str(tmp_path)).resolved()

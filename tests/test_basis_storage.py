@@ -1,4 +1,4 @@
-"""Compact storage of a PCA basis (:mod:`brdfkit.methods.ipca.basis_storage`) and the
+"""Compact storage of a PCA basis (:mod:`brdfkit.basis.storage`) and the
 version-2 basis file that uses it (float16, every other ``phi_d`` cell), with version-1
 files still read."""
 
@@ -11,8 +11,8 @@ import pytest
 
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
-from brdfkit.methods.ipca.basis_storage import check_half, compact, expand
-from brdfkit.methods.ipca import IPCA_VERSION, IpcaModel, basis_tensors, load_ipca, save_ipca
+from brdfkit.basis.storage import GRAZING_FULL, check_half, compact, expand
+from brdfkit.basis import BASIS_VERSION, PcaBasis, basis_tensors, load_basis, save_basis
 
 _TENSORS = ("cells", "reference", "mean", "components", "sigma")
 
@@ -54,20 +54,22 @@ def basis():
     comp = (rng.normal(size=(3, 1)) * np.cos(row / 300.0 + np.arange(3)[:, None])
             + 0.01 * rng.normal(size=(3, cells.size))).astype(np.float32) / np.sqrt(cells.size)
     sigma = np.array([30.0, 8.0, 2.0], np.float32)
-    return IpcaModel(cells, reference, mean, comp.astype(np.float32), sigma, ["a", "b"])
+    return PcaBasis(cells, reference, mean, comp.astype(np.float32), sigma, ["a", "b"])
 
 
 # --- compact / expand ------------------------------------------------------------------------
 
-def test_compact_keeps_even_cells_and_expand_restores_the_neighbour_mean():
-    rows = (0, 7, 7921)  # rows above the horizon at every phi_d
+def test_compact_keeps_even_and_grazing_cells_and_expand_restores_the_neighbour_mean():
+    rows = (0, 7, 7921)  # rows above the horizon at every phi_d; 7921 near the horizon
     assert _above_horizon()[list(rows)].all()
     cells = _rows_cells(rows, np.arange(N_PHI_D))
     rng = np.random.default_rng(0)
     vec = rng.normal(size=cells.size).astype(np.float32)
     mat = rng.normal(size=(2, cells.size)).astype(np.float32)
     kept, (kv, km) = compact(cells, [vec, mat], 2)
-    even = (cells % 2) == 0
+    grazing = grid_cosine_weight()[cells] < GRAZING_FULL
+    assert grazing.any() and not grazing[cells < 8 * N_PHI_D].any()
+    even = ((cells % 2) == 0) | grazing  # the cells stored
     np.testing.assert_array_equal(kept, cells[even])
     np.testing.assert_array_equal(kv, vec[even])
     np.testing.assert_array_equal(km, mat[:, even])
@@ -80,7 +82,7 @@ def test_compact_keeps_even_cells_and_expand_restores_the_neighbour_mean():
     np.testing.assert_allclose(ev[~even], _neighbour_mean(kept, kv, cells[~even]), rtol=0, atol=1e-6)
     np.testing.assert_allclose(em[:, ~even], _neighbour_mean(kept, km, cells[~even]), rtol=0, atol=1e-6)
     # The wrap: phi_d index 179 lies between 178 and 0 (phi_d is periodic with period pi).
-    for r in rows:
+    for r in rows[:2]:
         i179, i178, i0 = (np.searchsorted(cells, r * N_PHI_D + p) for p in (179, 178, 0))
         assert ev[i179] == np.float32(0.5) * (vec[i178] + vec[i0])
 
@@ -90,8 +92,9 @@ def test_compact_keeps_even_cells_and_expand_restores_the_neighbour_mean():
     np.testing.assert_array_equal(sv, vec)
     with pytest.raises(ValueError, match="stride"):
         compact(cells, [vec], 3)
-    with pytest.raises(ValueError, match="even"):
-        expand(cells, [vec])
+    every, (xv,) = expand(cells, [vec])  # every cell stored: every cell as stored
+    np.testing.assert_array_equal(every, cells)
+    np.testing.assert_array_equal(xv, vec)
 
 
 def test_expand_next_to_missing_cells_and_the_horizon():
@@ -127,12 +130,12 @@ def test_check_half_refuses_values_float16_cannot_hold(tmp_path):
     check_half("b.safetensors", [np.array([65504.0, -65504.0]), np.zeros((2, 0))])
     with pytest.raises(InputError, match=r"b.safetensors: .*float16's range \(65504\)"):
         check_half("b.safetensors", [np.zeros(3), np.array([[1.0, -70000.0]])])
-    big = IpcaModel(np.array([0, 2], np.int64), np.array([1.0, 1e5], np.float32), np.zeros(2, np.float32),
+    big = PcaBasis(np.array([0, 2], np.int64), np.array([1.0, 1e5], np.float32), np.zeros(2, np.float32),
                     np.ones((1, 2), np.float32), np.ones(1, np.float32), [])
     with pytest.raises(InputError, match="float16"):
-        save_ipca(tmp_path / "big.safetensors", big, half=True)
+        save_basis(tmp_path / "big.safetensors", big, half=True)
     assert not (tmp_path / "big.safetensors").exists()
-    save_ipca(tmp_path / "big.safetensors", big)  # float32 holds it
+    save_basis(tmp_path / "big.safetensors", big)  # float32 holds it
 
 
 # --- the basis file ---------------------------------------------------------------------------
@@ -148,17 +151,18 @@ def _raw(path):
 
 def test_half_stride_two_file_round_trip(basis, tmp_path):
     full, packed = tmp_path / "full.safetensors", tmp_path / "packed.safetensors"
-    save_ipca(full, basis)
-    save_ipca(packed, basis, half=True, phi_stride=2)
+    save_basis(full, basis)
+    save_basis(packed, basis, half=True, phi_stride=2)
     tensors, meta = _raw(packed)
-    assert meta["version"] == IPCA_VERSION == "2"
+    assert meta["version"] == BASIS_VERSION == "2"
     assert meta["phi_d_stride"] == "2" and meta["dtype"] == "float16"
     assert tensors["components"].dtype == np.float16 and tensors["sigma"].dtype == np.float32
     assert "cells" not in tensors and tensors["cell_mask"].dtype == np.uint8
-    np.testing.assert_array_equal(_stored_cells(tensors), basis.cells[(basis.cells % 2) == 0])
+    stored = ((basis.cells % 2) == 0) | (grid_cosine_weight()[basis.cells] < GRAZING_FULL)
+    np.testing.assert_array_equal(_stored_cells(tensors), basis.cells[stored])
     assert packed.stat().st_size < 0.3 * full.stat().st_size
 
-    a, b = load_ipca(full), load_ipca(packed)
+    a, b = load_basis(full), load_basis(packed)
     # The same cells as stride 1, less the odd cells with no stored even neighbour (none
     # is added).
     idx = np.searchsorted(a.cells, b.cells)
@@ -174,7 +178,7 @@ def test_half_stride_two_file_round_trip(basis, tmp_path):
     np.testing.assert_array_equal(b.sigma, basis.sigma)
     assert b.materials == basis.materials
 
-    even = (b.cells % 2) == 0
+    even = ((b.cells % 2) == 0) | (grid_cosine_weight()[b.cells] < GRAZING_FULL)  # the stored cells
     for name in ("reference", "mean", "components"):
         orig, got = getattr(basis, name)[..., idx], getattr(b, name)
         assert got.dtype == np.float32
@@ -183,7 +187,8 @@ def test_half_stride_two_file_round_trip(basis, tmp_path):
         assert (np.abs(got[..., even] - orig[..., even]) <= tol[..., even]).all(), name
         # Restored cells: the mean of the rounded neighbours, close to the true value of a
         # basis smooth in phi_d.
-        np.testing.assert_allclose(got[..., ~even], _neighbour_mean(b.cells[even], got[..., even], b.cells[~even]),
+        pairs = (b.cells % 2) == 0
+        np.testing.assert_allclose(got[..., ~even], _neighbour_mean(b.cells[pairs], got[..., pairs], b.cells[~even]),
                                    rtol=1e-6, atol=1e-9)
         scale = np.abs(orig).max()
         assert np.abs(got[..., ~even] - orig[..., ~even]).max() < 0.05 * scale, name
@@ -193,7 +198,7 @@ def test_int8_storage(basis, tmp_path):
     """int8 components with a scale per block of cells: each value within half a step
     (1/254) of the largest in its block, in half the bytes of float16; the
     reference and mean as in float16 storage."""
-    from brdfkit.methods.ipca.basis_storage import INT8_BLOCK, dequantize, quantize
+    from brdfkit.basis.storage import INT8_BLOCK, dequantize, quantize
 
     q, scale = quantize(basis.components)
     assert q.dtype == np.int8 and scale.shape == (3, -(-basis.cells.size // INT8_BLOCK))
@@ -203,25 +208,25 @@ def test_int8_storage(basis, tmp_path):
     assert np.array_equal(quantize(np.zeros((2, 10)))[0], np.zeros((2, 10), np.int8))  # no 0 / 0
 
     f16, i8 = tmp_path / "f16.safetensors", tmp_path / "i8.safetensors"
-    save_ipca(f16, basis, half=True, phi_stride=2)
-    save_ipca(i8, basis, half=True, phi_stride=2, int8=True)
+    save_basis(f16, basis, half=True, phi_stride=2)
+    save_basis(i8, basis, half=True, phi_stride=2, int8=True)
     # the components take half the bytes (the scales 1/128 of that again)
     assert f16.stat().st_size - i8.stat().st_size > 0.49 * _raw(f16)[0]["components"].nbytes
     tensors, meta = _raw(i8)
     assert meta["dtype"] == "int8" and tensors["components"].dtype == np.int8
-    a, b = load_ipca(f16), load_ipca(i8)
+    a, b = load_basis(f16), load_basis(i8)
     np.testing.assert_array_equal(a.cells, b.cells)
     np.testing.assert_array_equal(a.reference, b.reference)
     np.testing.assert_array_equal(a.mean, b.mean)
     assert np.abs(a.components - b.components).max() < 0.01 * np.abs(a.components).max()
     with pytest.raises(ValueError, match="int8 storage of a basis goes with half"):
-        save_ipca(tmp_path / "x.safetensors", basis, int8=True)
+        save_basis(tmp_path / "x.safetensors", basis, int8=True)
     for broken in ({k: v for k, v in tensors.items() if k != "component_scales"},
                    {**tensors, "component_scales": tensors["component_scales"][:, :-1]},
                    {**tensors, "component_scales": np.full_like(tensors["component_scales"], np.nan)}):
         _save_raw(tmp_path / "bad.safetensors", broken, meta)
         with pytest.raises(FormatError, match="bad.safetensors: .*(component_scales|scales)"):
-            load_ipca(tmp_path / "bad.safetensors")
+            load_basis(tmp_path / "bad.safetensors")
 
 
 @pytest.mark.parametrize("half,stride,int8", [(True, 2, False), (True, 1, False), (False, 2, False),
@@ -230,16 +235,16 @@ def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, ha
     """What ``brdfkit.methods.prior.fit`` relies on: a basis read back from compact storage and stored the
     same way again is bit-identical, so a model trained on it sees what it ships with."""
     first, second = tmp_path / "a.safetensors", tmp_path / "b.safetensors"
-    save_ipca(first, basis, half=half, phi_stride=stride, int8=int8)
-    back = load_ipca(first)
-    save_ipca(second, back, half=half, phi_stride=stride, int8=int8)
+    save_basis(first, basis, half=half, phi_stride=stride, int8=int8)
+    back = load_basis(first)
+    save_basis(second, back, half=half, phi_stride=stride, int8=int8)
     t1, m1 = _raw(first)
     t2, m2 = _raw(second)
     assert m1 == m2 and sorted(t1) == sorted(t2)
     for k in t1:
         assert t1[k].dtype == t2[k].dtype
         np.testing.assert_array_equal(t1[k], t2[k])
-    again = load_ipca(second)
+    again = load_basis(second)
     for k in _TENSORS:
         np.testing.assert_array_equal(getattr(again, k), getattr(back, k))
     # The same through the prefixed tensors a learnt-prior file stores inside itself.
@@ -274,7 +279,7 @@ def test_version_1_files_still_load(basis, tmp_path):
     path = tmp_path / "v1.safetensors"
     _save_raw(path, {"cells": basis.cells, "reference": basis.reference, "mean": basis.mean,
                      "components": basis.components, "sigma": basis.sigma}, _v1_meta(basis))
-    back = load_ipca(path)
+    back = load_basis(path)
     for k in _TENSORS:
         np.testing.assert_array_equal(getattr(back, k), getattr(basis, k))
     assert back.materials == basis.materials
@@ -282,18 +287,18 @@ def test_version_1_files_still_load(basis, tmp_path):
     meta["version"] = "3"
     _save_raw(path, {k: getattr(basis, k) for k in _TENSORS}, meta)
     with pytest.raises(FormatError, match="version '3' is not supported"):
-        load_ipca(path)
+        load_basis(path)
 
 
 def test_bad_storage_metadata_and_odd_cells_are_format_errors(basis, tmp_path):
     good = tmp_path / "good.safetensors"
-    save_ipca(good, basis, half=True, phi_stride=2)
+    save_basis(good, basis, half=True, phi_stride=2)
     tensors, meta = _raw(good)
     for bad in ("3", "0", "", "two", "2.0"):
         path = tmp_path / "stride.safetensors"
         _save_raw(path, tensors, {**meta, "phi_d_stride": bad})
         with pytest.raises(FormatError, match="stride.safetensors: .*phi_d_stride"):
-            load_ipca(path)
+            load_basis(path)
     # An odd phi_d cell in a stride-2 file, named by the mask or by index.
     cells = _stored_cells(tensors).copy()
     cells[5] += 1  # still sorted and in range
@@ -304,13 +309,13 @@ def test_bad_storage_metadata_and_odd_cells_are_format_errors(basis, tmp_path):
         odd = {k: v for k, v in tensors.items() if k != "cell_mask"}
         odd.update(where)
         _save_raw(path, odd, meta)
-        with pytest.raises(FormatError, match="odd.safetensors: .*even phi_d"):
-            load_ipca(path)
+        with pytest.raises(FormatError, match="odd.safetensors: .*odd phi_d cells only near the horizon"):
+            load_basis(path)
     bad = {k: v for k, v in tensors.items() if k != "cell_mask"}
     bad["cell_mask"] = np.packbits(mask)[:-1]
     _save_raw(path, bad, meta)
     with pytest.raises(FormatError, match="odd.safetensors: .*cell mask"):
-        load_ipca(path)
+        load_basis(path)
     # The same tensors declared stride 1 are a valid (if odd) basis.
     _save_raw(path, odd, {**meta, "phi_d_stride": "1"})
-    assert load_ipca(path).cells.size == cells.size
+    assert load_basis(path).cells.size == cells.size

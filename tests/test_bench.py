@@ -20,7 +20,7 @@ RES = 16
 
 @pytest.fixture(scope="module")
 def setup(tmp_path_factory):
-    from brdfkit.methods.ipca import fit_ipca, save_ipca
+    from brdfkit.basis import fit_basis, save_basis
     from brdfkit.materials.synthetic import write_library
     from brdfkit.hypernet.training.loop import fit
 
@@ -31,7 +31,7 @@ def setup(tmp_path_factory):
     model = root / "tiny.safetensors"
     fit(lib, model, latent_dim=6, steps=30, seed=0, progress=False, **TINY)
     basis = root / "basis.safetensors"
-    save_ipca(basis, fit_ipca(sorted(lib.glob("*.binary")), n_components=2))
+    save_basis(basis, fit_basis(sorted(lib.glob("*.binary")), n_components=2))
     test_list = root / "test.txt"
     test_list.write_text(f"# two of the three\n{names[0]}\n{names[2]}\n")
     return {"root": root, "lib": lib, "names": names, "model": model, "basis": basis, "test_list": test_list}
@@ -85,7 +85,7 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     assert row["psnr_sd_materials"] == pytest.approx(np.std(vals, ddof=1))
 
     comp_recs = [r for r in result["records"] if r["kind"] == "compression"]
-    assert [r["method"] for r in comp_recs] == ["hypernet 6-D (tiny)", "ipca 2 components"] * 2
+    assert [r["method"] for r in comp_recs] == ["latent-6 (tiny)", "pca-2 (6 numbers, basis)"] * 2
     assert all("error" not in r and r["time_s"] > 0 for r in comp_recs)
     # the model and the basis were trained on all three library tables, not on alias.binary
     assert {(r["material"], r["trained_on"]) for r in comp_recs} == {(setup["names"][1], True), ("alias", False)}

@@ -202,45 +202,44 @@ def test_default_and_env_resolution(installed, capsys, monkeypatch, tmp_path):
     fps = {m.name: m.fingerprint for m in builtin.builtin_models()}
     code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "d"])
     assert code == 0, err
-    assert read_embedding(tmp_path / "d" / "mat.emb").model_fingerprint == fps["tiny-a"]
+    assert read_embedding(tmp_path / "d" / "mat.emb").decoder == fps["tiny-a"]
     monkeypatch.setenv("BRDFKIT_MODEL", "tiny-b")
     code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "e"])
     assert code == 0, err
-    assert read_embedding(tmp_path / "e" / "mat.emb").model_fingerprint == fps["tiny-b"]
+    assert read_embedding(tmp_path / "e" / "mat.emb").decoder == fps["tiny-b"]
     monkeypatch.delenv("BRDFKIT_MODEL")
     code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "s.binary",
                                     "--emb", tmp_path / "s.emb"])
     assert code == 0, err
-    assert read_embedding(tmp_path / "s.emb").model_fingerprint == fps["tiny-a"]
+    assert read_embedding(tmp_path / "s.emb").decoder == fps["tiny-a"]
 
 
 def test_other_methods_get_no_builtin(installed, capsys, tmp_path):
     _, inputs = installed
     code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", "--method", "ipca", "-o", tmp_path / "x.binary"])
-    line = one_error_line(err)
-    assert code == 2 and "method 'ipca' needs" in line
+    line = one_error_line(err)  # ipca takes the default built-in's basis, and tiny-a ships none
+    assert code == 2 and "built-in model 'tiny-a' ships no PCA basis" in line
     assert not (tmp_path / "x.binary").exists()
 
 
 def test_embedding_picks_its_builtin(installed, capsys, tmp_path):
     folder, inputs = installed
     b = api.load_model(folder / "tiny-b.safetensors", "cpu")
-    write_embedding(tmp_path / "x.emb", api.encode(b, inputs / "mat.binary"))
-    write_embedding(tmp_path / "y.emb", api.encode(b, inputs / "s.csv"))
-    assert builtin.embedding_model(None, tmp_path / "x.emb") == str(folder / "tiny-b.safetensors")
+    write_embedding(tmp_path / "x.emb", api.encode(inputs / "mat.binary", b))
+    write_embedding(tmp_path / "y.emb", api.encode(inputs / "s.csv", b))
+    assert builtin.find_by_digest(read_embedding(tmp_path / "x.emb").decoder) == str(folder / "tiny-b.safetensors")
     code, _, err = run_cli(capsys, ["decode", tmp_path / "x.emb", "-o", tmp_path / "x.binary"])  # not the default
     assert code == 0, err
-    np.testing.assert_allclose(read_merl(tmp_path / "x.binary"), api.decode(b, tmp_path / "x.emb"), rtol=1e-12,
+    np.testing.assert_allclose(read_merl(tmp_path / "x.binary"), api.decode(tmp_path / "x.emb", b), rtol=1e-12,
                                equal_nan=True)  # through the MERL scales and back
     code, _, err = run_cli(capsys, ["interpolate", tmp_path / "x.emb", tmp_path / "y.emb", "--t", "0.5",
                                     "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary"])
     assert code == 0, err
     assert (tmp_path / "m.binary").exists()
-    # An embedding of a model that is not built in falls back to the default: refused by
-    # fingerprint, naming both.
+    # An embedding of a model that is not built in: refused, naming its decoder's digest.
     make_model(tmp_path / "own.safetensors", seed=5)
     own = api.load_model(tmp_path / "own.safetensors", "cpu")
-    write_embedding(tmp_path / "own.emb", api.encode(own, inputs / "s.csv"))
+    write_embedding(tmp_path / "own.emb", api.encode(inputs / "s.csv", own))
     code, _, err = run_cli(capsys, ["decode", tmp_path / "own.emb", "-o", tmp_path / "own.binary"])
     assert code == 2 and own.fingerprint[:12] in one_error_line(err)
 

@@ -63,8 +63,8 @@ def test_encode_continues_past_bad_files(files, tmp_path):
     assert "encoded 2 of 4 files" in r.stderr
     m = api.load_model(files / "model.safetensors", "cpu")
     e = read_embedding(out / "mat.emb")
-    np.testing.assert_allclose(e.latent, api.encode(m, material_table(1), refine=False).latent, atol=1e-6)
-    assert e.source == "mat.binary" and e.model_fingerprint == m.fingerprint
+    np.testing.assert_allclose(e.values, api.encode(material_table(1), m, refine=False).values, atol=1e-6)
+    assert e.source == "mat.binary" and e.decoder == m.fingerprint
 
 
 def test_encode_beside_input_and_env_model(files, tmp_path, capsys, monkeypatch):
@@ -92,7 +92,7 @@ def test_encode_without_model(files, capsys):
 
 def test_decode_writes_a_merl_file(files, tmp_path, capsys):
     m = api.load_model(files / "model.safetensors", "cpu")
-    emb = api.encode(m, files / "samples.csv")
+    emb = api.encode(files / "samples.csv", m)
     write_embedding(tmp_path / "x.emb", emb)
     out = tmp_path / "x.binary"
     r = _run(["decode", tmp_path / "x.emb", "-m", files / "model.safetensors", "-o", out])
@@ -103,7 +103,7 @@ def test_decode_writes_a_merl_file(files, tmp_path, capsys):
     np.testing.assert_array_equal(np.isnan(table).any(-1), unmeasured)
     raw = np.fromfile(out, "<f8", offset=12).reshape(3, -1)
     assert (raw[:, unmeasured.reshape(-1)] == -1).all()
-    np.testing.assert_allclose(table, api.decode(m, emb), rtol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(table, api.decode(emb, m), rtol=1e-12, equal_nan=True)
     # Default output: beside the embedding.
     code, _, err = run_cli(capsys, ["decode", tmp_path / "x.emb", "-m", files / "model.safetensors"])
     assert code == 0 and (tmp_path / "x.binary").exists()
@@ -111,7 +111,7 @@ def test_decode_writes_a_merl_file(files, tmp_path, capsys):
 
 def test_decode_other_models_embedding_refused(files, tmp_path):
     m = api.load_model(files / "model.safetensors", "cpu")
-    write_embedding(tmp_path / "x.emb", api.encode(m, files / "samples.csv"))
+    write_embedding(tmp_path / "x.emb", api.encode(files / "samples.csv", m))
     r = _run(["decode", tmp_path / "x.emb", "-m", files / "other.safetensors", "-o", tmp_path / "y.binary"])
     assert r.returncode == 2
     line = one_error_line(r.stderr)
@@ -125,7 +125,7 @@ def test_decode_bad_inputs(files, tmp_path, capsys, case):
 
     m = api.load_model(files / "model.safetensors", "cpu")
     emb = tmp_path / "x.emb"
-    write_embedding(emb, api.encode(m, files / "samples.csv"))
+    write_embedding(emb, api.encode(files / "samples.csv", m))
     model = files / "model.safetensors"
     out = tmp_path / "y.binary"
     if case == "pickle model":
@@ -158,8 +158,8 @@ def test_sparse(files, tmp_path, capsys):
 
     table, e = get_method("hypernet").sparse(read_samples(files / "samples.csv"), m, refine_target="latent")
     np.testing.assert_allclose(read_merl(out), table, rtol=1e-12, equal_nan=True)
-    np.testing.assert_array_equal(read_embedding(emb).latent, e.latent)
-    np.testing.assert_allclose(api.decode(m, read_embedding(emb)), table, rtol=1e-6, equal_nan=True)
+    np.testing.assert_array_equal(read_embedding(emb).values, e.values)
+    np.testing.assert_allclose(api.decode(read_embedding(emb), m), table, rtol=1e-6, equal_nan=True)
     assert read_embedding(emb).sample_count == 300
     assert "refined on the samples (latent)" in err
 
@@ -177,10 +177,10 @@ def test_sparse_bad_method_and_overwrite(files, tmp_path, capsys):
 def two_embs(files, tmp_path_factory):
     d = tmp_path_factory.mktemp("interp")
     m = api.load_model(files / "model.safetensors", "cpu")
-    write_embedding(d / "a.emb", api.encode(m, files / "mat.binary"))
-    write_embedding(d / "b.emb", api.encode(m, material_table(0), source="white"))
+    write_embedding(d / "a.emb", api.encode(files / "mat.binary", m))
+    write_embedding(d / "b.emb", api.encode(material_table(0), m, source="white"))
     o = api.load_model(files / "other.safetensors", "cpu")
-    write_embedding(d / "o.emb", api.encode(o, files / "samples.csv"))
+    write_embedding(d / "o.emb", api.encode(files / "samples.csv", o))
     return d
 
 
@@ -193,24 +193,24 @@ def test_interpolate_t_not_a_number(two_embs, tmp_path):
 
 def test_interpolate(files, two_embs, tmp_path, capsys):
     a, b = read_embedding(two_embs / "a.emb"), read_embedding(two_embs / "b.emb")
-    for t, want in (("0", a.latent), ("1", b.latent)):
+    for t, want in (("0", a.values), ("1", b.values)):
         code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", t,
                                         "-o", tmp_path / "c.emb"])
         assert code == 0, err
-        np.testing.assert_array_equal(read_embedding(tmp_path / "c.emb").latent, want)
+        np.testing.assert_array_equal(read_embedding(tmp_path / "c.emb").values, want)
     code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "0.3",
                                     "-o", tmp_path / "m.emb", "--binary", tmp_path / "m.binary",
                                     "-m", files / "model.safetensors"])
     assert code == 0, err
     m = api.load_model(files / "model.safetensors", "cpu")
     mix = read_embedding(tmp_path / "m.emb")
-    np.testing.assert_allclose(read_merl(tmp_path / "m.binary"), api.decode(m, mix), rtol=1e-12, equal_nan=True)
+    np.testing.assert_allclose(read_merl(tmp_path / "m.binary"), api.decode(mix, m), rtol=1e-12, equal_nan=True)
 
 
 @pytest.mark.parametrize("args, message", [
     (["--t", "1.5"], "outside [0, 1]"),
     (["--t", "nan"], "not a finite number"),
-    (["--t", "0.5", "--binary", "{tmp}/m.binary"], "no model given"),
+    (["--t", "0.5", "--binary", "{tmp}/m.binary"], "is not among the installed built-in models; pass the file"),
     (["--t", "0.5", "-o", "{embs}/a.emb"], "refusing to overwrite"),
 ])
 def test_interpolate_refusals(two_embs, tmp_path, capsys, args, message):
@@ -228,7 +228,7 @@ def test_interpolate_extrapolation_and_mismatch(two_embs, tmp_path, capsys):
     assert code == 0, err
     code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--t", "0.5",
                                     "-o", tmp_path / "d.emb"])
-    assert code == 2 and "different models" in one_error_line(err)
+    assert code == 2 and "different decoders" in one_error_line(err)
     assert not (tmp_path / "d.emb").exists()
 
 
@@ -269,12 +269,15 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
     png = np.asarray(Image.open(sheet).convert("RGB"))
     assert png.shape[0] > 16 and png.shape[1] > 3 * 16
 
-    m = api.load_model(files / "model.safetensors", "cpu")
+    from brdfkit.methods.embedding import decoder_for
+
     a, b = read_embedding(two_embs / "a.emb"), read_embedding(two_embs / "b.emb")
-    tiles = interpolation_strip(m, a, b, tmp_path / "lib.png", steps=3, size=16, progress=False)
+    dec = decoder_for(a, files / "model.safetensors", "cpu")
+    m = dec.obj
+    tiles = interpolation_strip(dec, a, b, tmp_path / "lib.png", steps=3, size=16, progress=False)
     assert [t for t, _ in tiles] == [0.0, 0.5, 1.0]
     with pytest.raises(InputError, match="steps = 1"):  # the library checks what the CLI checks
-        interpolation_strip(m, a, b, tmp_path / "one.png", steps=1, size=16)
+        interpolation_strip(dec, a, b, tmp_path / "one.png", steps=1, size=16)
     for (_, img), emb in zip(tiles[::2], (a, b)):  # the ends are A and B themselves
         alone, _ = render(NeuralBRDF.from_embedding(m, emb), reference_scene(16))
         np.testing.assert_array_equal(img, alone)
@@ -307,5 +310,5 @@ def test_interpolate_strip_refusals(two_embs, tmp_path, capsys, args, message):
 def test_interpolate_strip_of_two_models_refused(files, two_embs, tmp_path, capsys):
     code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--sheet",
                                     tmp_path / "s.png", "-m", files / "model.safetensors", "--size", "16"])
-    assert code == 2 and "different models" in one_error_line(err)
+    assert code == 2 and "different decoders" in one_error_line(err)
     assert not (tmp_path / "s.png").exists()

@@ -13,7 +13,8 @@ import pytest
 import torch
 
 from brdfkit import api
-from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+from brdfkit.hypernet.refine_on_screen import compress_table
+from brdfkit.render.objective import ObjectiveConfig
 from brdfkit.errors import InputError
 from brdfkit.render import screen as screen_mod
 
@@ -41,7 +42,7 @@ def test_screen_renders_what_the_quadrature_renders(tiny):
     table = material_table(1)
     img, mask = render(TableBRDF(table, device="cpu"), Scene(resolution=12))
     np.testing.assert_allclose(sc.render_table(table).numpy(), img[mask], rtol=2e-5, atol=1e-7)
-    brdf = NeuralBRDF.from_embedding(m, api.encode(m, table, refine=False))
+    brdf = NeuralBRDF.from_embedding(m, api.encode(table, m, refine=False))
     img, mask = render(brdf, Scene(resolution=12))
     np.testing.assert_allclose(sc.render_hyponet(m, brdf.weights).detach().numpy(), img[mask],
                                rtol=2e-5, atol=1e-6)
@@ -76,26 +77,26 @@ def test_rotated_environment_turns_the_lights():
 def test_refinement_is_never_worse_than_the_encoder_pass(tiny):
     _, m = tiny
     table = material_table(1)
-    r = compress_table(m, table, CompressConfig(steps=40, resolution=16))
+    r = compress_table(m, table, ObjectiveConfig(steps=40, resolution=16))
     before, after = r.heldout
     assert after <= before
     assert r.best_step % 5 == 0 and r.best_step <= r.steps <= 40
     if r.best_step == 0:
-        np.testing.assert_array_equal(r.embedding.latent, r.encoder.latent)
+        np.testing.assert_array_equal(r.embedding.values, r.encoder.values)
     else:
         assert after < before
     # Deterministic: a budget of steps, a convergence stop, no clock.
-    again = compress_table(m, table, CompressConfig(steps=40, resolution=16))
-    np.testing.assert_array_equal(again.embedding.latent, r.embedding.latent)
-    np.testing.assert_array_equal(r.encoder.latent, api.encode(m, table, refine=False).latent)
+    again = compress_table(m, table, ObjectiveConfig(steps=40, resolution=16))
+    np.testing.assert_array_equal(again.embedding.values, r.embedding.values)
+    np.testing.assert_array_equal(r.encoder.values, api.encode(table, m, refine=False).values)
 
 
 def test_zero_steps_is_the_encoder_pass(tiny):
     _, m = tiny
     table = material_table(1)
-    z0 = api.encode(m, table, refine=False).latent
-    np.testing.assert_array_equal(api.encode(m, table, steps=0).latent, z0)
-    r = compress_table(m, table, CompressConfig(steps=0))
+    z0 = api.encode(table, m, refine=False).values
+    np.testing.assert_array_equal(api.encode(table, m, steps=0).values, z0)
+    r = compress_table(m, table, ObjectiveConfig(steps=0))
     assert r.steps == 0 and r.embedding is r.encoder
 
 
@@ -104,7 +105,7 @@ def test_zero_steps_is_the_encoder_pass(tiny):
                                 dict(pairs_per_pixel=0), dict(uniform_share=2.0)])
 def test_bad_compress_settings_are_input_errors(kw):
     with pytest.raises(InputError):
-        CompressConfig(**kw)
+        ObjectiveConfig(**kw)
 
 
 def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tmp_path):
@@ -117,11 +118,11 @@ def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tm
                      "-o", tmp_path / "plain"])
     assert r.returncode == 0 and "encoder pass" in r.stdout + r.stderr
     plain = read_embedding(tmp_path / "plain" / "mat.emb")
-    np.testing.assert_allclose(plain.latent, api.encode(m, material_table(1), refine=False).latent, atol=1e-6)
+    np.testing.assert_allclose(plain.values, api.encode(material_table(1), m, refine=False).values, atol=1e-6)
     r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--steps", "10",
                      "-o", tmp_path / "refined"])
     assert r.returncode == 0 and "refined on screen" in r.stdout + r.stderr
-    assert read_embedding(tmp_path / "refined" / "mat.emb").latent.shape == plain.latent.shape
+    assert read_embedding(tmp_path / "refined" / "mat.emb").values.shape == plain.values.shape
     r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--steps", "-2",
                      "-o", tmp_path / "bad"])
     assert r.returncode == 2 and "Traceback" not in r.stderr and "--steps" in r.stderr

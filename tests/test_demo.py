@@ -63,7 +63,7 @@ def test_demo_runs_end_to_end(tmp_path):
         assert (out / rel).is_file(), rel
     for f in (f"{name}.emb", f"{name}-40samples.emb", f"{name}-400samples.emb"):
         emb = read_embedding(out / "embeddings" / f)
-        assert emb.model_fingerprint == model.fingerprint
+        assert emb.decoder == model.fingerprint
     mixes = [f for f in os.listdir(out / "embeddings") if "+" in f]
     assert len(mixes) == 1
     # A kept library (--keep-tables) is reused by the next run with the same count and seed.

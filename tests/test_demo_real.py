@@ -49,7 +49,7 @@ def shelf(tmp_path_factory):
     ``merl-rgl-l40`` and ``merl-rgl-l7``."""
     import torch
 
-    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.basis import fit_basis
     from brdfkit.methods.prior.prior_file import save_prior
     from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
@@ -62,13 +62,16 @@ def shelf(tmp_path_factory):
                            reference_file="tiny.reference.safetensors")
         entries.append(packing.manifest_entry(folder / f"{name}.safetensors", name, command="brdfkit fit (tiny)",
                                               validation={40: 0.3}))
-    basis = fit_ipca([material_table(0), material_table(1)], n_components=3, names=["stiff-white", "ggx"])
+    basis = fit_basis([material_table(0), material_table(1)], n_components=3, names=["stiff-white", "ggx"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
     torch.manual_seed(0)
     fp = save_prior(folder / "merl80-l40.prior.safetensors",
                     PriorModel(basis, prior_net(cfg), cfg, {"materials": ["stiff-white", "ggx"]}),
                     basis_file="tiny.basis.safetensors")
-    entries[0].update(prior="merl80-l40.prior.safetensors", prior_fingerprint=fp)
+    from brdfkit.methods.prior.prior_file import basis_entry
+
+    entries[0].update(prior="merl80-l40.prior.safetensors", prior_fingerprint=fp,
+                      **basis_entry(folder / "merl80-l40.prior.safetensors"))
     builtin.write_manifest(folder, entries, default="merl80-l40")
     return folder
 
@@ -183,6 +186,12 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert "…" not in report and all(w in report for t in LABELS for w in t.split(" ("))
     # Each compression labelled by kind, in the explanation and the times; the budget said.
     assert "refined on screen, at most 20 steps" in flat and "brdfkit encode takes at most 40 by default" in flat
+    # What each kind of column holds: the basis's coefficients (80 steps in encode), or a latent.
+    assert ("basis-K: the full table compressed, as brdfkit encode does by default, into K numbers, the "
+            "coefficients of the PCA basis the model ships") in flat
+    assert "brdfkit encode takes at most 80 by default" in flat
+    assert "K-D: the full table compressed into the hypernetwork's K-D latent" in flat
+    assert "by a hypernetwork (" not in flat
     assert "in-sample (merl-rgl-l40, merl-rgl-l7): trained on all 151 MERL + RGL materials, these included" in flat
     assert "unseen (merl80-l40): trained without the 20 MERL test materials" in flat
     for label in LABELS:
@@ -198,24 +207,26 @@ def test_real_demo_end_to_end(shelf, tmp_path):
                                rtol=1e-12, equal_nan=True)
     for stem in ("prior-40", "prior-400", "ipca-40", "ipca-400"):
         assert np.isfinite(read_merl(out / "reconstructed" / f"violet-rubber-{stem}.binary")).any()
-    fingerprints = {m.name: m.fingerprint for m in builtin.read_manifest(shelf).models}
-    assert len(set(fingerprints.values())) == 3
+    entries = {m.name: m for m in builtin.read_manifest(shelf).models}
+    assert len({m.fingerprint for m in entries.values()}) == 3
     for m, latent, _ in SHELF:
         emb = read_embedding(out / "embeddings" / f"teflon-{m}.emb")
-        # merl80-l40 ships a basis (3 components): a basis embedding of 9 numbers
-        assert emb.model_fingerprint == fingerprints[m] and emb.latent_dim == (9 if m == "merl80-l40" else latent)
-        assert (emb.basis is not None) == (m == "merl80-l40")
+        # merl80-l40 ships a basis (3 components): a basis embedding of 9 numbers, named by the basis file
+        basis = m == "merl80-l40"
+        assert (emb.kind, emb.size) == (("basis", 9) if basis else ("latent", latent))
+        assert emb.decoder == (entries[m].basis_fingerprint if basis else entries[m].fingerprint)
         assert (out / "decoded" / f"teflon-{m}.binary").is_file()
     assert sorted(os.listdir(out / "decoded")) == sorted(
         [f"{n}-{m}.binary" for n in ("violet-rubber", "teflon") for m, _, _ in SHELF]
         + ["violet-rubber+teflon-t0.5-merl80-l40.binary"])
     blend = read_embedding(out / "embeddings" / "violet-rubber+teflon-t0.5-merl80-l40.emb")
-    assert blend.model_fingerprint == fingerprints["merl80-l40"]
+    assert blend.decoder == entries["merl80-l40"].basis_fingerprint
     assert len((out / "samples" / "teflon-40.csv").read_text().splitlines()) > 40
     doc = json.loads((out / "errors.json").read_text())
     assert doc["columns"] == SPARSE_COLUMNS + LABELS and list(doc["errors"]["teflon"]) == doc["columns"]
-    assert [(c["column"], c["kind"], c["latent_dim"]) for c in doc["compressions"]] == [
-        (LABELS[0], "in-sample", 40), (LABELS[1], "in-sample", 7), (LABELS[2], "unseen", 40)]
+    assert [(c["column"], c["kind"], c["embedding"], c["size"]) for c in doc["compressions"]] == [
+        (LABELS[0], "in-sample", "latent", 40), (LABELS[1], "in-sample", "latent", 7),
+        (LABELS[2], "unseen", "basis", 9)]
     assert doc["compression_steps"] == 20 and doc["interpolation_model"] == "merl80-l40"
     assert doc["psnr"]["teflon"].keys() == doc["errors"]["teflon"].keys()  # the renders the tables rank by
     # The sheet and the plot, of the first material.
@@ -231,9 +242,9 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
     calls = []
     encode = brdfkit.api.encode
 
-    def recording_encode(model, data, **kw):
-        calls.append((model.cfg.latent_dim, kw.get("refine", True), kw.get("steps")))
-        return encode(model, data, **kw)
+    def recording_encode(data, model, **kw):
+        calls.append((model.kind, model.sizes[-1], kw.get("refine", True), kw.get("steps")))
+        return encode(data, model, **kw)
 
     monkeypatch.setattr(brdfkit.api, "encode", recording_encode)
     res = run_real_demo(tmp_path / "d", only=["chrome-steel"], render=False, device="cpu")
@@ -243,7 +254,8 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
         ("merl-rgl-l40", "in-sample", LABELS[0]), ("merl-rgl-l7", "in-sample", LABELS[1]),
         ("merl80-l40", "unseen", LABELS[2])]
     # Every full table refined on screen for the demo's steps, read when the demo runs.
-    assert calls == [(40, True, 3), (7, True, 3), (40, True, 3)] and res.compression_steps == 3
+    assert calls == [("latent", 40, True, 3), ("latent", 7, True, 3), ("basis", 9, True, 3)]
+    assert res.compression_steps == 3
     assert [t for t, _ in res.times if t.startswith("encode")] == [
         f"encode + refine (3 steps), {label} (mean)" for label in LABELS]
     assert len(res.errors) == 1 and len(res.errors[0][1]) == 7
@@ -262,7 +274,7 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
 
     calls.clear()
     res = run_real_demo(tmp_path / "e", only=["teflon"], render=False, device="cpu", steps=0)
-    assert calls == [(40, False, 0), (7, False, 0), (40, False, 0)]  # the encoder's pass alone
+    assert calls == [("latent", 40, False, 0), ("latent", 7, False, 0), ("basis", 9, False, 0)]  # no refinement
     assert res.times[2 + 2][0] == f"encode (encoder pass only), {LABELS[0]} (mean)"
 
 
@@ -335,6 +347,19 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
     assert "rendering teflon and 5 reconstructions in the reference scene" in re.sub(r"\s+", " ", stderr)
     assert "rendering teflon and 3 reconstructions in the backlight scene" in re.sub(r"\s+", " ", stderr)
     assert "comparison sheets, reference and backlight (10 renders, 8 px)" in re.sub(r"\s+", " ", stdout)
+
+
+def test_sheets_render_at_128_px_by_default():
+    """At 64 px a sphere is a blocky disc: the sheets and the renders the tables rank by
+    are 128 px unless --resolution says otherwise."""
+    import inspect
+
+    from brdfkit.cli.demo import command
+    from brdfkit.demos.real_materials import SHEET_RESOLUTION, run_real_demo
+
+    assert SHEET_RESOLUTION >= 128
+    assert inspect.signature(run_real_demo).parameters["resolution"].default == SHEET_RESOLUTION
+    assert next(p for p in command.params if p.name == "resolution").default == SHEET_RESOLUTION
 
 
 def test_no_builtin_models_is_one_line_pointing_at_train(tmp_path):

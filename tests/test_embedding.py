@@ -1,4 +1,5 @@
-"""Embedding files: exact round trip, small self-describing JSON, every bad input refused."""
+"""Embedding files: exact round trip, small self-describing JSON, version 1 files read as the
+same embeddings, every bad input refused."""
 
 from __future__ import annotations
 
@@ -8,7 +9,7 @@ import types
 import numpy as np
 import pytest
 
-from brdfkit.io.embedding import Embedding, check_compatible, read_embedding, write_embedding
+from brdfkit.io.embedding import Embedding, read_embedding, write_embedding
 from brdfkit.errors import FormatError, ModelMismatchError
 
 from conftest import format_error
@@ -16,20 +17,21 @@ from conftest import format_error
 FP = "ab" * 32
 
 
-def _emb(dim=40, seed=0, fp=FP):
+def _emb(dim=40, seed=0, fp=FP, kind="latent"):
     rng = np.random.default_rng(seed)
     # Values across many magnitudes, including ones whose float32 decimal repr is long.
     lat = (rng.normal(size=dim) * 10.0 ** rng.integers(-6, 3, dim)).astype(np.float32)
-    return Embedding(lat, fp, "teflon.binary", 1234)
+    return Embedding(lat, kind, fp, "teflon.binary", 1234)
 
 
-def test_round_trip_exact(tmp_path):
-    e = _emb()
+@pytest.mark.parametrize("kind", ["latent", "basis"])
+def test_round_trip_exact(tmp_path, kind):
+    e = _emb(39, kind=kind)
     write_embedding(tmp_path / "a.emb", e)
     r = read_embedding(tmp_path / "a.emb")
-    assert r.latent.dtype == np.float32 and r.latent_dim == 40
-    np.testing.assert_array_equal(r.latent, e.latent)
-    assert (r.model_fingerprint, r.source, r.sample_count) == (FP, "teflon.binary", 1234)
+    assert r.values.dtype == np.float32 and r.size == 39 and r.kind == kind
+    np.testing.assert_array_equal(r.values, e.values)
+    assert (r.decoder, r.source, r.sample_count) == (FP, "teflon.binary", 1234)
 
 
 def test_small_self_describing_json(tmp_path):
@@ -37,15 +39,30 @@ def test_small_self_describing_json(tmp_path):
     text = (tmp_path / "a.emb").read_text()
     assert len(text) < 4096
     doc = json.loads(text)
-    assert doc["format"] == "brdfkit-embedding" and doc["version"] == 1
-    assert doc["latent_dim"] == 40 == len(doc["latent"])
-    assert set(doc) == {"format", "version", "latent_dim", "latent", "model_fingerprint", "source",
-                        "sample_count"}
+    assert doc["format"] == "brdfkit-embedding" and doc["version"] == 2
+    assert doc["size"] == 40 == len(doc["values"]) and doc["kind"] == "latent" and doc["decoder"] == FP
+    assert set(doc) == {"format", "version", "kind", "size", "values", "decoder", "source", "sample_count"}
+
+
+@pytest.mark.parametrize("basis", [None, "cd" * 32])
+def test_version_1_files_read_as_the_same_embedding(tmp_path, basis):
+    """A version 1 file: a latent and its model's fingerprint, or (with ``basis``) the
+    coefficients of that basis file."""
+    doc = _doc()
+    if basis:
+        doc["basis"] = basis
+    (tmp_path / "v1.emb").write_text(json.dumps(doc))
+    r = read_embedding(tmp_path / "v1.emb")
+    assert (r.kind, r.decoder, r.size) == (("basis", basis, 3) if basis else ("latent", FP, 3))
+    assert r.values.tolist() == [0.5, -1.0, 2.0] and (r.source, r.sample_count) == ("x", 3)
+    write_embedding(tmp_path / "v2.emb", r)  # written again as version 2, the same values
+    again = read_embedding(tmp_path / "v2.emb")
+    assert (again.kind, again.decoder, again.values.tolist()) == (r.kind, r.decoder, r.values.tolist())
 
 
 def test_write_refuses_non_finite(tmp_path):
     e = _emb()
-    e.latent[3] = np.nan
+    e.values[3] = np.nan
     with pytest.raises(ValueError):
         write_embedding(tmp_path / "a.emb", e)
     assert not (tmp_path / "a.emb").exists()
@@ -58,7 +75,7 @@ def _doc():
 
 
 BAD_DOCS = {
-    "wrong version": (lambda d: d.update(version=2), "version 2 is not supported"),
+    "wrong version": (lambda d: d.update(version=3), "version 3 is not supported"),
     "version as text": (lambda d: d.update(version="1"), "version '1' is not supported"),
     "version as float": (lambda d: d.update(version=1.0), "version 1.0 is not supported"),
     "wrong format": (lambda d: d.update(format="something-else"), "not a brdfkit embedding"),
@@ -71,15 +88,34 @@ BAD_DOCS = {
     "bool in latent": (lambda d: d["latent"].__setitem__(0, True), r"latent\[0\] is True"),
     "huge value": (lambda d: d["latent"].__setitem__(2, 1e300), "not a finite float32"),
     "no fingerprint": (lambda d: d.pop("model_fingerprint"), "model_fingerprint"),
+    "fingerprint not hex": (lambda d: d.update(model_fingerprint="x" * 64), "model_fingerprint"),
+    "basis not hex": (lambda d: d.update(basis="a" * 63), "'basis' must be the sha256"),
+    "basis of 4 values": (lambda d: d.update(basis="a" * 64, latent_dim=4, latent=[1, 2, 3, 4]), "3 coefficients"),
     "negative count": (lambda d: d.update(sample_count=-1), "sample_count"),
     "source not text": (lambda d: d.update(source=5), "'source' must be a string"),
 }
 
 
-@pytest.mark.parametrize("case", sorted(BAD_DOCS))
+def _doc2():
+    return {"format": "brdfkit-embedding", "version": 2, "kind": "basis", "size": 3, "values": [0.5, -1.0, 2.0],
+            "decoder": FP, "source": "x", "sample_count": 3}
+
+
+BAD_DOCS_2 = {
+    "no kind": (lambda d: d.pop("kind"), "'kind' must be"),
+    "kind not a word": (lambda d: d.update(kind="Basis Set"), "'kind' must be"),
+    "no decoder": (lambda d: d.pop("decoder"), "'decoder' must be a SHA-256"),
+    "short decoder": (lambda d: d.update(decoder="ab" * 31), "'decoder' must be a SHA-256"),
+    "short values": (lambda d: d.update(values=[0.5]), "values has 1 values but size is 3"),
+    "size zero": (lambda d: d.update(size=0, values=[]), "size must be a positive"),
+    "nan text": (lambda d: d["values"].__setitem__(0, "nan"), r"values\[0\] is 'nan'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(BAD_DOCS) + [f"v2 {c}" for c in sorted(BAD_DOCS_2)])
 def test_bad_documents(tmp_path, case):
-    edit, message = BAD_DOCS[case]
-    d = _doc()
+    edit, message = BAD_DOCS_2[case[3:]] if case.startswith("v2 ") else BAD_DOCS[case]
+    d = _doc2() if case.startswith("v2 ") else _doc()
     edit(d)
     path = tmp_path / "bad.emb"
     path.write_text(json.dumps(d))
@@ -107,14 +143,22 @@ def test_merl_file_is_not_an_embedding(tmp_path):
         read_embedding(path)
 
 
-def test_check_compatible():
-    model = types.SimpleNamespace(fingerprint=FP, cfg=types.SimpleNamespace(latent_dim=40),
-                                  path="/m/model.safetensors")
-    check_compatible(_emb(), model)
-    other = _emb(fp="cd" * 32)
+def test_write_refuses_a_malformed_kind_or_decoder(tmp_path):
+    for e in (_emb(kind="Basis Set"), _emb(fp="x")):
+        with pytest.raises(ValueError, match="malformed"):
+            write_embedding(tmp_path / "a.emb", e)
+    assert not (tmp_path / "a.emb").exists()
+
+
+def test_a_latent_of_another_model_is_refused():
+    from brdfkit.hypernet.neural_brdf import check_latent
+
+    model = types.SimpleNamespace(fingerprint=FP, cfg=types.SimpleNamespace(latent_dim=40))
+    check_latent(_emb(), model)
     with pytest.raises(ModelMismatchError) as e:
-        check_compatible(other, model, "x.emb")
-    msg = str(e.value)
-    assert "cdcdcdcdcdcd" in msg and "abababababab" in msg and "x.emb" in msg and "model.safetensors" in msg
-    with pytest.raises(ModelMismatchError, match="latent 7.*latent 40"):
-        check_compatible(_emb(dim=7), model)
+        check_latent(_emb(fp="cd" * 32), model, "x.emb")
+    assert "cdcdcdcdcdcd" in str(e.value) and "abababababab" in str(e.value) and "x.emb" in str(e.value)
+    with pytest.raises(ModelMismatchError, match="7 numbers.*latent 40"):
+        check_latent(_emb(dim=7), model)
+    with pytest.raises(ModelMismatchError, match="basis"):
+        check_latent(_emb(kind="basis"), model)

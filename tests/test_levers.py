@@ -43,7 +43,7 @@ def test_attention_pooling_fused_encode_matches_the_network(attention_model):
     assert m.cfg.pooling == "attention" and m.net.encoder.attention is not None
     # 9,000 samples: three chunks of the fused encoder, each rescaled by the running maximum.
     s = draw_samples(material_table(1), 9000, seed=0)
-    np.testing.assert_allclose(api.encode(m, s).latent, _net_latent(m, s), atol=2e-6)
+    np.testing.assert_allclose(api.encode(s, m).values, _net_latent(m, s), atol=2e-6)
 
 
 def test_attention_pooling_is_a_set_function(attention_model):
@@ -53,15 +53,15 @@ def test_attention_pooling_is_a_set_function(attention_model):
     from brdfkit.io.samples import SampleSet
 
     shuffled = SampleSet(s.theta_h[perm], s.theta_d[perm], s.phi_d[perm], s.rgb[perm])
-    np.testing.assert_allclose(api.encode(m, s).latent, api.encode(m, shuffled).latent, atol=1e-6)
+    np.testing.assert_allclose(api.encode(s, m).values, api.encode(shuffled, m).values, atol=1e-6)
     one = SampleSet(s.theta_h[:1], s.theta_d[:1], s.phi_d[:1], s.rgb[:1])
-    assert np.isfinite(api.encode(m, one).latent).all()
+    assert np.isfinite(api.encode(one, m).values).all()
     # Scores far beyond exp's range (a bright peak) stay finite: the running maximum.
     with torch.no_grad():
         m.net.encoder.attention.bias.add_(1e4)
     try:
         m.cache.encoder.clear()
-        assert np.isfinite(api.encode(m, s).latent).all()
+        assert np.isfinite(api.encode(s, m).values).all()
     finally:
         with torch.no_grad():
             m.net.encoder.attention.bias.sub_(1e4)

@@ -36,7 +36,7 @@ def test_one_pass_equals_separate_renders_table_and_neural(tmp_path):
 
     make_model(tmp_path / "m.safetensors", seed=0)
     model = api.load_model(tmp_path / "m.safetensors", "cpu")
-    write_embedding(tmp_path / "w.emb", api.encode(model, draw_samples(material_table(1), 200, seed=0), source="w"))
+    write_embedding(tmp_path / "w.emb", api.encode(draw_samples(material_table(1), 200, seed=0), model, source="w"))
     neural = load_brdf(tmp_path / "w.emb", model=model)
     brdfs = [TableBRDF(material_table(1), "ggx", device="cpu"), TableBRDF(material_table(0), "white", device="cpu"),
              neural]

@@ -159,7 +159,7 @@ def test_neural_brdf_in_mitsuba(mi, tmp_path):
 
     make_model(tmp_path / "m.safetensors")
     model = load_model(tmp_path / "m.safetensors", device="cpu")
-    brdf = NeuralBRDF.from_embedding(model, encode(model, material_table(0)))
+    brdf = NeuralBRDF.from_embedding(model, encode(material_table(0), model))
     img = render_reference(brdf, Scene(resolution=12), spp=8)
     assert np.isfinite(img).all() and img.max() > 0
 

@@ -212,7 +212,7 @@ def test_your_data_example_csv_is_a_valid_sample_set(doc, tmp_path):
 def test_help_and_docs_do_not_send_users_to_a_folder_beside_the_checkout():
     """``../shared`` exists only beside the development checkout: help texts and docs
     speak of the reference proxies and ``merl-test.txt`` (``docs/data.md`` gives the
-    command that makes the proxies; ``docs/results.md`` records the runs as made)."""
+    command that makes the proxies; ``docs/notes/results.md`` records the runs as made)."""
     for cmd in ("fit", "bench"):
         r = run_brdfkit([cmd, "--help"])
         assert r.returncode == 0 and "../shared" not in r.stdout, (cmd, r.stdout)

@@ -1,4 +1,4 @@
-"""The performance shortcuts (docs/performance.md) compute the same numbers as the plain
+"""The performance shortcuts (docs/notes/performance.md) compute the same numbers as the plain
 definitions they replace."""
 
 from __future__ import annotations
@@ -79,15 +79,15 @@ def test_fast_encoder_and_decoder_equal_the_model_definition(tmp_path):
         make_model(path, config=config, seed=3)
         model = api.load_model(path, device="cpu")
         s = draw_samples(material_table(1), 500, seed=2)
-        emb = api.encode(model, s)
+        emb = api.encode(s, model)
         ref = model.reference_at(s.theta_h, s.theta_d, s.phi_d)
         from brdfkit.hypernet.mapping import to_mapped
 
         x = np.concatenate([s.hd(), to_mapped(np.asarray(s.rgb, np.float64), ref)], axis=1)
         with torch.no_grad():
             z = model.net.encoder(torch.from_numpy(x.astype(np.float32))[None])[0].numpy()
-            np.testing.assert_allclose(emb.latent, z, rtol=1e-5, atol=1e-6)
-            zt = torch.from_numpy(emb.latent)[None]
+            np.testing.assert_allclose(emb.values, z, rtol=1e-5, atol=1e-6)
+            zt = torch.from_numpy(emb.values)[None]
             for (w, b), (w2, b2) in zip(model.net.hyponet_weights(zt), kernels.hyponet_weights(model, zt)):
                 assert w.shape == w2.shape and b.shape == b2.shape
                 np.testing.assert_allclose(w2.numpy(), w.numpy(), rtol=1e-5, atol=1e-6)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import brdfkit
+import brdfkit.basis
 from brdfkit.io.directions import read_directions
 from brdfkit.errors import InputError
 from brdfkit.geometry import N_CELLS, cell_angles, grid_cosine_weight, valid_cells
@@ -31,13 +32,13 @@ SHIPPED_BASIS = os.path.join(os.path.dirname(brdfkit.__file__), "models", "merl8
 @pytest.fixture(scope="module")
 def small(tmp_path_factory):
     """Four synthetic GGX tables and a 5-component basis fitted to them."""
-    from brdfkit.methods.ipca import fit_ipca, save_ipca
+    from brdfkit.basis import fit_basis, save_basis
     from brdfkit.materials.synthetic import write_library
 
     root = tmp_path_factory.mktemp("planning")
     write_library(root / "lib", 4, seed=5, stiff=False)
     tables = sorted((root / "lib").glob("*.binary"))
-    save_ipca(root / "basis.safetensors", fit_ipca(tables, n_components=5))
+    save_basis(root / "basis.safetensors", fit_basis(tables, n_components=5))
     return {"root": root, "tables": tables, "basis": root / "basis.safetensors"}
 
 
@@ -45,9 +46,9 @@ def small(tmp_path_factory):
 def shipped():
     if not os.path.isfile(SHIPPED_BASIS):
         pytest.skip("no built-in basis in this checkout (brdfkit/models)")
-    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.basis import load_basis
 
-    return load_ipca(SHIPPED_BASIS)
+    return load_basis(SHIPPED_BASIS)
 
 
 # --- the designs ----------------------------------------------------------------------------
@@ -73,7 +74,7 @@ def test_nielsen_plan_is_deterministic_distinct_and_measurable(small, n):
     assert (wi[:, 2] > 0).all() and (wo[:, 2] > 0).all()
     assert a.design == "nielsen" and a.components == 5 and a.basis == "basis.safetensors"
     assert np.isfinite(a.condition_number) and a.condition_number >= 1
-    assert a.condition_number == condition_number(design_rows(brdfkit.methods.ipca.load_ipca(small["basis"]),
+    assert a.condition_number == condition_number(design_rows(brdfkit.basis.load_basis(small["basis"]),
                                                                a.directions))
 
 
@@ -119,9 +120,9 @@ def test_condition_number_of_fewer_rows_than_components():
 
 def test_design_rows_leave_out_what_the_fit_leaves_out(small):
     from brdfkit.io.directions import DirectionSet
-    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.basis import load_basis
 
-    basis = load_ipca(small["basis"])
+    basis = load_basis(small["basis"])
     cells = valid_cells()[:: 100_000]
     th, td, pd = cell_angles(cells)
     rows = design_rows(basis, DirectionSet(np.append(th, 1.2), np.append(td, 1.2), np.append(pd, 0.0)))

@@ -145,7 +145,7 @@ def test_table_and_embedding_side_by_side(tables, tmp_path):
 
     model_path = tmp_path / "model.safetensors"
     make_model(model_path)
-    emb = api.encode(api.load_model(model_path), tables / "lambert.binary")
+    emb = api.encode(tables / "lambert.binary", api.load_model(model_path))
     write_embedding(tmp_path / "lambert.emb", emb)
     r = run_brdfkit(["plot", tables / "lambert.binary", tmp_path / "lambert.emb", "-m", model_path,
                      "-o", tmp_path / "p.png"])
@@ -155,7 +155,7 @@ def test_table_and_embedding_side_by_side(tables, tmp_path):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["{t}/lambert.binary", "{t}/x.emb"], "needs its model"),
+    (["{t}/lambert.binary", "{t}/x.emb"], "x.emb: no such file"),
     (["{t}/lambert.binary", "--theta-i", "95"], "--theta-i 95"),
     (["{t}/lambert.binary", "--phi-d", "abc"], "--phi-d"),
     (["{t}/lambert.binary", "--decades", "0"], "--decades"),

@@ -22,7 +22,7 @@ import pytest
 from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, HALF_PI, grid_angles, valid_mask
 from brdfkit.methods import get_method
-from brdfkit.methods.ipca import EPS, fit_ipca, load_ipca, save_ipca
+from brdfkit.basis import EPS, fit_basis, load_basis, save_basis
 from brdfkit.methods.prior.prior_file import is_prior_file, load_prior, save_prior
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, sample_rows, solve
 from brdfkit.io.samples import SampleSet
@@ -68,7 +68,7 @@ def tables(make_table):
 
 @pytest.fixture(scope="module")
 def basis(tables):
-    return fit_ipca(tables[:8], n_components=3, names=[f"m{i}" for i in range(8)])
+    return fit_basis(tables[:8], n_components=3, names=[f"m{i}" for i in range(8)])
 
 
 def _model(basis, seed=None):
@@ -212,8 +212,8 @@ def test_save_load_round_trip_inline(noisy, tables, tmp_path):
     fp2 = save_prior(small, noisy, half=True, phi_stride=2)
     assert fp2 != fp and small.stat().st_size < 0.4 * path.stat().st_size
     back2 = load_prior(small)
-    save_ipca(tmp_path / "b.safetensors", noisy.basis, half=True, phi_stride=2)
-    stored = load_ipca(tmp_path / "b.safetensors")
+    save_basis(tmp_path / "b.safetensors", noisy.basis, half=True, phi_stride=2)
+    stored = load_basis(tmp_path / "b.safetensors")
     _same_model(dataclasses.replace(noisy, basis=stored), back2, samples)
     assert back2.fingerprint == fp2
 
@@ -247,7 +247,7 @@ def test_shared_basis_file(basis, tables, tmp_path):
         save_prior(tmp_path / "d.safetensors", a, basis_file="sub/basis.safetensors")
 
     # A basis file changed after the models were saved: refused, naming the digest.
-    save_ipca(shared, other)
+    save_basis(shared, other)
     for name in ("a", "b"):
         with pytest.raises(FormatError, match=f"{name}.safetensors: .*shared.basis.safetensors.*digest"):
             load_prior(tmp_path / f"{name}.safetensors")
@@ -266,7 +266,7 @@ def test_shared_compact_basis_file(basis, tables, tmp_path):
     save_prior(tmp_path / "b.safetensors", b, **store)
     back_a = load_prior(tmp_path / "a.safetensors")
     save_prior(tmp_path / "c.safetensors", back_a, **store)
-    stored = load_ipca(tmp_path / "small.basis.safetensors")
+    stored = load_basis(tmp_path / "small.basis.safetensors")
     for name, model in (("a", a), ("b", b), ("c", a)):
         _same_model(dataclasses.replace(model, basis=stored), load_prior(tmp_path / f"{name}.safetensors"), samples)
     other = dataclasses.replace(basis, components=-basis.components)
@@ -357,7 +357,7 @@ def test_is_prior_file(noisy, basis, tmp_path):
     from helpers_model import make_model
 
     save_prior(tmp_path / "prior.safetensors", noisy)
-    save_ipca(tmp_path / "basis.safetensors", basis)
+    save_basis(tmp_path / "basis.safetensors", basis)
     make_model(tmp_path / "hyper.safetensors")
     (tmp_path / "garbage.safetensors").write_bytes(b"\x00\x01 not a tensor file" * 10)
     (tmp_path / "empty.safetensors").write_bytes(b"")
@@ -537,15 +537,15 @@ def _tiny_args(data, out, **change):
 def test_cli_fit_prior_with_a_compact_basis(data, capsys):
     """``-O basis=FILE``: the model keeps that basis as the file stores it (float16,
     half phi_d), bit for bit."""
-    from brdfkit.methods.ipca import fit_ipca_files
+    from brdfkit.basis import fit_basis_files
 
     basis_file = data / "basis.safetensors"
-    fit_ipca_files([data / "data"], basis_file, progress=False, components=2, half=True, phi_stride=2)
+    fit_basis_files([data / "data"], basis_file, progress=False, components=2, half=True, phi_stride=2)
     out = data / "cli.safetensors"
     code, _, err = run_cli(capsys, _tiny_args(data, out, basis=basis_file))
     assert code == 0, err
     model = load_prior(out)
-    stored = load_ipca(basis_file)
+    stored = load_basis(basis_file)
     for k in ("cells", "reference", "mean", "components", "sigma"):
         np.testing.assert_array_equal(getattr(model.basis, k), getattr(stored, k))
     from safetensors import safe_open
@@ -609,7 +609,7 @@ def test_solve_is_the_weighted_ridge_of_its_docstring(weight):
     weights: ``q = g^2 / s2 + 1 / lam`` (metric) or ``g / s2 + 1 / lam`` (energy)."""
     import torch
 
-    from brdfkit.methods.ipca import EPS
+    from brdfkit.basis import EPS
     from brdfkit.methods.prior.model import solve
 
     rng = np.random.default_rng(3)

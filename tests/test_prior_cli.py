@@ -37,11 +37,11 @@ def _pack_prior(path, tables) -> str:
     :data:`BASIS` beside it; returns its fingerprint."""
     import torch
 
-    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.basis import fit_basis
     from brdfkit.methods.prior.prior_file import save_prior
     from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
-    basis = fit_ipca(tables, n_components=3, names=["stiff-white", "ggx"])
+    basis = fit_basis(tables, n_components=3, names=["stiff-white", "ggx"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
     torch.manual_seed(0)
     return save_prior(path, PriorModel(basis, prior_net(cfg), cfg, {"materials": ["stiff-white", "ggx"]}),
@@ -56,7 +56,9 @@ def shelf(tmp_path_factory):
     folder = tmp_path_factory.mktemp("builtin")
     entries = pack_tiny_builtins(src, folder, (("tiny-p", 0), ("tiny-h", 1)), validation={40: 0.3})
     fp = _pack_prior(folder / PRIOR, [material_table(0), material_table(1)])
-    entries[0].update(prior=PRIOR, prior_fingerprint=fp)
+    from brdfkit.methods.prior.prior_file import basis_entry
+
+    entries[0].update(prior=PRIOR, prior_fingerprint=fp, **basis_entry(folder / PRIOR))
     builtin.write_manifest(folder, entries, default="tiny-p")
     return folder, write_inputs(tmp_path_factory.mktemp("inputs"))
 
@@ -69,6 +71,44 @@ def _check_table(out, method: str, model, samples) -> None:
 
 
 # --- brdfkit sparse ---------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv, library", [
+    ([], {}),                                                # the default: the default built-in's learnt prior
+    (["--method", "ipca"], {"method": "ipca"}),              # no -m: the default built-in's basis
+    (["-m", "tiny-h"], {"model": "tiny-h"}),                 # a built-in without a prior: its hypernetwork
+    (["-m", "tiny-h", "--no-refine"], {"model": "tiny-h", "refine": False}),
+])
+def test_library_and_command_line_sparse_write_the_same_bytes(installed, capsys, tmp_path, argv, library):
+    """``brdfkit.sparse(samples)`` and ``brdfkit sparse`` run the same method with the same
+    model and defaults, and so write the same table to the byte."""
+    from brdfkit.io.merl import write_merl
+
+    _, inputs = installed
+    code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", *argv, "-o", tmp_path / "cli.binary"])
+    assert code == 0, err
+    table, _ = api.sparse(read_samples(inputs / "s.csv"), **library)
+    write_merl(tmp_path / "lib.binary", table)
+    assert (tmp_path / "cli.binary").read_bytes() == (tmp_path / "lib.binary").read_bytes()
+
+
+def test_library_and_command_line_encode_and_decode_write_the_same_bytes(installed, capsys, tmp_path):
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.io.merl import write_merl
+
+    _, inputs = installed
+    for argv, kw in (([], {}), (["--size", "6", "--steps", "3"], {"size": 6, "steps": 3})):
+        code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", *argv, "-o", tmp_path / "cli"])
+        assert code == 0, err
+        emb = api.encode(inputs / "mat.binary", **kw)
+        assert emb.kind == "basis"  # the default built-in ships a basis
+        write_embedding(tmp_path / "lib.emb", emb)
+        assert (tmp_path / "cli" / "mat.emb").read_bytes() == (tmp_path / "lib.emb").read_bytes()
+        code, _, err = run_cli(capsys, ["decode", tmp_path / "cli" / "mat.emb", "-o", tmp_path / "cli.binary"])
+        assert code == 0, err
+        write_merl(tmp_path / "lib.binary", api.decode(tmp_path / "lib.emb"))
+        assert (tmp_path / "cli.binary").read_bytes() == (tmp_path / "lib.binary").read_bytes()
+        (tmp_path / "cli.binary").unlink()
+
 
 def test_sparse_default_is_the_default_builtins_prior(installed, capsys, tmp_path):
     folder, inputs = installed
@@ -97,7 +137,7 @@ def test_sparse_default_without_a_prior_is_the_hypernetwork(installed, capsys, m
                                     "--emb", tmp_path / "h.emb"])
     assert code == 0, err
     assert "(method hypernet, model tiny-h, the default built-in)" in err
-    assert read_embedding(tmp_path / "h.emb").model_fingerprint == builtin.builtin_models()[1].fingerprint
+    assert read_embedding(tmp_path / "h.emb").decoder == builtin.builtin_models()[1].fingerprint
 
 
 def test_sparse_builtin_name_for_every_method(installed, capsys, tmp_path):
@@ -118,7 +158,7 @@ def test_sparse_builtin_name_for_every_method(installed, capsys, tmp_path):
     code, _, err = run_cli(capsys, ["sparse", s, "-m", "tiny-p", "--method", "hypernet", "-o", tmp_path / "e.binary",
                                     "--emb", tmp_path / "e.emb"])
     assert code == 0, err
-    assert read_embedding(tmp_path / "e.emb").model_fingerprint == fps["tiny-p"]  # the hypernetwork's
+    assert read_embedding(tmp_path / "e.emb").decoder == fps["tiny-p"]  # the hypernetwork's
 
 
 def test_sparse_file_by_its_format(installed, capsys, tmp_path):
@@ -145,7 +185,7 @@ def test_sparse_usage_errors(installed, capsys, tmp_path):
         code, _, err = run_cli(capsys, ["sparse", s, *argv, "-o", out, "--emb", tmp_path / "x.emb"])
         line = one_error_line(err)
         assert code == 2 and all(w in line for w in words), line
-    for argv, words in ((["-m", "tiny-h", "--method", "prior"], ("'tiny-h' has no learnt prior",)),
+    for argv, words in ((["-m", "tiny-h", "--method", "prior"], ("'tiny-h' ships no learnt prior", "with one: tiny-p")),
                         (["-m", "tiny-h", "--method", "ipca"], ("'tiny-h' ships no PCA basis", "with one: tiny-p")),
                         (["-m", "nope"], ("unknown model 'nope'", "tiny-p, tiny-h"))):
         code, _, err = run_cli(capsys, ["sparse", s, *argv, "-o", out])
@@ -246,9 +286,9 @@ def test_bench_takes_builtin_names(installed, capsys, tmp_path):
     r = cfg.resolved()
     assert (r.model, r.ipca, r.models, r.compression_models) == (
         str(folder / "tiny-h.safetensors"), str(folder / BASIS), {"prior": str(folder / PRIOR)},
-        (str(folder / "tiny-h.safetensors"),))
+        (str(folder / "tiny-h.safetensors") + ":latent-7",))  # what `encode -m tiny-h` makes: its latent
     assert BenchConfig(output="o", model="x/m.safetensors").resolved().model == "x/m.safetensors"
-    with pytest.raises(InputError, match="'tiny-h' has no learnt prior"):
+    with pytest.raises(InputError, match="'tiny-h' ships no learnt prior"):
         BenchConfig(output="o", models={"prior": "tiny-h"}).resolved()
     with pytest.raises(InputError, match="method 'prior' needs --model-file prior=FILE"):
         BenchConfig(output="o", data=str(inputs), methods=("prior",)).validate()

@@ -28,13 +28,13 @@ EVAL_SPARSE = os.path.join(REPO, "benchmarks", "eval_sparse.py")
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory):
     """Three synthetic tables, a 4-component basis fitted to them, a test list of two."""
-    from brdfkit.methods.ipca import fit_ipca, save_ipca
+    from brdfkit.basis import fit_basis, save_basis
     from brdfkit.materials.synthetic import write_library
 
     root = tmp_path_factory.mktemp("protocol")
     write_library(root / "lib", 3, seed=7, stiff=False)
     names = sorted(p.stem for p in (root / "lib").glob("*.binary"))
-    save_ipca(root / "basis.safetensors", fit_ipca(sorted((root / "lib").glob("*.binary")), n_components=4))
+    save_basis(root / "basis.safetensors", fit_basis(sorted((root / "lib").glob("*.binary")), n_components=4))
     (root / "test.txt").write_text(f"{names[0]}\n{names[2]}\n")
     return {"root": root, "lib": root / "lib", "names": names, "basis": root / "basis.safetensors",
             "test": root / "test.txt"}

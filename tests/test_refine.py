@@ -41,8 +41,8 @@ def _sample_mse(model, brdf, samples):
 
 def test_latent_refinement_fits_the_samples_and_the_material(setup):
     _, model, samples = setup
-    emb = api.encode(model, samples)
-    before = api.decode(model, emb)
+    emb = api.encode(samples, model)
+    before = api.decode(emb, model)
     r = refine(model, samples, emb, config=RefineConfig(max_steps=200))
     assert 0 < r.steps["latent"] <= 200 and r.steps["latent"] % 10 == 0
     held_before, held_after = r.heldout["latent"]
@@ -54,8 +54,8 @@ def test_latent_refinement_fits_the_samples_and_the_material(setup):
     assert _sample_mse(model, r.brdf, samples) < _sample_mse(model, NeuralBRDF.from_embedding(model, emb), samples)
     assert np.isfinite(before).any()
     # The embedding is the refined latent: decoding it gives the refined material.
-    np.testing.assert_allclose(api.decode(model, r.embedding), r.brdf.to_table(), rtol=1e-6, equal_nan=True)
-    assert r.embedding.sample_count == 400 and r.embedding.model_fingerprint == model.fingerprint
+    np.testing.assert_allclose(api.decode(r.embedding, model), r.brdf.to_table(), rtol=1e-6, equal_nan=True)
+    assert r.embedding.sample_count == 400 and r.embedding.decoder == model.fingerprint
 
 
 def test_weights_stage_and_model_untouched(setup):
@@ -80,16 +80,16 @@ def test_weights_stage_and_model_untouched(setup):
 def test_declined_when_too_few_samples_or_no_gain(setup):
     _, model, samples = setup
     few = draw_samples(material_table(1), 5, seed=1)
-    emb = api.encode(model, few)
+    emb = api.encode(few, model)
     r = refine(model, few, emb)
     assert r.steps == {"latent": 0}
-    np.testing.assert_array_equal(r.brdf.to_table(), api.decode(model, emb))
+    np.testing.assert_array_equal(r.brdf.to_table(), api.decode(emb, model))
     # A learning rate of zero cannot improve the held-out samples: 0 steps are chosen
     # and the encoder's answer comes back unchanged.
-    emb = api.encode(model, samples)
+    emb = api.encode(samples, model)
     r = refine(model, samples, emb, config=RefineConfig(lr_latent=0.0, max_steps=30))
     assert r.steps["latent"] == 0
-    np.testing.assert_array_equal(r.embedding.latent, emb.latent)
+    np.testing.assert_array_equal(r.embedding.values, emb.values)
 
 
 def test_nan_samples_are_left_out(setup):
@@ -99,7 +99,7 @@ def test_nan_samples_are_left_out(setup):
     with_nan = SampleSet(samples.theta_h, samples.theta_d, samples.phi_d, rgb)
     keep = np.arange(len(samples)) != 7
     without = SampleSet(samples.theta_h[keep], samples.theta_d[keep], samples.phi_d[keep], samples.rgb[keep])
-    emb = api.encode(model, without)
+    emb = api.encode(without, model)
     cfg = RefineConfig(max_steps=30)
     a = refine(model, with_nan, emb, config=cfg).brdf.to_table()
     b = refine(model, without, emb, config=cfg).brdf.to_table()
@@ -131,7 +131,7 @@ def test_cli_refine(setup, tmp_path, capsys):
 
     table, emb = get_method("hypernet").sparse(read_samples(d / "samples.csv"), model, refine_target="latent")
     np.testing.assert_allclose(refined, table, rtol=1e-12, equal_nan=True)
-    np.testing.assert_array_equal(read_embedding(tmp_path / "r.emb").latent, emb.latent)
+    np.testing.assert_array_equal(read_embedding(tmp_path / "r.emb").values, emb.values)
     assert not np.allclose(refined, plain, equal_nan=True)
     code, err = _cli(capsys, args + ["-o", tmp_path / "w.binary"])  # the default: weights
     assert code == 0 and "refined on the samples (weights)" in err, err

@@ -306,7 +306,7 @@ def test_cli_render_embedding(tmp_path):
 
     make_model(tmp_path / "m.safetensors")
     model = load_model(tmp_path / "m.safetensors", device="cpu")
-    emb = encode(model, material_table(0))
+    emb = encode(material_table(0), model)
     write_embedding(tmp_path / "w.emb", emb)
     r = run_brdfkit(["render", tmp_path / "w.emb", "-m", tmp_path / "m.safetensors", "-o", tmp_path / "w.exr",
                      "--resolution", 12, "--quiet"])

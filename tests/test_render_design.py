@@ -47,11 +47,11 @@ def test_metric_is_the_jacobian_of_the_displayed_screen(small):
     the real render of the decoded table, for the mean material (no prior draws)."""
     import torch
 
-    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.basis import load_basis
     from brdfkit.render.display import display_encode_torch as _display
     from brdfkit.render.screen import screen
 
-    basis = load_ipca(small["basis"])
+    basis = load_basis(small["basis"])
     m = render_metric(basis, draws=0, scenes=(0.0,))
     sc = screen()
 
@@ -69,9 +69,9 @@ def test_metric_is_the_jacobian_of_the_displayed_screen(small):
 
 
 def test_precision_is_the_ridge_alone_for_ipca_and_grows_with_the_metric_term(small):
-    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.basis import load_basis
 
-    basis = load_ipca(small["basis"])
+    basis = load_basis(small["basis"])
     cells = basis.cells[::5000]
     ridge = cell_precision(basis, cells, Likelihood(None, lam=0.1))
     np.testing.assert_allclose(ridge, 10.0)

@@ -1,4 +1,4 @@
-"""``benchmarks/results.py``, the generator of ``docs/results.md``: the page from two real
+"""``benchmarks/results.py``, the generator of ``docs/notes/results.md``: the page from two real
 (tiny) bench results with ``--skip-run``, issue 22's done-when check, the links folder.
 
 The bench results are real runs on a tiny budget: one synthetic material, N = 40, one
@@ -33,11 +33,11 @@ import results_page  # noqa: E402
 def _prior(path, tables) -> None:
     import torch
 
-    from brdfkit.methods.ipca import fit_ipca
+    from brdfkit.basis import fit_basis
     from brdfkit.methods.prior.prior_file import save_prior
     from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
-    basis = fit_ipca(tables, n_components=3, names=["a", "b"])
+    basis = fit_basis(tables, n_components=3, names=["a", "b"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
     torch.manual_seed(0)
     save_prior(path, PriorModel(basis, prior_net(cfg), cfg, {"materials": ["a", "b"]}))
@@ -48,7 +48,7 @@ def _prior(path, tables) -> None:
 def runs(tmp_path_factory):
     """``(proxies, runs)``: proxies ``merl/mat-a``, ``rgl/rgl_b_rgb``; the two bench folders."""
     from brdfkit.bench import BenchConfig, run_bench
-    from brdfkit.methods.ipca import save_ipca
+    from brdfkit.basis import save_basis
 
     root = tmp_path_factory.mktemp("results")
     proxies, runs, models = root / "proxies", root / "runs", root / "models"
@@ -58,7 +58,7 @@ def runs(tmp_path_factory):
     write_merl(proxies / "rgl" / "rgl_b_rgb.binary", material_table(2))
     make_model(models / "hyp.safetensors")
     basis = _prior(models / "prior.safetensors", [material_table(0), material_table(2)])
-    save_ipca(models / "basis.safetensors", basis)
+    save_basis(models / "basis.safetensors", basis)
     common = dict(ipca=str(models / "basis.safetensors"), resolution=16, jobs=1, threads=1, device="cpu",
                   cache=str(runs / "bench-cache"))
     run_bench(BenchConfig(output=str(runs / "bench-sparse"), data=str(proxies / "merl"),
@@ -109,9 +109,9 @@ def test_page_from_bench_results(runs, tmp_path):
     assert "**Coverage: 1 of the 2 test materials** of `test.txt` (missing: mat-z)" in page
     assert "N = 40: prior PSNR " in proc.stdout and "Done when met:" in proc.stdout
     # compression: all, MERL and RGL rows of each model, the paper's figure on the IPCA row
-    assert "| hypernet 7-D (hyp) | all | 2 |" in page and "| hypernet 7-D (hyp) | RGL | 1 |" in page
-    assert "| ipca 3 components | MERL | 1 | 100.00 | - |" in page
-    assert "| ipca 3 components | all | 2 | 100.00 ± 0.00 | - |" in page
+    assert "| latent-7 (hyp) | all | 2 |" in page and "| latent-7 (hyp) | RGL | 1 |" in page
+    assert "| pca-3 (9 numbers, basis) | MERL | 1 | 100.00 | - |" in page
+    assert "| pca-3 (9 numbers, basis) | all | 2 | 100.00 ± 0.00 | - |" in page
     assert "2 materials (1 MERL, 1 RGL)" in page
     # the commands, verbatim
     cmds = results.plan(str(proxies), str(rdir), "../shared/data/merl-test.txt", 2)
@@ -196,9 +196,13 @@ def test_run_order(runs, tmp_path, monkeypatch, capsys):
 def test_the_papers_ipca_figure_sits_beside_eight_components():
     import results_page  # benchmarks/ is on sys.path (above)
 
-    assert results_page._paper_comp("pca 8 components (24 numbers)", None) == "29.89"
+    assert results_page._paper_comp("pca-8 (24 numbers)", None) == "29.89"
+    assert results_page._paper_comp("pca-8 (24 numbers, ipca80)", None) == "29.89"
+    assert results_page._paper_comp("pca-13 (39 numbers, ipca80)", None) == "-"
+    assert results_page._paper_comp("pca-2 (6 numbers)", None) == "-"
+    assert results_page._paper_comp("latent-40 (merl-rgl-l40)", 40) == "47.68"
+    assert results_page._paper_comp("latent-16 (tiny)", 16) == "-"
+    assert results_page._paper_comp("basis-39 (merl80-basis)", 39) == "-"
+    # the labels of earlier records
     assert results_page._paper_comp("ipca 8 components", None) == "29.89"
-    assert results_page._paper_comp("ipca 13 components", None) == "-"
-    assert results_page._paper_comp("pca 2 components (6 numbers)", None) == "-"
     assert results_page._paper_comp("hypernet 40-D (merl-rgl-l40)", 40) == "47.68"
-    assert results_page._paper_comp("hypernet 16-D (tiny)", 16) == "-"

@@ -80,7 +80,7 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path):
     assert r.returncode == 0, r.stderr
     embs = [f for f in os.listdir(tmp_path / "emb") if f.endswith(".emb")]
     assert len(embs) == 1
-    assert json.loads((tmp_path / "emb" / embs[0]).read_text())["basis"]  # the default: a basis embedding
+    assert json.loads((tmp_path / "emb" / embs[0]).read_text())["kind"] == "basis"  # the default
     r = _run("decode", os.path.join("emb", embs[0]), "-o", "dec.binary", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     from brdfkit.io.merl import read_merl
@@ -128,10 +128,11 @@ def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_c
     try:
         for threads in (2, 1):
             torch.set_num_threads(threads)
-            write_embedding(tmp_path / f"t{threads}.emb", encode(model, ref, source="m.binary", steps=10))
+            write_embedding(tmp_path / f"t{threads}.emb", encode(ref, model, source="m.binary", steps=10))
             got.append((tmp_path / f"t{threads}.emb").read_bytes())
     finally:
         torch.set_num_threads(before)
     assert got[0] == got[1]
     doc = json.loads(got[0])
-    assert doc["latent_dim"] == 39 and len(doc["basis"]) == 64 and doc["refinement"]["steps"] <= 10
+    assert doc["size"] == 39 and doc["kind"] == "basis" and len(doc["decoder"]) == 64
+    assert doc["refinement"]["steps"] <= 10

@@ -1,4 +1,4 @@
-"""Numerical stability on stiff materials and extreme inputs (issue 6, docs/stability.md).
+"""Numerical stability on stiff materials and extreme inputs (issue 6, docs/notes/stability.md).
 
 Stiff materials are built with :class:`brdfkit.materials.synthetic.Material`: a silver GGX mirror
 with ``alpha = 0.002`` (values up to 6.5e7 1/sr) and a black Lambertian (albedo 1e-3,
@@ -135,20 +135,20 @@ def test_fit_on_mirror_black_and_white_stays_finite(trained):
 @pytest.mark.parametrize("name", ["mirror", "black"])
 def test_encode_decode_sparse_metrics_on_stiff(trained, stiff, name):
     model, folder = trained
-    emb = api.encode(model, folder / f"{name}.binary")  # dense: every measured cell
-    assert np.isfinite(emb.latent).all()
-    dec = api.decode(model, emb)
+    emb = api.encode(folder / f"{name}.binary", model)  # dense: every measured cell
+    assert np.isfinite(emb.values).all()
+    dec = api.decode(emb, model)
     assert _finite_where_measured(dec, model.rho_ref)
     assert math.isfinite(brdf_log_rmse(dec, stiff[name]))
-    rec, emb2 = api.sparse(model, draw_samples(stiff[name], 40, seed=1))
-    assert np.isfinite(emb2.latent).all() and _finite_where_measured(rec, model.rho_ref)
+    rec, emb2 = api.sparse(draw_samples(stiff[name], 40, seed=1), model, refine_target="latent")
+    assert np.isfinite(emb2.values).all() and _finite_where_measured(rec, model.rho_ref)
     assert math.isfinite(brdf_log_rmse(rec, stiff[name]))
 
 
 def test_interpolation_and_extrapolation_stay_finite(trained, stiff):
     model, _ = trained
-    a = api.encode(model, draw_samples(stiff["mirror"], 400, seed=4), source="mirror")
-    b = api.encode(model, draw_samples(stiff["black"], 400, seed=4), source="black")
+    a = api.encode(draw_samples(stiff["mirror"], 400, seed=4), model, source="mirror")
+    b = api.encode(draw_samples(stiff["black"], 400, seed=4), model, source="black")
     probe = torch.from_numpy(np.ascontiguousarray(grid_hd()[::97]))
     peak = {}
     for t in (-1000.0, -10.0, -3.0, 0.5, 3.0, 10.0, 1000.0):
@@ -160,7 +160,7 @@ def test_interpolation_and_extrapolation_stay_finite(trained, stiff):
         assert _finite_where_measured(table, model.rho_ref), t
         assert np.nanmax(table) <= RHO_MAX
     # far out the hyponet predicts mapped values past 88.7, where expm1 overflows float32:
-    # without from_mapped's clamp these tables held infinity (docs/stability.md)
+    # without from_mapped's clamp these tables held infinity (docs/notes/stability.md)
     assert max(peak[-1000.0], peak[1000.0]) > 88.8, peak
 
 
@@ -170,8 +170,8 @@ def test_extrapolation_through_the_cli(trained, tmp_path, capsys):
     from brdfkit.io.merl import read_merl
 
     model, folder = trained
-    write_embedding(tmp_path / "a.emb", api.encode(model, folder / "mirror.binary"))
-    write_embedding(tmp_path / "b.emb", api.encode(model, folder / "black.binary"))
+    write_embedding(tmp_path / "a.emb", api.encode(folder / "mirror.binary", model))
+    write_embedding(tmp_path / "b.emb", api.encode(folder / "black.binary", model))
     with pytest.raises(SystemExit) as e:
         main([str(x) for x in ["interpolate", tmp_path / "a.emb", tmp_path / "b.emb", "--t", "-10",
                                "--allow-extrapolation", "-o", tmp_path / "c.emb", "--binary",
@@ -189,7 +189,7 @@ def _unit(v):
 
 def test_eval_dirs_at_extreme_directions(trained, stiff):
     model, _ = trained
-    nb = NeuralBRDF.from_embedding(model, api.encode(model, draw_samples(stiff["mirror"], 500)))
+    nb = NeuralBRDF.from_embedding(model, api.encode(draw_samples(stiff["mirror"], 500), model))
     g = 1e-9  # radians above the horizon
     wi = _unit([[0, 0, 1], [math.cos(g), 0, math.sin(g)], [math.cos(g), 0, math.sin(g)], [0.6, 0, 0.8],
                 [0, 0, 1], [1, 0, 0], [1, 0, 0], [0, 0, 1], [0.6, 0.0, 0.8]])
@@ -214,9 +214,9 @@ def test_phi_d_at_pi_encodes_like_zero(model):
     # pair as phi_d = 0 by reciprocity) reached the encoder as another input.
     th, td = np.array([0.0, 0.3, HALF_PI]), np.array([HALF_PI, 0.5, 0.2])
     rgb = np.array([[1e4, 1e4, 1e4], [0.5, 0.4, 0.3], [1e-3, 1e-3, 1e-3]])
-    base = api.encode(model, SampleSet(th, td, np.array([0.0, 1.0, 0.0]), rgb)).latent
+    base = api.encode(SampleSet(th, td, np.array([0.0, 1.0, 0.0]), rgb), model).values
     for pd in ([math.pi, 1.0 + math.pi, -1e-17], [2 * math.pi, 1.0 - 2 * math.pi, math.pi]):
-        other = api.encode(model, SampleSet(th, td, np.array(pd), rgb)).latent
+        other = api.encode(SampleSet(th, td, np.array(pd), rgb), model).values
         np.testing.assert_allclose(other, base, rtol=1e-5, atol=1e-6)
     assert np.isfinite(base).all()
 
@@ -226,14 +226,14 @@ def test_phi_d_at_pi_encodes_like_zero(model):
 def test_one_sample_one_direction_and_duplicates(model, stiff):
     s = draw_samples(stiff["mirror"], 300, seed=2)
     one = SampleSet(s.theta_h[:1], s.theta_d[:1], s.phi_d[:1], s.rgb[:1])
-    z1 = api.encode(model, one)
-    assert z1.sample_count == 1 and np.isfinite(z1.latent).all()
+    z1 = api.encode(one, model)
+    assert z1.sample_count == 1 and np.isfinite(z1.values).all()
     # all samples at one direction: the mean of identical features is that feature
     same = SampleSet(*(np.repeat(a, 1000, axis=0) for a in (one.theta_h, one.theta_d, one.phi_d, one.rgb)))
-    np.testing.assert_allclose(api.encode(model, same).latent, z1.latent, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(api.encode(same, model).values, z1.values, rtol=1e-6, atol=1e-7)
     # every sample duplicated 3 times: the same mean
     dup = SampleSet(*(np.repeat(a, 3, axis=0) for a in (s.theta_h, s.theta_d, s.phi_d, s.rgb)))
-    np.testing.assert_allclose(api.encode(model, dup).latent, api.encode(model, s).latent, rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(api.encode(dup, model).values, api.encode(s, model).values, rtol=1e-6, atol=1e-7)
 
 
 def test_million_samples_bounded_time_and_memory(model, stiff):
@@ -242,14 +242,14 @@ def test_million_samples_bounded_time_and_memory(model, stiff):
     tracemalloc.start()
     try:
         t0 = time.perf_counter()
-        emb = api.encode(model, s)
+        emb = api.encode(s, model)
         seconds = time.perf_counter() - t0
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert emb.sample_count == 1_000_000 and np.isfinite(emb.latent).all()
+    assert emb.sample_count == 1_000_000 and np.isfinite(emb.values).all()
     # NumPy temporaries (HD vectors, reference values, cell indices): a few times the
-    # input, never the per-sample activations (those are chunked; docs/stability.md).
+    # input, never the per-sample activations (those are chunked; docs/notes/stability.md).
     assert peak < 4 * input_bytes, (peak, input_bytes)
     assert seconds < 60, seconds
 
@@ -259,11 +259,11 @@ def test_million_samples_bounded_time_and_memory(model, stiff):
 def test_absurd_extrapolation_is_refused_not_nan(model, stiff):
     # Regression: t = 1e20 overflowed the hyponet's float32 activations into NaN, which
     # write_merl would have stored as "not measured" cells.
-    a = Embedding(np.full(model.cfg.latent_dim, 0.5), model.fingerprint, "a")
-    b = Embedding(np.full(model.cfg.latent_dim, -0.5), model.fingerprint, "b")
+    a = Embedding(np.full(model.cfg.latent_dim, 0.5), "latent", model.fingerprint, "a")
+    b = Embedding(np.full(model.cfg.latent_dim, -0.5), "latent", model.fingerprint, "b")
     far = api.interpolate(a, b, 1e30, allow_extrapolation=True)
     with pytest.raises(InputError, match=r"hyponet overflows on this embedding .* cannot be decoded"):
-        api.decode(model, far)
+        api.decode(far, model)
     nb = NeuralBRDF.from_embedding(model, far, "far.emb")
     with pytest.raises(InputError, match=r"^far\.emb: "):
         nb.eval_hd(torch.tensor([[0.0, 0.0, 1.0, 0.0, 0.0, 1.0]]))
@@ -293,7 +293,7 @@ def test_render_and_image_metrics_on_stiff(trained, stiff, small_scene):
     images = {}
     for name in ("mirror", "black"):
         images[name], _ = render(TableBRDF(stiff[name], name=name), small_scene)
-        nb = NeuralBRDF.from_embedding(model, api.encode(model, draw_samples(stiff[name], 400, seed=5)))
+        nb = NeuralBRDF.from_embedding(model, api.encode(draw_samples(stiff[name], 400, seed=5), model))
         images[name + "-neural"], _ = render(nb, small_scene)
     for key, img in images.items():
         assert _image_ok(img), key
@@ -338,9 +338,9 @@ def test_proxy_mirror_and_black(trained, tmp_path_factory, small_scene, name):
         back = from_mapped(to_mapped(table, ref), ref)
         big = np.isfinite(table) & np.isfinite(back) & (table > 1e-6)
         assert (np.abs(back[big] - table[big]) <= 1e-6 * table[big]).all()
-    emb = api.encode(model, path)
-    dec = api.decode(model, emb)
-    rec, _ = api.sparse(model, draw_samples(table, 40, seed=2))
+    emb = api.encode(path, model)
+    dec = api.decode(emb, model)
+    rec, _ = api.sparse(draw_samples(table, 40, seed=2), model)
     for t in (dec, rec):
         assert _finite_where_measured(t, model.rho_ref) and math.isfinite(brdf_log_rmse(t, table))
     ref_img, _ = render(TableBRDF(table, name=name), small_scene)

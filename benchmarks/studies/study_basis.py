@@ -5,14 +5,14 @@ Issue 22 asks the default ``brdfkit sparse`` to beat 8-component IPCA (Nielsen e
 at its own ceiling (the projection of the whole table); a larger basis raises the ceiling
 but has more coefficients to fit from few samples. This study measures both, with the
 render-aligned error of :mod:`brdfkit.render.screen` (32 px reference scene; Spearman
-0.996 with 128 px reference PSNR, ``docs/render-error.md``), never touching the 20 test
+0.996 with 128 px reference PSNR, ``docs/notes/render-error.md``), never touching the 20 test
 materials:
 
 * bases fitted on the 64 MERL training materials outside ``benchmarks/validation.txt``
   (``brdfkit fit --method ipca PROXIES --exclude-list TEST+VALIDATION --components K``), scored on the 16 validation ones;
 * samples: :func:`brdfkit.acquisition.sampling.draw_samples` (uniform over the Rusinkiewicz angles),
   draws ``--seeds``;
-* fits: ``ipca`` (the basis's own ridge fit, :meth:`IpcaModel.coefficients`), ``solve``
+* fits: ``ipca`` (the basis's own ridge fit, :meth:`PcaBasis.coefficients`), ``solve``
   (the learnt prior's closed form :func:`~brdfkit.methods.prior.model.solve` without a
   network, the likelihood ``weight``/``s2``/``lam``), ``proj`` (least squares on the whole
   table: the ceiling), ``prior`` (a learnt-prior file's own fit, its network included;
@@ -22,8 +22,11 @@ materials:
   likelihood and a joint prior over the three channels of each component: its ``3 x 3``
   second moments over the basis's training materials, projected onto the basis).
 
-    python benchmarks/studies/study_basis.py --proxies /work/proxies \
+    python benchmarks/studies/study_basis.py --proxies proxies \
         --basis 8=b8.safetensors 16=b16.safetensors 32=b32.safetensors --n 40 160 400 4000 --seeds 0 1
+
+(``proxies`` holds ``merl/`` and ``rgl/``, made by ``python ../shared/tools/nbrdf_to_merl.py merl
+proxies/merl`` and ``... rgl proxies/rgl``.)
 """
 
 from __future__ import annotations
@@ -86,7 +89,7 @@ def ensemble_coefficients(models, samples):
 def joint_fit(basis, samples, s2: float, lam: float, moments):
     """The energy likelihood's closed form with a joint Gaussian prior over each component's
     three channel coefficients, covariance ``moments (K, 3, 3)`` (module docstring)."""
-    from brdfkit.methods.ipca import EPS
+    from brdfkit.basis import EPS
     from brdfkit.methods.prior.model import sample_rows
 
     ok, tab, w, cos, rho, _ = sample_rows(basis, samples)
@@ -128,7 +131,7 @@ def main(argv=None):
     args = ap.parse_args(argv)
 
     from brdfkit.io.merl import read_merl
-    from brdfkit.methods.ipca import load_ipca
+    from brdfkit.basis import load_basis
     from brdfkit.methods.prior.prior_file import is_prior_file as _is_prior
     from brdfkit.methods.prior.prior_file import load_prior
     from brdfkit.evaluation.metrics import brdf_log_rmse, dark_at_grazing
@@ -142,7 +145,7 @@ def main(argv=None):
             priors[k] = [load_prior(x) for x in f.split("+")]
             bases[k] = priors[k][0].basis
         else:
-            bases[k] = load_ipca(f)
+            bases[k] = load_basis(f)
         if any(h.startswith("joint:") for h in args.fits):
             moments[k] = channel_moments(bases[k], args.proxies)
     sc = screen()

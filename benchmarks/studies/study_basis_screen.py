@@ -1,7 +1,7 @@
 """Issue 29: PCA coefficients refined on the objective scenes, judged in the suite.
 
 For each material: the least-squares projection onto a basis's ``K`` leading components
-(the PCA-K of ``brdfkit bench``), then :func:`brdfkit.methods.ipca.refine_on_screen.refine_coefficients`
+(the PCA-K of ``brdfkit bench``), then :func:`brdfkit.basis.refine_on_screen.refine_coefficients`
 with ``--steps`` steps; both decoded and scored in the six judged scenes (64 px), none of
 which the refinement descends (it uses ``studio-0..3``). References come from the bench's
 render cache.
@@ -9,7 +9,7 @@ render cache.
     python benchmarks/studies/study_basis_screen.py BASIS FOLDER -k 13 --steps 40 --lr 0.02 -o OUT.json
     python benchmarks/studies/study_basis_screen.py table benchmarks/results/2026-11-26-basis-refine-study.json
 
-The second form prints the table of a record that gathers several runs (``docs/compression.md``).
+The second form prints the table of a record that gathers several runs (``docs/notes/compression.md``).
 """
 
 from __future__ import annotations
@@ -58,7 +58,8 @@ def main(argv=None):
     ap.add_argument("--skip", default="", help="file of names to leave out")
     ap.add_argument("--limit", type=int, default=0)
     ap.add_argument("--every", type=int, default=1, help="every n-th material")
-    ap.add_argument("--cache", default="/work/runs/bench-cache")
+    ap.add_argument("--cache", default=os.path.join("runs", "bench-cache"),
+                    help="folder of the reference renders, shareable between runs (default runs/bench-cache)")
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("-o", "--output", required=True)
     a = ap.parse_args(argv)
@@ -68,16 +69,16 @@ def main(argv=None):
     torch.set_num_threads(1)
     from brdfkit.bench.config import BenchConfig
     from brdfkit.bench.worker import Worker
-    from brdfkit.hypernet.refine_on_screen import CompressConfig
+    from brdfkit.render.objective import ObjectiveConfig
     from brdfkit.io.merl import read_merl
-    from brdfkit.methods.ipca import load_ipca
-    from brdfkit.methods.ipca.refine_on_screen import refine_coefficients
+    from brdfkit.basis import load_basis
+    from brdfkit.basis.refine_on_screen import refine_coefficients
     from brdfkit.render.scene_suite import scene_names
 
     cfg = BenchConfig(output=os.path.dirname(os.path.abspath(a.output)), data=None,
                       scenes=tuple(scene_names("all")), resolution=a.resolution, cache=a.cache)
     w = Worker(cfg)
-    basis = load_ipca(a.basis).leading(a.k)
+    basis = load_basis(a.basis).leading(a.k)
     scenes = tuple(a.scenes.split(","))
     skip = set()
     if a.skip:
@@ -95,7 +96,7 @@ def main(argv=None):
         rec = {"material": f[:-7], "projection": _brief(w.score(basis.decode(c0), table, refs))}
         for steps in a.steps:
             t0 = time.perf_counter()
-            c, info = refine_coefficients(basis, table, c0, CompressConfig(steps=steps, lr=a.lr, scenes=scenes),
+            c, info = refine_coefficients(basis, table, c0, ObjectiveConfig(steps=steps, lr=a.lr, scenes=scenes),
                                           trust=a.trust)  # --trust defaults to 0 here, not DEFAULT_TRUST
             info["seconds"] = time.perf_counter() - t0
             rec[f"refined{steps}"] = dict(_brief(w.score(basis.decode(c), table, refs)), **info)

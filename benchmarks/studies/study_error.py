@@ -59,10 +59,11 @@ the table gives its mean over materials, the JSON also its minimum and the poole
 correlation over every (material, reconstruction) pair. The ``(judge)`` rows rank by the
 reference scene's 128 px judges themselves: the ceiling the rotated columns allow.
 
-    python benchmarks/studies/study_error.py --proxies /work/proxies --n 40 400 4000 --seeds 0 \
+    python benchmarks/studies/study_error.py --proxies proxies --n 40 400 4000 --seeds 0 \
         --px 128 --json study_error.json
 
-(tables ``PROXIES/NAME.binary`` or ``PROXIES/merl/NAME.binary``). Smoke test:
+(tables ``PROXIES/NAME.binary`` or ``PROXIES/merl/NAME.binary``; ``proxies/merl`` is made by
+``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl``). Smoke test:
 ``--materials alum-bronze --n 40 --px 32``.
 """
 
@@ -249,10 +250,11 @@ def reconstructions(name, table, args, models):
         model = models["compress:" + mname]
         t = time.perf_counter()
         if args.compress_steps > 0:
-            from brdfkit.hypernet.refine_on_screen import CompressConfig, compress_table
+            from brdfkit.hypernet.refine_on_screen import compress_table
+            from brdfkit.render.objective import ObjectiveConfig
             from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
-            res = compress_table(model, table, CompressConfig(steps=args.compress_steps), source=name)
+            res = compress_table(model, table, ObjectiveConfig(steps=args.compress_steps), source=name)
             pred = NeuralBRDF.from_embedding(model, res.embedding, name).to_table()
             extra = {"steps": res.steps, "best_step": res.best_step, "heldout": list(res.heldout),
                      "refine_s": res.seconds}
@@ -263,7 +265,7 @@ def reconstructions(name, table, args, models):
             pred = NeuralBRDF.from_embedding(model, res.encoder, name).to_table()
             yield f"compress-{mname}-enc", None, None, pred, time.perf_counter() - t, {"decode_only": True}
         else:
-            pred = decode(model, encode(model, table, source=name), source=name)
+            pred = decode(encode(table, model, source=name), model, source=name)
             yield f"compress-{mname}", None, None, pred, time.perf_counter() - t, {}
 
 

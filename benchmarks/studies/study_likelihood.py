@@ -62,7 +62,7 @@ DEFAULT_CONFIGS = ["ipca-ll:none:1:0.1", "metric:metric:1e-2:0.1", "metric-s3e-2
 
 
 def weights(h, rho, w, cos, kappa):
-    from brdfkit.methods.ipca import EPS
+    from brdfkit.basis import EPS
 
     e = rho * cos[:, None]
     if h == "none":
@@ -84,7 +84,7 @@ def weights(h, rho, w, cos, kappa):
 
 def solve(tab, rho, w, cos, sigma, cfg, mu=None):
     """Coefficients ``(K, 3)`` of the closed form with ``q = 1 / lam + h / s2``."""
-    from brdfkit.methods.ipca import EPS
+    from brdfkit.basis import EPS
 
     ref, mean, comp = tab[:, 0:1], tab[:, 1:2], tab[:, 2:]
     b = np.log((rho * w[:, None] + EPS) / (ref + EPS)) - mean
@@ -104,7 +104,7 @@ def gated(tab, rho, w, cos, hd, sigma, cfg, prior_mu, folds=5, seed=0):
     """The fit around the network's prior mean or around zero, whichever predicts held-out
     samples better in the metric's space (``folds``-fold cross-validation on the samples;
     the prior mean of each fold computed from its training part only)."""
-    from brdfkit.methods.ipca import EPS
+    from brdfkit.basis import EPS
 
     s = len(rho)
     if s < 2 * folds:
@@ -143,7 +143,7 @@ def main():
 
     from brdfkit.io.merl import read_merl
     from brdfkit.methods import get_method
-    from brdfkit.methods.ipca import IpcaModel
+    from brdfkit.basis import PcaBasis
     from brdfkit.methods.prior.model import sample_rows
     from brdfkit.methods.prior.model import solve as tsolve
     from brdfkit.evaluation.metrics import brdf_log_rmse, psnr
@@ -163,7 +163,7 @@ def main():
 
     def fold_basis(f):
         tab = folds["tabs"][f]
-        return IpcaModel(cells=lib.cells, reference=tab[:, 0], mean=tab[:, 1],
+        return PcaBasis(cells=lib.cells, reference=tab[:, 0], mean=tab[:, 1],
                          components=np.ascontiguousarray(tab[:, 2:].T), sigma=folds["sigmas"][f])
 
     bases = [fold_basis(f) for f in range(5)]

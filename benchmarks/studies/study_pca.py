@@ -14,7 +14,7 @@ import time
 import numpy as np
 import torch
 
-from brdfkit.methods.ipca import EPS, cosine_weight, fit_ipca
+from brdfkit.basis import EPS, cosine_weight, fit_basis
 from brdfkit.geometry import N_CELLS, cell_index, cos_theta_i
 from brdfkit.acquisition.sampling import draw_samples
 
@@ -119,7 +119,7 @@ def main():
           f"train {len(train)}, validation {len(val)}")
     for k in args.components:
         t = time.time()
-        model = fit_ipca([lib.table(n) for n in train], k, names=train)
+        model = fit_basis([lib.table(n) for n in train], k, names=train)
         print(f"ipca K={k} fit {time.time() - t:.1f} s")
         evaluate(lib, model, val, args)
 

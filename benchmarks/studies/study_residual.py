@@ -30,7 +30,7 @@ import numpy as np
 import torch
 
 from brdfkit.geometry import N_THETA_D, N_PHI_D, N_CELLS, grid_cosine_weight, grid_hd
-from brdfkit.methods.ipca import EPS, fit_ipca
+from brdfkit.basis import EPS, fit_basis
 from brdfkit.hypernet.network import HyperBRDF, HyperConfig, hyponet_forward
 from brdfkit.acquisition.sampling import draw_samples
 
@@ -152,7 +152,7 @@ def main():
     train = [n for n in lib.names if n not in val and (args.rgl or not n.startswith("rgl:"))]
     cells = lib.cells
     K, F = args.components, args.folds
-    full = fit_ipca([lib.table(n) for n in train], K, names=train)
+    full = fit_basis([lib.table(n) for n in train], K, names=train)
     full_tab = basis_at_cells(full, cells)
     merl_train = [n for n in train if not n.startswith("rgl:")]
     fold_of = {n: i % F for i, n in enumerate(sorted(train))}
@@ -166,7 +166,7 @@ def main():
         tabs, sigmas = [], []
         for f in range(F):
             keep = [n for n in train if fold_of[n] != f]
-            fold = fit_ipca([lib.table(n) for n in keep], K, names=keep)
+            fold = fit_basis([lib.table(n) for n in keep], K, names=keep)
             tabs.append(basis_at_cells(fold, cells))
             sigmas.append(fold.sigma)
         np.savez(cache, tabs=np.stack(tabs), sigmas=np.stack(sigmas))

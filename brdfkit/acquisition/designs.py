@@ -26,7 +26,7 @@ the samples; its sensitivity to noise in ``b`` is the condition number of ``A``,
 choose the directions that make it small. As in their code, the rows are those of the
 components scaled by the spread of the training coefficients (their "scaled
 eigenvectors", ``V S``; here ``components * sigma``, the columns the ridge fit of
-:meth:`IpcaModel.coefficients <brdfkit.methods.ipca.IpcaModel.coefficients>` uses), at
+:meth:`PcaBasis.coefficients <brdfkit.basis.PcaBasis.coefficients>` uses), at
 the cells' own angles. The design:
 
 1. the first direction is the cell whose row is longest (the largest leverage);

@@ -29,7 +29,7 @@ averaged over materials drawn from the basis's prior (``draws`` of them, and the
 material), i.e. over the spread of the training materials the basis was fitted to.
 
 ``J`` comes from :class:`brdfkit.render.screen.Screen`, the 32 px render whose PSNR ranks
-reconstructions as the 128 px reference renders do (``docs/render-error.md``), of the
+reconstructions as the 128 px reference renders do (``docs/notes/render-error.md``), of the
 reference scene and of the same scene with the environment turned half a turn
 (``scenes``): the plan should not serve one lighting only.
 
@@ -85,8 +85,8 @@ def _prior_draws(basis, draws: int, seed: int) -> np.ndarray:
 def _rho(tab: np.ndarray, w: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """BRDF ``rho`` (1/sr, ``>= 0``) and ``d rho / d mapped`` of coefficients ``c (D, K)``
     at rows ``tab (M, K + 2)`` (``[reference, mean, components]``) with cosine weights
-    ``w (M,)``: ``(D, M)`` each (the inverse mapping of :meth:`IpcaModel.decode`)."""
-    from brdfkit.methods.ipca import EPS
+    ``w (M,)``: ``(D, M)`` each (the inverse mapping of :meth:`PcaBasis.decode`)."""
+    from brdfkit.basis import EPS
 
     ref, mean, comp = tab[:, 0], tab[:, 1], tab[:, 2:]
     m = mean[None, :] + c @ comp.T
@@ -140,7 +140,7 @@ def cell_precision(basis, cells: np.ndarray, likelihood: Likelihood, draws: int 
     """The precision ``q (P,)`` of a sample at each of ``cells`` (flat MERL indices the
     basis covers), averaged over the prior draws (module docstring)."""
     from brdfkit.geometry import cell_angles, cos_theta_i
-    from brdfkit.methods.ipca import EPS
+    from brdfkit.basis import EPS
 
     q = np.full(len(cells), 1.0 / likelihood.lam)
     if likelihood.weight is None:

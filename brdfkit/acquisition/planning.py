@@ -92,14 +92,14 @@ def plan_target(spec=None):
     spec
         A built-in model's name (its learnt prior: the basis and the prior's likelihood),
         a learnt-prior file (likewise), a PCA basis file (``brdfkit fit --method ipca``;
-        IPCA's ridge fit), an :class:`~brdfkit.methods.ipca.IpcaModel` or
+        IPCA's ridge fit), an :class:`~brdfkit.basis.PcaBasis` or
         :class:`~brdfkit.methods.prior.model.PriorModel`, or ``None`` (the default
         built-in's learnt prior).
 
     Returns
     -------
     tuple
-        ``(IpcaModel, label, Likelihood)``
+        ``(PcaBasis, label, Likelihood)``
         (:class:`~brdfkit.acquisition.optimal_design.Likelihood`).
 
     Raises
@@ -109,7 +109,7 @@ def plan_target(spec=None):
         built-in installed.
     """
     from brdfkit.atomic import check_input_file
-    from brdfkit.methods.ipca import DEFAULT_LAMBDA, IpcaModel, load_ipca
+    from brdfkit.basis import DEFAULT_LAMBDA, PcaBasis, load_basis
     from brdfkit.methods.choice import file_method, resolve_for
     from brdfkit.models.builtin import is_path_spec, read_manifest
     from brdfkit.acquisition.optimal_design import Likelihood
@@ -121,9 +121,9 @@ def plan_target(spec=None):
         return model.basis, label, Likelihood(model.cfg.weight, model.cfg.s2, model.cfg.lam)
 
     ridge = Likelihood(None, lam=DEFAULT_LAMBDA)
-    if isinstance(spec, tuple) and len(spec) == 3 and isinstance(spec[0], IpcaModel):
+    if isinstance(spec, tuple) and len(spec) == 3 and isinstance(spec[0], PcaBasis):
         return spec  # a target this function made: loaded once, planned for many times
-    if isinstance(spec, IpcaModel):
+    if isinstance(spec, PcaBasis):
         return spec, "the given basis", ridge
     if hasattr(spec, "basis") and hasattr(spec, "cfg"):
         return spec.basis, "the given learnt prior", Likelihood(spec.cfg.weight, spec.cfg.s2, spec.cfg.lam)
@@ -140,7 +140,7 @@ def plan_target(spec=None):
     check_input_file(spec)
     kind = file_method(spec)
     if kind == "ipca":
-        return load_ipca(spec), os.path.basename(spec), ridge
+        return load_basis(spec), os.path.basename(spec), ridge
     if kind == "prior":
         return prior(spec, os.path.basename(spec))
     raise InputError(f"{spec}: not a PCA basis or a learnt-prior model file; planning needs a basis: a built-in "
@@ -151,7 +151,7 @@ def design_rows(basis, directions: DirectionSet) -> np.ndarray:
     """The rows of the basis's design matrix at the directions the fit uses.
 
     The components times ``sigma`` (the scaled columns of the ridge fit,
-    :meth:`IpcaModel.coefficients <brdfkit.methods.ipca.IpcaModel.coefficients>`),
+    :meth:`PcaBasis.coefficients <brdfkit.basis.PcaBasis.coefficients>`),
     interpolated trilinearly as the fit interpolates them; directions the fit leaves
     out (no basis cell around them, or on the horizon: zero cosine weight) are left out.
 
@@ -160,7 +160,7 @@ def design_rows(basis, directions: DirectionSet) -> np.ndarray:
     numpy.ndarray
         float64 ``(M, K)``, ``M <= N``.
     """
-    from brdfkit.methods.ipca import cosine_weight
+    from brdfkit.basis import cosine_weight
 
     at = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), directions.theta_h, directions.theta_d,
                           directions.phi_d)[:, 2:].astype(np.float64)
@@ -190,7 +190,7 @@ def plan_directions(model=None, n: int = 40, *, design: str = DEFAULT_DESIGN, se
     ----------
     model
         The fit to plan for, as :func:`plan_target` takes it (a built-in name, a basis or
-        learnt-prior file, an :class:`~brdfkit.methods.ipca.IpcaModel` or a learnt-prior
+        learnt-prior file, an :class:`~brdfkit.basis.PcaBasis` or a learnt-prior
         model, or what :func:`plan_target` returned); ``None``: the
         default built-in's for a design that needs one, none for ``uniform`` (whose plan
         then has no condition number).

@@ -51,10 +51,12 @@ class SamplingProtocol:
     basis
         ``planned``: the fit to plan for, as :func:`brdfkit.acquisition.planning.plan_target`
         takes it (a built-in name, a basis or learnt-prior file, an
-        :class:`~brdfkit.methods.ipca.IpcaModel`); loaded once. ``uniform``: ``None``.
+        :class:`~brdfkit.basis.PcaBasis`); loaded once. ``uniform``: ``None``.
     design
         ``planned``: the design (:data:`brdfkit.acquisition.designs.DESIGNS`).
 
+    Notes
+    -----
     The plan of each ``(N, draw)`` is made once and kept (a second or so each).
     """
 

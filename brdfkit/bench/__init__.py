@@ -27,7 +27,7 @@ scored:
 **Compression.** For every material of the compression data and every compression model,
 the full table is encoded and decoded (:func:`brdfkit.api.encode`, :func:`brdfkit.api.decode`)
 and scored the same way (``time_s`` = encode + decode); with a PCA basis, its best
-reconstruction (:meth:`brdfkit.methods.ipca.IpcaModel.project` then ``decode``) too.
+reconstruction (:meth:`brdfkit.basis.PcaBasis.project` then ``decode``) too.
 
 Every reconstruction is scored by :func:`brdfkit.evaluation.metrics.score`, the function
 ``brdfkit metrics`` uses, in the scenes of ``BenchConfig.scenes`` (the reference scene, or

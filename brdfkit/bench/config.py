@@ -10,7 +10,7 @@ from brdfkit.errors import InputError
 from brdfkit.acquisition.protocol import SAMPLINGS, draw_seed
 
 __all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed",
-           "default_methods", "pca_components", "latent_spec"]
+           "default_methods", "pca_components", "compression_entry"]
 
 DEFAULT_N = (40, 160, 400, 2000, 4000)
 DEFAULT_METHODS = ("hypernet", "ipca", "nbrdf")
@@ -56,10 +56,12 @@ class BenchConfig:
         ``uniform``, ``planned``); for ``planned``, the fit to plan for (a built-in's learnt
         prior, a learnt-prior or basis file; default: ``ipca``'s basis) and the design (:data:`brdfkit.acquisition.designs.DESIGNS`).
     compression_models, compression_data
-        Hypernetwork models to test on encode -> decode of every table in
-        ``compression_data`` (plus the PCA basis, when ``ipca`` is given); ``pca-K`` names
-        the ``ipca`` basis's ``K`` leading components (PCA of ``3 K`` numbers, to set
-        beside a latent of the same size: ``pca-13`` beside 40-D, ``pca-2`` beside 7-D).
+        What to test on encode -> decode of every table in ``compression_data`` (plus the
+        PCA basis, when ``ipca`` is given): ``MODEL[:KIND[-SIZE]]`` entries
+        (:func:`compression_entry`: ``merl80-l40``, ``merl80-l40:basis-21``,
+        ``merl80-l40:latent``, a basis or hypernetwork file), each encoded as ``brdfkit
+        encode -m MODEL --kind KIND --size SIZE`` does; ``pca-K`` names the ``ipca``
+        basis's ``K`` leading components (its projection, ``3 K`` numbers).
     scenes
         The suite scenes the image metrics are taken in (:mod:`brdfkit.render.scene_suite`);
         with more than one, ``psnr``, ``delta_e`` and ``ssim`` are their means and each
@@ -141,7 +143,7 @@ class BenchConfig:
             cfg, **{f: resolve_for(name, getattr(cfg, f)) for f, name in fields.items() if getattr(cfg, f)},
             models={m: resolve_for(m, p) if p else p for m, p in cfg.models.items()},
             plan_model=_plan_file(cfg.plan_model) if cfg.plan_model else None,
-            compression_models=tuple(p if pca_components(p) else _resolve_compressor(p)
+            compression_models=tuple(p if pca_components(p) else _resolve_compressor(p, cfg.device)
                                      for p in cfg.compression_models))
 
     def with_default_methods(self) -> "BenchConfig":
@@ -158,22 +160,19 @@ class BenchConfig:
         return dataclasses.replace(self, methods=methods, models=models, ipca=ipca)
 
     def compressors(self) -> list:
-        """``(method, model file, components)`` of the compression benchmark: the
-        hypernetwork models of :attr:`compression_models` and its ``pca-K`` entries (the
-        ``ipca`` basis's ``K`` leading components), then every other method that can
-        compress and whose model file is given (the PCA basis: its best reconstruction);
-        ``components`` is ``K`` for ``pca-K``, ``"latent"`` for a ``MODEL:latent`` entry
-        (:func:`latent_spec`), else ``None``."""
+        """The compression benchmark's entries: ``("embedding", (path, kind, size))`` for
+        each ``MODEL:KIND-SIZE`` of :attr:`compression_models` (resolved,
+        :func:`compression_entry`), ``("pca", K)`` for its ``pca-K`` entries, then
+        ``("method", (method, model file))`` for every method that can compress and whose
+        model file is given (the PCA basis, a learnt prior: the projection on their basis)."""
         from brdfkit.methods import METHODS
 
         if not self.compression_models:
             return []
-        hypernet, ipca = METHODS["hypernet"], METHODS["ipca"]
-        named = [(ipca, self.model_file("ipca"), pca_components(p)) if pca_components(p)
-                 else (hypernet, latent_spec(p)[0], "latent" if latent_spec(p)[1] else None)
+        named = [("pca", pca_components(p)) if pca_components(p) else ("embedding", compression_entry(p))
                  for p in self.compression_models]
-        return named + [(m, self.model_file(name), None) for name, m in METHODS.items()
-                        if m is not hypernet and m.compress_fn is not None and self.model_file(name)]
+        return named + [("method", (m, self.model_file(name))) for name, m in METHODS.items()
+                        if m.compress_fn is not None and self.model_file(name)]
 
     def method_options(self, method: str):
         """The options object of a method: its defaults and :attr:`options`."""
@@ -248,7 +247,7 @@ class BenchConfig:
             raise InputError(f"--jobs must be at least 1, got {self.jobs}")
         if self.threads is not None and self.threads < 1:
             raise InputError(f"--threads must be at least 1, got {self.threads}")
-        models = [latent_spec(p)[0] for p in self.compression_models if not pca_components(p)]
+        models = [compression_entry(p)[0] for p in self.compression_models if not pca_components(p)]
         for f in [self.model, self.ipca, self.plan_model, self.test_list, *models, *self.models.values()]:
             if f:
                 check_input_file(f)
@@ -258,24 +257,40 @@ class BenchConfig:
 
 
 
-LATENT_SUFFIX = ":latent"
+def compression_entry(spec) -> tuple[str, str | None, int | None]:
+    """A ``--compression-models`` entry ``MODEL[:KIND[-SIZE]]`` as ``(model, kind, size)``
+    (``None`` where not given: ``brdfkit encode``'s default).
 
+    Examples
+    --------
+    >>> compression_entry("merl80-l40"), compression_entry("merl80-l40:basis-21")
+    (('merl80-l40', None, None), ('merl80-l40', 'basis', 21))
+    >>> compression_entry("m.safetensors:latent")
+    ('m.safetensors', 'latent', None)
+    """
+    from brdfkit.methods.embedding import get_kind
 
-def latent_spec(spec) -> tuple[str, bool]:
-    """A ``--compression-models`` hypernetwork entry and whether it ends in ``:latent``
-    (``merl80-l40:latent``: the hypernetwork's latent, where the default ``encode`` of a
-    built-in with a basis makes a basis embedding)."""
     text = str(spec)
-    if text.endswith(LATENT_SUFFIX):
-        return text[:-len(LATENT_SUFFIX)], True
-    return text, False
+    model, sep, what = text.rpartition(":")
+    if not sep or not model or os.sep in what:
+        return text, None, None
+    kind, dash, size = what.partition("-")
+    get_kind(kind)
+    if dash and not (size.isdigit() and int(size) > 0):
+        raise InputError(f"--compression-models {text}: expected MODEL:KIND-SIZE with SIZE a whole number > 0")
+    return model, kind, int(size) if dash else None
 
 
-def _resolve_compressor(spec) -> str:
-    from brdfkit.methods.choice import resolve_for
+def _resolve_compressor(spec, device=None) -> str:
+    """``PATH:KIND-SIZE`` of a ``--compression-models`` entry: the decoder file, kind and
+    size ``brdfkit encode`` would use."""
+    from brdfkit.methods.embedding import choose_decoder, get_kind
 
-    path, latent = latent_spec(spec)
-    return resolve_for("hypernet", path) + (LATENT_SUFFIX if latent else "")
+    model, kind, size = compression_entry(spec)
+    dec = choose_decoder(kind, model, "cpu")
+    size = size or get_kind(dec.kind).default_size(dec.obj)
+    dec.check_size(size)
+    return f"{dec.path}:{dec.kind}-{size}"
 
 
 def pca_components(spec) -> int | None:

@@ -146,7 +146,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True, resume: bool = False) -> 
             # Built here even for worker processes: a model file that does not load is a
             # usage error now, not a failure recorded for every reconstruction.
             worker = Worker(cfg)
-            labels = [(label, dim) for label, dim, _, _ in worker.compressors]
+            labels = [(label, dim) for label, dim, _ in worker.compressors]
             if cfg.jobs == 1:
                 for task in tasks:
                     bar.update(description=f"{task[0]} {task[1]}")

@@ -70,24 +70,12 @@ class Worker:
                 self.methods[name] = m
                 self.models[name] = m.load(cfg.model_file(name), self.device) if m.needs_model else None
                 self.options[name] = cfg.method_options(name)
-        # (label, code size, method, model), see BenchConfig.compressors
+        # (label, numbers per material, compress(table, name) -> table), see BenchConfig.compressors
         self.compressors = []
         self.trained = {}  # compression label -> names of the materials it was trained on
-        for method, path, components in cfg.compressors():
-            model = method.load(path, self.device)
-            if components == "latent":  # MODEL:latent, the hypernetwork's own latent
-                from brdfkit.methods.hypernet import latent_compressor
-
-                method, components = latent_compressor(), None
-            if components is not None:  # pca-K: the basis's K leading components
-                from brdfkit.methods.ipca import load_ipca
-                from brdfkit.models.builtin import resolve_basis
-
-                model = load_ipca(resolve_basis(path)).leading(components)
-            label, size, trained = method.describe_fn(model, path)
-            if components is not None:
-                label = f"pca {components} components ({3 * components} numbers)"
-            self.compressors.append((label, size, method, model))
+        for entry, what in cfg.compressors():
+            label, size, compress, trained = _compressor(cfg, entry, what, self.device)
+            self.compressors.append((label, size, compress))
             self.trained[label] = trained
         self.warm = set()
 
@@ -145,9 +133,11 @@ class Worker:
         every scene, the renders timed as ``render_s``); the BRDF log RMSE is recorded as
         ``log_rmse``, the peak region's check as ``highlights``
         (:func:`brdfkit.evaluation.metrics.highlights`). In several scenes, the image scores
-        are their means and ``scenes`` holds each scene's."""
+        are their means and ``scenes`` holds each scene's. ``darkest_ratio`` is the smallest
+        ratio of the reconstruction to the data where the data are at least 1 /sr
+        (:func:`brdfkit.evaluation.metrics.darkest_ratio`: below 1e-3, a black corner)."""
         from brdfkit.evaluation.comparison import mean_scores
-        from brdfkit.evaluation.metrics import brdf_log_rmse, highlights, score
+        from brdfkit.evaluation.metrics import brdf_log_rmse, darkest_ratio, highlights, score
 
         t0 = time.perf_counter()
         imgs = self.render(table)
@@ -159,6 +149,7 @@ class Worker:
             out["scenes"] = {s: {k: v for k, v in r.items() if k != "brdf_log_rmse"} for s, r in per.items()}
         out["log_rmse"] = brdf_log_rmse(table, ref_table)
         out["highlights"] = highlights(table, ref_table)
+        out["darkest_ratio"] = darkest_ratio(table, ref_table)
         out["render_s"] = render_s
         return out
 
@@ -236,13 +227,43 @@ class Worker:
             ref_imgs = self.reference(name, path, table)
         except Exception as e:
             return failed_records(self.cfg, "compression", name, error_text(e),
-                                   [(label, dim) for label, dim, _, _ in self.compressors])
+                                   [(label, dim) for label, dim, _ in self.compressors])
         records = []
-        for label, dim, method, model in self.compressors:
+        for label, dim, compress in self.compressors:
             records.append(self._timed(
                 dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ())), table,
-                ref_imgs, lambda method=method, model=model: method.compress_fn(model, table, name)))
+                ref_imgs, lambda compress=compress: compress(table, name)))
         return records
+
+
+def _compressor(cfg: BenchConfig, entry: str, what, device) -> tuple:
+    """``(label, numbers per material, compress(table, name) -> table, training materials)``
+    of one entry of :meth:`BenchConfig.compressors`; the label says what runs: ``basis-39
+    (merl80-basis)``, ``latent-40 (merl80-l40)``, ``pca-13 (39 numbers)`` (of the ``ipca``
+    basis), ``pca-8 (24 numbers, basis8)`` (a method's own basis, whole)."""
+    if entry == "embedding":
+        from brdfkit.methods.embedding import encode_with, load_decoder, open_embedding
+
+        path, kind, size = what
+        dec = load_decoder(kind, path, device)
+        stem = os.path.splitext(os.path.basename(path))[0]
+        trained = set(getattr(dec.obj, "materials", None) or getattr(dec.obj, "meta", {}).get("materials") or ())
+
+        def compress(table, name, dec=dec, size=size):
+            return open_embedding(encode_with(dec, table, source=name, size=size), dec, name).to_table()
+
+        return f"{kind}-{size} ({stem})", size, compress, trained
+    if entry == "pca":  # the ipca basis's K leading components, projected
+        from brdfkit.basis.basis_file import load_basis
+        from brdfkit.models.builtin import resolve_basis
+
+        basis = load_basis(resolve_basis(cfg.model_file("ipca"))).leading(what)
+        return (f"pca-{what} ({3 * what} numbers)", 3 * what, lambda table, name: basis.decode(basis.project(table)),
+                set(basis.materials))
+    method, path = what
+    model = method.load(path, device)
+    label, size, trained = method.describe_fn(model, path)
+    return label, size, lambda table, name: method.compress_fn(model, table, name), trained
 
 
 @functools.lru_cache(maxsize=1)

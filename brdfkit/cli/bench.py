@@ -55,11 +55,10 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--plan-design", default="render", show_default=True,
               help="Design of the planned samples (`brdfkit plan --design`).")
 @click.option("--compression-models", default=None,
-              help="Hypernetwork models (files or built-in names) to test on encode -> decode, comma-separated "
-                   "(e.g. merl-rgl-l7,m40.safetensors), each compressed as `brdfkit encode` does by default "
-                   "(a built-in with a basis: a basis embedding); MODEL:latent: its hypernetwork latent; pca-K: "
-                   "the K leading components of --ipca (pca-13 beside a 40-D latent, pca-2 beside 7-D: the same "
-                   "count of numbers).")
+              help="What to test on encode -> decode, comma-separated: MODEL[:KIND[-SIZE]], a built-in's name or "
+                   "a basis or hypernetwork file, encoded as `brdfkit encode -m MODEL --kind KIND --size SIZE` does "
+                   "(e.g. merl80-l40, merl80-l40:basis-21, merl80-l40:latent, merl-rgl-l7); pca-K: the projection on "
+                   "the K leading components of --ipca (3 K numbers: pca-13 beside basis-39).")
 @click.option("--compression-data", type=click.Path(file_okay=False), default=None,
               help="Folder of MERL tables for the compression benchmark.")
 @click.option("--scenes", default="reference", show_default=True, metavar="all|A,B",

@@ -13,30 +13,22 @@ MODEL_ENV = "BRDFKIT_MODEL"
 
 def model_option(f):
     """``-m/--model``, falling back to ``$BRDFKIT_MODEL``: a model file or the name of a
-    built-in model (resolved by :func:`require_model` / :func:`optional_model`)."""
+    built-in model (each command resolves it to the part it takes)."""
     return click.option("-m", "--model", "model_path", type=click.Path(dir_okay=False),
                         default=None, envvar=MODEL_ENV, show_envvar=True, metavar="NAME|FILE",
                         help="Built-in model name (`brdfkit models`) or model file (.safetensors) "
-                             "made by `brdfkit fit`; default: the built-in default.")(f)
+                             "made by `brdfkit fit`; default: the built-in default (for an embedding: the "
+                             "built-in that made it).")(f)
 
 
-def optional_model(model_path: str | None) -> str | None:
-    """The file a given ``-m`` value names (a built-in name resolved), or ``None`` when
-    none was given: the library then picks a built-in for each embedding."""
-    from brdfkit.models.builtin import resolve_model
-
-    return resolve_model(model_path) if model_path else None
-
-
-def require_model(model_path: str | None, fingerprint: str | None = None) -> str:
-    """The model file to use: ``-m`` / ``$BRDFKIT_MODEL`` (a file or a built-in name),
-    else the built-in whose fingerprint is ``fingerprint`` (an embedding's), else the
-    default built-in; else an error saying how to get one."""
-    from brdfkit.models.builtin import model_for_embedding, resolve_model
+def require_model(model_path: str | None) -> str:
+    """The hypernetwork model file to use: ``-m`` / ``$BRDFKIT_MODEL`` (a file or a
+    built-in name), else the default built-in; else an error saying how to get one."""
+    from brdfkit.models.builtin import default_model, resolve_model
 
     if model_path:
         return resolve_model(model_path)
-    found = model_for_embedding(fingerprint)  # the default built-in when none matches
+    found = default_model()
     if found is None:
         raise InputError("no model given: pass -m NAME or -m MODEL.safetensors, or set BRDFKIT_MODEL (no default "
                          "built-in model is installed; `brdfkit models` lists the built-in ones; make a model with "

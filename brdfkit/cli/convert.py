@@ -50,7 +50,7 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
     """
     import os
 
-    from brdfkit.brdf_file import OUTPUT_KINDS, EmbeddingModel, convert
+    from brdfkit.brdf_file import OUTPUT_KINDS, EmbeddingDecoders, convert
     from brdfkit.console import console
     from brdfkit.errors import InputError
 
@@ -64,7 +64,7 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
         from brdfkit.io.rgl.fit import FitSettings
 
         settings = FitSettings(resolution=resolution, theta_i=theta_i)
-    report = convert(source, output, models=EmbeddingModel(model_path), settings=settings, spectral=spectral,
+    report = convert(source, output, models=EmbeddingDecoders(model_path), settings=settings, spectral=spectral,
                      description=description, reciprocity=reciprocity)
     if "non_reciprocity" in report:
         console().print(f"{source}: non-reciprocity {report['non_reciprocity']:.4f} (log RMS between the file "

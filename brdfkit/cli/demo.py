@@ -113,20 +113,20 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     Four MERL materials the benchmark model never saw (shipped as their published NBRDF
     fits) are reconstructed from 40 and 400 samples (learnt prior, and IPCA beside it),
     compressed by three built-ins (in-sample: trained on them, the paper's protocol;
-    unseen: not) as `brdfkit encode` does (the 40-D ones' basis embeddings, the 7-D one's
-    latent), each refined on screen for at most 20 steps, and blended; prints the errors
-    and times, and writes the samples, embeddings, errors, comparison sheets (reference
-    scene, and the compressions under backlight) and a plot into OUT (--keep-tables: the
-    dense tables too, 1.2 GB).
-    About a minute on 2 idle CPU cores. With --train: trains a small model on synthetic
-    materials instead (about 5 minutes). See docs/demo.md.
+    unseen: not) as `brdfkit encode` does (the 40-D ones' basis embeddings: 39 coefficients
+    of the PCA basis they ship; the 7-D one's latent), each refined on screen for at most
+    20 steps, and blended; prints the errors and times, and writes the samples,
+    embeddings, errors, comparison sheets (reference scene, and the compressions under
+    backlight; 128 px renders) and a plot into OUT (--keep-tables: the dense tables too,
+    1.2 GB).
+    About a minute and a half on 2 idle CPU cores. With --train: trains a small model on
+    synthetic materials instead (about 5 minutes). See docs/demo.md.
     """
     if _mode(train):
         _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options, keep_tables)
         return
     from rich.console import Console
 
-    from brdfkit.hypernet.refine_on_screen import DEFAULT_STEPS
     from brdfkit.demos.real_materials import COMPRESSION_KINDS, INTERPOLATION_MODEL, SPARSE_MODEL, run_real_demo
 
     res = run_real_demo(out_dir, only=[s.strip() for s in only.split(",") if s.strip()] if only else None,
@@ -148,12 +148,9 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     kinds = {}
     for m, kind, _, _ in res.compressions:
         kinds.setdefault(kind, []).append(m)
-    refined = (f"its latent refined on screen, at most {res.compression_steps} steps; brdfkit encode takes "
-               f"at most {DEFAULT_STEPS} by default" if res.compression_steps > 0 else "the encoder's pass only")
     report.print(f"{res.sparse_method} N, ipca N: reconstructed from N samples by brdfkit sparse's default "
                  f"method on {SPARSE_MODEL} ({res.sparse_method}) and by IPCA on its PCA basis; {SPARSE_MODEL} "
-                 f"never saw these materials. K-D: the full table compressed into K numbers by a hypernetwork "
-                 f"({refined}) and decoded; "
+                 f"never saw these materials. " + _compression_caption(res) + "; "
                  + "; ".join(f"{kind} ({', '.join(ms)}): {COMPRESSION_KINDS.get(kind, kind)}"
                              for kind, ms in kinds.items())
                  + ". PSNR and Delta E as brdfkit metrics takes them (docs/render.md); errors.json also "
@@ -182,6 +179,28 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     emb = os.path.relpath(os.path.join(res.out_dir, "embeddings", f"{name}-{INTERPOLATION_MODEL}.emb"))
     report.print(f"Next: brdfkit sparse {samples} -m {SPARSE_MODEL} -o r.binary && "
                  f"brdfkit plot r.binary {emb} -m {INTERPOLATION_MODEL} -o r.png", soft_wrap=True)
+
+
+def _compression_caption(res) -> str:
+    """What the compression columns hold, by the kinds of embedding the demo made (a basis
+    embedding's label reads ``basis-K``, a latent's ``K-D``), and how far each was refined."""
+    from brdfkit.hypernet.refine_on_screen import DEFAULT_STEPS as LATENT_STEPS
+    from brdfkit.basis.coefficients import DEFAULT_STEPS as BASIS_STEPS
+
+    steps = res.compression_steps
+    basis = any(" basis-" in label for _, _, label, _ in res.compressions)
+    latent = any(" basis-" not in label for _, _, label, _ in res.compressions)
+    parts = []
+    if basis:
+        parts.append("basis-K: the full table compressed, as brdfkit encode does by default, into K numbers, the "
+                     "coefficients of the PCA basis the model ships (K / 3 components a colour channel), "
+                     + (f"refined on screen, at most {steps} steps (brdfkit encode takes at most {BASIS_STEPS} by "
+                        f"default)" if steps > 0 else "the projection only"))
+    if latent:
+        parts.append("K-D: the full table compressed into the hypernetwork's K-D latent (a model that ships no "
+                     "basis), " + (f"refined on screen, at most {steps} steps (brdfkit encode takes at most "
+                                   f"{LATENT_STEPS} by default)" if steps > 0 else "the encoder's pass only"))
+    return "; ".join(parts) + "; each then decoded"
 
 
 def _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options, keep_tables):

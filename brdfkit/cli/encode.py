@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from brdfkit.console import ProgressBar, console
-from brdfkit.cli.common import model_option, require_model
+from brdfkit.cli.common import model_option
 
 
 @click.command("encode")
@@ -23,33 +23,42 @@ from brdfkit.cli.common import model_option, require_model
                    "latent's stops sooner when held-out pixels stop improving. The same input gives the same "
                    "bytes, however busy the machine.")
 @click.option("--kind", type=click.Choice(["basis", "latent"]), default=None,
-              help="basis: the coefficients of the PCA basis the model ships, refined on screen (the default "
-                   "for a built-in with one: it holds for materials outside the training set); latent: the "
-                   "hypernetwork's latent (the default for other models, and for sample sets).")
+              help="basis: the coefficients of a PCA basis, refined on screen (the default for a built-in that "
+                   "ships one, and for a basis file: it holds for materials outside the training set); latent: "
+                   "the hypernetwork's latent (the default for a hypernetwork file, and for sample sets).")
+@click.option("--size", type=click.IntRange(min=1), default=None,
+              help="Numbers per material: a basis embedding holds 3 a component (3, 6, 9 ... up to 3 x the basis's "
+                   "components; default 39); a latent holds the model's latent size.")
 @click.option("--max-seconds", type=click.FloatRange(min=0, min_open=True), default=None,
-              help="Also stop a table's refinement after this many seconds (off by default: a cut result "
+              help="Also stop a latent's refinement after this many seconds (off by default: a cut result "
                    "depends on the machine's speed; the output says when it cut).")
-def command(inputs, model_path, output_dir, refine, steps, kind, max_seconds):
+def command(inputs, model_path, output_dir, refine, steps, kind, size, max_seconds):
     """Encode each BRDF (.binary MERL table, .bsdf RGL file or .csv sample set) into <stem>.emb.
 
     A table (MERL or RGL) is encoded from all its measured cells. With a built-in model
-    that ships a PCA basis it becomes a basis embedding (--kind basis, the default there):
-    the coefficients of the basis's leading latent/3 components, projected and refined for
-    at most --steps steps [default: 80] on renders of the objective scenes
-    (docs/compression.md). Otherwise the hypernetwork's latent is refined so [default:
-    40 steps] (docs/model.md). Either way a step is kept only where held-out pixels agree.
-    A sample set gets the encoder's pass. A bad input is reported and skipped; the
-    others are still encoded, and the exit code is 2 if any failed.
+    that ships a PCA basis (or a basis file) it becomes a basis embedding (--kind basis,
+    the default there): the coefficients of the basis's --size/3 leading components,
+    projected and refined for at most --steps steps [default: 80] on renders of the
+    objective scenes (docs/compression.md). Otherwise the hypernetwork's latent is refined
+    so [default: 40 steps] (docs/model.md). Either way a step is kept only where held-out
+    pixels agree. A sample set gets the hypernetwork encoder's pass. A bad input is
+    reported and skipped; the others are still encoded, and the exit code is 2 if any
+    failed.
     """
     import os
 
-    from brdfkit.api import encode, load_model
+    from brdfkit.api import encode
     from brdfkit.atomic import refuse_overwrite_of_inputs
-    from brdfkit.io.embedding import write_embedding
     from brdfkit.errors import BrdfkitError, InputError
+    from brdfkit.io.embedding import write_embedding
+    from brdfkit.methods.embedding import choose_decoder
 
-    model_path = require_model(model_path)
-    model = load_model(model_path)
+    tables = [p for p in inputs if not p.lower().endswith(".csv")]
+    # One decoder for the tables, loaded once; sample sets take the hypernetwork's latent.
+    dec = choose_decoder(kind, model_path) if tables else None
+    lat = choose_decoder("latent", model_path) if len(tables) < len(inputs) else None
+    if size is not None and dec is not None:
+        dec.check_size(size)  # before any work
     if output_dir:
         os.makedirs(output_dir, exist_ok=True)
     out = console()
@@ -66,11 +75,13 @@ def command(inputs, model_path, output_dir, refine, steps, kind, max_seconds):
         if key in planned:
             raise InputError(f"{path}: would write {target}, already written for {planned[key]}; "
                              f"rename one of them")
-        refuse_overwrite_of_inputs(target, [*inputs, model_path])
-        emb = encode(model, path, refine=refine, steps=steps, max_seconds=max_seconds, kind=kind)
+        samples = path.lower().endswith(".csv")
+        refuse_overwrite_of_inputs(target, [*inputs, (lat if samples else dec).path])
+        emb = encode(path, lat if samples else dec, size=None if samples else size, refine=refine, steps=steps,
+                     max_seconds=max_seconds)
         write_embedding(target, emb)
         planned[key] = path
-        kinds.add(f"basis embedding {emb.latent_dim // 3} x 3" if emb.basis else f"latent {emb.latent_dim}")
+        kinds.add(f"{emb.kind} {emb.size} numbers, {(lat if samples else dec).label}")
         if emb.refinement and emb.refinement["stopped"] == "max_seconds":
             cut.append(f"{stem} ({emb.refinement['steps']} steps)")
 
@@ -88,11 +99,10 @@ def command(inputs, model_path, output_dir, refine, steps, kind, max_seconds):
         one(inputs[0])
         done = 1
     where = output_dir if output_dir else "beside the inputs"
-    how = "refined on screen" if refine and steps != 0 else ("projection" if kinds and all(
-        k.startswith("basis") for k in kinds) else "encoder pass")
-    made = ", ".join(sorted(kinds)) or f"latent {model.cfg.latent_dim}"
+    start = " or ".join(k for k, w in (("projection", "basis"), ("encoder pass", "latent")) if any(w in x for x in kinds))
+    how = "refined on screen" if refine and steps != 0 else f"{start or 'no refinement'}, not refined"
     out.print(f"encoded {done} of {len(inputs)} file{'s' if len(inputs) != 1 else ''} "
-              f"({made}, model {model.short_fingerprint}, {how}) into {where}")
+              f"({'; '.join(sorted(kinds)) or 'none'}; {how}) into {where}", soft_wrap=True)
     if cut:
         out.print(f"note: --max-seconds cut the refinement of {', '.join(cut)}: those embeddings depend on the "
                   f"machine's speed (replay one with --steps N)", soft_wrap=True)

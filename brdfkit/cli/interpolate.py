@@ -7,7 +7,7 @@ import click
 
 from brdfkit.console import console
 from brdfkit.figures.interpolation_strip import MAX_SIZE, MAX_STEPS, MIN_SIZE, SIZE, STEPS
-from brdfkit.cli.common import model_option, parse_float, require_model
+from brdfkit.cli.common import model_option, parse_float
 
 
 def _mode(t_text, output, binary, allow_extrapolation, sheet, steps, size) -> str:
@@ -52,13 +52,13 @@ def _mode(t_text, output, binary, allow_extrapolation, sheet, steps, size) -> st
               help=f"Pixels per tile side of the --sheet strip [default: {SIZE}].")
 @model_option
 def command(a, b, t_text, output, binary, allow_extrapolation, sheet, steps, size, model_path):
-    """Write the embedding (1 - T) A + T B; both must come from the same model.
+    """Write the embedding (1 - T) A + T B; both must be of the same kind, size and decoder.
 
     With --sheet FILE.png instead of --t and -o: render --steps materials from A (t = 0)
     to B (t = 1) in the reference scene and write them as one labelled strip, the
     paper's editing figure (docs/editing.md).
     """
-    from brdfkit.api import decode, interpolate, load_model
+    from brdfkit.api import decode, interpolate
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.io.embedding import write_embedding
 
@@ -77,8 +77,7 @@ def command(a, b, t_text, output, binary, allow_extrapolation, sheet, steps, siz
     mix = interpolate(ea, eb, t, allow_extrapolation=allow_extrapolation)
     table = None
     if binary:
-        model = load_model(require_model(model_path, mix.model_fingerprint))
-        table = decode(model, mix, source=output)
+        table = decode(mix, model_path, source=output)
     write_embedding(output, mix)
     if table is not None:
         from brdfkit.io.merl import write_merl
@@ -99,7 +98,6 @@ def _read_named(a, b):
 
 
 def _strip(a, b, sheet, steps, size, model_path):
-    from brdfkit.api import load_model
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import InputError
     from brdfkit.figures.interpolation_strip import check_strip, interpolation_strip
@@ -110,7 +108,9 @@ def _strip(a, b, sheet, steps, size, model_path):
     steps, size = steps or STEPS, size or SIZE
     check_strip(steps, size)  # before the model loads
     ea, eb = _read_named(a, b)
-    model = load_model(require_model(model_path, ea.model_fingerprint))
-    tiles = interpolation_strip(model, ea, eb, sheet, steps=steps, size=size, progress=True)
+    from brdfkit.methods.embedding import decoder_for
+
+    tiles = interpolation_strip(decoder_for(ea, model_path, name=a), ea, eb, sheet, steps=steps, size=size,
+                                progress=True)
     console().print(f"wrote {sheet} ({len(tiles)} materials, t = "
                     f"{', '.join(f'{t:.3g}' for t, _ in tiles)}; {size} px each)", soft_wrap=True)

@@ -28,7 +28,7 @@ def _model_from_env() -> bool:
                    "hypernetwork; a model file's own method.")
 @click.option("--refine/--no-refine", default=None,
               help="Method hypernet: refine the encoded material on its samples, early-stopped on "
-                   "held-out ones (docs/generalisation.md) [default: refine].")
+                   "held-out ones (docs/notes/generalisation.md) [default: refine].")
 @click.option("--refine-target", type=click.Choice(["latent", "weights"]), default=None,
               help="What --refine fits: the latent only, or then the hyponet's weights too "
                    "[default: weights; latent with --emb, since refined weights have no embedding].")
@@ -42,6 +42,7 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     used (`brdfkit models`): its learnt prior (method prior) when it has one, else its
     hypernetwork. The message line says which method and model ran.
     """
+    from brdfkit.api import sparse
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.io.embedding import write_embedding
     from brdfkit.errors import InputError
@@ -76,9 +77,9 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
     refuse_overwrite_of_inputs(emb_path, inputs + [output])
+    options = METHODS[method].make_options(**given)  # refused before the samples are read
     data = read_sample_file(samples)
-    options = METHODS[method].make_options(**given)
-    table, emb = METHODS[method].sparse(data, model_path, options=options)
+    table, emb = sparse(data, model_path, method=method, **given)
     write_merl(output, table)
     if emb_path:
         write_embedding(emb_path, emb)

@@ -22,14 +22,14 @@ from brdfkit.cli.common import model_option, parse_option, require_model
 @click.option("--device", default="auto", show_default=True, help="auto (CUDA when present), cpu or cuda.")
 @click.option("--resume", is_flag=True, help="Continue from OUTPUT.ckpt (same model, data and options).")
 @click.option("-O", "--option", "options", multiple=True, metavar="KEY=VALUE",
-              help="lr_decoder, lr_latent, lr_encoder, batch, pairs_per_pixel, turns, map_weight, "
-                   "lambda_z, query, context (docs/training.md).")
+              help="lr_decoder, lr_latent, lr_encoder, batch, pairs_per_pixel, scenes, map_weight, "
+                   "lambda_z, query, context, resolution (docs/training.md).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 def command(data, model_path, output, exclude_list, exclude_names, steps, minutes, seed, device, resume, options,
             quiet):
     """Tune the model -m on renders of the MERL tables DATA (its training materials):
-    one latent per material and the decoder fitted to the reference scene's renders, the
-    set encoder trained to reach those latents. Ctrl-C saves a checkpoint; --resume
+    one latent per material and the decoder fitted to renders of the objective scenes
+    (never a judged one), the set encoder trained to reach those latents. Ctrl-C saves a checkpoint; --resume
     continues from it."""
     from brdfkit.console import console
     from brdfkit.errors import InputError

@@ -8,17 +8,17 @@ the built-in models (``docs/models.md``), none of which needs training here:
   with ``brdfkit sparse``'s default method on ``merl80-l40`` (its learnt prior,
   :func:`brdfkit.methods.choice.choose`), which never saw these materials, and with
   IPCA on the same PCA basis beside it (Nielsen et al. 2015);
-* compression of the full table by three hypernetworks (:data:`COMPRESSIONS`), each
-  encode refined on screen for at most :data:`COMPRESSION_STEPS` steps
-  (:func:`brdfkit.api.encode`, :func:`brdfkit.hypernet.refine_on_screen.compress_table`), then decoded,
-  of two kinds, labelled as such wherever they appear:
+* compression of the full table by three built-ins (:data:`COMPRESSIONS`) as ``brdfkit
+  encode`` makes it (:func:`brdfkit.api.encode`): the 40-D ones' basis embeddings (39
+  coefficients of the PCA basis they ship), the 7-D one's latent, each refined on screen
+  for at most :data:`COMPRESSION_STEPS` steps, then decoded; of two kinds, labelled so:
 
-  - *in-sample*: ``merl-rgl-l40`` (40 numbers) and ``merl-rgl-l7`` (7 numbers), trained
+  - *in-sample*: ``merl-rgl-l40`` (39 numbers) and ``merl-rgl-l7`` (7 numbers), fitted
     on all 151 MERL + RGL proxies, these four included: the paper's compression protocol
     (Gokbudak et al. 2024, Sec. 4.2), a compression model being trained on what it
     compresses;
-  - *unseen*: ``merl80-l40`` (40 numbers), trained without the 20 test materials: how
-    well a 40-D latent holds a material that the model never saw;
+  - *unseen*: ``merl80-l40`` (39 numbers), its basis fitted without the 20 test
+    materials: how well the basis holds a material that the model never saw;
 
 * an interpolation of two materials' ``merl80-l40`` embeddings at ``t = 0.5``
   (:data:`INTERPOLATION_MODEL`);
@@ -50,10 +50,10 @@ __all__ = ["SPARSE_MODEL", "COMPRESSIONS", "COMPRESSION_MODELS", "COMPRESSION_KI
 SPARSE_MODEL = "merl80-l40"
 """The built-in of the sparse reconstructions (trained without the test materials)."""
 COMPRESSIONS = (("merl-rgl-l40", "in-sample"), ("merl-rgl-l7", "in-sample"), ("merl80-l40", "unseen"))
-"""The built-in hypernetworks that compress the full tables, in the demo's order, each with
-its kind: ``in-sample`` (the demo's materials were in its training set) or ``unseen``
-(they were not). Labels add the latent size: ``in-sample 40-D (merl-rgl-l40)``
-(:func:`compression_labels`)."""
+"""The built-ins that compress the full tables, in the demo's order, each with its kind:
+``in-sample`` (the demo's materials were in its training set) or ``unseen`` (they were
+not). Labels say what the embedding holds (:func:`compression_labels`): ``in-sample
+basis-39 (merl-rgl-l40)`` (39 coefficients of its basis), ``in-sample 7-D (merl-rgl-l7)``."""
 COMPRESSION_MODELS = tuple(m for m, _ in COMPRESSIONS)
 COMPRESSION_KINDS = {"in-sample": "trained on all 151 MERL + RGL materials, these included (the paper's "
                                   "compression protocol)",
@@ -61,16 +61,16 @@ COMPRESSION_KINDS = {"in-sample": "trained on all 151 MERL + RGL materials, thes
 """What each kind of :data:`COMPRESSIONS` means, for the output."""
 COMPRESSION_STEPS = 20
 """Most refinement steps of each compression (``brdfkit encode``: 80 for a basis embedding,
-40 for a latent): 12 refinements (four materials, three models), the demo about a minute."""
+40 for a latent): 12 refinements (four materials, three models) in the demo's minute and a half."""
 INTERPOLATION_MODEL = "merl80-l40"
 """The compression model whose embeddings are blended (one of :data:`COMPRESSION_MODELS`).
-The unseen one, not ``merl-rgl-l40``: its latent space is the one the sparse
-reconstructions use, and editing materials that the model never saw is what a user does
+The unseen one, not ``merl-rgl-l40``: its basis is the one the sparse reconstructions'
+learnt prior uses, and editing materials that the model never saw is what a user does
 with their own measurements, which no built-in was trained on."""
 SAMPLE_COUNTS = (40, 400)
-SHEET_RESOLUTION = 64
-"""Render size of the comparison sheet, pixels: its six quadrature renders of 64 px took
-6.2 s on the project's idle 2-core machine (``docs/demo.md``)."""
+SHEET_RESOLUTION = 128
+"""Render size of the comparison sheets and of the renders the error tables rank by, pixels:
+at 128 a sphere is round, at 64 a blocky disc; the demo prints the renders' seconds."""
 
 
 def demo_materials() -> list[str]:
@@ -222,7 +222,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
         The built-in models are not installed (:func:`check_models`), an unknown
         material, a bad resolution or step count.
     """
-    from brdfkit.hypernet.refine_on_screen import CompressConfig
+    from brdfkit.render.objective import ObjectiveConfig
     from brdfkit.demos.synthetic_training import scratch_folder
 
     check_models()
@@ -230,7 +230,7 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
     if not 8 <= resolution <= 1024:
         raise InputError(f"--resolution must be between 8 and 1024 pixels, got {resolution}")
     refine_steps = COMPRESSION_STEPS if steps is None else steps
-    CompressConfig(steps=refine_steps)  # its one-line refusal, before any work
+    ObjectiveConfig(steps=refine_steps)  # its one-line refusal, before any work
     out_dir = os.path.abspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
     # The sheet takes its tiles' labels from its inputs' file stems, so it renders files
@@ -314,7 +314,8 @@ class _Models:
     methods: list
     """``[(label, method, loaded model)]`` of the sparse reconstructions: the choice, IPCA."""
     hyper: dict
-    """``{name: hypernetwork}`` of :data:`COMPRESSION_MODELS`."""
+    """``{name: decoder}`` of :data:`COMPRESSION_MODELS` (:class:`brdfkit.methods.embedding.Decoder`:
+    the basis of a built-in that ships one, else its hypernetwork)."""
     comps: list
     """``[(model, kind, label, short)]`` of the compressions (:func:`compression_labels`)."""
 
@@ -322,7 +323,6 @@ class _Models:
 def _load_models(device) -> _Models:
     """Load the sparse reconstructions' methods (:data:`SPARSE_MODEL`'s default, and IPCA
     on its basis) and the compression hypernetworks on ``device``."""
-    from brdfkit import api
     from brdfkit.methods import get_method
     from brdfkit.methods.choice import AUTO, choose
 
@@ -331,10 +331,10 @@ def _load_models(device) -> _Models:
     sparse_model = sparse_method.load(choice.path, device)
     ipca = get_method("ipca")
     ipca_model = ipca.load(SPARSE_MODEL)
-    hyper = {m: api.load_model(m, device) for m in COMPRESSION_MODELS}
-    from brdfkit.methods.embedding import embedding_size
+    from brdfkit.methods.embedding import choose_decoder
 
-    comps = compression_labels({m: embedding_size(hyper[m]) for m in COMPRESSION_MODELS})
+    hyper = {m: choose_decoder(None, m, device) for m in COMPRESSION_MODELS}
+    comps = compression_labels({m: f"basis-{_size(d)}" if d.kind == "basis" else _size(d) for m, d in hyper.items()})
     methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
     return _Models(choice, methods, hyper, comps)
 
@@ -379,9 +379,9 @@ def _material(name, ref, models: _Models, files, clock, tiles: dict, seed, devic
     row = [found[f"{label} {n}"] for label, _, _ in models.methods for n in SAMPLE_COUNTS]
     for m, _, label, short in models.comps:
         with clock(f"encode {m}"):
-            emb = api.encode(models.hyper[m], ref, source=name, refine=refine_steps > 0, steps=refine_steps)
+            emb = api.encode(ref, models.hyper[m], source=name, refine=refine_steps > 0, steps=refine_steps)
         with clock(f"decode {m}"):
-            dec = api.decode(models.hyper[m], emb)
+            dec = api.decode(emb, models.hyper[m])
         with clock("score"):
             row.append(brdf_log_rmse(dec, ref))
         tables[label] = dec
@@ -404,7 +404,7 @@ def _interpolate(a, b, embs, models: _Models, files, clock, err) -> None:
     err.print(f"interpolating {a} and {b} at t = 0.5 ({m})")
     with clock("interpolate"):
         mix = api.interpolate(embs[a], embs[b], 0.5)
-        mixed = api.decode(models.hyper[m], mix)
+        mixed = api.decode(mix, models.hyper[m])
     stem = f"{a}+{b}-t0.5-{m}"
     write_embedding(files.keep("embeddings", stem + ".emb"), mix)
     files.table("decoded", stem, mixed)
@@ -438,6 +438,13 @@ def _times(clock, models: _Models, names, files, refine_steps, renders, resoluti
     return times
 
 
+def _size(decoder) -> int:
+    """Numbers per material of ``decoder``'s embeddings by default."""
+    from brdfkit.methods.embedding import get_kind
+
+    return get_kind(decoder.kind).default_size(decoder.obj)
+
+
 def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, scored) -> str:
     """``OUT/errors.json`` (:func:`brdfkit.demos.real_outputs.write_errors`) with what
     made its figures; returns its path."""
@@ -445,7 +452,8 @@ def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, s
 
     made = {"sparse_model": SPARSE_MODEL, "sparse_method": models.choice.method,
             "compression_models": list(COMPRESSION_MODELS),
-            "compressions": [{"column": label, "model": m, "kind": kind, "latent_dim": models.hyper[m].cfg.latent_dim}
+            "compressions": [{"column": label, "model": m, "kind": kind, "embedding": models.hyper[m].kind,
+                              "size": _size(models.hyper[m])}
                              for m, kind, label, _ in models.comps],
             "compression_steps": refine_steps, "interpolation_model": INTERPOLATION_MODEL, "seed": seed}
     return write_errors(out_dir, made, columns, rows, scored)

@@ -109,7 +109,7 @@ class DemoFiles:
 
 SHEET_SCENES = ("reference", "backlight")
 """The scenes the comparison sheets render in: the reference, and the backlit rim where
-compressions fail first (issue 29: the latent lost 5 dB there; ``docs/compression.md``)."""
+compressions fail first (the hypernetwork's latent loses 5 dB there; ``docs/notes/compression.md``)."""
 
 
 def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dict, inputs: dict,

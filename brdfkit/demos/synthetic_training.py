@@ -279,7 +279,8 @@ def _reconstruct_held_out(model, held, mat_dir, emb_dir, dec_dir, ren_dir, seed,
         for n in SAMPLE_COUNTS:
             samples = draw_samples(table, n, seed=seed + 1000 * i + n, source=f"{name}-{n}")
             t = time.monotonic()
-            pred, emb = api.sparse(model, samples, source=f"{name} ({n} samples)")
+            pred, emb = api.sparse(samples, model, refine=False)  # the paper's one encoder pass
+            emb.source = f"{name} ({n} samples)"
             spent[n].append(time.monotonic() - t)
             written.append(os.path.join(emb_dir, f"{name}-{n}samples.emb"))
             write_embedding(written[-1], emb)
@@ -293,10 +294,10 @@ def _reconstruct_held_out(model, held, mat_dir, emb_dir, dec_dir, ren_dir, seed,
                 written += [prefix + ext for prefix in save for ext in (".png", ".exr")]
                 times.append((f"render material + reconstruction ({RENDER_RESOLUTION} px)", time.monotonic() - t))
         t = time.monotonic()
-        emb = api.encode(model, table, source=name)
+        emb = api.encode(table, model, source=name)
         spent["encode"].append(time.monotonic() - t)
         t = time.monotonic()
-        decoded = api.decode(model, emb)
+        decoded = api.decode(emb, model)
         spent["decode"].append(time.monotonic() - t)
         row.append(brdf_log_rmse(decoded, table))
         written.append(os.path.join(emb_dir, f"{name}.emb"))
@@ -321,10 +322,10 @@ def _interpolate(model, held, names, full_emb, mat_dir, emb_dir, dec_dir, writte
     a = held[0]
     b = held[1] if len(held) > 1 else next(n for n in names if n not in held)
     if b not in full_emb:
-        full_emb[b] = api.encode(model, read_merl(os.path.join(mat_dir, b + ".binary")), source=b)
+        full_emb[b] = api.encode(read_merl(os.path.join(mat_dir, b + ".binary")), model, source=b)
     t = time.monotonic()
     mix = api.interpolate(full_emb[a], full_emb[b], 0.5)
-    mixed = api.decode(model, mix)
+    mixed = api.decode(mix, model)
     t_interp = time.monotonic() - t
     mix_name = f"{a}+{b}-t0.5"
     written.append(os.path.join(emb_dir, mix_name + ".emb"))

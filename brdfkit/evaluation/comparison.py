@@ -15,7 +15,7 @@ import dataclasses
 import hashlib
 import os
 
-from brdfkit.brdf_file import EmbeddingModel, read_table
+from brdfkit.brdf_file import EmbeddingDecoders, read_table
 from brdfkit.errors import InputError
 from brdfkit.io.digest import file_digest
 
@@ -58,20 +58,19 @@ class RenderCounts:
 
 
 class FileLoader:
-    """Reads inputs: images, reference-scene renders and dense tables; loads the model
-    (for ``.emb`` inputs) once, on first need.
+    """Reads inputs: images, reference-scene renders and dense tables; loads the decoders
+    of ``.emb`` inputs once, on first need.
 
-    A BRDF file's render is kept in memory, keyed by the SHA-256 of the file's bytes (and
-    of the model's fingerprint for an ``.emb``) and the scene settings, so a reference
+    A BRDF file's render is kept in memory, keyed by the SHA-256 of the file's bytes (an
+    ``.emb`` records its decoder's digest) and the scene settings, so a reference
     scored against several predictions is rendered once per loader (``counts`` says how
     often that happened).
 
     Parameters
     ----------
     model_path
-        Model file (or built-in name) of ``.emb`` inputs; ``None``: the built-in the first
-        ``.emb`` names by fingerprint, else the default built-in, else an ``.emb`` is an
-        error.
+        Decoder file (or built-in name) of ``.emb`` inputs; ``None``: the installed
+        built-in part whose digest each ``.emb`` records, else an ``.emb`` is an error.
     resolution
         Render size of BRDF inputs (``None``: the reference scene's 256).
     progress
@@ -88,7 +87,7 @@ class FileLoader:
         self.resolution = resolution
         self.progress = progress
         self._before_torch = before_torch
-        self._models = EmbeddingModel(model_path, before_load=self._torch_needed)
+        self._models = EmbeddingDecoders(model_path, before_load=self._torch_needed)
         self._renders: dict = {}
         self._tables: collections.OrderedDict = collections.OrderedDict()
         self.counts = RenderCounts()
@@ -97,11 +96,6 @@ class FileLoader:
         if self._before_torch is not None:
             hook, self._before_torch = self._before_torch, None
             hook()
-
-    def model(self, emb_path):
-        """The model of the ``.emb`` inputs: ``model_path``, else the built-in the first
-        embedding asked about names (:class:`brdfkit.brdf_file.EmbeddingModel`)."""
-        return self._models.for_file(emb_path)
 
     def image(self, path, resolution=None, scene: str = "reference"):
         """An ``.exr`` as it is, a BRDF file rendered in ``scene`` (a suite scene's name)."""
@@ -112,8 +106,7 @@ class FileLoader:
         return self.renders([path], resolution, scene)[0]
 
     def _render_key(self, path, settings, scene: str) -> str:
-        model = self.model(path).fingerprint if path.lower().endswith(".emb") else ""
-        return hashlib.sha256("\n".join([file_digest(path), model, repr(settings), scene]).encode()).hexdigest()
+        return hashlib.sha256("\n".join([file_digest(path), repr(settings), scene]).encode()).hexdigest()
 
     def renders(self, paths, resolution=None, scene: str = "reference") -> list:
         """Renders of BRDF files in a suite scene (:mod:`brdfkit.render.scene_suite`):
@@ -129,21 +122,19 @@ class FileLoader:
                 todo.setdefault(key, path)
         self.counts.cached += len(paths) - len(todo)
         if todo:
-            embs = [p for p in todo.values() if p.lower().endswith(".emb")]
-            model = self.model(embs[0]) if embs else None
             # A .bsdf is rendered from the file itself, as Mitsuba renders it (its table is
             # reciprocal, the file is not); .binary tables are read once per loader.
             tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(".binary")}
             self._torch_needed()
             images = files.render_brdf_files(list(todo.values()), resolution=settings.resolution,
-                                             progress=self.progress, model=model, tables=tables, scene=scene)
+                                             progress=self.progress, model=self._models, tables=tables, scene=scene)
             self._renders.update(zip(todo, images))
             self.counts.passes += 1
             self.counts.renders += len(todo)
         return [self._renders[k].copy() for k in keys]
 
     def check(self, path):
-        """Read ``path`` (and the model an ``.emb`` needs) without rendering: a bad
+        """Read ``path`` (and the decoder an ``.emb`` needs) without rendering: a bad
         reference must not cost a render of the prediction first (a 256 px render is
         minutes on a busy 2-core machine; docs/stability.md)."""
         if _kind(path) == "image":
@@ -151,9 +142,7 @@ class FileLoader:
 
             read_exr(path)
         elif path.lower().endswith(".emb"):
-            from brdfkit.io.embedding import check_compatible, read_embedding
-
-            check_compatible(read_embedding(path), self.model(path), path)
+            self._models.open(path)
         else:
             self.table(path)
 

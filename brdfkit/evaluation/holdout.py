@@ -309,8 +309,8 @@ def score_at_samples(pred, ref, model_path=None) -> dict:
     its reciprocal table, ``.emb`` decoded with ``model_path`` or the built-in it names)
     scored at every sample of the sample file ``ref`` (:func:`sample_errors`). The
     samples are read first: a bad reference costs no decoding."""
-    from brdfkit.brdf_file import EmbeddingModel, read_table
+    from brdfkit.brdf_file import EmbeddingDecoders, read_table
     from brdfkit.io.sample_files import read_sample_file
 
     samples = read_sample_file(ref)
-    return sample_errors(read_table(pred, EmbeddingModel(model_path)), samples)
+    return sample_errors(read_table(pred, EmbeddingDecoders(model_path)), samples)

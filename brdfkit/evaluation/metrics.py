@@ -32,7 +32,7 @@ from brdfkit.errors import InputError
 # Re-exported: the metrics' own display encoding, defined with the renderer's.
 from brdfkit.render.display import EXPOSURE, display_encode, display_linear, srgb_oetf
 
-__all__ = ["EXPOSURE", "PSNR_CAP", "PEAK_THETA_H_DEG", "brdf_log_rmse", "dark_at_grazing", "highlights",
+__all__ = ["EXPOSURE", "PSNR_CAP", "PEAK_THETA_H_DEG", "brdf_log_rmse", "dark_at_grazing", "darkest_ratio", "highlights",
            "display_encode", "srgb_oetf",
            "psnr", "delta_e_2000", "delta_e_2000_map", "ssim", "image_metrics", "score"]
 
@@ -105,7 +105,7 @@ def brdf_log_rmse(pred, ref) -> float:
 def dark_at_grazing(pred, ref, above_deg: float = 80.0) -> float:
     """Share of the measured cells with ``theta_h > above_deg`` (degrees) where a channel
     of ``pred`` is below a tenth of ``ref``: a reconstruction "orders of magnitude below
-    the data at grazing angles" (issue 22), which cosine-weighted errors and renders
+    the data at grazing angles" (``docs/notes/generalisation.md``), which cosine-weighted errors and renders
     barely see. Both ``(90, 90, 180, 3)`` tables in 1/sr; cells where ``ref`` is below
     1e-4 /sr (black there) or either is NaN are not counted; 0 when none is left."""
     from brdfkit.geometry import grid_angles
@@ -114,6 +114,26 @@ def dark_at_grazing(pred, ref, above_deg: float = 80.0) -> float:
     p, r = np.asarray(pred, np.float64)[rows], np.asarray(ref, np.float64)[rows]
     ok = np.isfinite(p) & np.isfinite(r) & (r > 1e-4)
     return float(np.mean(p[ok] < 0.1 * r[ok])) if ok.any() else 0.0
+
+
+def darkest_ratio(pred, ref, at_least: float = 1.0) -> float | None:
+    """The smallest ``pred / ref`` over the cells and channels where ``ref`` is at least
+    ``at_least`` (1/sr): a black corner, a bright part of the material decoded orders of
+    magnitude too dark (a value below 1e-3 means one). Both ``(90, 90, 180, 3)`` tables in
+    1/sr; NaN cells are not counted; ``None`` where ``ref`` reaches ``at_least`` nowhere.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.full((90, 90, 180, 3), 2.0)
+    >>> pred = ref.copy(); pred[0, 0, 0, 1] = 1e-4
+    >>> darkest_ratio(pred, ref), darkest_ratio(ref, ref * 0.1)
+    (5e-05, None)
+    """
+    r = np.asarray(ref, np.float64)
+    p = np.asarray(pred, np.float64)
+    ok = np.isfinite(r) & np.isfinite(p) & (r >= at_least)
+    return float((p[ok] / r[ok]).min()) if ok.any() else None
 
 
 PEAK_THETA_H_DEG = 5.0

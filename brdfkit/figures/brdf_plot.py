@@ -66,18 +66,17 @@ def load_tables(paths: Sequence[str | os.PathLike], model_path: str | os.PathLik
     """Read MERL tables and decode embeddings: ``{label: (90, 90, 180, 3) table}`` in the
     order given, labels the file stems (unique; see :func:`input_labels`).
 
-    An ``.emb`` needs ``model_path`` (the model that made it: a file or a built-in name;
-    ``None``: the built-in the first embedding names, :func:`brdfkit.models.builtin.model_for_embedding`);
-    only then is torch imported.
+    An ``.emb`` decodes with ``model_path`` (the decoder that made it: a file or a
+    built-in's name; ``None``: the installed built-in part whose digest it records).
     """
-    from brdfkit.brdf_file import EmbeddingModel, brdf_kind, read_table
+    from brdfkit.brdf_file import EmbeddingDecoders, brdf_kind, read_table
 
     paths = [os.fspath(p) for p in paths]
     if not paths:
         raise InputError("plot: no input (give MERL .binary tables and/or .emb embeddings)")
     for path in paths:  # every name checked before anything is read or decoded
         brdf_kind(path)
-    models = EmbeddingModel(model_path)
+    models = EmbeddingDecoders(model_path)
     return {label: read_table(path, models) for label, path in zip(input_labels(paths), paths)}
 
 

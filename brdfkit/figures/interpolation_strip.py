@@ -2,8 +2,8 @@
 Sec. 5) in one PNG.
 
 ``steps`` materials evenly spaced from embedding A (``t = 0``) to B (``t = 1``), each the
-latent blend ``(1 - t) z_A + t z_B`` (:func:`brdfkit.api.interpolate`) decoded by the
-model (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`) and rendered in the reference scene by the
+blend ``(1 - t) A + t B`` (:func:`brdfkit.api.interpolate`: of the basis's coefficients, or
+of the hypernetwork's latents) decoded by the model and rendered in the reference scene by the
 quadrature renderer, all in one pass (:func:`brdfkit.render.quadrature.render_many`).
 The renders sit side by side, one screen pixel per render pixel, each labelled with its
 ``t``; a caption names A and B. ``brdfkit interpolate A B --sheet strip.png`` draws it.
@@ -57,14 +57,15 @@ def check_strip(steps, size) -> None:
                          f"than {MAX_WIDTH:,}: take fewer steps or a smaller size")
 
 
-def interpolation_strip(model, a, b, output: str | os.PathLike, *, steps: int = STEPS, size: int = SIZE,
+def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int = STEPS, size: int = SIZE,
                         progress: bool = True, dpi: float = 100.0) -> list[tuple[float, np.ndarray]]:
     """Render the blends of ``a`` and ``b`` and draw them as one labelled strip (PNG).
 
     Parameters
     ----------
-    model
-        The :class:`~brdfkit.hypernet.loaded.NeuralModel` that made both embeddings.
+    decoder
+        The :class:`~brdfkit.methods.embedding.Decoder` that made both embeddings
+        (:func:`brdfkit.methods.embedding.decoder_for`).
     a, b
         :class:`~brdfkit.io.embedding.Embedding` at ``t = 0`` and ``t = 1``; their
         ``source`` (a file name) is shown in the caption.
@@ -91,12 +92,11 @@ def interpolation_strip(model, a, b, output: str | os.PathLike, *, steps: int = 
     InputError
         ``steps`` or ``size`` out of range (:func:`check_strip`).
     ModelMismatchError
-        ``a`` and ``b`` come from different models, or not from ``model``.
+        ``a`` and ``b`` differ in kind, size or decoder, or ``decoder`` did not make them.
     """
     from brdfkit.api import interpolate
     from brdfkit.console import ProgressBar
-    from brdfkit.io.embedding import check_compatible
-    from brdfkit.methods.embedding import embedding_brdf
+    from brdfkit.methods.embedding import open_embedding
     from brdfkit.render.file_render import reference_scene
     from brdfkit.render.quadrature import render_many
     from brdfkit.figures.canvas import pyplot, save_png, show_render
@@ -104,8 +104,8 @@ def interpolation_strip(model, a, b, output: str | os.PathLike, *, steps: int = 
     check_strip(steps, size)
     ts = strip_ts(steps)
     blends = [interpolate(a, b, t) for t in ts]  # refuses embeddings of two models first
-    check_compatible(a, model, a.source or "A")  # named as the user gave it, not as a blend
-    brdfs = [embedding_brdf(model, e) for e in blends]
+    open_embedding(a, decoder, a.source or "A")  # checked, named as the user gave it, not as a blend
+    brdfs = [open_embedding(e, decoder) for e in blends]
     with ProgressBar(f"quadrature {steps} blends", enabled=progress) as bar:
         done = render_many(brdfs, reference_scene(size), progress=bar if progress else None)
     images = [img for img, _ in done]
@@ -113,7 +113,8 @@ def interpolation_strip(model, a, b, output: str | os.PathLike, *, steps: int = 
     names = [os.path.basename(e.source) if e.source else n for e, n in ((a, "A"), (b, "B"))]
     fig = pyplot().figure(dpi=dpi)
     labels = [fig.text(0, 0, _label(t), ha="center", va="bottom", fontsize=FONT_PT) for t in ts]
-    caption = fig.text(0, 0, f"A = {names[0]}, B = {names[1]}: latent (1 - t) A + t B, reference scene",
+    blended = "basis coefficients" if a.kind == "basis" else a.kind
+    caption = fig.text(0, 0, f"A = {names[0]}, B = {names[1]}: {blended} (1 - t) A + t B, reference scene",
                        ha="center", va="bottom", fontsize=FONT_PT, color="0.3")
     renderer = fig.canvas.get_renderer()
     text_px = [math.ceil(x.get_window_extent(renderer).width) for x in (*labels, caption)]

@@ -121,7 +121,7 @@ def grid_hd() -> np.ndarray:
     90 + 16,200 distinct vectors are computed and broadcast: the same numbers bit for bit
     as ``hd_vectors(*cell_angles(index))`` for every cell, in a tenth of the time (0.05 s
     against 0.49 s; it is part of every ``brdfkit decode`` / ``sparse`` process,
-    ``docs/performance.md``).
+    ``docs/notes/performance.md``).
     """
     n_dp = N_THETA_D * N_PHI_D
     th = cell_angles(np.arange(N_THETA_H) * n_dp)[0]

@@ -6,9 +6,9 @@ arbitrary angles, in the grid's own coordinates
 renormalising the weights over the rest (``fill`` where none is measured).
 :class:`TrilinearTable` gives what it gives on the plain table, to the bit, NaN semantics
 included, only faster: a render of a table evaluates 11.8 M direction pairs, and this
-lookup was most of each (issue 14). :func:`lookup_trilinear` takes either.
+lookup was most of each (``docs/notes/performance.md``). :func:`lookup_trilinear` takes either.
 
-How, and why this way (PyTorch's CPU kernels, one thread; ``docs/performance.md``):
+How, and why this way (PyTorch's CPU kernels, one thread; ``docs/notes/performance.md``):
 
 * One row per cell: its ``C`` values with NaN replaced by 0, then its measured flags (1
   or 0; one flag when every channel is measured or not together, as in MERL tables,
@@ -172,7 +172,7 @@ def lookup_prepared_many(luts, u_h, u_d, u_p, fill):
 
     Why not one table with both tables' rows side by side (32-byte rows, one cache miss
     a corner for both): PyTorch's CPU gather moves at most 16 bytes an element, so such
-    rows take two elements a corner, and on the project machine (issue 14) that measured
+    rows take two elements a corner, and on the project machine (``docs/notes/performance.md``) that measured
     no faster than two tables, while sharing the corner computation saves its share.
     """
     import torch

@@ -35,7 +35,8 @@ def encode_samples(model, samples, source: str = "") -> Embedding:
     Returns
     -------
     Embedding
-        float32 latent, the model's fingerprint, ``sample_count = N``.
+        Kind ``"latent"``: the float32 latent, the model's fingerprint as its decoder,
+        ``sample_count = N``.
     """
     n = len(samples)
     if n < 1:
@@ -43,7 +44,7 @@ def encode_samples(model, samples, source: str = "") -> Embedding:
     hd = np.asarray(samples.hd(), dtype=np.float64)
     ref = model.reference_at(samples.theta_h, samples.theta_d, samples.phi_d)
     latent = encode_mean(model, hd, np.asarray(samples.rgb, dtype=np.float64), ref)
-    return Embedding(latent, model.fingerprint, source or samples.source, n)
+    return Embedding(latent, "latent", model.fingerprint, source or samples.source, n)
 
 
 def encode_table(model, table: np.ndarray, source: str = "") -> Embedding:
@@ -61,4 +62,4 @@ def encode_table(model, table: np.ndarray, source: str = "") -> Embedding:
     if bad.any():
         ref = np.where(bad, model.reference_fallback()[None, :], ref)
     latent = encode_mean(model, grid_hd()[idx], flat[idx].astype(np.float64, copy=False), ref)
-    return Embedding(latent, model.fingerprint, source, int(idx.size))
+    return Embedding(latent, "latent", model.fingerprint, source, int(idx.size))

@@ -1,7 +1,7 @@
 """Fused inference kernels: the trained network's layers rearranged for fast CPU inference.
 
 Training runs the modules of :mod:`brdfkit.hypernet.network` as they are. Inference does the
-same arithmetic in fewer, larger operators (``docs/performance.md`` has the
+same arithmetic in fewer, larger operators (``docs/notes/performance.md`` has the
 measurements):
 
 * **Encoder** (:func:`encode_mean`): the set encoder is a per-sample MLP followed by a

@@ -14,15 +14,27 @@ from __future__ import annotations
 
 import numpy as np
 
-from brdfkit.io.embedding import Embedding, check_compatible
-from brdfkit.errors import InputError
+from brdfkit.io.embedding import Embedding
+from brdfkit.errors import InputError, ModelMismatchError
 from brdfkit.geometry import N_CELLS, TABLE_SHAPE, grid_hd, half_diff_from_io, hd_vectors
 from brdfkit.hypernet import kernels
 from brdfkit.hypernet.kernels import fold_hyponet, hyponet_block, hyponet_buffers, hyponet_mapped, hyponet_weights
 from brdfkit.hypernet.loaded import interp_reference
 from brdfkit.hypernet.network import IN_FEATURES, OUT_FEATURES
 
-__all__ = ["NeuralBRDF"]
+__all__ = ["NeuralBRDF", "check_latent"]
+
+
+def check_latent(emb: Embedding, model, name: str = "") -> None:
+    """Refuse an embedding that ``model`` did not make: another kind, another model's
+    fingerprint, another latent size (:class:`~brdfkit.errors.ModelMismatchError`, one line
+    naming both models)."""
+    if emb.kind == "latent" and emb.decoder == model.fingerprint and emb.size == int(model.cfg.latent_dim):
+        return
+    what = f"embedding {name}" if name else "embedding"
+    raise ModelMismatchError(
+        f"{what} ({emb.kind}, {emb.size} numbers, decoder {emb.decoder[:12]}) was not made by the given model "
+        f"{model.fingerprint[:12]} (latent {model.cfg.latent_dim}); encode the material again with this model")
 
 
 class NeuralBRDF:
@@ -53,9 +65,9 @@ class NeuralBRDF:
         :class:`~brdfkit.errors.ModelMismatchError` if another model made it)."""
         import torch
 
-        check_compatible(emb, model, name)
+        check_latent(emb, model, name)
         with torch.no_grad():
-            z = torch.from_numpy(np.asarray(emb.latent, np.float32).copy()).to(model.device)[None]
+            z = torch.from_numpy(np.asarray(emb.values, np.float32).copy()).to(model.device)[None]
             weights = [(w.contiguous(), b.contiguous()) for w, b in hyponet_weights(model, z)]
         return cls(model, emb, weights, name)
 
@@ -66,7 +78,7 @@ class NeuralBRDF:
         import torch
 
         if bool(torch.isnan(vals).any()):
-            z = float(np.abs(self.embedding.latent).max())
+            z = float(np.abs(self.embedding.values).max())
             raise InputError(f"{self.name}: the model's hyponet overflows on this embedding (largest "
                              f"latent value {z:.3g}, far outside the trained range); it cannot be decoded")
 
@@ -165,7 +177,7 @@ class NeuralBRDF:
         activation buffer carries a constant row of ones and each layer's bias is an
         extra column of ``W^T``, so a layer is one plain ``mm`` into a preallocated
         buffer: ``addmm`` with a broadcast bias cost a third more than the products
-        themselves (``docs/performance.md``).
+        themselves (``docs/notes/performance.md``).
 
         Returns
         -------

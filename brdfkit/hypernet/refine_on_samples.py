@@ -8,7 +8,7 @@ optimises, on the same samples,
   prior ``prior * mean((z - z0)^2)`` towards the encoder's answer;
 * ``weights``: after that, the decoded hyponet's own weights ``W`` (6 -> 60 x 4 -> 3),
   with a prior ``prior * sum(|W - W0|^2) / sum(|W0|^2)`` towards the decoded ones, which
-  reaches functions no latent decodes to (issue 12: the latent space does not contain
+  reaches functions no latent decodes to (``docs/notes/generalisation.md``: the latent space does not contain
   unseen materials).
 
 The data term is the evaluation metric's own (:func:`brdfkit.evaluation.metrics.brdf_log_rmse`):
@@ -18,7 +18,7 @@ samples of the input: a ``holdout`` share of the samples is set aside, the fit o
 rest is scored on them every ``check_every`` steps, and the step count with the lowest
 held-out error (0 included: refinement may be declined) is then run again on all samples.
 Fewer than ``min_samples`` samples are not refined (too few to hold any out).
-``docs/generalisation.md`` measures it against the encoder alone and the learnt prior.
+``docs/notes/generalisation.md`` measures it against the encoder alone and the learnt prior.
 """
 
 from __future__ import annotations
@@ -184,10 +184,10 @@ def refine(model, samples, embedding: Embedding | None = None, *, config: Refine
     Returns
     -------
     RefineResult
-        Run on :data:`brdfkit.hypernet.refine_on_screen.THREADS` torch thread(s), so that
+        Run on :data:`brdfkit.render.objective.THREADS` torch thread(s), so that
         the same samples give the same result to the bit, whatever the machine's load.
     """
-    from brdfkit.hypernet.refine_on_screen import THREADS
+    from brdfkit.render.objective import THREADS
     from brdfkit.runtime import torch_threads
 
     with torch_threads(THREADS):
@@ -203,7 +203,7 @@ def _refine(model, samples, embedding, cfg: RefineConfig, seed: int, name: str) 
 
     emb = embedding if embedding is not None else encode_samples(model, samples, name)
     dev = model.device
-    z0 = torch.from_numpy(np.asarray(emb.latent, np.float32).copy()).to(dev)[None]
+    z0 = torch.from_numpy(np.asarray(emb.values, np.float32).copy()).to(dev)[None]
     ok = torch.from_numpy(samples.measured()).to(dev)
     n = int(ok.sum())
     if n < cfg.min_samples:
@@ -223,7 +223,7 @@ def _refine(model, samples, embedding, cfg: RefineConfig, seed: int, name: str) 
             [z0], lambda ps: net.hyponet_weights(ps[0]),
             lambda ps: cfg.prior_latent * torch.mean((ps[0] - z0) ** 2),
             cfg.lr_latent, data, fit_idx, held_idx, cfg)
-        out_emb = Embedding(z[0].cpu().numpy().astype(np.float32), emb.model_fingerprint, emb.source,
+        out_emb = Embedding(z[0].cpu().numpy().astype(np.float32), "latent", emb.decoder, emb.source,
                             emb.sample_count)
         # Decoded as `decode` decodes the embedding (the fused kernels), so the two agree.
         brdf = NeuralBRDF.from_embedding(model, out_emb, name)

@@ -1,7 +1,7 @@
-"""Screen tuning: a trained hypernetwork's auto-decoder stage, fitted on renders (issue 21).
+"""Screen tuning: a trained hypernetwork's auto-decoder stage, fitted on renders.
 
 The paper trains the hypernetwork on its mapped loss alone (Gokbudak et al. 2024, eq. 3),
-and its compressions render 10 dB below an 8-component PCA (issue 21). :func:`tune`
+and its compressions render 10 dB below an 8-component PCA (``docs/notes/compression.md``). :func:`tune`
 continues a trained model as an **auto-decoder** (Park et al. 2019, DeepSDF): one latent
 ``z_i`` per training material, initialised by the set encoder's pass over the material's
 cells, is optimised *together with the decoder* on
@@ -10,9 +10,9 @@ cells, is optimised *together with the decoder* on
 
 * ``E_screen(i)``: the render-aligned error of :mod:`brdfkit.render.screen` (display MSE
   of a low-resolution render against the table's own render) in one of ``scenes``, the
-  objective scenes of the suite (:mod:`brdfkit.render.scene_suite`; never a judged one,
-  issue 28; the built-in models of 2026-11-25 were tuned under the reference environment's
-  turns 0, 0.25 and 0.75 instead), with a fixed draw of ``pairs_per_pixel`` pairs per
+  objective scenes of the suite (:mod:`brdfkit.render.scene_suite`; never a judged one;
+  the shipped built-in models were tuned under the reference environment's turns 0, 0.25
+  and 0.75 instead), with a fixed draw of ``pairs_per_pixel`` pairs per
   pixel, in proportion to the table's integrand, as in
   :mod:`brdfkit.hypernet.refine_on_screen`. The log makes the loss the *mean PSNR over
   materials* (a sum of ``-10 log10 MSE``), so a dark material counts as much as a bright
@@ -40,7 +40,7 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError, require_counts
-from brdfkit.hypernet.refine_on_screen import OBJECTIVE
+from brdfkit.render.objective import OBJECTIVE
 
 __all__ = ["TuneOptions", "tune"]
 
@@ -62,7 +62,7 @@ class TuneOptions:
         Pairs per pixel of each material's fixed draw (the full 32 px render has ~280).
     scenes
         The objective scenes the renders are fitted in (default those of
-        :data:`brdfkit.hypernet.refine_on_screen.OBJECTIVE`).
+        :data:`brdfkit.render.objective.OBJECTIVE`).
     map_weight
         Weight of the paper's mapped loss.
     lambda_z
@@ -118,18 +118,18 @@ class TuneOptions:
 
 def _material_data(model, paths, opts, screens):
     """Per material: the encoder's latent, and per screen the table's image and the fixed
-    pair draw ``(idx, weight)`` (:func:`brdfkit.hypernet.refine_on_screen.draw_pairs`)."""
+    pair draw ``(idx, weight)`` (:func:`brdfkit.render.objective.draw_pairs`)."""
     import torch
 
-    from brdfkit.hypernet.refine_on_screen import CompressConfig, draw_pairs
+    from brdfkit.render.objective import ObjectiveConfig, draw_pairs
     from brdfkit.io.merl import read_merl
     from brdfkit.hypernet.encoding import encode_table
 
-    cfg = CompressConfig(pairs_per_pixel=opts.pairs_per_pixel, uniform_share=0.25)
+    cfg = ObjectiveConfig(pairs_per_pixel=opts.pairs_per_pixel, uniform_share=0.25)
     latents, per = [], []
     for i, p in enumerate(paths):
         table = read_merl(p)
-        latents.append(np.asarray(encode_table(model, table).latent, np.float32))
+        latents.append(np.asarray(encode_table(model, table).values, np.float32))
         views = []
         for k, sc in enumerate(screens):
             with torch.no_grad():

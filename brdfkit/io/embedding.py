@@ -1,16 +1,22 @@
-"""Embedding files (``.emb``): one material as the latent vector of a model.
+"""Embedding files (``.emb``): one material as a few numbers that decode with one model.
 
-An embedding is the set encoder's output ``z`` for one material (Gokbudak et al. 2024,
-Sec. 3): with the model that made it, it decodes into the material's neural BRDF. On disk
-it is a small, self-describing JSON document (``docs/formats.md``, "Embedding files")::
+An embedding is a material compressed into ``size`` numbers of some *kind*: the
+coefficients of a PCA basis (``"basis"``, :mod:`brdfkit.basis`) or a hypernetwork's latent
+(``"latent"``, Gokbudak et al. 2024). With the file that made it (the basis, the model:
+its *decoder*) it decodes into the material's BRDF; the kinds and their decoders are
+registered by name in :data:`brdfkit.methods.embedding.KINDS`. On disk it is a small,
+self-describing JSON document (``docs/formats.md``, "Embedding files")::
 
-    {"format": "brdfkit-embedding", "version": 1, "latent_dim": 40,
-     "latent": [0.12, -0.5, ...], "model_fingerprint": "3f2a...",
+    {"format": "brdfkit-embedding", "version": 2, "kind": "basis", "size": 39,
+     "values": [0.12, -0.5, ...], "decoder": "3f2a...",
      "source": "teflon.binary", "sample_count": 1156550}
 
-Latent values are written as the shortest decimal that gives back the same float32, so a
-write/read round trip is exact. The file names the model (its weights fingerprint): an
-embedding decodes only with that model (:func:`check_compatible`).
+``decoder`` is the SHA-256 the decoder is known by (a basis file's bytes, a model's
+weights): an embedding decodes only with that decoder, and is how brdfkit finds it among
+the built-in models. Values are written as the shortest decimal that gives back the same
+float32, so a write/read round trip is exact. Version 1 files (a ``latent`` with its
+``model_fingerprint``, and for basis coefficients a ``basis`` SHA-256) are read as the
+same embeddings.
 """
 
 from __future__ import annotations
@@ -19,82 +25,90 @@ import dataclasses
 import json
 import math
 import os
+import re
 
 import numpy as np
 
 from brdfkit.atomic import atomic_open, check_input_file
-from brdfkit.errors import FormatError, ModelMismatchError
+from brdfkit.errors import FormatError
 
-__all__ = ["EMBEDDING_FORMAT", "EMBEDDING_VERSION", "Embedding", "write_embedding",
-           "read_embedding", "check_compatible"]
+__all__ = ["EMBEDDING_FORMAT", "EMBEDDING_VERSION", "Embedding", "write_embedding", "read_embedding"]
 
 EMBEDDING_FORMAT = "brdfkit-embedding"
-EMBEDDING_VERSION = 1
-# An embedding of any sensible latent size is a few kB; refuse to parse anything huge.
+EMBEDDING_VERSION = 2
+_READS = (1, 2)
+# An embedding of any sensible size is a few kB; refuse to parse anything huge.
 _MAX_BYTES = 1 << 20
 _F32_MAX = float(np.finfo(np.float32).max)
+_HEX64 = re.compile(r"[0-9a-f]{64}\Z")
+_KIND = re.compile(r"[a-z][a-z0-9-]*\Z")
 
 
 @dataclasses.dataclass
 class Embedding:
-    """One material as a model's latent vector.
+    """One material as ``size`` numbers of one kind.
 
     Attributes
     ----------
-    latent
-        float32 ``(L,)``.
-    model_fingerprint
-        sha256 hex of the weights of the model that made it
-        (:func:`brdfkit.hypernet.model_file.weights_fingerprint`).
+    values
+        float32 ``(size,)``. For a basis embedding the ``(K, 3)`` coefficients of the
+        basis's ``K`` leading components, component-major (``size = 3 K``); for a latent,
+        the hypernetwork's latent vector.
+    kind
+        ``"basis"`` or ``"latent"`` (:data:`brdfkit.methods.embedding.KINDS`).
+    decoder
+        SHA-256 hex of the decoder: the bytes of the basis file (a basis embedding) or the
+        weights of the hypernetwork (a latent,
+        :func:`brdfkit.hypernet.model_file.weights_fingerprint`).
     source
         Where the material came from (a file name), for provenance.
     sample_count
-        Number of BRDF samples the encoder averaged over (0 when not from samples, e.g.
-        an interpolation).
+        Number of BRDF samples it was made from (0 when not from samples, e.g. an
+        interpolation).
     refinement
-        How the latent was refined after the encoder's pass, or ``None`` (not refined):
-        ``{"steps": int, "best_step": int, "stopped": str}``
-        (:class:`brdfkit.hypernet.refine_on_screen.CompressResult`); ``--steps`` of the
-        record replays it.
-    basis
-        ``None`` for a hypernetwork latent; else the sha256 hex of the PCA basis file
-        whose coefficients the latent holds (a *basis embedding*,
-        :mod:`brdfkit.methods.ipca.embedding`: ``K`` components times 3 channels,
-        component-major, ``latent_dim = 3 K``), the basis the model named by
-        ``model_fingerprint`` ships with.
+        How the values were refined on renders after their closed-form or encoder start,
+        or ``None`` (not refined): ``{"steps": int, "best_step": int, "stopped": str}``;
+        ``--steps`` of the record replays it.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> emb = Embedding(np.zeros(9), "basis", "ab" * 32, "teflon.binary")
+    >>> emb.size, emb.values.dtype
+    (9, dtype('float32'))
     """
 
-    latent: np.ndarray
-    model_fingerprint: str
+    values: np.ndarray
+    kind: str
+    decoder: str
     source: str = ""
     sample_count: int = 0
     refinement: dict | None = None
-    basis: str | None = None
 
     def __post_init__(self):
-        self.latent = np.asarray(self.latent, dtype=np.float32).reshape(-1)
+        self.values = np.asarray(self.values, dtype=np.float32).reshape(-1)
 
     @property
-    def latent_dim(self) -> int:
-        return int(self.latent.shape[0])
+    def size(self) -> int:
+        """Numbers per material."""
+        return int(self.values.shape[0])
 
 
 def _to_json(emb: Embedding) -> str:
     doc = {
         "format": EMBEDDING_FORMAT,
         "version": EMBEDDING_VERSION,
-        "latent_dim": emb.latent_dim,
+        "kind": emb.kind,
+        "size": emb.size,
         # float32 -> float is exact; json writes the shortest repr of that float64, which
         # reads back to the same float32.
-        "latent": [float(x) for x in emb.latent],
-        "model_fingerprint": emb.model_fingerprint,
+        "values": [float(x) for x in emb.values],
+        "decoder": emb.decoder,
         "source": emb.source,
         "sample_count": int(emb.sample_count),
     }
-    if emb.refinement is not None:  # absent from files of unrefined latents, as before
+    if emb.refinement is not None:  # absent from files of unrefined embeddings
         doc["refinement"] = dict(emb.refinement)
-    if emb.basis is not None:  # absent from hypernetwork latents, as before
-        doc["basis"] = emb.basis
     return json.dumps(doc, indent=1) + "\n"
 
 
@@ -104,10 +118,12 @@ def write_embedding(path: str | os.PathLike, emb: Embedding) -> None:
     Raises
     ------
     ValueError
-        Non-finite latent values (a bug upstream, not something to save).
+        Non-finite values, a malformed kind or decoder (a bug upstream, not something to save).
     """
-    if not np.isfinite(emb.latent).all():
+    if not np.isfinite(emb.values).all():
         raise ValueError("embedding holds non-finite values")
+    if not _KIND.match(str(emb.kind)) or not _HEX64.match(str(emb.decoder)):
+        raise ValueError(f"embedding kind {emb.kind!r} or decoder {emb.decoder!r} is malformed")
     text = _to_json(emb)
     with atomic_open(path, "w", encoding="utf-8") as f:
         f.write(text)
@@ -118,7 +134,7 @@ def _is_int(x) -> bool:
 
 
 def read_embedding(path: str | os.PathLike) -> Embedding:
-    """Read and validate an ``.emb`` file.
+    """Read and validate an ``.emb`` file (version 2, or version 1 as the same embedding).
 
     Returns
     -------
@@ -127,9 +143,9 @@ def read_embedding(path: str | os.PathLike) -> Embedding:
     Raises
     ------
     FormatError
-        Not JSON, not a brdfkit embedding, an unsupported version, a latent whose length
-        differs from ``latent_dim``, non-numeric or non-finite values, a missing or
-        malformed field. One line naming the file.
+        Not JSON, not a brdfkit embedding, an unsupported version, values whose count
+        differs from ``size``, non-numeric or non-finite values, a missing or malformed
+        field. One line naming the file.
     """
     path = check_input_file(path)
     size = os.path.getsize(path)
@@ -147,38 +163,61 @@ def read_embedding(path: str | os.PathLike) -> Embedding:
         raise FormatError(path, f"not a brdfkit embedding (format {doc.get('format')!r}, "
                                 f"expected {EMBEDDING_FORMAT!r})")
     version = doc.get("version")
-    if version != EMBEDDING_VERSION or not _is_int(version):
+    if not _is_int(version) or version not in _READS:
         raise FormatError(path, f"embedding version {version!r} is not supported "
-                                f"(this brdfkit reads version {EMBEDDING_VERSION})")
-    dim = doc.get("latent_dim")
-    if not _is_int(dim) or dim < 1:
-        raise FormatError(path, f"latent_dim must be a positive integer, not {dim!r}")
-    latent = doc.get("latent")
-    if not isinstance(latent, list):
-        raise FormatError(path, "'latent' must be a list of numbers")
-    if len(latent) != dim:
-        raise FormatError(path, f"latent has {len(latent)} values but latent_dim is {dim}")
-    for i, x in enumerate(latent):
-        if not (isinstance(x, (int, float)) and not isinstance(x, bool)):
-            raise FormatError(path, f"latent[{i}] is {x!r}, not a number")
-        if not math.isfinite(x) or abs(x) > _F32_MAX:
-            raise FormatError(path, f"latent[{i}] is {x!r}, not a finite float32 value")
-    fp = doc.get("model_fingerprint")
-    if not isinstance(fp, str) or not fp:
-        raise FormatError(path, "'model_fingerprint' must be a non-empty string")
+                                f"(this brdfkit reads versions {', '.join(map(str, _READS))})")
+    kind, decoder, values = _fields(path, doc) if version == 2 else _fields_v1(path, doc)
     source = doc.get("source", "")
     if not isinstance(source, str):
         raise FormatError(path, "'source' must be a string")
     count = doc.get("sample_count", 0)
     if not _is_int(count) or count < 0:
         raise FormatError(path, f"'sample_count' must be a non-negative integer, not {count!r}")
-    basis = doc.get("basis")
-    if basis is not None and not (isinstance(basis, str) and len(basis) == 64
-                                  and all(ch in "0123456789abcdef" for ch in basis)):
+    return Embedding(np.array(values, dtype=np.float32), kind, decoder, source, count, _refinement(path, doc))
+
+
+def _fields(path, doc) -> tuple[str, str, list]:
+    """``(kind, decoder, values)`` of a version 2 document, checked."""
+    kind, decoder = doc.get("kind"), doc.get("decoder")
+    if not isinstance(kind, str) or not _KIND.match(kind):
+        raise FormatError(path, f"'kind' must be an embedding kind such as 'basis' or 'latent', not {kind!r}")
+    if not isinstance(decoder, str) or not _HEX64.match(decoder):
+        raise FormatError(path, "'decoder' must be a SHA-256 hex digest (64 lowercase hex digits)")
+    return kind, decoder, _values(path, doc, "values", "size")
+
+
+def _fields_v1(path, doc) -> tuple[str, str, list]:
+    """``(kind, decoder, values)`` of a version 1 document: ``latent`` and its
+    ``model_fingerprint``, or with ``basis`` the coefficients of that basis file."""
+    values = _values(path, doc, "latent", "latent_dim")
+    fp, basis = doc.get("model_fingerprint"), doc.get("basis")
+    if not isinstance(fp, str) or not _HEX64.match(fp):
+        raise FormatError(path, "'model_fingerprint' must be a SHA-256 hex digest (64 lowercase hex digits)")
+    if basis is None:
+        return "latent", fp, values
+    if not (isinstance(basis, str) and _HEX64.match(basis)):
         raise FormatError(path, "'basis' must be the sha256 hex (64 characters) of a PCA basis file")
-    if basis is not None and dim % 3:
-        raise FormatError(path, f"a basis embedding holds 3 coefficients a component, not {dim} values")
-    return Embedding(np.array(latent, dtype=np.float32), fp, source, count, _refinement(path, doc), basis)
+    if len(values) % 3:
+        raise FormatError(path, f"a basis embedding holds 3 coefficients a component, not {len(values)} values")
+    return "basis", basis, values
+
+
+def _values(path, doc, key: str, size_key: str) -> list:
+    """The list ``doc[key]`` of ``doc[size_key]`` finite float32 numbers, checked."""
+    dim = doc.get(size_key)
+    if not _is_int(dim) or dim < 1:
+        raise FormatError(path, f"{size_key} must be a positive integer, not {dim!r}")
+    values = doc.get(key)
+    if not isinstance(values, list):
+        raise FormatError(path, f"'{key}' must be a list of numbers")
+    if len(values) != dim:
+        raise FormatError(path, f"{key} has {len(values)} values but {size_key} is {dim}")
+    for i, x in enumerate(values):
+        if not (isinstance(x, (int, float)) and not isinstance(x, bool)):
+            raise FormatError(path, f"{key}[{i}] is {x!r}, not a number")
+        if not math.isfinite(x) or abs(x) > _F32_MAX:
+            raise FormatError(path, f"{key}[{i}] is {x!r}, not a finite float32 value")
+    return values
 
 
 def _refinement(path, doc) -> dict | None:
@@ -191,33 +230,3 @@ def _refinement(path, doc) -> dict | None:
     if not ok:
         raise FormatError(path, "'refinement' must be {\"steps\": int, \"best_step\": int <= steps, \"stopped\": str}")
     return {"steps": rec["steps"], "best_step": rec["best_step"], "stopped": rec["stopped"]}
-
-
-def check_compatible(emb: Embedding, model, name: str = "") -> None:
-    """Refuse an embedding made by a different model.
-
-    Parameters
-    ----------
-    emb
-        The embedding.
-    model
-        A :class:`brdfkit.hypernet.loaded.NeuralModel`.
-    name
-        How to call the embedding in the message (its file name), optional.
-
-    Raises
-    ------
-    ModelMismatchError
-        Fingerprints or latent sizes differ; the message names both fingerprints (short)
-        and both latent sizes.
-    """
-    model_dim = int(model.cfg.latent_dim)
-    # A basis embedding's size is the basis's (3 K), checked against the basis when decoded.
-    if emb.model_fingerprint == model.fingerprint and (emb.latent_dim == model_dim or emb.basis is not None):
-        return
-    what = f"embedding {name}" if name else "embedding"
-    where = f"{os.path.basename(model.path)}, " if getattr(model, "path", "") else ""
-    raise ModelMismatchError(
-        f"{what} was made by model {emb.model_fingerprint[:12]} (latent {emb.latent_dim}), "
-        f"not by the given model {model.fingerprint[:12]} ({where}latent {model_dim}); "
-        f"encode the material again with this model")

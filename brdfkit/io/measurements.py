@@ -5,18 +5,12 @@ A gonioreflectometer's file gives each sample as a direction pair and a value pe
 channel. brdfkit reads the direction pair in these conventions (``docs/formats.md``,
 "Measurement CSV"), named by a file's header (a ``_deg`` suffix: degrees):
 
-================== ============================================= ====================
-kind               columns                                       meaning
-================== ============================================= ====================
-``spherical``      ``theta_i,phi_i,theta_o,phi_o`` (radians)     polar angle and
-``spherical_deg``  ``theta_i_deg,phi_i_deg,theta_o_deg,phi_o_deg`` azimuth of ``wi``
-                                                                 (toward the light)
-                                                                 and ``wo``
-``rusinkiewicz``   ``theta_h,theta_d,phi_d`` (radians), or       Rusinkiewicz 1998
-``rusinkiewicz_deg`` the ``_deg`` names
-``vectors``        ``wi_x,wi_y,wi_z,wo_x,wo_y,wo_z``             unit vectors, local
-                                                                 frame
-================== ============================================= ====================
+* ``spherical``: ``theta_i,phi_i,theta_o,phi_o``, the polar angle and azimuth of ``wi``
+  (toward the light) and of ``wo``, radians; ``spherical_deg``: the same names with
+  ``_deg``, degrees;
+* ``rusinkiewicz``: ``theta_h,theta_d,phi_d`` (Rusinkiewicz 1998), radians;
+  ``rusinkiewicz_deg``: with ``_deg``, degrees;
+* ``vectors``: ``wi_x,wi_y,wi_z,wo_x,wo_y,wo_z``, unit vectors in the local frame;
 
 and the values as ``r,g,b`` (linear sRGB, 1/sr) or one column per wavelength, named
 by the wavelength in nanometres (``400`` or ``400nm``), converted to linear sRGB by

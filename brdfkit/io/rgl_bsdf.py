@@ -6,21 +6,21 @@ The format of RGL's measured-material database and of the renderers that read it
 adaptive parameterization of "An Adaptive Parameterization for Efficient Material
 Acquisition and Rendering" (ACM TOG 37(6), 2018):
 
-============== ============================== ==========================================
-field          dtype, shape                   what
-============== ============================== ==========================================
-``description`` uint8 ``(n,)``                UTF-8 text
-``jacobian``   uint8 ``(1,)``                 1: values are multiplied by ``D / 4 sigma``
-``theta_i``    float32 ``(T,)``               incident elevations (radians, increasing)
-``phi_i``      float32 ``(P,)``               incident azimuths (``P <= 2``: isotropic)
-``ndf``        float32 ``(h, w)``             ``D`` over ``u_m`` (bilinear)
-``sigma``      float32 ``(h, w)``             projected area over ``u_wi``
-``vndf``       float32 ``(P, T, h, w)``       the warp's density over ``u_m``
-``luminance``  float32 ``(P, T, N, N)``       sampling density over sample space
-``rgb``        float32 ``(P, T, 3, N, N)``    values over sample space (RGB files), or
-``spectra``    float32 ``(P, T, W, N, N)``    values per wavelength, with
-``wavelengths`` float32 ``(W,)``              nanometres (spectral files)
-============== ============================== ==========================================
+=============== =========================== ===========================================
+field           dtype, shape                what
+=============== =========================== ===========================================
+``description`` uint8 ``(n,)``              UTF-8 text
+``jacobian``    uint8 ``(1,)``              1: values are multiplied by ``D / 4 sigma``
+``theta_i``     float32 ``(T,)``            incident elevations (radians, increasing)
+``phi_i``       float32 ``(P,)``            incident azimuths (``P <= 2``: isotropic)
+``ndf``         float32 ``(h, w)``          ``D`` over ``u_m`` (bilinear)
+``sigma``       float32 ``(h, w)``          projected area over ``u_wi``
+``vndf``        float32 ``(P, T, h, w)``    the warp's density over ``u_m``
+``luminance``   float32 ``(P, T, N, N)``    sampling density over sample space
+``rgb``         float32 ``(P, T, 3, N, N)`` values over sample space (RGB files), or
+``spectra``     float32 ``(P, T, W, N, N)`` values per wavelength, with
+``wavelengths`` float32 ``(W,)``            nanometres (spectral files)
+=============== =========================== ===========================================
 
 A reader evaluates ``f(wi, wo) cos(theta_o)`` at a direction pair by mapping the half
 vector ``m`` to ``u_m = (sqrt(2 theta_m / pi), (phi_m - phi_i + pi) / 2 pi)``, inverting
@@ -166,8 +166,9 @@ class RglBsdf:
         * ``mean``: ``(a + b) / 2``;
         * ``grazing``: the one conditioned on the more grazing direction (divided by the
           larger cosine; brdfkit's rule before these were measured);
-        * ``steep``: the one conditioned on the direction nearer the normal
-        (``docs/rgl-bsdf.md`` measures them against renders of the file itself)."""
+        * ``steep``: the one conditioned on the direction nearer the normal.
+
+        ``docs/rgl-bsdf.md`` measures them against renders of the file itself."""
         if rule not in RULES:
             raise InputError(f"unknown reciprocity rule {rule!r}; known: {', '.join(RULES)}")
         wi = np.asarray(wi, np.float64).reshape(-1, 3)

@@ -3,18 +3,13 @@
 ``brdfkit sparse``, ``validate``, ``metrics`` and ``plan --within`` take measurements
 as their labs wrote them:
 
-================================ ==========================================================
-file                             read by
-================================ ==========================================================
-``*.brdf``                       pbrt-v2 / Cornell spectral samples
-                                 (:func:`brdfkit.io.pbrt_brdf.read_pbrt_brdf`)
-a CSV naming ``theta_h,theta_d,  brdfkit's sample CSV (:func:`brdfkit.io.samples.read_samples`)
-phi_d,r,g,b`` or ``wi_x,...,b``
-any other CSV                    a measurement CSV (:func:`read_measurement_csv`): the angle
-                                 conventions of :data:`brdfkit.io.measurements.ANGLE_SETS`
-                                 (radians or degrees, named by the header), values ``r,g,b``
-                                 or one column per wavelength (nm)
-================================ ==========================================================
+* a ``*.brdf`` file: pbrt-v2 / Cornell spectral samples
+  (:func:`brdfkit.io.pbrt_brdf.read_pbrt_brdf`);
+* a CSV naming ``theta_h,theta_d,phi_d,r,g,b`` or ``wi_x,...,wo_z,r,g,b``: brdfkit's
+  sample CSV (:func:`brdfkit.io.samples.read_samples`);
+* any other CSV: a measurement CSV (:func:`read_measurement_csv`), the angle conventions
+  of :data:`brdfkit.io.measurements.ANGLE_SETS` (radians or degrees, named by the
+  header), values ``r,g,b`` or one column per wavelength (nm).
 
 Spectral values become linear sRGB by colour-science (:mod:`brdfkit.io.spectral`: CIE
 1931 2 degree observer, D65). Every reader refuses a bad file in one line.

@@ -5,7 +5,7 @@ parts: its hypernetwork, and optionally a learnt prior and the PCA basis that pr
 fitted with. A built-in name therefore names a different file for each method
 (:func:`resolve_for`); a path is the file as it is. ``--method auto``, ``brdfkit
 sparse``'s default, picks the method too (:func:`choose`): a built-in's learnt prior
-when it has one (the better sparse reconstruction, ``docs/generalisation.md``), else its
+when it has one (the better sparse reconstruction, ``docs/notes/generalisation.md``), else its
 hypernetwork; a file by the format its header records.
 """
 
@@ -53,7 +53,7 @@ def resolve_for(method: str, spec: str | os.PathLike) -> str:
 
 def file_method(path: str | os.PathLike) -> str:
     """The method a model file is for, by the format its header records: ``prior``
-    (``brdfkit-prior``), ``ipca`` (``brdfkit-ipca``), else ``hypernet`` (whose loader
+    (``brdfkit-prior``), ``ipca`` (``brdfkit-basis``), else ``hypernet`` (whose loader
     then names what is wrong with a file that is none of them)."""
     from brdfkit.methods.prior.prior_file import is_prior_file
 
@@ -61,14 +61,15 @@ def file_method(path: str | os.PathLike) -> str:
         return "prior"
     from brdfkit.errors import FormatError, InputError
     from brdfkit.io.tensorfile import open_safetensors
-    from brdfkit.methods.ipca import IPCA_FORMAT
 
     try:
         with open_safetensors(os.fspath(path)) as f:
             fmt = (f.metadata() or {}).get("format")
     except (FormatError, InputError, OSError):
         fmt = None
-    return "ipca" if fmt == IPCA_FORMAT else "hypernet"
+    from brdfkit.basis.basis_file import is_basis_format
+
+    return "ipca" if is_basis_format(fmt) else "hypernet"
 
 
 def _default_entry():
@@ -83,8 +84,8 @@ def choose(method: str, spec: str | os.PathLike | None) -> Choice:
     ``method`` :data:`AUTO`: with no ``spec``, the default built-in's learnt prior when
     it has one, else its hypernetwork; a built-in name likewise; a file by its format
     (:func:`file_method`). A named method takes the part of a built-in it uses
-    (:func:`resolve_for`); with no ``spec``, ``hypernet`` and ``prior`` take the default
-    built-in's, the others none (their loader says what they need).
+    (:func:`resolve_for`); with no ``spec``, ``hypernet``, ``prior`` and ``ipca`` take the
+    default built-in's, the others none (their loader says what they need).
 
     Raises
     ------
@@ -92,7 +93,7 @@ def choose(method: str, spec: str | os.PathLike | None) -> Choice:
         An unknown name, or a built-in without the part the method needs.
     """
     if spec is None:
-        if method not in (AUTO, "hypernet", "prior"):
+        if method != AUTO and method not in _RESOLVERS:
             return Choice(method, None, None)
         entry = _default_entry()
         if entry is None:

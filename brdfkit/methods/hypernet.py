@@ -8,8 +8,6 @@ through :func:`brdfkit.api.encode`, which takes paths, tables and sample sets al
 from __future__ import annotations
 
 import dataclasses
-import functools
-import os
 
 from brdfkit.errors import InputError
 from brdfkit.methods.method import Method, MethodOptions
@@ -29,7 +27,7 @@ class HypernetOptions(MethodOptions):
     ones (:func:`brdfkit.hypernet.refine_on_samples.refine`; off: the paper's one encoder pass);
     ``refine_target``: ``latent`` or ``weights`` (the latent, then the hyponet's weights).
     On the validation split refining beat the encoder alone at every N, and ``weights``
-    beat ``latent`` at N = 40 and 4000 and tied it at 400 (``docs/generalisation.md``,
+    beat ``latent`` at N = 40 and 4000 and tied it at 400 (``docs/notes/generalisation.md``,
     Lever 4)."""
 
     refine: bool = True
@@ -63,35 +61,8 @@ def _fit(data, output, *, exclude=(), progress=True, **options):
     return fit(data, output, exclude=exclude, progress=progress, **options)
 
 
-def _compress(model, table, name, kind=None):
-    """``brdfkit encode`` then ``decode``: by default a basis embedding when the model
-    ships a basis, else its latent refined on screen; ``kind="latent"``: the latent."""
-    from brdfkit.methods.embedding import embedding_brdf, encode_table
-
-    return embedding_brdf(model, encode_table(model, table, name, kind=kind), name).to_table()
-
-
-def _describe(model, path, kind=None):
-    """The bench's label of the compression, its numbers and the model's materials."""
-    from brdfkit.methods.embedding import basis_components
-
-    stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    materials = set(model.meta.get("materials") or ())
-    k = None if kind == "latent" else basis_components(model)
-    if k is None:
-        return f"hypernet {model.cfg.latent_dim}-D ({stem})", model.cfg.latent_dim, materials
-    return f"hypernet basis-{3 * k} ({stem})", 3 * k, materials
-
-
-def latent_compressor() -> Method:
-    """The hypernet method compressing into the latent whatever the model ships (a
-    bench's ``MODEL:latent`` entry, :func:`brdfkit.bench.config.latent_spec`)."""
-    return dataclasses.replace(METHOD, compress_fn=functools.partial(_compress, kind="latent"),
-                               describe_fn=functools.partial(_describe, kind="latent"))
-
-
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",
                 "hypernetwork model (.safetensors from `brdfkit fit` or `brdfkit demo`)", options=HypernetOptions,
                 load_model=_load, reconstruct_fn=_reconstruct,
-                fit_fn=_fit, fit_options=None, compress_fn=_compress, describe_fn=_describe,
+                fit_fn=_fit, fit_options=None,
                 bench_option="model")

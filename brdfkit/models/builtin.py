@@ -10,13 +10,15 @@ kept elsewhere) holds model files and ``manifest.json`` (``docs/models.md``)::
                  "validation": {"40": 0.21, "400": 0.13, "4000": 0.12},
                  "fingerprint": "3f2a..."}]}
 
-A built-in model is *installed* when its file is in the folder. Wherever a model is asked
-for (``-m``, ``$BRDFKIT_MODEL``), a name resolves to its file (:func:`resolve_model`);
-with none given, an embedding picks the built-in whose fingerprint it records
-(:func:`model_for_embedding`), anything else the manifest's default
-(:func:`default_model`). A resolved built-in's recorded fingerprint is checked against
-the manifest, and loading checks the weights against the recorded fingerprint, so a
-damaged or replaced file is refused (:class:`~brdfkit.errors.FormatError`).
+A built-in model is *installed* when its file is in the folder. It has up to three parts:
+its hypernetwork (``file``), and optionally a learnt prior (``prior``) and the PCA basis
+that prior is fitted with (``basis``), each recorded with its SHA-256. Wherever a model is
+asked for (``-m``, ``$BRDFKIT_MODEL``), a name resolves to the file of the part a job
+takes (:func:`resolve_model`, :func:`resolve_prior`, :func:`resolve_basis`); with none
+given, an embedding finds the part whose digest it records (:func:`find_by_digest`),
+anything else takes the manifest's default (:func:`default_model`). A resolved part is
+checked against the digest the manifest records, so a damaged or replaced file is refused
+(:class:`~brdfkit.errors.FormatError`).
 """
 
 from __future__ import annotations
@@ -31,7 +33,7 @@ from brdfkit.errors import FormatError, InputError
 
 __all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "BuiltinModel", "Manifest", "models_folder",
            "read_manifest", "builtin_models", "is_path_spec", "resolve_model", "default_model",
-           "model_for_embedding", "embedding_model", "resolve_prior", "resolve_basis", "write_manifest"]
+           "find_by_digest", "resolve_prior", "resolve_basis", "is_builtin_basis", "write_manifest"]
 
 BUILTIN_ENV = "BRDFKIT_BUILTIN_MODELS"
 MANIFEST = "manifest.json"
@@ -66,6 +68,12 @@ class BuiltinModel:
         measured.
     default, installed
         Whether it is the manifest's default, and whether its file is present.
+    prior, prior_fingerprint
+        Its learnt-prior file (a bare name in the folder) and that model's fingerprint, or
+        ``None``.
+    basis, basis_fingerprint
+        The PCA basis file its learnt prior is fitted with (a bare name) and the SHA-256 of
+        its bytes, or ``None``.
     """
 
     name: str
@@ -84,6 +92,8 @@ class BuiltinModel:
     installed: bool = False
     prior: str | None = None
     prior_fingerprint: str | None = None
+    basis: str | None = None
+    basis_fingerprint: str | None = None
 
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
@@ -143,20 +153,27 @@ def _entry(where: str, folder: str, d, default: str | None) -> BuiltinModel:
     except (AttributeError, TypeError, ValueError):
         raise bad("'validation' must map sample counts to log RMSE values") from None
     renders = _renders(d.get("renders"), bad)
-    prior, prior_fp = d.get("prior"), d.get("prior_fingerprint")
-    if prior is not None and (not isinstance(prior, str) or os.path.basename(prior) != prior
-                              or not prior.endswith(".safetensors")):
-        raise bad("'prior' must be a .safetensors file name in the folder")
-    if (prior is None) != (prior_fp is None) or (prior_fp is not None and not (isinstance(prior_fp, str)
-                                                                             and _HEX64.match(prior_fp))):
-        raise bad("'prior' and 'prior_fingerprint' (64 lowercase hex digits) go together")
+    parts = {key: _part(d, key, bad) for key in ("prior", "basis")}
     path = os.path.join(folder, file)
-    return BuiltinModel(prior=prior, prior_fingerprint=prior_fp,
-                        name=name, file=file, path=path, latent_dim=latent, fingerprint=fp, materials=mats,
+    return BuiltinModel(prior=parts["prior"][0], prior_fingerprint=parts["prior"][1], basis=parts["basis"][0],
+                        basis_fingerprint=parts["basis"][1], name=name, file=file, path=path, latent_dim=latent, fingerprint=fp, materials=mats,
                         materials_list=d.get("materials_list"), steps=d.get("steps"),
                         train_seconds=d.get("train_seconds"), command=d.get("command"),
                         validation=dict(sorted(validation.items())), renders=renders, default=name == default,
                         installed=os.path.isfile(path))
+
+
+def _part(d, key: str, bad) -> tuple:
+    """An entry's optional part ``key`` (``"prior"``, ``"basis"``): ``(file, digest)``, or
+    ``(None, None)``."""
+    file, digest = d.get(key), d.get(f"{key}_fingerprint")
+    if file is not None and (not isinstance(file, str) or os.path.basename(file) != file
+                             or not file.endswith(".safetensors")):
+        raise bad(f"'{key}' must be a .safetensors file name in the folder")
+    if (file is None) != (digest is None) or (digest is not None and not (isinstance(digest, str)
+                                                                          and _HEX64.match(digest))):
+        raise bad(f"'{key}' and '{key}_fingerprint' (64 lowercase hex digits) go together")
+    return file, digest
 
 
 def _renders(r, bad) -> dict:
@@ -222,31 +239,41 @@ def is_path_spec(spec: str | os.PathLike) -> bool:
 
 
 def _checked(m: BuiltinModel, part: str = "model") -> str:
-    """The path of an installed built-in's file (``part`` ``"model"``, its hypernetwork,
-    or ``"prior"``, its learnt-prior model) after checking the fingerprint the file
-    records against the manifest (reading the header only; loading then checks the
-    weights against the recorded fingerprint)."""
+    """The path of an installed built-in's ``part`` file (``"model"``, its hypernetwork;
+    ``"prior"``, its learnt prior; ``"basis"``, its PCA basis) after checking it against
+    the digest the manifest records: the fingerprint a model file records in its header
+    (loading then checks the weights against it), a basis file's SHA-256."""
     from brdfkit.io.tensorfile import open_safetensors
 
-    path, want = (m.path, m.fingerprint) if part == "model" else (os.path.join(os.path.dirname(m.path), m.prior),
-                                                                  m.prior_fingerprint)
+    file, want = {"model": (m.file, m.fingerprint), "prior": (m.prior, m.prior_fingerprint),
+                  "basis": (m.basis, m.basis_fingerprint)}[part]
+    path = os.path.join(os.path.dirname(m.path), file)
     if not os.path.isfile(path):
-        raise InputError(f"built-in model {m.name!r}: its file {os.path.basename(path)} is not installed")
-    with open_safetensors(path, framework="numpy", diagnose="brdfkit model file") as f:
-        recorded = (f.metadata() or {}).get("fingerprint")
+        raise InputError(f"built-in model {m.name!r}: its file {file} is not installed")
+    if part == "basis":
+        from brdfkit.io.digest import cached_file_digest
+
+        recorded = cached_file_digest(path)
+    else:
+        with open_safetensors(path, framework="numpy", diagnose="brdfkit model file") as f:
+            recorded = (f.metadata() or {}).get("fingerprint")
     if recorded != want:
-        raise FormatError(path, f"built-in model {m.name!r}: the file records fingerprint {str(recorded)[:12]}, "
-                                f"the manifest {want[:12]}: the file is damaged or was replaced")
+        raise FormatError(path, f"built-in model {m.name!r}: the file's digest is {str(recorded)[:12]}, the "
+                                f"manifest's {want[:12]}: the file is damaged or was replaced")
     return path
 
 
 def _builtin_part(spec, part: str) -> str:
-    """An installed built-in's ``part`` file by name; :class:`InputError` otherwise."""
+    """An installed built-in's ``part`` file by name; :class:`InputError` otherwise (an
+    unknown name, or a built-in without that part, naming the built-ins that have it)."""
     installed = builtin_models()
     for m in installed:
         if m.name == spec:
-            if part == "prior" and m.prior is None:
-                raise InputError(f"built-in model {m.name!r} has no learnt prior (`brdfkit models` says which do)")
+            if part != "model" and getattr(m, part) is None:
+                what = {"prior": "learnt prior", "basis": "PCA basis"}[part]
+                having = ", ".join(e.name for e in installed if getattr(e, part)) or "none installed"
+                raise InputError(f"built-in model {m.name!r} ships no {what} (built-ins with one: {having}; "
+                                 f"`brdfkit models` lists them)")
             return _checked(m, part)
     raise _unknown(os.fspath(spec), installed)
 
@@ -261,32 +288,25 @@ def resolve_prior(spec: str | os.PathLike) -> str:
 
 def resolve_basis(spec: str | os.PathLike) -> str:
     """The PCA basis file a ``-m`` value names: a path as it is, else the basis file of
-    the installed built-in of that name (the one its learnt prior is fitted with).
+    the installed built-in of that name (the one its learnt prior is fitted with), its
+    SHA-256 checked against the manifest.
 
     Raises
     ------
     InputError
-        An unknown name, or a built-in that ships no basis (no learnt prior), the message
-        naming the built-ins that do.
+        An unknown name, or a built-in that ships no basis, the message naming the
+        built-ins that do.
     """
     if is_path_spec(spec):
         return os.fspath(spec)
-    installed = builtin_models()
-    entry = next((m for m in installed if m.name == spec), None)
-    if entry is not None and entry.prior is None:
-        # A built-in's basis comes with its learnt prior: one without ships none.
-        having = ", ".join(m.name for m in installed if m.prior) or "none installed"
-        raise InputError(f"built-in model {entry.name!r} ships no PCA basis (method ipca takes the basis of a "
-                         f"built-in's learnt prior; built-ins with one: {having})")
-    prior = _builtin_part(spec, "prior")
-    from brdfkit.io.tensorfile import open_safetensors
+    return _builtin_part(spec, "basis")
 
-    with open_safetensors(prior, framework="numpy") as f:
-        name = (f.metadata() or {}).get("basis_file")
-    if not name:
-        raise InputError(f"built-in model {spec!r} keeps its basis inside its learnt prior; load it with "
-                         f"--method prior")
-    return os.path.join(os.path.dirname(prior), name)
+
+def is_builtin_basis(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is the basis file of an installed built-in."""
+    real = os.path.realpath(os.fspath(path))
+    return any(m.basis and os.path.realpath(os.path.join(os.path.dirname(m.path), m.basis)) == real
+               for m in builtin_models())
 
 
 def _unknown(spec: str, installed: list[BuiltinModel]) -> InputError:
@@ -327,46 +347,16 @@ def default_model() -> str | None:
     return None
 
 
-def model_for_embedding(fingerprint: str | None) -> str | None:
-    """The installed built-in whose fingerprint is ``fingerprint`` (an embedding's
-    ``model_fingerprint``), else :func:`default_model`."""
+def find_by_digest(digest: str | None) -> str | None:
+    """The installed built-in part whose digest is ``digest`` (an embedding's decoder: a
+    hypernetwork's weights fingerprint or a basis file's SHA-256), checked, or ``None``."""
+    if not digest:
+        return None
     for m in builtin_models():
-        if fingerprint and m.fingerprint == fingerprint:
-            return _checked(m)
-    return default_model()
-
-
-def basis_for_model(fingerprint: str | None) -> str | None:
-    """The PCA basis file shipped with the installed built-in whose fingerprint is
-    ``fingerprint`` (a loaded model's), or ``None``: another model, or a built-in
-    without a learnt prior (none ships a basis then)."""
-    for m in builtin_models():
-        if fingerprint and m.fingerprint == fingerprint and m.prior:
-            return resolve_basis(m.name)
+        for part, want in (("model", m.fingerprint), ("basis", m.basis_fingerprint)):
+            if want == digest:
+                return _checked(m, part)
     return None
-
-
-def embedding_model(model_path: str | os.PathLike | None, emb_path: str | os.PathLike) -> str:
-    """The model file to decode the embedding file ``emb_path`` with: ``model_path`` (a
-    file or a built-in name) when given, else :func:`model_for_embedding` of the
-    fingerprint it records.
-
-    Raises
-    ------
-    InputError
-        No model given and no built-in installed (one line naming the embedding).
-    """
-    if model_path:
-        return resolve_model(model_path)
-    found = None
-    if builtin_models():  # else the embedding is not read here: its own errors come later
-        from brdfkit.io.embedding import read_embedding
-
-        found = model_for_embedding(read_embedding(emb_path).model_fingerprint)
-    if found is None:
-        raise InputError(f"{os.fspath(emb_path)}: an embedding needs its model, the one that made it: pass "
-                         "-m MODEL.safetensors or set BRDFKIT_MODEL (`brdfkit models` lists the built-in ones)")
-    return found
 
 
 def write_manifest(folder: str | os.PathLike, entries: list[dict], default: str | None) -> str:

@@ -37,6 +37,8 @@ class TableBRDF:
     device
         Torch device of the float32 copy used for lookups (default: CUDA if available).
 
+    Notes
+    -----
     Lookups go through a :class:`brdfkit.geometry.trilinear.TrilinearTable` once the BRDF has been
     asked for :attr:`PREPARE_AFTER` pairs (same values to the bit; building it costs
     about as much as one plain lookup of a render's block, so a tiny render skips it).

@@ -28,7 +28,7 @@ name             lighting
 Every scene is a role: ``judge`` scenes are what the results report (:data:`SUITE`,
 ``brdfkit metrics --scenes all``); ``objective`` scenes (:data:`OBJECTIVE_SCENES`, a
 seeded family of studio set-ups, never reported) are the only scenes an objective may
-descend (``docs/render-error.md``). The reference scene is judged too, for continuity
+descend (``docs/notes/render-error.md``). The reference scene is judged too, for continuity
 with earlier figures, but today's built-in models were tuned on its renders: its
 figures are labelled as such in the results.
 

@@ -1,9 +1,8 @@
 """The render-aligned error: a small, differentiable render of the reference scene.
 
 Renders are what brdfkit is judged by (reference-scene PSNR and Delta E 2000,
-:mod:`brdfkit.evaluation.metrics`), and a BRDF-space error ranks reconstructions differently: issue 21
-measured a latent refinement that cut :func:`~brdfkit.evaluation.metrics.brdf_log_rmse` threefold and
-lost 3 dB on screen. This module makes the render itself the error.
+:mod:`brdfkit.evaluation.metrics`), and a BRDF-space error ranks reconstructions differently: a latent refinement that cut
+:func:`~brdfkit.evaluation.metrics.brdf_log_rmse` threefold lost 3 dB on screen. This module makes the render itself the error.
 
 A render of the reference scene (:mod:`brdfkit.render.quadrature`) is *linear* in the
 BRDF: pixel ``p`` is ``sum_k rw_pk f(wi_pk, wo_pk)`` over its quadrature pairs ``k``. A
@@ -21,7 +20,7 @@ reported as a PSNR (:func:`screen_psnr`). ``benchmarks/studies/study_error.py`` 
 how well it ranks reconstructions as the 128 px renders do, on the reference scene and on a
 second scene nothing was tuned on (the environment turned half a turn about the vertical,
 :func:`rotated_envmap`), beside ``brdf_log_rmse`` and the training loss
-(``docs/render-error.md``).
+(``docs/notes/render-error.md``).
 """
 
 from __future__ import annotations
@@ -44,7 +43,7 @@ SCREEN_RESOLUTION = 32
 def rotated_envmap(turn: float = 0.5):
     """The reference environment turned by ``turn`` of a full turn about the vertical
     (``u`` shifted): the sun and the window light the sphere from behind the camera's
-    other side. The second scene of ``docs/render-error.md``, on which nothing was tuned."""
+    other side. The second scene of ``docs/notes/render-error.md``, on which nothing was tuned."""
     from brdfkit.render.envmap import EnvMap, reference_envmap
 
     env = reference_envmap()

@@ -1,8 +1,9 @@
 """Small, synthetic inputs for the docstrings' examples (run by ``tests/test_doctests.py``).
 
 The examples of the public API run on these rather than on real measurements, so that
-they run anywhere in a fraction of a second: a Lambertian table, and an untrained
-hypernetwork small enough to encode and decode at once. Neither stands for a real result.
+they run anywhere in a second or two: a Lambertian table, a PCA basis of three synthetic
+materials, and an untrained hypernetwork small enough to encode and decode at once. None
+stands for a real result.
 
 Examples
 --------
@@ -12,11 +13,12 @@ Examples
 
 from __future__ import annotations
 
+import functools
 import os
 
 import numpy as np
 
-__all__ = ["TINY_CONFIG", "lambertian_table", "tiny_model"]
+__all__ = ["TINY_CONFIG", "lambertian_table", "tiny_basis", "tiny_basis_file", "tiny_model"]
 
 TINY_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2, decoder_hidden=16,
                    decoder_layers=1)
@@ -45,4 +47,27 @@ def tiny_model(path: str | os.PathLike, seed: int = 0) -> str:
 
     torch.manual_seed(seed)
     save_model(path, HyperBRDF(HyperConfig(**TINY_CONFIG)), lambertian_table(), {"materials": [], "steps": 0})
+    return os.fspath(path)
+
+
+@functools.lru_cache(maxsize=2)
+def _synthetic_tables() -> tuple:
+    from brdfkit.materials.synthetic import library, table
+
+    return tuple(table(m) for m in library(3, seed=0, stiff=False))
+
+
+def tiny_basis(components: int = 4):
+    """A :class:`~brdfkit.basis.model.PcaBasis` of ``components`` components (at most 8)
+    fitted to three synthetic materials (:func:`brdfkit.materials.synthetic.library`)."""
+    from brdfkit.basis.fit import fit_basis
+
+    return fit_basis(_synthetic_tables(), components)
+
+
+def tiny_basis_file(path: str | os.PathLike, components: int = 4) -> str:
+    """Write :func:`tiny_basis` to ``path`` (format ``brdfkit-basis``) and return the path."""
+    from brdfkit.basis.basis_file import save_basis
+
+    save_basis(path, tiny_basis(components))
     return os.fspath(path)

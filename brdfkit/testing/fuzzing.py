@@ -90,7 +90,7 @@ def embedding_seed() -> bytes:
     from brdfkit.io.embedding import Embedding, write_embedding
 
     path = os.path.join(_seed_folder(), "a.emb")
-    write_embedding(path, Embedding(np.linspace(-1, 1, 7), "ab" * 32, "mat.binary", 40))
+    write_embedding(path, Embedding(np.linspace(-1, 1, 7), "latent", "ab" * 32, "mat.binary", 40))
     return _take(path)
 
 
@@ -107,12 +107,12 @@ def reference_seed() -> bytes:
 
 @functools.lru_cache(maxsize=None)
 def ipca_seed() -> bytes:
-    from brdfkit.methods.ipca import IpcaModel, save_ipca
+    from brdfkit.basis import PcaBasis, save_basis
 
     path = os.path.join(_seed_folder(), "basis.safetensors")
     p = 64
     rng = np.random.default_rng(0)
-    save_ipca(path, IpcaModel(np.arange(1000, 1000 + 3 * p, 3, dtype=np.int64), rng.random(p, dtype=np.float32),
+    save_basis(path, PcaBasis(np.arange(1000, 1000 + 3 * p, 3, dtype=np.int64), rng.random(p, dtype=np.float32),
                               rng.random(p, dtype=np.float32), rng.random((2, p), dtype=np.float32),
                               np.array([1.0, 0.5], np.float32), ["a", "b"]))
     return _take(path)
@@ -189,10 +189,10 @@ def _read_reference(path):
     return load_reference(path)
 
 
-def _read_ipca(path):
-    from brdfkit.methods.ipca import load_ipca
+def _read_basis(path):
+    from brdfkit.basis import load_basis
 
-    return load_ipca(path)
+    return load_basis(path)
 
 
 def _read_samples(path):
@@ -222,7 +222,7 @@ PARSERS = {p.name: p for p in (
     Parser("read_embedding", _read_embedding, ".emb", embedding_seed),
     Parser("load_model", _read_model, ".safetensors", model_seed, safetensors=True),
     Parser("load_reference", _read_reference, ".safetensors", reference_seed, safetensors=True),
-    Parser("load_ipca", _read_ipca, ".safetensors", ipca_seed, safetensors=True),
+    Parser("load_basis", _read_basis, ".safetensors", ipca_seed, safetensors=True),
 )}
 
 

@@ -2,7 +2,7 @@
 
 A run that stops on the clock depends on the machine's speed and load: it cannot be
 replayed, and the same command gives other weights on a busier machine. ``--minutes M``
-therefore only *chooses* the step count (issue 28): the trainer times
+therefore only *chooses* the step count: the trainer times
 :data:`PROBE_STEPS` of its own steps on its state, then restores that state (weights,
 optimiser, counters and random streams), and runs ``N = done + (seconds left) / (seconds
 a step)`` steps (at most ``--steps``), exactly as ``--steps N`` runs them, schedule

@@ -214,7 +214,7 @@ class BatchSampler:
     mixup
         Probability that a batch slot holds a mixture of two training materials instead
         of one: ``t v_a + (1 - t) v_b`` in mapped space, ``t ~ U(0, 1)``, context and
-        query alike (mixup, Zhang et al. 2018; issue 12's lever). At 0 the batches are
+        query alike (mixup, Zhang et al. 2018; ``docs/notes/generalisation.md``). At 0 the batches are
         those drawn before the option existed.
     """
 

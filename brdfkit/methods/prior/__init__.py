@@ -1,6 +1,6 @@
 """The learnt prior as a reconstruction method: a PCA basis fitted in closed form around
 the prior mean a set encoder reads from the samples. ``brdfkit sparse``'s default with
-the built-in models (``docs/generalisation.md`` says why it is not the paper's decoder).
+the built-in models (``docs/notes/generalisation.md`` says why it is not the paper's decoder).
 
 This package registers the method (:data:`METHOD`); its parts are
 
@@ -57,12 +57,12 @@ def _compress(model, table, name):
 
 def _describe(model, path):
     stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    return (f"prior {model.basis.n_components} components ({stem})", model.basis.n_components,
-            set(model.meta.get("materials") or ()))
+    k = model.basis.n_components
+    return f"pca-{k} ({3 * k} numbers, {stem})", 3 * k, set(model.meta.get("materials") or ())
 
 
 METHOD = Method("prior", "PCA basis fitted around a learnt prior: a set encoder of the samples gives the "
-                "coefficients' prior mean (brdfkit's default, docs/generalisation.md)",
+                "coefficients' prior mean (brdfkit's default, docs/notes/generalisation.md)",
                 "learnt-prior model (.safetensors from `brdfkit fit --method prior`, or a built-in name)",
                 options=PriorOptions, load_model=_load, reconstruct_fn=_reconstruct, fit_fn=_fit,
                 fit_options=FIT_OPTIONS,

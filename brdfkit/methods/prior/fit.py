@@ -2,7 +2,7 @@
 
 The recipe is the one
 ``benchmarks/studies/study_residual.py --coef --align --prior --mixup 0.5`` ranked first
-on the validation split (``docs/generalisation.md``):
+on the validation split (``docs/notes/generalisation.md``):
 
 - **Basis**: the ``K``-component PCA basis of the training tables (or a given basis
   file, e.g. the one shipped with the package).
@@ -37,7 +37,7 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError
-from brdfkit.methods.ipca import DEFAULT_COMPONENTS, EPS
+from brdfkit.basis import DEFAULT_COMPONENTS, EPS
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, solve
 from brdfkit.methods.prior.training_data import TrainingTensors, fold_bases, main_basis, to_device, training_cells
 

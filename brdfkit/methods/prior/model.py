@@ -37,7 +37,7 @@ channel and component: where the samples leave the network sure of a coefficient
 fit is held to its prior mean more tightly, where they do not it is let loose. Trained
 through the closed form like the mean. Off by default and in the built-ins: on the
 validation split it fitted the training materials better and rendered worse at every N
-(``docs/generalisation.md``, Lever 8).
+(``docs/notes/generalisation.md``, Lever 8).
 """
 
 from __future__ import annotations
@@ -50,7 +50,7 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE
 from brdfkit.geometry.trilinear import lookup_trilinear
-from brdfkit.methods.ipca import EPS, IpcaModel
+from brdfkit.basis import EPS, PcaBasis
 
 __all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF", "SPREAD_LOG_BOUND"]
 
@@ -160,7 +160,7 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
         ``(B, S, 3)`` BRDF values (1/sr, ``>= 0``).
     w, cos
         ``(B, S)`` the basis's mapping weight (``cos_i cos_o``, ``> 0``, raised to the
-        basis's ``w_floor``: :meth:`IpcaModel.weight`) and ``cos_i``.
+        basis's ``w_floor``: :meth:`PcaBasis.weight`) and ``cos_i``.
     sigma
         ``(B, K)`` the prior's standard deviations, or ``(B, 3, K)`` per channel (a
         learnt spread).
@@ -190,11 +190,11 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
     return torch.linalg.solve(lhs, rhs).float(), b
 
 
-def sample_rows(basis: IpcaModel, samples):
+def sample_rows(basis: PcaBasis, samples):
     """The measured (non-NaN) samples a basis cell covers with a non-zero cosine weight, as float64 arrays:
     ``(ok, tab (S, K + 2), w, cos_i, rho, hd (S, 6))``, ``ok`` the mask over the
     samples. The basis is read trilinearly at each sample's angles (exactly at a cell's
-    own angles), as :meth:`IpcaModel.coefficients` reads it."""
+    own angles), as :meth:`PcaBasis.coefficients` reads it."""
     from brdfkit.geometry import cos_theta_i
 
     tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
@@ -214,7 +214,7 @@ class PriorModel:
     Attributes
     ----------
     basis
-        :class:`~brdfkit.methods.ipca.IpcaModel` (``K`` components).
+        :class:`~brdfkit.basis.PcaBasis` (``K`` components).
     net
         The torch module of :func:`prior_net`, in eval mode on the CPU.
     cfg
@@ -225,7 +225,7 @@ class PriorModel:
         sha256 hex of the weights and the basis (:mod:`brdfkit.methods.prior.prior_file`).
     """
 
-    basis: IpcaModel
+    basis: PcaBasis
     net: object
     cfg: PriorConfig
     meta: dict = dataclasses.field(default_factory=dict)

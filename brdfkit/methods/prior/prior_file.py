@@ -1,7 +1,7 @@
 """The learnt-prior model file (format ``brdfkit-prior``): safetensors, never pickle.
 
 One file holds the network's weights (``net.*``) and its basis, either inside
-(``basis.*`` tensors and metadata, as :func:`brdfkit.methods.ipca.basis_file.basis_tensors` writes them) or in a
+(``basis.*`` tensors and metadata, as :func:`brdfkit.basis.basis_file.basis_tensors` writes them) or in a
 basis file beside it (metadata ``basis_file``, a bare name, and ``basis_digest``, the
 sha256 of that file), so that the built-in models trained on one basis ship it once.
 Metadata ``config`` is the :class:`~brdfkit.methods.prior.model.PriorConfig` as JSON and
@@ -22,10 +22,10 @@ import numpy as np
 from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.io.digest import file_digest
 from brdfkit.errors import FormatError, InputError
-from brdfkit.methods.ipca import basis_tensors, load_ipca, read_ipca, save_ipca, storage_of
+from brdfkit.basis import basis_tensors, load_basis, read_basis, save_basis, storage_of
 from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
 
-__all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior"]
+__all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior", "basis_entry"]
 
 PRIOR_FORMAT = "brdfkit-prior"
 PRIOR_VERSION = "1"
@@ -54,7 +54,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
     Parameters
     ----------
     half, phi_stride, int8
-        How the basis is stored (:func:`~brdfkit.methods.ipca.basis_file.basis_tensors`); the network stays float32
+        How the basis is stored (:func:`~brdfkit.basis.basis_file.basis_tensors`); the network stays float32
         (it is 60k numbers).
     basis_file
         A bare file name: the basis goes into that file beside ``path`` (written when it
@@ -78,9 +78,9 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             raise InputError(f"basis_file {basis_file!r}: give a bare file name (it lives beside the model)")
         where = os.path.join(os.path.dirname(os.path.abspath(path)), basis_file)
         if not os.path.exists(where):
-            save_ipca(where, model.basis, half=half, phi_stride=phi_stride, int8=int8)
+            save_basis(where, model.basis, half=half, phi_stride=phi_stride, int8=int8)
         else:  # shared with another model: it must be this model's basis as stored
-            other = load_ipca(where)
+            other = load_basis(where)
             same = (np.array_equal(other.cells, model.basis.cells)
                     and np.array_equal(other.components, model.basis.components))
             if not same and (half or phi_stride != 1):  # the file holds it rounded: compare as stored
@@ -107,6 +107,17 @@ def is_prior_file(path: str | os.PathLike) -> bool:
             return (f.metadata() or {}).get("format") == PRIOR_FORMAT
     except (FormatError, InputError, OSError):  # a missing file or a folder is no prior file
         return False
+
+
+def basis_entry(path: str | os.PathLike) -> dict:
+    """The manifest fields of the basis file a learnt prior keeps beside it
+    (:mod:`brdfkit.models.builtin`): ``{"basis": name, "basis_fingerprint": sha256}``, or
+    ``{}`` for a prior that holds its basis inside (header only)."""
+    from brdfkit.io.tensorfile import open_safetensors
+
+    with open_safetensors(os.fspath(path)) as f:
+        meta = f.metadata() or {}
+    return {"basis": meta["basis_file"], "basis_fingerprint": meta["basis_digest"]} if "basis_file" in meta else {}
 
 
 def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
@@ -146,9 +157,9 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
             basis_digest = file_digest(where)
             if basis_digest != meta.get("basis_digest"):
                 raise FormatError(path, f"its basis file {name} is not the one it was saved with (digest differs)")
-            basis = load_ipca(where)
+            basis = load_basis(where)
         else:
-            basis = read_ipca(f, path, prefix="basis.")
+            basis = read_basis(f, path, prefix="basis.")
             basis_digest = _digest({k: f.get_tensor(k) for k in f.keys() if k.startswith("basis.")})
     if _fingerprint(_digest(net_t), basis_digest, meta["config"]) != meta.get("fingerprint"):
         raise FormatError(path, "the weights or the config do not match the recorded fingerprint: "

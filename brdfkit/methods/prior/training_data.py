@@ -18,7 +18,7 @@ import numpy as np
 
 from brdfkit.errors import InputError
 from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, cos_theta_i, grid_angles, grid_hd
-from brdfkit.methods.ipca import IpcaModel, fit_ipca, load_ipca, save_ipca, storage_of
+from brdfkit.basis import PcaBasis, fit_basis, load_basis, save_basis, storage_of
 
 __all__ = ["TrainingTensors", "main_basis", "training_cells", "fold_bases", "to_device"]
 
@@ -32,14 +32,14 @@ def _storage(path: str) -> dict:
     return storage_of(meta)
 
 
-def _as_stored(basis: IpcaModel, storage: dict) -> IpcaModel:
+def _as_stored(basis: PcaBasis, storage: dict) -> PcaBasis:
     """The basis as a file with ``storage`` gives it back."""
     if not storage["half"] and storage["phi_stride"] == 1 and not storage.get("int8"):
         return basis
     with tempfile.TemporaryDirectory() as tmp:
         path = os.path.join(tmp, "basis.safetensors")
-        save_ipca(path, basis, **storage)
-        return load_ipca(path)
+        save_basis(path, basis, **storage)
+        return load_basis(path)
 
 
 def _resolve_basis(spec) -> str:
@@ -56,12 +56,12 @@ def main_basis(basis, components, paths, names, say):
     if basis is not None:
         bpath = _resolve_basis(basis)
         storage = _storage(bpath)
-        full = load_ipca(bpath)
+        full = load_basis(bpath)
         components = full.n_components
     else:
         storage = {"half": False, "phi_stride": 1, "int8": False}
         say(f"fitting the {components}-component basis to {len(paths)} materials")
-        full = fit_ipca(paths, components, names=names)  # Nielsen's mapping (w_floor 0): give -O basis= for another
+        full = fit_basis(paths, components, names=names)  # Nielsen's mapping (w_floor 0): give -O basis= for another
     return full, storage, components
 
 
@@ -100,7 +100,7 @@ def fold_bases(paths, fold_of, folds, full, cells, components, storage, say):
     Returns
     -------
     tabs : numpy.ndarray
-        float32 ``(folds, P, 2 + K)``: per fold, its table (:meth:`IpcaModel._table`:
+        float32 ``(folds, P, 2 + K)``: per fold, its table (:meth:`PcaBasis._table`:
         reference, mean, ``K`` components) at ``cells``, the components rotated.
     sigmas : numpy.ndarray
         float32 ``(folds, K)``: the spread of the rotated coefficients.
@@ -110,7 +110,7 @@ def fold_bases(paths, fold_of, folds, full, cells, components, storage, say):
     for f in range(folds):
         say(f"fitting the basis of fold {f + 1} of {folds}")
         keep = [p for p, fo in zip(paths, fold_of) if fo != f]
-        fb = _as_stored(fit_ipca(keep, components, w_floor=full.w_floor), storage)
+        fb = _as_stored(fit_basis(keep, components, w_floor=full.w_floor), storage)
         tab = fb._table()[cells].astype(np.float64)
         if not np.isfinite(tab).all():
             tab = np.nan_to_num(tab)  # a cell only the held-out fold measured: the reference

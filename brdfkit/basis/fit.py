@@ -17,10 +17,10 @@ import numpy as np
 
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight
-from brdfkit.methods.ipca.basis_file import save_ipca
-from brdfkit.methods.ipca.model import DEFAULT_COMPONENTS, EPS, IpcaModel
+from brdfkit.basis.basis_file import save_basis
+from brdfkit.basis.model import DEFAULT_COMPONENTS, EPS, PcaBasis
 
-__all__ = ["fit_ipca", "fit_ipca_files"]
+__all__ = ["fit_basis", "fit_basis_files"]
 
 
 def _load_table(item) -> tuple[np.ndarray, str | None]:
@@ -34,8 +34,8 @@ def _load_table(item) -> tuple[np.ndarray, str | None]:
     return arr, None
 
 
-def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
-             names: Sequence[str] | None = None, chunk: int = 1 << 16, w_floor: float = 0.0) -> IpcaModel:
+def fit_basis(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
+             names: Sequence[str] | None = None, chunk: int = 1 << 16, w_floor: float = 0.0) -> PcaBasis:
     """Fit the PCA basis to training tables.
 
     Parameters
@@ -52,12 +52,12 @@ def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
     chunk
         Cells per block in the median and matrix-product passes.
     w_floor
-        Lower bound of the mapping's cosine weight (:class:`IpcaModel`; 0, Nielsen's,
+        Lower bound of the mapping's cosine weight (:class:`PcaBasis`; 0, Nielsen's,
         by default), in ``[0, 1)``.
 
     Returns
     -------
-    IpcaModel
+    PcaBasis
     """
     items = list(tables_or_paths)
     if not items:
@@ -120,18 +120,18 @@ def fit_ipca(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
         components[:, s:s + chunk] = proj @ data[:, s:s + chunk]
     del data
     sigma = np.sqrt(evals / max(rows - 1, 1)).astype(np.float32)
-    return IpcaModel(cand.astype(np.int64), reference, mean, components, sigma, materials, w_floor)
+    return PcaBasis(cand.astype(np.int64), reference, mean, components, sigma, materials, w_floor)
 
 
-def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
+def fit_basis_files(data, output, *, exclude=(), progress: bool = True,
                    components: int = DEFAULT_COMPONENTS, half: bool = False, phi_stride: int = 1,
                    w_floor: float = 0.0, int8: bool = False) -> str:
     """Fit a basis to the MERL tables ``data`` (files or folders, as
     :func:`brdfkit.io.folders.collect_materials` reads them) less the materials named in
     ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``; ``half`` and
     ``phi_stride``, ``-O half=true -O phi_stride=2``, store it as the package ships
-    bases, :func:`~.file.basis_tensors`; ``w_floor``, ``-O w_floor=0.05``, bounds the mapping's
-    weight, :class:`IpcaModel`; ``int8``, ``-O int8=true`` with ``half``, stores the components in
+    bases, :func:`~.basis_file.basis_tensors`; ``w_floor``, ``-O w_floor=0.05``, bounds the mapping's
+    weight, :class:`PcaBasis`; ``int8``, ``-O int8=true`` with ``half``, stores the components in
     int8, :func:`~.storage.quantize`). Returns ``output``."""
     import sys
 
@@ -145,7 +145,7 @@ def fit_ipca_files(data, output, *, exclude=(), progress: bool = True,
             or (int8 and not half):
         raise InputError(f"--method ipca: options half (true/false), phi_stride (1 or 2), w_floor (in [0, 1)) and "
                          f"int8 (true/false, with half=true), got {half!r}, {phi_stride!r}, {w_floor!r} and {int8!r}")
-    save_ipca(output, fit_ipca(paths, components, names=names, w_floor=w_floor), half=half, phi_stride=phi_stride,
+    save_basis(output, fit_basis(paths, components, names=names, w_floor=w_floor), half=half, phi_stride=phi_stride,
               int8=int8)
     print(f"wrote PCA basis ({components} components, {len(names)} materials) to {output}", file=sys.stderr)
     return output

@@ -22,9 +22,9 @@ fit --method ipca -O w_floor=W``; Nielsen's mapping is ``w_floor = 0``). Why: ``
 floor of ``eps / w`` in BRDF units, which grows without bound towards grazing angles
 (``w`` about 5e-3 at ``theta_h = 86 deg``: 0.2 /sr), so there every value of a dark or
 diffuse material maps to nearly the same ``x'``; the basis cannot tell them apart, and the
-inverse turns a small error of ``x'`` into 0 (issue 22 measured reconstructions of 0
+inverse turns a small error of ``x'`` into 0 (``docs/notes/generalisation.md`` measured reconstructions of 0
 where the data hold 4e-3 to 1e-2). The floor caps it at ``eps / w_floor``
-(``docs/generalisation.md`` measures it on renders). Cells on the horizon (``cos_i
+(``docs/notes/generalisation.md`` measures it on renders). Cells on the horizon (``cos_i
 cos_o = 0``) stay outside the basis.
 
 Channels
@@ -36,8 +36,8 @@ channel by channel with the same basis.
 
 Basis
 -----
-PCA over the cells measured by at least one training table (:mod:`.fit`), ``K``
-components kept; the basis is stored in its own file (:mod:`.file`).
+PCA over the cells measured by at least one training table (:mod:`brdfkit.basis.fit`), ``K``
+components kept; the basis is stored in its own file (:mod:`.basis_file`).
 
 Reconstruction
 --------------
@@ -65,7 +65,7 @@ from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff
 from brdfkit.geometry.trilinear import lookup_trilinear
 
-__all__ = ["IpcaModel", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
+__all__ = ["PcaBasis", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
 
 EPS = 0.001
 DEFAULT_COMPONENTS = 8
@@ -80,7 +80,7 @@ def cosine_weight(theta_h, theta_d, phi_d) -> np.ndarray:
 
 
 @dataclasses.dataclass
-class IpcaModel:
+class PcaBasis:
     """A PCA basis of cosine-weighted, log-mapped BRDF tables.
 
     Attributes
@@ -115,7 +115,7 @@ class IpcaModel:
     def n_components(self) -> int:
         return int(self.components.shape[0])
 
-    def leading(self, k: int) -> "IpcaModel":
+    def leading(self, k: int) -> "PcaBasis":
         """The basis of the ``k`` strongest components. PCA bases are nested: this is the
         basis a fit with ``k`` components to the same tables gives (the same mean,
         reference and components, to float precision)."""
@@ -123,7 +123,7 @@ class IpcaModel:
             raise InputError(f"a basis of {self.n_components} components has no {k} leading ones")
         return dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None)
 
-    def baseline(self) -> "IpcaModel":
+    def baseline(self) -> "PcaBasis":
         """The basis of the IPCA baseline: Nielsen et al.'s :data:`DEFAULT_COMPONENTS`
         leading components when this basis has more (the built-ins' basis has the 32 their
         learnt priors fit), else this basis."""

@@ -1,11 +1,13 @@
-"""The PCA basis file (format ``brdfkit-ipca``): safetensors, never pickle.
+"""The PCA basis file (format ``brdfkit-basis``; files of the older name ``brdfkit-ipca``
+are read the same): safetensors, never pickle.
 
 Tensors ``cells`` (int64 ``(P,)``, sorted flat MERL indices) or, in compact files,
 ``cell_mask`` (the grid's cells as a bit mask), ``reference``, ``mean``, ``components``
 (float32, or float16 in compact files; or int8 ``components`` with float32
-``component_scales``, :func:`~.storage.quantize`) and ``sigma`` (float32) as :class:`~.model.IpcaModel`
+``component_scales``, :func:`~brdfkit.basis.storage.quantize`) and ``sigma`` (float32) as
+:class:`~brdfkit.basis.model.PcaBasis`
 holds them; metadata the format, its version, ``n_components``, the mapping's ``eps``,
-``phi_d_stride`` (1, or 2 for every other ``phi_d`` cell, :mod:`.storage`), ``dtype`` and
+``phi_d_stride`` (1, or 2 for every other ``phi_d`` cell, :mod:`brdfkit.basis.storage`), ``dtype`` and
 the training ``materials`` (JSON). The same tensors and metadata, prefixed, hold the basis
 inside a learnt-prior model file (:mod:`brdfkit.methods.prior.prior_file`).
 """
@@ -19,21 +21,28 @@ import numpy as np
 
 from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.errors import FormatError
-from brdfkit.geometry import N_CELLS, N_PHI_D
-from brdfkit.methods.ipca.model import EPS, IpcaModel
-from brdfkit.methods.ipca.basis_storage import INT8_BLOCK, check_half, compact, dequantize, expand, quantize
+from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
+from brdfkit.basis.model import EPS, PcaBasis
+from brdfkit.basis.storage import GRAZING_FULL, INT8_BLOCK, check_half, compact, dequantize, expand, quantize
 
-__all__ = ["IPCA_FORMAT", "IPCA_VERSION", "basis_tensors", "save_ipca", "load_ipca", "read_ipca", "storage_of"]
+__all__ = ["BASIS_FORMAT", "BASIS_VERSION", "basis_tensors", "is_basis_format", "save_basis", "load_basis",
+           "read_basis", "storage_of"]
 
-IPCA_FORMAT = "brdfkit-ipca"
-IPCA_VERSION = "2"
+BASIS_FORMAT = "brdfkit-basis"
+BASIS_VERSION = "2"
+_FORMATS = (BASIS_FORMAT, "brdfkit-ipca")  # the format's first name, when the basis was filed under IPCA
 _READS = ("1", "2")  # version 2 adds the optional float16, int8 and half-phi_d storage
 _TENSORS = ("cells", "reference", "mean", "components", "sigma")
 
 
-def save_ipca(path: str | os.PathLike, basis: IpcaModel, *, half: bool = False, phi_stride: int = 1,
+def is_basis_format(fmt) -> bool:
+    """Whether a safetensors header's ``format`` is a basis file's (either of its names)."""
+    return fmt in _FORMATS
+
+
+def save_basis(path: str | os.PathLike, basis: PcaBasis, *, half: bool = False, phi_stride: int = 1,
               int8: bool = False) -> None:
-    """Write ``basis`` as one safetensors file (format ``brdfkit-ipca``), atomically;
+    """Write ``basis`` as one safetensors file (format ``brdfkit-basis``), atomically;
     ``half``, ``phi_stride`` and ``int8`` as :func:`basis_tensors` takes them."""
     from safetensors.numpy import save_file
 
@@ -42,7 +51,7 @@ def save_ipca(path: str | os.PathLike, basis: IpcaModel, *, half: bool = False, 
         save_file(tensors, tmp, metadata=meta)
 
 
-def basis_tensors(basis: IpcaModel, *, half: bool = False, phi_stride: int = 1, int8: bool = False,
+def basis_tensors(basis: PcaBasis, *, half: bool = False, phi_stride: int = 1, int8: bool = False,
                   prefix: str = "", where: str = "basis") -> tuple[dict, dict]:
     """The tensors and metadata of the file of ``basis`` (names prefixed with ``prefix``
     when it is stored inside another model file); ``where`` names it in errors.
@@ -71,7 +80,7 @@ def basis_tensors(basis: IpcaModel, *, half: bool = False, phi_stride: int = 1, 
                "components": comps[0],
                **({"component_scales": comps[1]} if int8 else {}),
                "sigma": np.ascontiguousarray(basis.sigma, dtype=np.float32)}
-    meta = {"format": IPCA_FORMAT, "version": IPCA_VERSION,
+    meta = {"format": BASIS_FORMAT, "version": BASIS_VERSION,
             "n_components": str(basis.n_components), "eps": repr(EPS),
             "weight": "cos_i*cos_o" if not basis.w_floor else "max(cos_i*cos_o, w_floor)",
             **({"w_floor": repr(float(basis.w_floor))} if basis.w_floor else {}),
@@ -90,8 +99,8 @@ def storage_of(meta: dict, prefix: str = "") -> dict:
             "int8": dtype == "int8"}
 
 
-def load_ipca(path: str | os.PathLike) -> IpcaModel:
-    """Read a basis written by :func:`save_ipca`.
+def load_basis(path: str | os.PathLike) -> PcaBasis:
+    """Read a basis written by :func:`save_basis`.
 
     Raises
     ------
@@ -103,16 +112,16 @@ def load_ipca(path: str | os.PathLike) -> IpcaModel:
 
     path = check_input_file(path)
     with open_safetensors(path) as f:
-        return read_ipca(f, path)
+        return read_basis(f, path)
 
 
-def read_ipca(f, path: str, prefix: str = "") -> IpcaModel:
+def read_basis(f, path: str, prefix: str = "") -> PcaBasis:
     """The basis in an open safetensors file ``f`` (tensors and metadata keys named
     ``prefix + name``: a basis stored inside another model file); errors name ``path``."""
     meta = {k[len(prefix):]: v for k, v in (f.metadata() or {}).items() if k.startswith(prefix)}
-    if meta.get("format") != IPCA_FORMAT:
+    if meta.get("format") not in _FORMATS:
         raise FormatError(path, f"not a brdfkit PCA basis (format {meta.get('format')!r}, "
-                                f"expected {IPCA_FORMAT!r})")
+                                f"expected {BASIS_FORMAT!r})")
     if meta.get("version") not in _READS:
         raise FormatError(path, f"PCA basis version {meta.get('version')!r} is not supported "
                                 f"(this brdfkit reads versions {', '.join(_READS)})")
@@ -167,7 +176,9 @@ def read_ipca(f, path: str, prefix: str = "") -> IpcaModel:
     cells = cells.astype(np.int64)
     per_cell = [t["reference"].astype(np.float32), t["mean"].astype(np.float32), comp.astype(np.float32)]
     if stride == "2":
-        if ((cells % N_PHI_D) % 2).any():
-            raise FormatError(path, "a half-phi_d PCA basis may hold only cells of even phi_d index")
+        odd = (cells % N_PHI_D) % 2 == 1
+        if (grid_cosine_weight()[cells[odd]] >= GRAZING_FULL).any():
+            raise FormatError(path, "a half-phi_d PCA basis may hold odd phi_d cells only near the horizon "
+                                    f"(cosine weight below {GRAZING_FULL})")
         cells, per_cell = expand(cells, per_cell)
-    return IpcaModel(cells, *per_cell, t["sigma"].astype(np.float32), list(materials), w_floor)
+    return PcaBasis(cells, *per_cell, t["sigma"].astype(np.float32), list(materials), w_floor)

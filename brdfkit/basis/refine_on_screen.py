@@ -1,24 +1,23 @@
 """A table's basis coefficients, refined on renders of objective scenes.
 
-:meth:`~.model.IpcaModel.project` gives the coefficients that minimise the squared error
-of the *mapped* table (``ln`` of the cosine-weighted values). Renders weigh that error
-otherwise: a few cells near the specular peak and the grazing rim make most of an
-image's light, and the display's tone curve weighs dark pixels more than bright ones.
-:func:`refine_coefficients` starts from the projection and lets the ``3 K``
-coefficients descend the render-aligned error of :mod:`brdfkit.hypernet.refine_on_screen`
-(issue 29), plus a trust term (:data:`DEFAULT_TRUST`) on how far the mapped table moves
-from the projection: the table and the basis's decode are rendered in the objective
-scenes (:data:`brdfkit.hypernet.refine_on_screen.OBJECTIVE`, never a scene the results
-are judged in), each step on a fixed draw of one scene's pairs, and the coefficients
-with the lowest render error on held-out pixels are kept, the projection's own included.
+:meth:`~brdfkit.basis.model.PcaBasis.project` gives the coefficients that minimise the
+squared error of the *mapped* table (``ln`` of the cosine-weighted values). Renders weigh
+that error otherwise: a few cells near the specular peak and the grazing rim make most of
+an image's light, and the display's tone curve weighs dark pixels more than bright ones.
+:func:`refine_coefficients` starts from the projection and lets the ``3 K`` coefficients
+descend the render-aligned error of the objective scenes (:mod:`brdfkit.render.objective`:
+never a scene the results are judged in), plus a trust term (:data:`DEFAULT_TRUST`) on
+how far the mapped table moves from the projection; each step renders a fixed draw of one
+scene's pairs, and the coefficients with the lowest render error on held-out pixels are
+kept, the projection's own included.
 
 The decode is evaluated only at the cells whose trilinear corners the scenes' pairs
 reach, as the renderer's lookup of a decoded table would read them (the same corners,
 weights and renormalisation over measured cells, :func:`brdfkit.geometry.trilinear.lookup_trilinear`):
 no dense table is decoded during the steps.
 
-The budget is in steps, on :data:`~brdfkit.hypernet.refine_on_screen.THREADS` torch
-threads: the same table and basis give the same coefficients to the bit.
+The budget is in steps, on :data:`~brdfkit.render.objective.THREADS` torch thread(s): the
+same table and basis give the same coefficients to the bit.
 """
 
 from __future__ import annotations
@@ -28,6 +27,7 @@ import functools
 
 import numpy as np
 
+from brdfkit.basis.model import EPS
 from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, fractional_indices
 
 __all__ = ["DEFAULT_LR", "DEFAULT_TRUST", "refine_coefficients", "trilinear_corners"]
@@ -94,7 +94,7 @@ def trilinear_corners(theta_h, theta_d, phi_d, measured):
 class _Cells:
     """The basis at the cells some pairs reach (torch float32): mean ``(U,)``,
     components ``(U, K)``, and the inverse mapping's ``scale = (x_ref + eps) / w`` and
-    ``offset = x_ref / w`` (:meth:`~.model.IpcaModel.decode`)."""
+    ``offset = x_ref / w`` (:meth:`~brdfkit.basis.model.PcaBasis.decode`)."""
 
     mean: object
     comp: object
@@ -102,7 +102,7 @@ class _Cells:
     offset: object
 
     def rho(self, c):
-        """BRDF ``(U, 3)`` (1/sr, ``>= 0``) of coefficients ``c`` ``(K, 3)``: :meth:`~.model.IpcaModel.decode` at these cells."""
+        """BRDF ``(U, 3)`` (1/sr, ``>= 0``) of coefficients ``c`` ``(K, 3)``: :meth:`~brdfkit.basis.model.PcaBasis.decode` at these cells."""
         import torch
 
         mapped = torch.addmm(self.mean[:, None], self.comp, c.to(self.comp.dtype))
@@ -191,7 +191,6 @@ def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
     used, pos = np.unique(corners.reshape(-1), return_inverse=True)
     row = np.searchsorted(basis.cells, used).clip(0, len(basis.cells) - 1)
     row = np.where(basis.cells[row] == used, row, 0)  # unmeasured corners weigh 0
-    from brdfkit.methods.ipca.model import EPS
 
     weight = basis.cell_weight(used)
     weight = np.where(weight > 0, weight, 1.0)
@@ -221,15 +220,15 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
     Parameters
     ----------
     basis
-        :class:`~.model.IpcaModel`.
+        :class:`~brdfkit.basis.model.PcaBasis`.
     table
         ``(90, 90, 180, 3)`` BRDF in 1/sr, NaN where unmeasured.
     coefficients
         ``(K, 3)`` start, usually ``basis.project(table)``.
     config
-        :class:`brdfkit.hypernet.refine_on_screen.CompressConfig` (steps, scenes, pairs,
+        :class:`brdfkit.render.objective.ObjectiveConfig` (steps, scenes, pairs,
         held-out share, seed, resolution; its ``lr`` is read in units of the components'
-        training standard deviations: :data:`DEFAULT_LR` when ``None`` is passed).
+        training standard deviations, :data:`DEFAULT_LR` when ``None``).
     trust
         Weight of the trust term (:data:`DEFAULT_TRUST`; 0: the render error alone).
 
@@ -242,15 +241,15 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
     """
     import torch
 
-    from brdfkit.hypernet.refine_on_screen import THREADS, CompressConfig, _views
+    from brdfkit.render.objective import THREADS, ObjectiveConfig, objective_views
     from brdfkit.runtime import torch_threads
 
-    cfg = config or CompressConfig(lr=DEFAULT_LR)
+    cfg = config or ObjectiveConfig()
     c0 = np.asarray(coefficients, np.float64)
     if cfg.steps == 0:
         return c0, {"steps": 0, "best_step": 0, "stopped": "steps", "heldout": []}
     with torch_threads(THREADS):
-        return _descend(basis, table, c0, cfg, _views(table, cfg, torch.device("cpu")), trust)
+        return _descend(basis, table, c0, cfg, objective_views(table, cfg, torch.device("cpu")), trust)
 
 
 def _descend(basis, table, c0, cfg, views, trust=0.0):
@@ -273,7 +272,7 @@ def _descend(basis, table, c0, cfg, views, trust=0.0):
                                   for v, h, t in zip(views, helds, targets)]))
 
     z = torch.zeros_like(start, requires_grad=True)
-    opt = torch.optim.Adam([z], lr=cfg.lr)
+    opt = torch.optim.Adam([z], lr=cfg.learning_rate(DEFAULT_LR))
     best = (held_error(start), 0, start.clone())
     first, step, stopped = best[0], 0, "steps"
     while step < cfg.steps:

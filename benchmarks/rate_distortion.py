@@ -1,0 +1,126 @@
+"""Rate against distortion: PSNR and Delta E 2000 against numbers per material, from the
+compression ``bench.json`` of ``brdfkit bench``, in the six judged scenes.
+
+Each bench is one set of materials (``NAME=FOLDER``: the folder holding its ``bench.json``).
+Rows are grouped by what ran, read from the record's label: the default ``encode``
+(``basis-N``), full-precision PCA of equal size (``pca-K``, ``3 K`` numbers), the
+hypernetwork's latent (``latent-N``). For each set and size it prints the suite mean and
+every scene's mean, the default's margin over the PCA of equal size in the mean and in its
+worst scene, Delta E beside PCA's, and the darkest ratio of a decoded table to the data
+where the data are at least 1 /sr (``brdfkit.evaluation.metrics.darkest_ratio``; below
+1e-3 is a black corner); ``--plot`` draws PSNR and Delta E against numbers per material.
+
+    python benchmarks/rate_distortion.py unseen=runs/bench-unseen rgl=runs/bench-rgl --plot rd.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import sys
+
+import numpy as np
+
+_KIND = re.compile(r"^(basis|latent|pca)-(\d+)")
+
+
+def rows_of(folder: str) -> tuple[dict, list]:
+    """``{(kind, numbers): [records]}`` of a bench's compression records, and its scenes."""
+    with open(os.path.join(folder, "bench.json"), encoding="utf-8") as f:
+        doc = json.load(f)
+    out, scenes = {}, doc["config"]["scenes"]
+    for r in doc["records"]:
+        if r["kind"] != "compression" or "error" in r:
+            continue
+        m = _KIND.match(r["method"])
+        if m is None:
+            continue
+        kind, n = m.group(1), int(m.group(2))
+        numbers = 3 * n if kind == "pca" else n
+        if kind == "pca" and "numbers," in r["method"]:
+            kind = "pca (model's basis)"  # a method's own basis, whole: not the full-precision PCA
+        out.setdefault((kind, numbers), []).append(r)
+    return out, scenes
+
+
+def summary(recs: list, scenes: list) -> dict:
+    """Means over materials: PSNR, Delta E, each scene's PSNR, the darkest ratio's minimum."""
+    dark = [r.get("darkest_ratio") for r in recs if r.get("darkest_ratio") is not None]
+    return {"n": len(recs), "psnr": float(np.mean([r["psnr"] for r in recs])),
+            "delta_e": float(np.mean([r["delta_e"] for r in recs])),
+            "scenes": {s: float(np.mean([r["scenes"][s]["psnr"] for r in recs])) for s in scenes}
+            if len(scenes) > 1 else {scenes[0]: float(np.mean([r["psnr"] for r in recs]))},
+            "darkest": min(dark) if dark else None}
+
+
+def table(sets: dict) -> list[str]:
+    lines = []
+    for name, (rows, scenes) in sets.items():
+        lines += [f"### {name}", "", "| numbers | row | n | suite PSNR | Delta E | " + " | ".join(scenes)
+                  + " | darkest ratio |", "| ---: | --- | ---: | ---: | ---: | " + " | ".join("---:" for _ in scenes)
+                  + " | ---: |"]
+        for numbers in sorted({n for _, n in rows}):
+            for kind in ("basis", "pca", "pca (model's basis)", "latent"):
+                if (kind, numbers) not in rows:
+                    continue
+                s = summary(rows[(kind, numbers)], scenes)
+                dark = "-" if s["darkest"] is None else f"{s['darkest']:.2g}"
+                lines.append(f"| {numbers} | {kind} | {s['n']} | {s['psnr']:.2f} | {s['delta_e']:.3f} | "
+                             + " | ".join(f"{s['scenes'][sc]:.2f}" for sc in scenes) + f" | {dark} |")
+        lines += [""] + margins(rows, scenes) + [""]
+    return lines
+
+
+def margins(rows: dict, scenes: list) -> list[str]:
+    """The default's margin over the PCA of equal size: mean, worst scene, Delta E."""
+    out = []
+    for numbers in sorted({n for k, n in rows if k == "basis"}):
+        if ("pca", numbers) not in rows:
+            continue
+        a, b = summary(rows[("basis", numbers)], scenes), summary(rows[("pca", numbers)], scenes)
+        worst = min(scenes, key=lambda sc: a["scenes"][sc] - b["scenes"][sc])
+        out.append(f"* {numbers} numbers: default {a['psnr'] - b['psnr']:+.2f} dB over PCA-{numbers // 3} in the mean, "
+                   f"{a['scenes'][worst] - b['scenes'][worst]:+.2f} in its worst scene ({worst}); Delta E "
+                   f"{a['delta_e']:.3f} against {b['delta_e']:.3f}")
+    return out
+
+
+def plot(sets: dict, path: str) -> None:
+    from brdfkit.figures.canvas import pyplot, save_png
+
+    plt = pyplot()
+    fig, axes = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
+    for name, (rows, scenes) in sets.items():
+        for kind, style in (("basis", "-o"), ("pca", "--s"), ("latent", ":^")):
+            pts = sorted((n, summary(r, scenes)) for (k, n), r in rows.items() if k == kind)
+            if pts:
+                x = [n for n, _ in pts]
+                axes[0].plot(x, [s["psnr"] for _, s in pts], style, label=f"{name}: {kind}")
+                axes[1].plot(x, [s["delta_e"] for _, s in pts], style, label=f"{name}: {kind}")
+    for ax, what in zip(axes, ("PSNR (dB), mean of the six scenes", "Delta E 2000")):
+        ax.set_xlabel("numbers per material")
+        ax.set_ylabel(what)
+        ax.grid(alpha=0.3)
+    axes[0].legend(fontsize=7)
+    fig.tight_layout()
+    save_png(fig, path)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser()
+    ap.add_argument("sets", nargs="+", help="NAME=FOLDER of a compression bench")
+    ap.add_argument("--plot", default=None)
+    a = ap.parse_args(sys.argv[1:] if argv is None else argv)
+    sets = {}
+    for spec in a.sets:
+        name, folder = spec.split("=", 1)
+        sets[name] = rows_of(folder)
+    print("\n".join(table(sets)))
+    if a.plot:
+        plot(sets, a.plot)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,153 @@
+"""A material as the coefficients of a PCA basis (a *basis embedding*), and back.
+
+A basis embedding holds ``K`` coefficients per channel of a PCA basis (its ``K`` leading
+components; ``3 K`` numbers, the embedding's size): the least-squares projection of the
+table, which is the PCA of that size whatever the material, then refined on renders of
+the objective scenes (:mod:`brdfkit.basis.refine_on_screen`; never a judged scene),
+keeping the projection wherever the held-out pixels do not agree. Decoding is the
+basis's closed form (:meth:`~brdfkit.basis.model.PcaBasis.decode`); blending two
+embeddings blends the log-mapped tables. A hypernetwork's latent holds for the
+materials it was trained on and fails outside them; the basis holds for any
+(``docs/compression.md``).
+
+The embedding names its basis by the SHA-256 of the basis file
+(:attr:`brdfkit.io.embedding.Embedding.decoder`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from brdfkit.errors import InputError, ModelMismatchError
+
+__all__ = ["DEFAULT_SIZE", "DEFAULT_STEPS", "BasisBRDF", "basis_sizes", "check_coefficients", "encode_coefficients"]
+
+DEFAULT_SIZE = 39
+"""Numbers per material of a basis embedding by default: 13 components a channel, beside
+the hypernetwork's 40-D latent."""
+
+DEFAULT_STEPS = 80
+"""Most refinement steps of a basis embedding (``brdfkit encode --steps``), chosen with
+:data:`~brdfkit.basis.refine_on_screen.DEFAULT_LR` and
+:data:`~brdfkit.basis.refine_on_screen.DEFAULT_TRUST` on 20 training materials
+(``docs/compression.md``)."""
+
+
+def basis_sizes(basis) -> range:
+    """The sizes a basis embedding of ``basis`` may have: ``3 K`` numbers for ``K`` from 1
+    to the basis's components.
+
+    Examples
+    --------
+    >>> from brdfkit.testing.examples import tiny_basis
+    >>> list(basis_sizes(tiny_basis(4)))
+    [3, 6, 9, 12]
+    """
+    return range(3, 3 * basis.n_components + 1, 3)
+
+
+def _components(basis, size: int, what: str = "a basis embedding") -> int:
+    """``K`` of an embedding of ``size`` numbers; :class:`InputError` for a size the basis
+    does not offer."""
+    if size not in basis_sizes(basis):
+        raise InputError(f"{what} of {size} numbers: a basis embedding holds 3 numbers a component, and this basis "
+                         f"has {basis.n_components} components (sizes 3, 6, ... {3 * basis.n_components})")
+    return size // 3
+
+
+def encode_coefficients(basis, table, *, digest: str, size: int | None = None, source: str = "",
+                        steps: int | None = None):
+    """A dense table as a basis embedding.
+
+    Parameters
+    ----------
+    basis
+        :class:`~brdfkit.basis.model.PcaBasis`.
+    table
+        ``(90, 90, 180, 3)`` BRDF in 1/sr, NaN where unmeasured.
+    digest
+        SHA-256 of the basis file (:func:`brdfkit.io.digest.cached_file_digest`), recorded
+        as the embedding's decoder.
+    size
+        Numbers per material, ``3 K`` (:func:`basis_sizes`; default :data:`DEFAULT_SIZE`,
+        or all the basis's components when it has fewer).
+    source
+        Provenance recorded in the embedding.
+    steps
+        Most refinement steps (default :data:`DEFAULT_STEPS`; 0: the projection alone).
+
+    Returns
+    -------
+    brdfkit.io.embedding.Embedding
+        Kind ``"basis"``, ``values`` float32 ``(3 K,)``, the ``(K, 3)`` coefficients
+        component-major; ``refinement`` records the steps.
+
+    Examples
+    --------
+    >>> from brdfkit.testing.examples import lambertian_table, tiny_basis
+    >>> emb = encode_coefficients(tiny_basis(4), lambertian_table(), digest="ab" * 32, size=6, steps=0)
+    >>> emb.kind, emb.size, emb.refinement is None
+    ('basis', 6, True)
+    """
+    from brdfkit.basis.refine_on_screen import DEFAULT_LR, DEFAULT_TRUST, refine_coefficients
+    from brdfkit.io.embedding import Embedding
+    from brdfkit.render.objective import ObjectiveConfig
+
+    if size is None:
+        size = min(DEFAULT_SIZE, 3 * basis.n_components)
+    part = basis.leading(_components(basis, int(size)))
+    c0 = part.project(table)
+    steps = DEFAULT_STEPS if steps is None else int(steps)
+    c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps, lr=DEFAULT_LR), trust=DEFAULT_TRUST)
+    measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
+    record = {k: rec[k] for k in ("steps", "best_step", "stopped")} if steps else None
+    return Embedding(np.asarray(c, np.float32).reshape(-1), "basis", digest, source, measured, refinement=record)
+
+
+def check_coefficients(emb, basis, digest: str, name: str = "") -> np.ndarray:
+    """The ``(K, 3)`` float32 coefficients of a basis embedding, checked against the
+    basis (its file's SHA-256 ``digest``, enough components).
+
+    Raises
+    ------
+    ModelMismatchError
+        Another basis, or more components than the basis has (one line).
+    """
+    what = f"embedding {name}" if name else "embedding"
+    if emb.decoder != digest:
+        raise ModelMismatchError(f"{what} holds coefficients of basis {emb.decoder[:12]}, not of the given basis "
+                                 f"{digest[:12]}; encode the material again with this basis")
+    if emb.size % 3 or emb.size // 3 > basis.n_components:
+        raise ModelMismatchError(f"{what} holds {emb.size} numbers; a basis of {basis.n_components} components "
+                                 f"decodes 3, 6, ... {3 * basis.n_components}")
+    return emb.values.reshape(emb.size // 3, 3)
+
+
+class BasisBRDF:
+    """A basis embedding as a renderable BRDF (``eval_dirs``, ``to_table``).
+
+    The closed-form decode of all 1.1 million cells (about 0.2 s on one CPU thread) costs
+    less than one trilinear pass of a 128 px render (11.8 million pairs), and evaluating
+    the basis at a render's direction pairs instead would gather ``K + 2`` values at
+    each of their eight corners: so the table is decoded once, on first use, and looked
+    up as :class:`brdfkit.render.renderable.TableBRDF` looks up any table.
+    """
+
+    def __init__(self, basis, coefficients, name: str = "embedding", device=None):
+        self.basis = basis
+        self.coefficients = np.asarray(coefficients, np.float32)
+        self.name = name
+        self.device = device
+        self._table = None
+
+    def to_table(self) -> np.ndarray:
+        """float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis's cells."""
+        return self.basis.leading(self.coefficients.shape[0]).decode(self.coefficients)
+
+    def eval_dirs(self, wi, wo):
+        """BRDF ``(N, 3)`` float32 at local direction pairs (as :class:`~brdfkit.render.renderable.TableBRDF`)."""
+        if self._table is None:
+            from brdfkit.render.renderable import TableBRDF
+
+            self._table = TableBRDF(self.to_table(), name=self.name, device=self.device)
+        return self._table.eval_dirs(wi, wo)

@@ -1,0 +1,105 @@
+"""The package's layout: the bars DEVELOPERS.md sets (at most 6 top-level modules, functions
+of at most 100 lines, files of at most 450), no private name imported across packages,
+and the basis and the hypernetwork independent of each other: importing, encoding and
+decoding with one loads nothing of the other."""
+
+from __future__ import annotations
+
+import ast
+import os
+import subprocess
+import sys
+
+import pytest
+
+ROOT = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "brdfkit")
+
+
+def _modules():
+    for folder, _, files in os.walk(ROOT):
+        for f in sorted(files):
+            if f.endswith(".py"):
+                path = os.path.join(folder, f)
+                with open(path, encoding="utf-8") as fh:
+                    yield os.path.relpath(path, os.path.dirname(ROOT)), fh.read()
+
+
+def _package(rel: str) -> str:
+    """``brdfkit/basis/model.py`` -> ``basis``; a top-level module is its own."""
+    parts = rel.split(os.sep)
+    return parts[1] if len(parts) > 2 else parts[1][:-3]
+
+
+def _imports(tree):
+    """``(module, names)`` of every ``from brdfkit... import`` and ``import brdfkit...``."""
+    for node in ast.walk(tree):
+        if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("brdfkit"):
+            yield node.module, [a.name for a in node.names]
+        elif isinstance(node, ast.Import):
+            for a in node.names:
+                if a.name.startswith("brdfkit"):
+                    yield a.name, []
+
+
+def test_at_most_six_top_level_modules():
+    top = [f for f in os.listdir(ROOT) if f.endswith(".py") and f != "__init__.py"]
+    assert len(top) <= 6, sorted(top)
+
+
+def test_functions_and_files_are_short():
+    long_files, long_functions = [], []
+    for rel, src in _modules():
+        if src.count("\n") > 450:
+            long_files.append((rel, src.count("\n")))
+        for node in ast.walk(ast.parse(src)):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)) and node.end_lineno - node.lineno >= 100:
+                long_functions.append((rel, node.name, node.end_lineno - node.lineno + 1))
+    assert not long_files and not long_functions, (long_files, long_functions)
+
+
+def test_no_private_name_crosses_a_package():
+    crossing = []
+    for rel, src in _modules():
+        here = _package(rel)
+        for module, names in _imports(ast.parse(src)):
+            there = module.split(".")[1] if "." in module else ""
+            crossing += [(rel, module, n) for n in names if n.startswith("_") and there != here]
+            crossing += [(rel, module, "") for part in module.split(".")[1:] if part.startswith("_") and there != here]
+    assert not crossing, crossing
+
+
+@pytest.mark.parametrize("package, other", [("basis", "hypernet"), ("hypernet", "basis")])
+def test_basis_and_hypernet_never_import_each_other(package, other):
+    """Statically: no module of one names the other, inside functions included."""
+    found = [(rel, module) for rel, src in _modules() if _package(rel) == package
+             for module, _ in _imports(ast.parse(src)) if module.startswith(f"brdfkit.{other}")]
+    assert not found, found
+
+
+def _run(code: str, tmp_path) -> list:
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "BRDFKIT_BUILTIN_MODELS": str(tmp_path / "none")}
+    out = subprocess.run([sys.executable, "-c", code + "\nimport sys\nprint(sorted(m for m in sys.modules "
+                          "if m.startswith(('brdfkit.hypernet', 'brdfkit.basis'))))"],
+                         capture_output=True, text=True, env=env, cwd=tmp_path, timeout=300)
+    assert out.returncode == 0, out.stderr
+    return eval(out.stdout.strip().splitlines()[-1])
+
+
+def test_importing_either_loads_nothing_of_the_other(tmp_path):
+    loaded = _run("import brdfkit.basis, brdfkit.basis.coefficients, brdfkit.basis.refine_on_screen", tmp_path)
+    assert loaded and not [m for m in loaded if m.startswith("brdfkit.hypernet")]
+    loaded = _run("import brdfkit.hypernet, brdfkit.hypernet.refine_on_screen, brdfkit.hypernet.encoding", tmp_path)
+    assert loaded and not [m for m in loaded if m.startswith("brdfkit.basis")]
+
+
+def test_a_basis_embedding_is_encoded_and_decoded_without_the_hypernetwork(tmp_path):
+    """``encode`` and ``decode`` of a basis embedding, through the library as the command
+    line calls it, load no module of the hypernetwork (and so none of its weights)."""
+    loaded = _run("from brdfkit.testing.examples import lambertian_table, tiny_basis_file\n"
+                  "import brdfkit\n"
+                  "path = tiny_basis_file('b.safetensors')\n"
+                  "emb = brdfkit.encode(lambertian_table(), path, size=6, steps=2)\n"
+                  "table = brdfkit.decode(emb, path)\n"
+                  "assert emb.kind == 'basis' and table.shape == (90, 90, 180, 3)", tmp_path)
+    assert "brdfkit.basis.coefficients" in loaded
+    assert not [m for m in loaded if m.startswith("brdfkit.hypernet")], loaded
