@@ -284,11 +284,11 @@ def compression_entry(spec) -> tuple[str, str | None, int | None]:
 def _resolve_compressor(spec, device=None) -> str:
     """``PATH:KIND-SIZE`` of a ``--compression-models`` entry: the decoder file, kind and
     size ``brdfkit encode`` would use."""
-    from brdfkit.methods.embedding import choose_decoder, get_kind
+    from brdfkit.methods.embedding import choose_decoder
 
     model, kind, size = compression_entry(spec)
     dec = choose_decoder(kind, model, "cpu")
-    size = size or get_kind(dec.kind).default_size(dec.obj)
+    size = size or dec.default_size
     dec.check_size(size)
     return f"{dec.path}:{dec.kind}-{size}"
 

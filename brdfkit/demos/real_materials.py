@@ -334,7 +334,8 @@ def _load_models(device) -> _Models:
     from brdfkit.methods.embedding import choose_decoder
 
     hyper = {m: choose_decoder(None, m, device) for m in COMPRESSION_MODELS}
-    comps = compression_labels({m: f"basis-{_size(d)}" if d.kind == "basis" else _size(d) for m, d in hyper.items()})
+    comps = compression_labels({m: f"basis-{d.default_size}" if d.kind == "basis" else d.default_size
+                                for m, d in hyper.items()})
     methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
     return _Models(choice, methods, hyper, comps)
 
@@ -438,22 +439,13 @@ def _times(clock, models: _Models, names, files, refine_steps, renders, resoluti
     return times
 
 
-def _size(decoder) -> int:
-    """Numbers per material of ``decoder``'s embeddings by default."""
-    from brdfkit.methods.embedding import get_kind
-
-    return get_kind(decoder.kind).default_size(decoder.obj)
-
-
 def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, scored) -> str:
     """``OUT/errors.json`` (:func:`brdfkit.demos.real_outputs.write_errors`) with what
     made its figures; returns its path."""
     from brdfkit.demos.real_outputs import write_errors
 
-    made = {"sparse_model": SPARSE_MODEL, "sparse_method": models.choice.method,
-            "compression_models": list(COMPRESSION_MODELS),
-            "compressions": [{"column": label, "model": m, "kind": kind, "embedding": models.hyper[m].kind,
-                              "size": _size(models.hyper[m])}
-                             for m, kind, label, _ in models.comps],
+    made = {"sparse_model": SPARSE_MODEL, "sparse_method": models.choice.method, "compression_models":
+            list(COMPRESSION_MODELS), "compressions": [{"column": label, "model": m, "kind": kind, "embedding":
+            models.hyper[m].kind, "size": models.hyper[m].default_size} for m, kind, label, _ in models.comps],
             "compression_steps": refine_steps, "interpolation_model": INTERPOLATION_MODEL, "seed": seed}
     return write_errors(out_dir, made, columns, rows, scored)

@@ -62,6 +62,11 @@ class Decoder:
         """The sizes (numbers per material) its embeddings may have."""
         return tuple(get_kind(self.kind).sizes(self.obj))
 
+    @property
+    def default_size(self) -> int:
+        """The size its embeddings have unless asked for another."""
+        return int(get_kind(self.kind).default_size(self.obj))
+
     def check_size(self, size: int) -> None:
         """:class:`InputError` (one line listing the sizes it offers) for a size it does not offer."""
         sizes = self.sizes
@@ -307,8 +312,7 @@ def encode_with(decoder: Decoder, table: np.ndarray, *, source: str = "", size: 
         A size the decoder does not offer.
     """
     kind = KINDS[decoder.kind]
-    if size is None:
-        size = kind.default_size(decoder.obj)
+    size = decoder.default_size if size is None else size
     decoder.check_size(size)
     return kind.encode(decoder.obj, decoder.digest, table, source=source, size=size, steps=steps,
                        max_seconds=max_seconds, refine=refine)
