@@ -15,6 +15,8 @@ run of the model), as ``brdfkit models`` shows them.
         --validation merl80-l40=bench-sparse/bench.json
     python benchmarks/pack_builtin.py --dst brdfkit/models --validation-only \
         --validation merl80-l40=bench-sparse/bench.json     # the manifest's figures alone
+    python benchmarks/pack_builtin.py --src runs/models --dst brdfkit/models --priors-only
+                                                            # new bases and learnt priors, the hypernetworks kept
 """
 
 from __future__ import annotations
@@ -26,8 +28,7 @@ import shutil
 
 _PAPER = ("brdfkit fit PROXIES/merl PROXIES/rgl {latent}-O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
           "-o {name}-paper.safetensors")
-_BASIS = ("brdfkit fit --method ipca {data} --components 32 -O half=true -O phi_stride=2 -O int8=true -O w_floor=0.1 "
-          "-o {basis}")
+_BASIS = ("brdfkit fit --method ipca {data} --components 30 -O half=true -O phi_stride=2 -O int8=true -o {basis}")
 _PRIOR = ("brdfkit fit --method prior {data} -O basis={basis} -O weight=energy -O s2=0.03 "
           "--steps 3000 --seed 0 -o {name}.safetensors")
 _MERL80 = "PROXIES/merl --exclude-list merl-test.txt"
@@ -102,6 +103,8 @@ def main():
                     help="eval_sparse.py --json output of a model's held-out materials")
     ap.add_argument("--validation-only", action="store_true",
                     help="only set the manifest's validation figures; no model file is touched")
+    ap.add_argument("--priors-only", action="store_true",
+                    help="only the bases and learnt priors of --src, the shipped hypernetworks kept as they are")
     args = ap.parse_args()
     if not args.validation_only and not args.src:
         ap.error("--src is required (unless --validation-only)")
@@ -144,6 +147,8 @@ def main():
         write_manifest(args.dst, doc["models"], default=doc["default"])
         print(f"set the validation of {', '.join(sorted(validation)) or 'no model'} in {args.dst}/manifest.json")
         return
+    if args.priors_only:
+        return _priors_only(args, write_manifest, pack_prior, basis_entry)
     os.makedirs(args.dst, exist_ok=True)
     for stale in (REFERENCE, *BASES):
         if os.path.exists(os.path.join(args.dst, stale)):
@@ -172,6 +177,28 @@ def main():
     order = [m[0] for m in MODELS]
     entries.sort(key=lambda e: order.index(e["name"]))
     write_manifest(args.dst, entries, default="merl-rgl-l40")
+    total = sum(os.path.getsize(os.path.join(args.dst, f)) for f in os.listdir(args.dst) if f.endswith(".safetensors"))
+    print(f"built-in folder {args.dst}: {total / 1e6:.1f} MB of model files")
+
+
+def _priors_only(args, write_manifest, pack_prior, basis_entry) -> None:
+    """Replace the bases and learnt priors of ``args.dst`` by those of ``args.src``; the
+    hypernetwork entries stay, their commands updated for the new basis and prior."""
+    with open(os.path.join(args.dst, "manifest.json")) as f:
+        doc = json.load(f)
+    for basis in BASES:
+        shutil.copyfile(os.path.join(args.src, basis), os.path.join(args.dst, basis))
+    by_name = {m[0]: m for m in MODELS}
+    for entry in doc["models"]:
+        _, _, prior, basis, _, command = by_name[entry["name"]]
+        entry["command"] = command
+        if prior:
+            entry["prior"] = prior
+            entry["prior_fingerprint"] = pack_prior(os.path.join(args.src, prior), os.path.join(args.dst, prior), basis)
+            entry.update(basis_entry(os.path.join(args.dst, prior)))
+            entry.pop("renders", None)  # measured with the old basis
+            entry["validation"] = {}
+    write_manifest(args.dst, doc["models"], default=doc["default"])
     total = sum(os.path.getsize(os.path.join(args.dst, f)) for f in os.listdir(args.dst) if f.endswith(".safetensors"))
     print(f"built-in folder {args.dst}: {total / 1e6:.1f} MB of model files")
 
