@@ -90,7 +90,7 @@ def command(as_json, check):
     installed = man.installed()
     if check:
         from brdfkit.methods.prior.prior_file import load_prior
-        from brdfkit.models.builtin import resolve_prior
+        from brdfkit.models.builtin import resolve_basis, resolve_prior
 
         for m in installed:
             # Resolving checks the file's recorded fingerprint against the manifest,
@@ -98,6 +98,8 @@ def command(as_json, check):
             load_builtin(m.name, device="cpu")
             if m.prior:
                 load_prior(resolve_prior(m.name), device="cpu")  # and its basis file's digest
+            if m.basis:
+                resolve_basis(m.name)  # the basis file's SHA-256 against the manifest's
     if as_json:
         click.echo(json.dumps({"folder": man.folder, "default": man.default,
                                "models": [_json(m) for m in man.models]}, indent=1))
