@@ -28,7 +28,8 @@ import shutil
 
 _PAPER = ("brdfkit fit PROXIES/merl PROXIES/rgl {latent}-O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
           "-o {name}-paper.safetensors")
-_BASIS = ("brdfkit fit --method ipca {data} --components 30 -O half=true -O phi_stride=2 -O int8=true -o {basis}")
+_BASIS = ("brdfkit fit --method ipca {data} --components 30 -O half=true -O phi_stride=2 -O int8=true -O w_floor=0.005 "
+          "-o {basis}")
 _PRIOR = ("brdfkit fit --method prior {data} -O basis={basis} -O weight=energy -O s2=0.03 "
           "--steps 3000 --seed 0 -o {name}.safetensors")
 _MERL80 = "PROXIES/merl --exclude-list merl-test.txt"

@@ -1,7 +1,8 @@
 """Rate against distortion: PSNR and Delta E 2000 against numbers per material, from the
 compression ``bench.json`` of ``brdfkit bench``, in the six judged scenes.
 
-Each bench is one set of materials (``NAME=FOLDER``: the folder holding its ``bench.json``).
+Each bench is one set of materials (``NAME=FOLDER``: the folder holding its ``bench.json``);
+every row is taken over the materials that every row scored.
 Rows are grouped by what ran, read from the record's label: the default ``encode``
 (``basis-N``), full-precision PCA of equal size (``pca-K``, ``3 K`` numbers), the
 hypernetwork's latent (``latent-N``). For each set and size it prints the suite mean and
@@ -42,7 +43,9 @@ def rows_of(folder: str) -> tuple[dict, list]:
         if kind == "pca" and "numbers," in r["method"]:
             kind = "pca (model's basis)"  # a method's own basis, whole: not the full-precision PCA
         out.setdefault((kind, numbers), []).append(r)
-    return out, scenes
+    # Every row over the same materials: those every row scored (a failed record drops its material).
+    common = set.intersection(*({r["material"] for r in recs} for recs in out.values())) if out else set()
+    return {key: [r for r in recs if r["material"] in common] for key, recs in out.items()}, scenes
 
 
 def summary(recs: list, scenes: list) -> dict:
@@ -74,14 +77,17 @@ def table(sets: dict) -> list[str]:
 
 
 def margins(rows: dict, scenes: list) -> list[str]:
-    """The default's margin over the PCA of equal size: mean, worst scene, Delta E."""
+    """The default's margin over the PCA of equal size on the materials both scored: mean,
+    worst scene, Delta E."""
     out = []
     for numbers in sorted({n for k, n in rows if k == "basis"}):
         if ("pca", numbers) not in rows:
             continue
-        a, b = summary(rows[("basis", numbers)], scenes), summary(rows[("pca", numbers)], scenes)
+        both = {r["material"] for r in rows[("basis", numbers)]} & {r["material"] for r in rows[("pca", numbers)]}
+        a, b = (summary([r for r in rows[(k, numbers)] if r["material"] in both], scenes) for k in ("basis", "pca"))
         worst = min(scenes, key=lambda sc: a["scenes"][sc] - b["scenes"][sc])
-        out.append(f"* {numbers} numbers: default {a['psnr'] - b['psnr']:+.2f} dB over PCA-{numbers // 3} in the mean, "
+        out.append(f"* {numbers} numbers ({len(both)} materials with both): default {a['psnr'] - b['psnr']:+.2f} dB over "
+                   f"PCA-{numbers // 3} in the mean, "
                    f"{a['scenes'][worst] - b['scenes'][worst]:+.2f} in its worst scene ({worst}); Delta E "
                    f"{a['delta_e']:.3f} against {b['delta_e']:.3f}")
     return out

@@ -92,7 +92,7 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path):
 
 
 def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped):
-    """Each learnt prior fits a 32-component basis of its model's training materials with
+    """Each learnt prior fits a 30-component basis of its model's training materials with
     the mapping's floor at grazing angles (issue 22); `--method ipca` with a built-in's
     name takes its leading 8, Nielsen et al.'s count."""
     from brdfkit.methods import get_method
@@ -102,8 +102,8 @@ def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped
     for name, count in (("merl80-l40", 80), ("merl-rgl-l40", 151)):
         prior = get_method("prior").load(name, "cpu")
         ipca = get_method("ipca").load(name, "cpu")
-        assert prior.basis.n_components == 32 and ipca.n_components == 8
-        assert prior.basis.w_floor == 0.1 and len(prior.basis.materials) == count
+        assert prior.basis.n_components == 30 and ipca.n_components == 8
+        assert prior.basis.w_floor == 0.005 and len(prior.basis.materials) == count
         np.testing.assert_array_equal(ipca.sigma, prior.basis.sigma[:8])
         bases[name] = prior.basis
     # merl80-l40's basis was fitted on its model's 80 training materials: no test material
