@@ -18,7 +18,7 @@ import numpy as np
 from brdfkit.atomic import check_input_file
 from brdfkit.errors import FormatError
 
-__all__ = ["CsvTable", "read_csv_table"]
+__all__ = ["CsvTable", "read_csv_table", "read_text_bytes", "decode_text"]
 
 # Line breaks as editors count them (str.splitlines also splits on form feeds and
 # Unicode separators, which would shift the line numbers in messages).
@@ -90,21 +90,12 @@ def read_csv_table(path: str | os.PathLike, column_sets: dict, *, expected: str,
         number of fields or a field that is not a number.
     """
     path = check_input_file(path)
-    try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except OSError as e:
-        raise FormatError(path, f"cannot read: {e.strerror}") from None
-    if b"\x00" in raw[:65536]:
-        raise FormatError(path, "not a CSV text file (binary content)")
+    raw = read_text_bytes(path, "CSV")
     # A runaway file is refused before it is decoded and split into per-line strings
     # (10^7 rows: 29 s and 2.1 GB before this check; docs/stability.md).
     if raw.count(b"\n") + raw.count(b"\r") > max_rows:
         _refuse_too_many(path, _count_value_lines(raw) - 1, noun, max_rows)
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise FormatError(path, f"not UTF-8 text (byte {e.start})") from None
+    text = decode_text(path, raw)
     del raw
     lines = _LINE_BREAK.split(text)
     numbered = [(i + 1, ln) for i, ln in enumerate(lines) if ln.strip() and not ln.lstrip().startswith("#")]
@@ -141,6 +132,28 @@ def read_csv_table(path: str | os.PathLike, column_sets: dict, *, expected: str,
         raise FormatError(path, f"line {int(linenos[0])}: {data.shape[1]} fields, the header names {ncol}")
     data = data[:, [columns.index(c) for c in column_sets[kind]]]
     return CsvTable(path, kind, data, linenos)
+
+
+def read_text_bytes(path: str, what: str) -> bytes:
+    """The bytes of the text file ``path``; :class:`FormatError` naming it when it cannot be
+    read or holds a NUL byte in its first 64 kB (``not a WHAT text file``)."""
+    try:
+        with open(path, "rb") as f:
+            raw = f.read()
+    except OSError as e:
+        raise FormatError(path, f"cannot read: {e.strerror}") from None
+    if b"\x00" in raw[:65536]:
+        raise FormatError(path, f"not a {what} text file (binary content)")
+    return raw
+
+
+def decode_text(path: str, raw: bytes) -> str:
+    """``raw`` as UTF-8 text (a byte-order mark dropped); :class:`FormatError` naming
+    ``path`` and the first bad byte otherwise."""
+    try:
+        return raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise FormatError(path, f"not UTF-8 text (byte {e.start})") from None
 
 
 def _refuse_too_many(path: str, rows: int, noun: str, max_rows: int) -> None:

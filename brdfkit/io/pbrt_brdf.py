@@ -32,7 +32,7 @@ import numpy as np
 
 from brdfkit.atomic import check_input_file
 from brdfkit.errors import FormatError
-from brdfkit.io.csvfile import CsvTable
+from brdfkit.io.csvfile import CsvTable, decode_text, read_text_bytes
 from brdfkit.io.measurements import measured_samples
 from brdfkit.io.samples import MAX_ROWS, SampleSet
 
@@ -44,17 +44,7 @@ MAX_WAVELENGTHS = 10_000
 
 def _numbers(path: str):
     """The file's numbers and the line of each, float64 and int64 ``(T,)``."""
-    try:
-        with open(path, "rb") as f:
-            raw = f.read()
-    except OSError as e:
-        raise FormatError(path, f"cannot read: {e.strerror}") from None
-    if b"\x00" in raw[:65536]:
-        raise FormatError(path, "not a .brdf text file (binary content)")
-    try:
-        text = raw.decode("utf-8-sig")
-    except UnicodeDecodeError as e:
-        raise FormatError(path, f"not UTF-8 text (byte {e.start})") from None
+    text = decode_text(path, read_text_bytes(path, ".brdf"))
     values, lines = [], []
     for number, line in enumerate(text.replace("\r\n", "\n").replace("\r", "\n").split("\n"), 1):
         tokens = line.split("#", 1)[0].split()
