@@ -104,8 +104,8 @@ def test_bench_cli_end_to_end(setup, tmp_path):
 
     md = (out / "bench.md").read_text()
     assert "## Sparse reconstruction" in md and "## Compression" in md and "Failures" not in md
-    assert "| hypernet | 40 |" in md and "| ipca 2 components | 2 |" in md
-    assert "| hypernet 6-D (tiny) | no |" in md and "| ipca 2 components | yes |" in md
+    assert "| hypernet | 40 |" in md and "| pca-2 (6 numbers, basis) | 6 |" in md
+    assert "| latent-6 (tiny) | no |" in md and "| pca-2 (6 numbers, basis) | yes |" in md
     from PIL import Image
 
     for png in ("error_vs_n.png", "error_vs_time.png", "error_vs_cpu_time.png", "compression.png"):
