@@ -55,7 +55,8 @@ class ModelCache:
         dense decode.
     screen
         ``rho_ref`` at the pairs of the last :class:`brdfkit.render.screen.Screen`
-        rendered with this model, keyed by that screen's id.
+        rendered with this model, keyed by that screen's id, with a weak reference
+        to the screen (an id is reused once its object is freed).
     """
 
     fallback: np.ndarray | None = None

@@ -28,6 +28,7 @@ from __future__ import annotations
 import dataclasses
 import functools
 import math
+import weakref
 
 import numpy as np
 
@@ -113,12 +114,16 @@ class Screen:
         ``cache``, ``reference_at_pairs`` and ``hyponet_values``)."""
         key = id(self)
         cache = model.cache.screen
-        if key not in cache:
+        # The id of a screen that was freed is reused by the next one made: a cached
+        # reference counts only if its screen is this one (else another scene's pairs are
+        # indexed out of bounds, a device-side assert on CUDA).
+        hit = cache.get(key)
+        if hit is None or hit[0]() is not self:
             ref = model.reference_at_pairs(self.theta_h, self.theta_d, self.phi_d)
             if len(cache) >= 8:  # a few scenes per model (screen tuning turns three)
                 cache.clear()
-            cache[key] = ref
-        return cache[key]
+            cache[key] = hit = (weakref.ref(self), ref)
+        return hit[1]
 
     def render_hyponet(self, model, weights, idx=None, scale=None):
         """Image ``(P, 3)`` float32 torch of hyponet ``weights`` (batch of one, as

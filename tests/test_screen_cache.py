@@ -1,0 +1,46 @@
+"""The per-model cache of ``rho_ref`` at a screen's pairs (:meth:`brdfkit.render.screen.Screen.reference`)."""
+
+from __future__ import annotations
+
+import gc
+import types
+
+import numpy as np
+import torch
+
+from brdfkit.render.screen import Screen
+
+
+def _screen(m: int) -> Screen:
+    z = torch.zeros(m, dtype=torch.float64)
+    return Screen(pix=torch.zeros(m, dtype=torch.int64), theta_h=z, theta_d=z, phi_d=z,
+                  hd=torch.zeros(m, 6), rw=torch.ones(m, 3), pixels=1)
+
+
+class _Model:
+    """What :meth:`Screen.reference` asks of a model: a cache and ``reference_at_pairs``."""
+
+    def __init__(self):
+        self.cache = types.SimpleNamespace(screen={})
+        self.calls = 0
+
+    def reference_at_pairs(self, theta_h, theta_d, phi_d):
+        self.calls += 1
+        return torch.full((len(theta_h), 3), float(len(theta_h)))
+
+
+def test_a_freed_screens_reference_is_not_served_to_a_new_screen_with_its_id():
+    model, a, b = _Model(), _screen(5), _screen(7)
+    assert a.reference(model).shape == (5, 3) and a.reference(model).shape == (5, 3) and model.calls == 1
+    # b took the id a freed screen had (as CPython reuses ids): the stale entry is not b's.
+    model.cache.screen[id(b)] = model.cache.screen.pop(id(a))
+    assert b.reference(model).shape == (7, 3) and model.calls == 2
+
+
+def test_screens_made_and_freed_in_turn_each_get_their_own_pairs():
+    model = _Model()
+    for i in range(40):  # freed screens' ids come back within a few rounds in CPython
+        s = _screen(3 + i % 4)
+        assert np.array_equal(s.reference(model).numpy(), np.full((3 + i % 4, 3), 3.0 + i % 4))
+        del s
+        gc.collect()
