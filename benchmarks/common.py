@@ -1,11 +1,13 @@
 """Helpers shared by the benchmarks: machine description, best-of-k timing interleaved with
 a bound, plain-``mm`` reference chains, the JSON + table report every performance
-benchmark prints (issue 7), reference-scene renders of tables, and untrained models (the paper's architecture or the tiny one
-of the test suite).
+benchmark prints (issue 7), a run's record written with its machine and load
+(``write_record``), reference-scene renders of tables, and untrained models (the paper's
+architecture or the tiny one of the test suite).
 
 Benchmarks run as ``python benchmarks/NAME.py`` from the repository root with brdfkit
 installed; Python puts the script's folder on ``sys.path``, so ``import common`` finds
-this module. Benchmarks import nothing from ``tests/``.
+this module. The studies of ``benchmarks/studies/`` put this folder on ``sys.path``
+themselves. Benchmarks import nothing from ``tests/``.
 
 Every figure a benchmark reports sits beside a *bound* measured in the same process, in
 the same rounds (measurement and bound alternate, ``best-of-k`` of each), so that the
@@ -50,6 +52,22 @@ def machine() -> dict:
         info["torch"] = torch.__version__
         info["torch_threads"] = torch.get_num_threads()
     return info
+
+
+def write_record(record: dict, path: str | None, load_start: list[float], t0: float) -> dict:
+    """Complete a run's ``record`` with the machine (:func:`machine`), the load average at
+    its start (``load_start``) and now, and the wall seconds since ``t0`` (``time.time()``),
+    then write it to ``path`` when given: indented JSON through a temporary file and a
+    rename, so that a run that writes after each job keeps its last whole record. Returns
+    ``record``."""
+    record.update(machine=machine(), load_start=load_start, load_end=load_average(),
+                  seconds=round(time.time() - t0, 1))
+    if path:
+        with open(path + ".tmp", "w") as f:
+            json.dump(record, f, indent=1)
+            f.write("\n")
+        os.replace(path + ".tmp", path)
+    return record
 
 
 def best_of(fns: dict, k: int, warmup: int = 1) -> dict:
@@ -235,11 +253,11 @@ def untrained_model(tmpdir: str, latent_dim: int = 40, device="cpu", config: dic
     from brdfkit import api
     from brdfkit.materials import synthetic
     from brdfkit.hypernet.network import HyperBRDF, HyperConfig
-    from brdfkit.hypernet.model_file import save_model
+    from brdfkit.hypernet.network_file import save_network
 
     table = synthetic.table(synthetic.STIFF[2])
     torch.manual_seed(0)
     path = os.path.join(tmpdir, name)
     cfg = HyperConfig(**config) if config is not None else HyperConfig(latent_dim=latent_dim)
-    save_model(path, HyperBRDF(cfg), table, {"materials": ["stiff-white"], "steps": 0})
+    save_network(path, HyperBRDF(cfg), table, {"materials": ["stiff-white"], "steps": 0})
     return api.load_model(path, device=device), path, table

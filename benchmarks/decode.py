@@ -93,7 +93,7 @@ def _embedding(model):
     from brdfkit.io.embedding import Embedding
 
     rng = np.random.default_rng(0)
-    return Embedding((0.1 * rng.normal(size=model.cfg.latent_dim)).astype(np.float32), model.fingerprint)
+    return Embedding((0.1 * rng.normal(size=model.cfg.latent_dim)).astype(np.float32), "hypernet", model.digest)
 
 
 def against_bound(model, thread_counts, args, tmp) -> int:

@@ -80,7 +80,7 @@ def main():
     variants = {"prior": lambda s: prior.reconstruct(s),
                 "basis fit": lambda s: prior.reconstruct(s, use_prior=False)} if prior else {}
     ipca = basis.baseline() if prior else basis  # the prior's basis may have more components than IPCA-8
-    variants["ipca"] = lambda s: ipca.reconstruct(s)
+    variants["ipca"] = lambda s: ipca.reconstruct(s, floor=0.0)  # as published, as `sparse --method ipca`
     if args.hypernet:
         from brdfkit import api
         from brdfkit.hypernet.packing import load_builtin

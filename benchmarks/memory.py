@@ -96,7 +96,7 @@ def main(argv=None):
         model, model_path, _ = common.untrained_model(tmp)
         emb_path = os.path.join(tmp, "m.emb")
         rng = np.random.default_rng(0)
-        write_embedding(emb_path, Embedding((0.1 * rng.normal(size=40)).astype(np.float32), model.fingerprint))
+        write_embedding(emb_path, Embedding((0.1 * rng.normal(size=40)).astype(np.float32), "hypernet", model.digest))
         out = os.path.join(tmp, "m.binary")
         decode = child_peak("import sys; from brdfkit.cli import main; "
                             f"main(['decode', {emb_path!r}, '-m', {model_path!r}, '-o', {out!r}])")
@@ -104,7 +104,7 @@ def main(argv=None):
         # load_model + grid_hd + to_table without the write: where the decode's memory goes.
         decode_only = child_peak(
             "import brdfkit.api as a; from brdfkit.io.embedding import read_embedding; "
-            f"m = a.load_model({model_path!r}); a.decode(m, read_embedding({emb_path!r}))")
+            f"m = a.load_model({model_path!r}); a.decode(read_embedding({emb_path!r}), m)")
 
     per_material_expanded = CELLS * 9 * 4
     arithmetic = {

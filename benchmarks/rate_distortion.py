@@ -4,8 +4,9 @@ compression ``bench.json`` of ``brdfkit bench``, in the six judged scenes.
 Each bench is one set of materials (``NAME=FOLDER``: the folder holding its ``bench.json``);
 every row is taken over the materials that every row scored.
 Rows are grouped by what ran, read from the record's label: the default ``encode``
-(``basis-N``), full-precision PCA of equal size (``pca-K``, ``3 K`` numbers), the
-hypernetwork's latent (``latent-N``). For each set and size it prints the suite mean and
+(``basis-N (B)``, a basis embedding of ``N`` numbers), full-precision PCA of equal size
+(``basis-K (3K numbers)``, the projection onto ``K`` components; ``pca-K`` in earlier
+runs), the hypernetwork's latent (``hypernet-N``; ``latent-N`` in earlier runs). For each set and size it prints the suite mean and
 every scene's mean, the default's margin over the PCA of equal size in the mean and in its
 worst scene, Delta E beside PCA's, and the darkest ratio of a decoded table to the data
 where the data are at least 1 /sr (``brdfkit.evaluation.metrics.darkest_ratio``; below
@@ -24,7 +25,7 @@ import sys
 
 import numpy as np
 
-_KIND = re.compile(r"^(basis|latent|pca)-(\d+)")
+_KIND = re.compile(r"^(basis|hypernet|latent|pca)-(\d+)")
 
 
 def rows_of(folder: str) -> tuple[dict, list]:
@@ -39,9 +40,12 @@ def rows_of(folder: str) -> tuple[dict, list]:
         if m is None:
             continue
         kind, n = m.group(1), int(m.group(2))
-        numbers = 3 * n if kind == "pca" else n
-        if kind == "pca" and "numbers," in r["method"]:
-            kind = "pca (model's basis)"  # a method's own basis, whole: not the full-precision PCA
+        if kind == "latent":
+            kind = "hypernet"  # the label of earlier runs
+        if kind in ("basis", "pca") and " numbers" in r["method"]:  # a projection onto K components
+            kind = "pca (model's basis)" if "numbers," in r["method"] else "pca"
+            # a method's own basis, whole, is not the full-precision PCA
+        numbers = 3 * n if kind.startswith("pca") else n
         out.setdefault((kind, numbers), []).append(r)
     # Every row over the same materials: those every row scored (a failed record drops its material).
     common = set.intersection(*({r["material"] for r in recs} for recs in out.values())) if out else set()
@@ -65,7 +69,7 @@ def table(sets: dict) -> list[str]:
                   + " | darkest ratio |", "| ---: | --- | ---: | ---: | ---: | " + " | ".join("---:" for _ in scenes)
                   + " | ---: |"]
         for numbers in sorted({n for _, n in rows}):
-            for kind in ("basis", "pca", "pca (model's basis)", "latent"):
+            for kind in ("basis", "pca", "pca (model's basis)", "hypernet"):
                 if (kind, numbers) not in rows:
                     continue
                 s = summary(rows[(kind, numbers)], scenes)
@@ -99,7 +103,7 @@ def plot(sets: dict, path: str) -> None:
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
     for name, (rows, scenes) in sets.items():
-        for kind, style in (("basis", "-o"), ("pca", "--s"), ("latent", ":^")):
+        for kind, style in (("basis", "-o"), ("pca", "--s"), ("hypernet", ":^")):
             pts = sorted((n, summary(r, scenes)) for (k, n), r in rows.items() if k == kind)
             if pts:
                 x = [n for n, _ in pts]

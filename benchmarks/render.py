@@ -72,7 +72,7 @@ def main(argv=None) -> int:
     from brdfkit.io.embedding import Embedding
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.render.renderable import TableBRDF
-    from brdfkit.brdf_file import load_brdf
+    from brdfkit.files.brdf_file import load_brdf
     from brdfkit.render.scene import Scene
 
     scene = Scene(resolution=args.resolution)
@@ -84,7 +84,7 @@ def main(argv=None) -> int:
             brdfs = {args.brdf: load_brdf(args.brdf, device="cpu")}
         else:
             model, _, table = common.untrained_model(tmp)
-            emb = Embedding((0.1 * np.random.default_rng(0).normal(size=40)).astype(np.float32), model.fingerprint)
+            emb = Embedding((0.1 * np.random.default_rng(0).normal(size=40)).astype(np.float32), model.digest)
             brdfs = {"table (stiff-white)": TableBRDF(table, "stiff-white", device="cpu"),
                      "neural (hyponet)": NeuralBRDF.from_embedding(model, emb)}
         for name, brdf in brdfs.items():

@@ -10,7 +10,7 @@ Unless ``--skip-run``, it runs, printing each command first (the compressions fi
 suite's renders make the sparse benchmark the long one, about three hours with two
 jobs):
 
-1. ``RUNS/ipca80.safetensors`` (when missing): ``brdfkit fit --method ipca`` on the 80
+1. ``RUNS/ipca80.safetensors`` (when missing): ``brdfkit fit --method basis`` on the 80
    MERL training materials, the materials ``merl80-l40`` was trained on;
 2. the sparse benchmark (``prior``, ``ipca``, ``nbrdf``, ``hypernet``; 3 draws; 64 px)
    with uniform samples at N = 40, 160, 400, 2000, 4000 (issue 22's) into
@@ -21,7 +21,7 @@ jobs):
    is in both), and ``RUNS/ipca151-13.safetensors`` (when missing), a 13-component basis
    fitted on it;
 4. the compression benchmark of ``merl-rgl-l40`` (its default ``encode``, a basis
-   embedding of 39 numbers, and ``merl-rgl-l40:latent``, the hypernetwork's 40-D
+   embedding of 39 numbers, and ``merl-rgl-l40:hypernet``, the hypernetwork's 40-D
    latent), ``merl-rgl-l7`` and that basis's leading 13, 8 and 2 components (PCA-13
    beside 40-D, IPCA-8, PCA-2 beside 7-D: the same count of numbers) on all 151 tables
    into ``RUNS/bench-compression``;
@@ -79,22 +79,22 @@ def plan(proxies: str, runs: str, test_list: str, jobs: int) -> dict:
         "ipca80": j(runs, "ipca80.safetensors"), "ipca151": j(runs, "ipca151-13.safetensors"),
         "ipca80k": j(runs, "ipca80-13.safetensors"),
         "all151": j(runs, "all151"),
-        "fit80": ["brdfkit", "fit", "--method", "ipca", j(proxies, "merl"), "--exclude-list", test_list,
+        "fit80": ["brdfkit", "fit", "--method", "basis", j(proxies, "merl"), "--exclude-list", test_list,
                   "-o", j(runs, "ipca80.safetensors")],
         "planned": [*sparse, "--n", "20,40", "--sampling", "planned", "--plan-model", "merl80-l40",
                     "--plan-design", "render", *common, "-o", j(runs, "bench-planned")],
         "uniform": [*sparse, "--n", "40,160,400,2000,4000", *common, "-o", j(runs, "bench-uniform")],
         "sparse": ["brdfkit", "bench", "--merge", j(runs, "bench-uniform"), "--merge", j(runs, "bench-planned"),
                    "-o", j(runs, "bench-sparse")],
-        "fit151": ["brdfkit", "fit", "--method", "ipca", j(runs, "all151"), "--components", "13",
+        "fit151": ["brdfkit", "fit", "--method", "basis", j(runs, "all151"), "--components", "13",
                    "-o", j(runs, "ipca151-13.safetensors")],
         "compression": ["brdfkit", "bench", "--compression-models",
-                        "merl-rgl-l40,merl-rgl-l40:latent,merl-rgl-l7,pca-8,pca-2",
+                        "merl-rgl-l40,merl-rgl-l40:hypernet,merl-rgl-l7,basis-8,basis-2",
                         "--compression-data", j(runs, "all151"), "--ipca", j(runs, "ipca151-13.safetensors"),
                         *common, "-o", j(runs, "bench-compression")],
-        "fit80k": ["brdfkit", "fit", "--method", "ipca", j(proxies, "merl"), "--exclude-list", test_list,
+        "fit80k": ["brdfkit", "fit", "--method", "basis", j(proxies, "merl"), "--exclude-list", test_list,
                    "--components", "13", "-o", j(runs, "ipca80-13.safetensors")],
-        "unseen": ["brdfkit", "bench", "--compression-models", "merl80-l40,merl80-l40:latent,pca-8",
+        "unseen": ["brdfkit", "bench", "--compression-models", "merl80-l40,merl80-l40:hypernet,basis-8",
                    "--compression-data", j(runs, "test20"), "--ipca", j(runs, "ipca80-13.safetensors"),
                    *common, "-o", j(runs, "bench-unseen")],
     }
@@ -184,8 +184,8 @@ def builtin_entry(path):
     if not path or not os.path.isfile(path):
         return None
     man, name, digest = read_manifest(), os.path.basename(path), None
-    for m in man.models:
-        files = [m.path] + ([os.path.join(man.folder, m.prior)] if m.prior else [])
+    for m in man.bundles:
+        files = [p.path for part, p in m.parts.items() if part in ("network", "prior")]
         # the same bytes, wherever the run found them (a checkout of the same commit)
         for f in (f for f in files if os.path.basename(f) == name):
             digest = digest or _digest(path)
@@ -269,8 +269,10 @@ def _trained(path, prior: bool = False) -> str:
 
 
 def _pca_spec(spec) -> bool:
-    """``pca-K``: the leading components of the ``--ipca`` basis, not a model file."""
-    return str(spec).startswith("pca-") and str(spec)[4:].isdigit()
+    """``basis-K`` (``pca-K`` in earlier runs): the leading components of the ``--ipca``
+    basis, not a model file."""
+    head, _, k = str(spec).partition("-")
+    return head in ("basis", "pca") and k.isdigit()
 
 
 def differs_table(sparse: dict, comp: dict) -> list[str]:
@@ -371,7 +373,7 @@ def regenerate(sparse, comp, cmds, one, proxies) -> list[str]:
         if recorded and recorded != shlex.join(cmds[key]):
             lines += [f"The {key} `bench.json` records another command (these figures are that run's):", "",
                       "```sh", recorded, "```", ""]
-    used = {m.name: m for m in read_manifest().models}
+    used = {m.name: m for m in read_manifest().bundles}
     names = [n for n in ("merl80-l40", "merl-rgl-l40", "merl-rgl-l7") if n in used and used[n].command]
     if names:
         lines += ["The built-in models were trained by (manifest, [models.md](../models.md)):", "", "```sh"]

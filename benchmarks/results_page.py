@@ -13,7 +13,7 @@ from __future__ import annotations
 import os
 
 from brdfkit.bench import summarise
-from brdfkit.bench.summary import mean
+from brdfkit.bench.summary import mean, record_size
 
 METHOD_ORDER = ("prior", "prior (planned)", "ipca", "ipca (planned)", "nbrdf", "nbrdf (planned)", "hypernet",
                 "hypernet (planned)")
@@ -50,9 +50,10 @@ PLANNED_TEXT = ("**M (planned)**: method M from samples measured at the directio
 COMPRESSION_TEXT = ("**Compressors**: `basis-39 (B)` is `brdfkit encode` then `decode` with the built-in "
                     "M as it runs by default, a basis embedding: the coefficients of the 13 leading components of "
                     "M's PCA basis B (39 numbers), refined on the objective scenes' renders "
-                    "([compression.md](compression.md)); `latent-40 (M)` / `latent-7` is the hypernetwork's latent "
-                    "(`encode --kind latent`, the paper's compression, refined on screen); `pca-K (3K numbers, B)`, "
-                    "`pca-K (3K numbers)`: least-squares projection onto a PCA basis fitted on the same materials.")
+                    "([compression.md](compression.md)); `hypernet-40 (M)` / `hypernet-7` is the hypernetwork's "
+                    "latent (`encode --kind hypernet`, the paper's compression, refined on screen; `latent-40 (M)` in "
+                    "earlier runs); `basis-K (3K numbers, B)`, `basis-K (3K numbers)`: least-squares projection onto "
+                    "the K leading components of a PCA basis fitted on the same materials (`pca-K` in earlier runs).")
 _HIGHER = {"psnr": True, "ssim": True, "delta_e": False, "log_rmse": False}
 
 
@@ -378,13 +379,16 @@ def family_of(name: str, proxies: str) -> str:
 
 def _paper_comp(label: str, latent) -> str:
     """The paper's figure beside a row: its IPCA beside the 8-component PCA (Nielsen et al.'s
-    IPCA-8, the brief's baseline), its hypernetwork beside a latent of its size
-    (``latent-40 (M)``; the older labels ``hypernet 40-D (M)`` too), none beside the rest."""
+    IPCA-8, the brief's baseline: ``basis-8 (24 numbers ...)``, a projection; ``pca-8`` in
+    earlier runs), its hypernetwork beside a latent of its size (``hypernet-40 (M)``; the
+    older labels ``latent-40 (M)`` and ``hypernet 40-D (M)`` too), none beside the rest (a
+    basis embedding ``basis-39 (B)`` among them)."""
     head = label.split()[0]
-    if head.startswith("pca-") or head in ("pca", "ipca"):
-        k = head[4:] if head.startswith("pca-") else (label.split() + [""])[1]
+    projection = head.startswith("pca-") or (head.startswith("basis-") and " numbers" in label)
+    if projection or head in ("pca", "ipca"):
+        k = head.partition("-")[2] if projection else (label.split() + [""])[1]
         got = PAPER_COMPRESSION[("ipca", None)] if k == "8" else None
-    elif head.startswith("latent-") or head == "hypernet":
+    elif head.startswith(("latent-", "hypernet-")) or head == "hypernet":
         got = PAPER_COMPRESSION.get(("hypernet", latent))
     else:
         got = None
@@ -422,7 +426,7 @@ def compression_section(comp, proxies, figure=True, title="Compression (the pape
             table[(row["method"], gname)] = row
     labels = list(dict.fromkeys(r["method"] for r in recs))
     paper_row = "MERL" if counts["MERL"] else "all"  # the paper's figures are on MERL
-    latent = {r["method"]: r.get("latent") for r in recs}
+    latent = {r["method"]: record_size(r) for r in recs}
     for label in labels:
         for gname, _ in groups:
             row = table.get((label, gname))

@@ -132,7 +132,7 @@ def section_csv(folder):
 
 def section_config(folder):
     from brdfkit.errors import FormatError
-    from brdfkit.hypernet.model_file import load_model
+    from brdfkit.hypernet.network_file import load_network
 
     _, path, _ = common.untrained_model(folder, config=common.TINY_CONFIG, name="m.safetensors")
     raw = open(path, "rb").read()
@@ -149,7 +149,7 @@ def section_config(folder):
             f.write(len(new).to_bytes(8, "little") + new + raw[8 + n:])
         t0 = time.perf_counter()
         try:
-            load_model(crafted, "cpu")
+            load_network(crafted, "cpu")
             outcome = "LOADED"
         except FormatError as e:
             outcome = str(e).split(": ", 1)[1]

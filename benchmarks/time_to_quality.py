@@ -72,8 +72,8 @@ def main(argv=None):
     from brdfkit.hypernet.network import HyperBRDF, HyperConfig
     from brdfkit.io.merl import read_merl
     from brdfkit.evaluation.metrics import brdf_log_rmse
-    from brdfkit.hypernet.model_file import weights_fingerprint
-    from brdfkit.hypernet.loaded import NeuralModel
+    from brdfkit.hypernet.network_file import weights_digest
+    from brdfkit.hypernet.loaded import LoadedNetwork
     from brdfkit.acquisition.sampling import draw_samples
     from brdfkit.hypernet.mapping import median_reference
 
@@ -117,7 +117,7 @@ def main(argv=None):
                     net = HyperBRDF(cfg)
                     net.load_state_dict(state["net"])
                     net.eval()
-                    model = NeuralModel(net, cfg, rho_ref, weights_fingerprint(net), {}, torch.device("cpu"), ckpt)
+                    model = LoadedNetwork(net, cfg, rho_ref, weights_digest(net), {}, torch.device("cpu"), ckpt)
                     errs = []
                     for n in held:
                         table, _ = api.sparse(samples[n], model)

@@ -1,4 +1,13 @@
-"""How large a basis, fitted how, for sparse reconstruction judged by renders? (issue 22)
+"""Decided: the built-ins' learnt priors fit a 32-component basis (Lever 6: +1.8 dB on screen
+at N = 40 and +6.5 dB at N = 4000 over 8 components) with the mapping's grazing floor
+``w_floor = 0.1`` and int8 components (Lever 7; the floor later became 0.005,
+``docs/notes/compression.md``); none of Lever 8's changes to the prior's training was
+adopted. Reported in ``docs/notes/generalisation.md``, "Lever 6 (issue 22): the basis's
+size, judged by renders", "Lever 7 (issue 22): grazing angles, the mapping's floor" (and its
+"Storage: int8 components") and "Lever 8 (issue 22): the log RMSE at N = 40 and the learnt
+prior's training".
+
+How large a basis, fitted how, for sparse reconstruction judged by renders? (issue 22)
 
 Issue 22 asks the default ``brdfkit sparse`` to beat 8-component IPCA (Nielsen et al.
 2015) by 1 dB of render PSNR from N = 160 samples up. At N = 4000 an 8-component basis is
@@ -13,7 +22,7 @@ materials:
 * samples: :func:`brdfkit.acquisition.sampling.draw_samples` (uniform over the Rusinkiewicz angles),
   draws ``--seeds``;
 * fits: ``ipca`` (the basis's own ridge fit, :meth:`PcaBasis.coefficients`), ``solve``
-  (the learnt prior's closed form :func:`~brdfkit.methods.prior.model.solve` without a
+  (the learnt prior's closed form :func:`~brdfkit.prior.model.solve` without a
   network, the likelihood ``weight``/``s2``/``lam``), ``proj`` (least squares on the whole
   table: the ceiling), ``prior`` (a learnt-prior file's own fit, its network included;
   ``--basis LABEL=PRIOR_FILE``, trained with ``brdfkit fit --method prior`` on the same 64:
@@ -50,7 +59,7 @@ def fit(basis, samples, table, how: str, lam: float, prior=None):
     models ``basis`` came from (``prior``) or the channel moments (``joint:``)."""
     import torch
 
-    from brdfkit.methods.prior.model import sample_rows, solve
+    from brdfkit.prior.model import sample_rows, solve
 
     if how == "prior":
         return ensemble_coefficients(prior, samples)
@@ -90,7 +99,7 @@ def joint_fit(basis, samples, s2: float, lam: float, moments):
     """The energy likelihood's closed form with a joint Gaussian prior over each component's
     three channel coefficients, covariance ``moments (K, 3, 3)`` (module docstring)."""
     from brdfkit.basis import EPS
-    from brdfkit.methods.prior.model import sample_rows
+    from brdfkit.prior.model import sample_rows
 
     ok, tab, w, cos, rho, _ = sample_rows(basis, samples)
     k = basis.n_components
@@ -132,8 +141,8 @@ def main(argv=None):
 
     from brdfkit.io.merl import read_merl
     from brdfkit.basis import load_basis
-    from brdfkit.methods.prior.prior_file import is_prior_file as _is_prior
-    from brdfkit.methods.prior.prior_file import load_prior
+    from brdfkit.prior.prior_file import is_prior_file as _is_prior
+    from brdfkit.prior.prior_file import load_prior
     from brdfkit.evaluation.metrics import brdf_log_rmse, dark_at_grazing
     from brdfkit.render.screen import screen, screen_psnr
     from brdfkit.acquisition.sampling import draw_samples

@@ -1,4 +1,11 @@
-"""The mapping's grazing floor (``w_floor``), judged quickly: projections on bases fitted
+"""Decided: the shipped bases dropped the grazing floor of 0.1: every floor costs the RGL
+materials in proportion (2.96 dB at 0.1, 39 numbers) for 0.1 to 0.4 dB on MERL; a later run
+(``--floors 0 0.005``) found the shipped floor of 0.005, which touches only the cells at the
+horizon, within -0.04 to +0.06 dB of none on unseen MERL and 0 to -0.14 dB on RGL. Reported
+in ``docs/notes/compression.md``, "The floor alone, every value (32 px, the judged scenes)"
+and "Every size, against full-precision PCA".
+
+The mapping's grazing floor (``w_floor``), judged quickly: projections on bases fitted
 with each floor, rendered in the six judged scenes at the render-aligned error's small
 resolution (32 px, :mod:`brdfkit.render.screen`: the same quadrature, a quarter of the
 pixels of a 64 px render), and the grazing darkness of a ridge fit to 400 samples (what

@@ -1,4 +1,11 @@
-"""Study: the basis plus a hypernetwork residual, at the small sizes where a linear basis
+"""Decided: not to ship it yet (the product does not use it). The residual adds +3.39 dB over
+full-precision PCA-3 on unseen MERL at 9 numbers (+4.20 dB chosen per material by the
+objective scenes) but loses 0.33 dB on RGL by itself; shipping it needs a residual file per
+basis and size and an embedding kind that records it. Reported in
+``docs/notes/compression.md``, "The basis plus a hypernetwork residual (study, 2026-11-27,
+64 px screens, the six judged scenes)".
+
+Study: the basis plus a hypernetwork residual, at the small sizes where a linear basis
 has too few components.
 
 A basis embedding of ``3 K`` numbers decodes, channel by channel, the mapped table
@@ -60,7 +67,7 @@ class Residual(torch.nn.Module):
 
     def __init__(self, k: int, width: int = 32, hidden: int = 64):
         super().__init__()
-        self.k, self.h = k, width
+        self.k, self.h = k, width  # k: the input's width (2 K_max for a network of every size)
         self.shapes = [(6, width), (width,), (width, width), (width,), (width, 1), (1,)]
         sizes = [int(np.prod(s)) for s in self.shapes]
         self.sizes = sizes
@@ -100,6 +107,20 @@ class Residual(torch.nn.Module):
         return (torch.bmm(h, w3) + b3[:, None])[..., 0]
 
 
+def net_input(c_norm, k_max):
+    """The network's input for coefficients in training standard deviations ``(B, K)``:
+    as they are (``k_max`` 0, a network of one size), or padded to ``k_max`` with a mask of
+    the ``K`` given beside them (a network of every size ``K <= k_max``)."""
+    c_norm = torch.as_tensor(c_norm, dtype=torch.float32)
+    if not k_max:
+        return c_norm
+    b, k = c_norm.shape
+    z = torch.zeros(b, 2 * k_max)
+    z[:, :k] = c_norm
+    z[:, k_max:k_max + k] = 1.0
+    return z
+
+
 def mapped(part, table):
     """Mapped table at the basis's cells, ``(P, 3)`` float64, minus the mean."""
     from brdfkit.basis.model import EPS
@@ -123,8 +144,9 @@ def unmap(part, x_mapped):
     return out.reshape(GRID_SHAPE + (3,))
 
 
-def training_pairs(part, paths):
-    """``z (3 M, K)`` float32 and residuals ``(3 M, P)`` float16 of the training tables."""
+def training_pairs(part, paths, whole=False):
+    """``z (3 M, K)`` float32 and residuals ``(3 M, P)`` float16 of the training tables
+    (``whole``: the mapped tables less the mean, not the residuals)."""
     from brdfkit.io.merl import read_merl
 
     comp = part.components.astype(np.float64)
@@ -133,15 +155,15 @@ def training_pairs(part, paths):
         table = read_merl(p)
         b = mapped(part, table)
         c = part.project(table)  # (K, 3)
-        r = b - comp.T @ c
+        r = b if whole else b - comp.T @ c
         zs.append((c / part.sigma[:, None]).T)
         rs.append(r.T.astype(np.float16))
     return np.concatenate(zs).astype(np.float32), np.concatenate(rs)
 
 
-def correction(net, part, hd, c, chunk=131072):
+def correction(net, part, hd, c, chunk=131072, k_max=0):
     """The network's correction at every basis cell, ``(P, 3)`` float64, coefficients ``(K, 3)``."""
-    z = torch.as_tensor((c / part.sigma[:, None]).T, dtype=torch.float32)
+    z = net_input((c / part.sigma[:len(c), None]).T, k_max)
     out = []
     with torch.no_grad():
         for i in range(0, hd.shape[0], chunk):
@@ -149,7 +171,7 @@ def correction(net, part, hd, c, chunk=131072):
     return np.concatenate(out)
 
 
-def fit_through(net, part, hd, b, c0, steps, cells=65536, seed=0):
+def fit_through(net, part, hd, b, c0, steps, cells=65536, seed=0, k_max=0):
     """Coefficients minimising the mapped error of basis + correction, from ``c0``."""
     g = np.random.default_rng(seed)
     idx = torch.as_tensor(g.choice(hd.shape[0], size=min(cells, hd.shape[0]), replace=False))
@@ -159,7 +181,7 @@ def fit_through(net, part, hd, b, c0, steps, cells=65536, seed=0):
     z = torch.tensor((c0 / part.sigma[:, None]).T, dtype=torch.float32, requires_grad=True)
     opt = torch.optim.Adam([z], lr=0.02)
     for _ in range(steps):
-        pred = (z * sigma) @ comp + net(z, x)
+        pred = (z * sigma) @ comp + net(net_input(z, k_max) if k_max else z, x)
         loss = ((pred - target) ** 2).mean()
         opt.zero_grad()
         loss.backward()
@@ -167,7 +189,10 @@ def fit_through(net, part, hd, b, c0, steps, cells=65536, seed=0):
     return (z.detach().numpy() * part.sigma).T.astype(np.float64)
 
 
-def train(net, opt, z, r, hd, a, step0, log):
+def train(net, opt, z, r, hd, a, step0, log, comp=None, sigma=None):
+    """The step loop; with ``a.k_max`` (``comp`` ``(K_max, P)``, ``sigma`` ``(K_max,)``:
+    ``r`` then holds the mapped tables less the mean) each row of a step draws its size
+    ``K`` in ``1 .. k_max`` and its target is the residual of its leading ``K``."""
     g = torch.Generator().manual_seed(a.seed * 1_000_003 + step0)
     zt, n, p = torch.as_tensor(z), z.shape[0], r.shape[1]
     for step in range(step0, a.steps):
@@ -181,6 +206,12 @@ def train(net, opt, z, r, hd, a, step0, log):
             zb = (1 - t[:, None]) * zb + t[:, None] * zt[other]
             to = torch.as_tensor(r[other.numpy()[:, None], cells.numpy()], dtype=torch.float32)
             tb = (1 - t[:, None]) * tb + t[:, None] * to
+        if a.k_max:
+            ks = torch.randint(1, a.k_max + 1, (a.batch,), generator=g)
+            mask = (torch.arange(a.k_max)[None, :] < ks[:, None]).float()  # (B, K_max)
+            zb = zb * mask
+            tb = tb - torch.einsum("bk,kbc->bc", zb * sigma, comp[:, cells])
+            zb = torch.cat([zb, mask], dim=1)
         pred = net(zb, hd[cells])
         loss = ((pred - tb) ** 2).mean()
         opt.zero_grad()
@@ -208,10 +239,10 @@ def score(net, part, full, hd, names, folder, a):
         comp = part.components.astype(np.float64)
         c = part.project(table)
         rows = {"basis": b - comp.T @ c}
-        rows["basis+residual"] = rows["basis"] - correction(net, part, hd, c)
+        rows["basis+residual"] = rows["basis"] - correction(net, part, hd, c, k_max=a.k_max)
         if a.fit_steps:
-            cf = fit_through(net, part, hd, b, c, a.fit_steps)
-            rows["basis+residual, fitted"] = b - comp.T @ cf - correction(net, part, hd, cf)
+            cf = fit_through(net, part, hd, b, c, a.fit_steps, k_max=a.k_max)
+            rows["basis+residual, fitted"] = b - comp.T @ cf - correction(net, part, hd, cf, k_max=a.k_max)
         tables = {k: unmap(part, b - err + part.mean[:, None]) for k, err in rows.items()}
         rmse = {k: float(np.sqrt(np.mean(err ** 2))) for k, err in rows.items()}
         if full is not None:
@@ -239,7 +270,7 @@ def rendered(table, tables, resolution):
     """``{row: {scene: PSNR}}`` and ``{row: {scene: Delta E}}`` folded into one dict
     (``scene`` and ``scene:delta_e``) from the renderer the bench uses, at ``resolution``."""
     from brdfkit.evaluation.metrics import score as score_images
-    from brdfkit.render.file_render import reference_scene
+    from brdfkit.render.scene import reference_scene
     from brdfkit.render.quadrature import render_many
     from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.scene_suite import SUITE, scene_env
@@ -301,7 +332,10 @@ def main(argv=None):
     ap.add_argument("--train-list", required=True)
     ap.add_argument("--test-list", required=True)
     ap.add_argument("--sets", nargs="*", default=[], help="NAME=FOLDER: every table of FOLDER scored too")
-    ap.add_argument("-k", type=int, default=3)
+    ap.add_argument("-k", type=int, default=3, help="the size K scored (and trained, without --k-max)")
+    ap.add_argument("--k-max", type=int, default=0,
+                    help="one network of every size: each row of a step draws K in 1 .. K_MAX")
+    ap.add_argument("--score-k", type=int, nargs="*", default=None, help="with --k-max: the sizes scored")
     ap.add_argument("--steps", type=int, default=6000)
     ap.add_argument("--batch", type=int, default=24)
     ap.add_argument("--cells", type=int, default=4096)
@@ -332,20 +366,21 @@ def main(argv=None):
         logf.flush()
 
     torch.manual_seed(a.seed)
-    part = load_basis(a.basis).leading(a.k)
+    whole_basis = load_basis(a.basis)
+    part = whole_basis.leading(a.k_max or a.k)
     train_names = _names(a.train_list)
     train_paths = [os.path.join(a.proxies, n + ".binary") for n in train_names]
     full = None
-    if not a.no_full:
+    if not a.no_full and not a.k_max:
         full_path = os.path.join(a.output, f"full-pca-{a.k}.safetensors")
         if not os.path.exists(full_path):
             save_basis(full_path, fit_basis(train_paths, a.k, names=train_names))
         full = load_basis(full_path)
     t = time.perf_counter()
-    z, r = training_pairs(part, train_paths)
+    z, r = training_pairs(part, train_paths, whole=bool(a.k_max))
     log(f"{len(train_paths)} tables, {r.shape[1]} cells, pairs in {time.perf_counter() - t:.0f} s")
     hd = torch.as_tensor(np.ascontiguousarray(grid_hd()[part.cells]))
-    net = Residual(a.k, a.width)
+    net = Residual(2 * a.k_max if a.k_max else a.k, a.width)
     opt = torch.optim.Adam(net.parameters(), lr=a.lr)
     ckpt, step0 = os.path.join(a.output, "checkpoint.pt"), 0
     if a.resume and os.path.exists(ckpt):
@@ -356,24 +391,44 @@ def main(argv=None):
         log(f"resumed at step {step0}")
     tests = _names(a.test_list)
     t = time.perf_counter()
-    for step in train(net, opt, z, r, hd, a, step0, log):
+    comp = torch.as_tensor(part.components) if a.k_max else None
+    sig = torch.as_tensor(part.sigma) if a.k_max else None
+    for step in train(net, opt, z, r, hd, a, step0, log, comp, sig):
         torch.save({"net": net.state_dict(), "opt": opt.state_dict(), "step": step}, ckpt + ".tmp")
         os.replace(ckpt + ".tmp", ckpt)
         log(f"checkpoint at step {step}, {time.perf_counter() - t:.0f} s")
     net.eval()
+    del z, r
+    if a.k_max:  # score each size as its own run would, into result-kK.json
+        import copy
+        for k in a.score_k or [a.k]:
+            b = copy.copy(a)
+            b.k = k
+            if not a.no_full:
+                full_path = os.path.join(a.output, f"full-pca-{k}.safetensors")
+                if not os.path.exists(full_path):
+                    save_basis(full_path, fit_basis(train_paths, k, names=train_names))
+                b.full = load_basis(full_path)
+            write_result(net, whole_basis.leading(k), getattr(b, "full", None), hd, tests, b, log,
+                         f"result-k{k}.json")
+        return
+    write_result(net, part, full, hd, tests, a, log, "result.json")
+
+
+def write_result(net, part, full, hd, tests, a, log, name):
     result = {"basis": os.path.basename(a.basis), "k": a.k, "steps": a.steps, "args": {k: v for k, v in vars(a).items()
-              if k not in ("proxies", "train_list", "test_list", "output", "basis", "sets")}, "sets": {}}
+              if k not in ("proxies", "train_list", "test_list", "output", "basis", "sets", "full")}, "sets": {}}
     sets = [("merl-test", a.proxies, tests)] + [
         (s.split("=")[0], s.split("=")[1], sorted(f[:-7] for f in os.listdir(s.split("=")[1]) if f.endswith(".binary")))
         for s in a.sets]
-    for name, folder, names in sets:
+    for set_name, folder, names in sets:
         recs = score(net, part, full, hd, names[::a.every], folder, a)
-        result["sets"][name] = {"records": recs, "summary": summarise(recs)}
-        for k, v in result["sets"][name]["summary"].items():
-            log(f"{name} {k}: suite {v['suite']:.2f} | " + " ".join(f"{s} {p:.2f}" for s, p in v["scenes"].items()))
-    with open(os.path.join(a.output, "result.json.tmp"), "w", encoding="utf-8") as f:
+        result["sets"][set_name] = {"records": recs, "summary": summarise(recs)}
+        for k, v in result["sets"][set_name]["summary"].items():
+            log(f"{set_name} {k}: suite {v['suite']:.2f} | " + " ".join(f"{s} {p:.2f}" for s, p in v["scenes"].items()))
+    with open(os.path.join(a.output, name + ".tmp"), "w", encoding="utf-8") as f:
         json.dump(result, f, indent=1)
-    os.replace(os.path.join(a.output, "result.json.tmp"), os.path.join(a.output, "result.json"))
+    os.replace(os.path.join(a.output, name + ".tmp"), os.path.join(a.output, name))
 
 
 if __name__ == "__main__":

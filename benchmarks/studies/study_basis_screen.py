@@ -1,4 +1,10 @@
-"""Issue 29: PCA coefficients refined on the objective scenes, judged in the suite.
+"""Decided: a basis embedding (today's default ``encode``) refines the projection's
+coefficients for at most 80 steps on the objective scenes ``studio-0..3`` with a trust term
+weighted 0.01, which keeps the backlit scene that a refinement on renders alone gives up
+(2 to 2.8 dB). Reported in ``docs/notes/compression.md``, "Basis embeddings: today's default
+`encode` (issue 29)", "How it was chosen: levers measured on training materials".
+
+Issue 29: PCA coefficients refined on the objective scenes, judged in the suite.
 
 For each material: the least-squares projection onto a basis's ``K`` leading components
 (the PCA-K of ``brdfkit bench``), then :func:`brdfkit.basis.refine_on_screen.refine_coefficients`

@@ -1,4 +1,11 @@
-"""What each part of a shipped basis's storage costs, measured apart, in the scene suite.
+"""Decided: int8 and float16 storage cost nothing (at most 0.01 dB); the mapping's grazing
+floor is what does not travel (+0.56 dB on unseen MERL, -2.96 dB on RGL at 39 numbers), and
+every other ``phi_d`` cell costs the backlit rim without it, so the storage since keeps the
+odd ``phi_d`` cells near the horizon (``brdfkit.basis.storage``). Reported in
+``docs/notes/compression.md``, "Where a shipped basis loses (2026-11-27, 128 px, the six
+judged scenes)".
+
+What each part of a shipped basis's storage costs, measured apart, in the scene suite.
 
 A shipped basis differs from a full-precision PCA (``brdfkit fit --method ipca``, float32
 components of a float64 decomposition, Nielsen's mapping) in four ways: the mapping's
@@ -98,7 +105,7 @@ def score_material(table, bases, ks, scenes, resolution, device):
     projections, rendered in ``scenes``."""
     from brdfkit.evaluation.comparison import mean_scores
     from brdfkit.evaluation.metrics import brdf_log_rmse, score
-    from brdfkit.render.file_render import reference_scene
+    from brdfkit.render.scene import reference_scene
     from brdfkit.render.quadrature import render_many
     from brdfkit.render.renderable import TableBRDF
     from brdfkit.render.scene_suite import scene_env

@@ -1,4 +1,12 @@
-"""Does test-time refinement make the paper's hypernetwork generalise? (issue 12)
+"""Decided: test-time refinement (the latent, then the hyponet's weights) became the default of
+``--method hypernet`` (``--no-refine``: the paper's one pass), but the learnt prior stays
+``brdfkit sparse``'s default at every N, since the refined hypernetwork renders worse; no
+change to the hypernetwork's training (Lever 5) beat the paper's recipe. Reported in
+``docs/notes/generalisation.md``, "Lever 4: test-time refinement of the paper's
+hypernetwork" and "Lever 5: the hypernetwork's regularisation, size, pooling and training
+data".
+
+Does test-time refinement make the paper's hypernetwork generalise? (issue 12)
 
 Scores, on the 16 validation materials (``benchmarks/validation.txt``; the 20 test
 materials are never loaded), BRDF log RMSE and optionally the reference-scene render

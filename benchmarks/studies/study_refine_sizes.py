@@ -1,4 +1,10 @@
-"""How much the refinement on renders adds to a basis embedding at each size, for given
+"""Decided: the refinement's default settings stay (80 steps, trust 0.01, ``studio-0..3``): at
+9, 21 and 39 numbers they add 0.5 to 1 dB to the projection in the mean and take from one
+scene, and no setting tried adds 1 dB in every scene. Reported in
+``docs/notes/compression.md``, "What the refinement adds at each size (training materials,
+32 px)".
+
+How much the refinement on renders adds to a basis embedding at each size, for given
 settings, judged quickly: the projection and each setting's refined coefficients, rendered
 in the six judged scenes at the render-aligned error's 32 px (:mod:`brdfkit.render.screen`;
 none of them is an objective scene the refinement descends).

@@ -1,4 +1,11 @@
-"""Study: the hypernetwork as a residual over the closed-form basis fit (issue 12).
+"""Decided: a hyponet that predicts a residual function over the basis fit learns nothing that
+carries over, while a network that gives the prior mean of the basis coefficients (``--coef
+--align --prior --mixup 0.5``) beat IPCA on the validation materials at N = 40, 400 and
+4000; it became the learnt prior, ``--method prior``, the default of ``brdfkit sparse``.
+Reported in ``docs/notes/generalisation.md``, "Lever 2: a network on top of the basis fit"
+and "The method as shipped".
+
+Study: the hypernetwork as a residual over the closed-form basis fit (issue 12).
 
 The model contains the linear basis as a special case: a material's samples are first
 fitted by the 8-component PCA basis in closed form (:func:`study_pca.gauss_newton`: IPCA's
@@ -40,7 +47,7 @@ from study_pca import gauss_newton, sample_rows
 
 def basis_at_cells(model, cells):
     """``(P, K + 2)`` float32 ``[reference, mean, components]`` of an IPCA model at ``cells``."""
-    return np.ascontiguousarray(model._table()[cells], dtype=np.float32)
+    return np.ascontiguousarray(model.lookup_table()[cells], dtype=np.float32)
 
 
 def gn_batch(tab, rho, w, cos, sigma, s2, lam, mu=None):

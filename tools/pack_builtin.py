@@ -1,22 +1,28 @@
 """Pack trained models into the package's built-in folder and write its manifest.
 
-The models are trained by the ``brdfkit fit`` commands listed in ``docs/models.md``
-(recorded again in each manifest entry); this script only re-saves them for shipping:
-hypernetworks in float16 with one shared reference file (they were all trained against
-the reference of ``merl80-l40``, ``-O reference=``), learnt priors each with the basis
-file it was trained on (``merl80-basis`` fitted on the 80 training materials of
-``merl80-l40``, ``merl-rgl-basis`` on all 151). Validation figures come from
+A built-in is a *bundle* of parts (``network``, ``basis``, ``prior``, ``residual``;
+:mod:`brdfkit.models.builtin`), listed in a version 2 manifest with each part's file and
+digest. The parts are trained by the ``brdfkit fit`` commands listed in
+``docs/models.md`` (recorded again in each manifest entry); this script only re-saves
+them for shipping (:data:`PACKERS`, one packer a part): hypernetworks in float16 with one
+shared reference file (they were all trained against the reference of ``merl80-l40``,
+``-O reference=``), learnt priors each with the basis file it was trained on
+(``merl80-basis`` fitted on the 80 training materials of ``merl80-l40``,
+``merl-rgl-basis`` on all 151), bases copied as they are. Validation figures come from
 ``benchmarks/eval_sparse.py --json`` or ``brdfkit bench``'s ``bench.json``: the learnt
 prior's mean log RMSE per N from uniform samples (held-out materials only), and the
 renders' figures (``renders``: PSNR and Delta E per N, and ``encode`` from a compression
 run of the model), as ``brdfkit models`` shows them.
 
-    python benchmarks/pack_builtin.py --src runs/models --dst brdfkit/models \
+    python tools/pack_builtin.py --src runs/models --dst brdfkit/models \
         --validation merl80-l40=bench-sparse/bench.json
-    python benchmarks/pack_builtin.py --dst brdfkit/models --validation-only \
+    python tools/pack_builtin.py --dst brdfkit/models --validation-only \
         --validation merl80-l40=bench-sparse/bench.json     # the manifest's figures alone
-    python benchmarks/pack_builtin.py --src runs/models --dst brdfkit/models --priors-only
+    python tools/pack_builtin.py --src runs/models --dst brdfkit/models --priors-only
                                                             # new bases and learnt priors, the hypernetworks kept
+
+A manifest of version 1 in ``--dst`` (``--validation-only``, ``--priors-only``) is
+rewritten as version 2.
 """
 
 from __future__ import annotations
@@ -28,7 +34,7 @@ import shutil
 
 _PAPER = ("brdfkit fit PROXIES/merl PROXIES/rgl {latent}-O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
           "-o {name}-paper.safetensors")
-_BASIS = ("brdfkit fit --method ipca {data} --components 30 -O half=true -O phi_stride=2 -O int8=true -O w_floor=0.005 "
+_BASIS = ("brdfkit fit --method basis {data} --components 30 -O half=true -O phi_stride=2 -O int8=true -O w_floor=0.005 "
           "-o {basis}")
 _PRIOR = ("brdfkit fit --method prior {data} -O basis={basis} -O weight=energy -O s2=0.03 "
           "--steps 3000 --seed 0 -o {name}.safetensors")
@@ -46,22 +52,88 @@ def _tuned(name, ends):
                      f"--steps {end}" + (" --resume" if i else "") + _STAGES[i] for i, end in enumerate(ends))
 
 
-MODELS = [  # name, hypernetwork file, learnt-prior file, its basis file, materials list, fit commands
-    ("merl-rgl-l40", "merl-rgl-l40.safetensors", "merl-rgl-prior.safetensors", "merl-rgl-basis.safetensors",
+MODELS = [  # name, {part: file} (the network first), materials list, fit commands
+    ("merl-rgl-l40", {"network": "merl-rgl-l40.safetensors", "basis": "merl-rgl-basis.safetensors",
+                      "prior": "merl-rgl-prior.safetensors"},
      "MERL + RGL (151)",
      _PAPER.format(name="merl-rgl-l40", latent="") + "; " + _tuned("merl-rgl-l40", (8965, 13633, 19735, 27242))
      + "; " + _BASIS.format(data=_ALL, basis="merl-rgl-basis.safetensors")
      + "; " + _PRIOR.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-prior")),
-    ("merl80-l40", "merl80-l40.safetensors", "merl80-prior.safetensors", "merl80-basis.safetensors",
+    ("merl80-l40", {"network": "merl80-l40.safetensors", "basis": "merl80-basis.safetensors",
+                    "prior": "merl80-prior.safetensors"},
      "MERL less merl-test.txt (80)",
      "brdfkit fit PROXIES/merl --exclude-list merl-test.txt --minutes 14 --seed 0 -o merl80-l40.safetensors; "
      + _BASIS.format(data=_MERL80, basis="merl80-basis.safetensors") + "; "
      + _PRIOR.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-prior")),
-    ("merl-rgl-l7", "merl-rgl-l7.safetensors", None, None, "MERL + RGL (151)",
+    ("merl-rgl-l7", {"network": "merl-rgl-l7.safetensors"}, "MERL + RGL (151)",
      _PAPER.format(name="merl-rgl-l7", latent="--latent-dim 7 ") + "; " + _tuned("merl-rgl-l7", (9710, 14495, 20283))),
 ]
 REFERENCE = "merl80-reference.safetensors"
-BASES = sorted({m[3] for m in MODELS if m[3]})
+BASES = sorted({m[1]["basis"] for m in MODELS if "basis" in m[1]})
+
+
+def _pack_network(src, dst, parts):
+    from brdfkit.hypernet.packing import pack_network
+
+    return pack_network(src, dst, half=True, reference_file=REFERENCE)
+
+
+def _pack_basis(src, dst, parts):
+    from brdfkit.io.digest import file_digest
+
+    if os.path.abspath(src) != os.path.abspath(dst):
+        shutil.copyfile(src, dst)
+    return file_digest(dst)
+
+
+def _pack_prior(src, dst, parts):
+    from brdfkit.prior.prior_file import basis_entry, pack_prior
+
+    digest = pack_prior(src, dst, parts["basis"])
+    basis = basis_entry(dst).get("basis")
+    if basis is not None and basis["file"] != parts["basis"]:
+        raise SystemExit(f"{dst}: its basis is {basis['file']}, the bundle's {parts['basis']}")
+    return digest
+
+
+PACKERS = {"network": _pack_network, "basis": _pack_basis, "prior": _pack_prior}
+"""How each part is packed: ``packer(src, dst, parts) -> digest`` (``parts``: the bundle's
+``{part: file}``), in this order (a prior names the basis packed before it). A new part
+(``residual``) is one more entry."""
+
+
+def _pack_parts(args, parts: dict, only=None) -> dict:
+    """Pack the ``parts`` of a bundle (``{part: file}``; ``only``: those part names
+    alone) from ``args.src`` into ``args.dst``; returns the manifest's ``parts``
+    (``{part: {"file", "digest"}}``) of those packed."""
+    missing = sorted(set(parts) - set(PACKERS))
+    if missing:
+        raise SystemExit(f"no packer for the part(s) {', '.join(missing)}: add them to PACKERS")
+    out = {}
+    for part in PACKERS:
+        if part in parts and (only is None or part in only):
+            file = parts[part]
+            out[part] = {"file": file, "digest": PACKERS[part](os.path.join(args.src, file),
+                                                               os.path.join(args.dst, file), parts)}
+    return out
+
+
+def _entries(doc: dict) -> list:
+    """The entries of a manifest document as version 2 writes them (a version 1
+    document's ``file`` / ``fingerprint``, ``prior`` / ``prior_fingerprint`` and
+    ``basis`` / ``basis_fingerprint`` moved into ``parts``)."""
+    if doc.get("version") != 1:
+        return doc["bundles"]
+    entries = []
+    for e in doc["models"]:
+        e = dict(e)
+        parts = {"network": {"file": e.pop("file"), "digest": e.pop("fingerprint")}}
+        for key in ("basis", "prior"):
+            file, digest = e.pop(key, None), e.pop(f"{key}_fingerprint", None)
+            if file is not None:
+                parts[key] = {"file": file, "digest": digest}
+        entries.append({"name": e.pop("name"), "parts": parts, **e})
+    return entries
 
 
 def _tune_record(path):
@@ -110,9 +182,8 @@ def main():
     if not args.validation_only and not args.src:
         ap.error("--src is required (unless --validation-only)")
 
-    from brdfkit.methods.prior.prior_file import basis_entry, pack_prior
     from brdfkit.models.builtin import write_manifest
-    from brdfkit.hypernet.packing import manifest_entry, pack_model
+    from brdfkit.hypernet.packing import manifest_entry
 
     validation, renders = {}, {}
     for item in args.validation:
@@ -140,41 +211,39 @@ def main():
                 doc = json.load(f)
         except (OSError, ValueError) as e:
             ap.error(f"--dst {args.dst}: no readable manifest.json ({e})")
-        for entry in doc["models"]:
+        entries = _entries(doc)
+        for entry in entries:
             if entry["name"] in validation:
                 entry["validation"] = validation[entry["name"]]
             if entry["name"] in renders:
                 entry["renders"] = renders[entry["name"]]
-        write_manifest(args.dst, doc["models"], default=doc["default"])
+        write_manifest(args.dst, entries, default=doc["default"])
         print(f"set the validation of {', '.join(sorted(validation)) or 'no model'} in {args.dst}/manifest.json")
         return
     if args.priors_only:
-        return _priors_only(args, write_manifest, pack_prior, basis_entry)
+        return _priors_only(args, write_manifest)
     os.makedirs(args.dst, exist_ok=True)
     for stale in (REFERENCE, *BASES):
         if os.path.exists(os.path.join(args.dst, stale)):
             os.remove(os.path.join(args.dst, stale))
-    for basis in BASES:
-        shutil.copyfile(os.path.join(args.src, basis), os.path.join(args.dst, basis))
     entries = []
     # merl80-l40 first: its reference is the one the others were trained against.
-    for name, hyper, prior, basis, mats, command in sorted(MODELS, key=lambda m: m[0] != "merl80-l40"):
-        dst = os.path.join(args.dst, hyper)
-        pack_model(os.path.join(args.src, hyper), dst, half=True, reference_file=REFERENCE)
+    for name, parts, mats, command in sorted(MODELS, key=lambda m: m[0] != "merl80-l40"):
+        packed = _pack_parts(args, parts)
+        dst = os.path.join(args.dst, parts["network"])
         entry = manifest_entry(dst, name, command=command, validation=validation.get(name, {}),
                                materials_list=mats)
+        entry["parts"].update(packed)
         if name in renders:
             entry["renders"] = renders[name]
         tuned = _tune_record(dst)
         if tuned:  # the manifest counts the paper's steps and the screen tuning's together
             entry["steps"] += int(tuned["steps"])
             entry["train_seconds"] = round(entry["train_seconds"] + float(tuned["wall_time_s"]), 1)
-        if prior:
-            entry["prior"] = prior
-            entry["prior_fingerprint"] = pack_prior(os.path.join(args.src, prior), os.path.join(args.dst, prior), basis)
-            entry.update(basis_entry(os.path.join(args.dst, prior)))
         entries.append(entry)
-        print(f"{name}: {os.path.getsize(dst) / 1e6:.2f} MB" + (f" + prior {os.path.getsize(os.path.join(args.dst, prior)) / 1e6:.2f} MB" if prior else ""))
+        sizes = [f"{part} {os.path.getsize(os.path.join(args.dst, p['file'])) / 1e6:.2f} MB"
+                 for part, p in entry["parts"].items()]
+        print(f"{name}: {' + '.join(sizes)}")
     order = [m[0] for m in MODELS]
     entries.sort(key=lambda e: order.index(e["name"]))
     write_manifest(args.dst, entries, default="merl-rgl-l40")
@@ -182,24 +251,22 @@ def main():
     print(f"built-in folder {args.dst}: {total / 1e6:.1f} MB of model files")
 
 
-def _priors_only(args, write_manifest, pack_prior, basis_entry) -> None:
+def _priors_only(args, write_manifest) -> None:
     """Replace the bases and learnt priors of ``args.dst`` by those of ``args.src``; the
-    hypernetwork entries stay, their commands updated for the new basis and prior."""
+    other parts stay, the entries' commands updated for the new basis and prior."""
     with open(os.path.join(args.dst, "manifest.json")) as f:
         doc = json.load(f)
-    for basis in BASES:
-        shutil.copyfile(os.path.join(args.src, basis), os.path.join(args.dst, basis))
+    entries = _entries(doc)
     by_name = {m[0]: m for m in MODELS}
-    for entry in doc["models"]:
-        _, _, prior, basis, _, command = by_name[entry["name"]]
+    for entry in entries:
+        _, parts, _, command = by_name[entry["name"]]
         entry["command"] = command
-        if prior:
-            entry["prior"] = prior
-            entry["prior_fingerprint"] = pack_prior(os.path.join(args.src, prior), os.path.join(args.dst, prior), basis)
-            entry.update(basis_entry(os.path.join(args.dst, prior)))
+        packed = _pack_parts(args, parts, only=("basis", "prior"))
+        if packed:
+            entry["parts"].update(packed)
             entry.pop("renders", None)  # measured with the old basis
             entry["validation"] = {}
-    write_manifest(args.dst, doc["models"], default=doc["default"])
+    write_manifest(args.dst, entries, default=doc["default"])
     total = sum(os.path.getsize(os.path.join(args.dst, f)) for f in os.listdir(args.dst) if f.endswith(".safetensors"))
     print(f"built-in folder {args.dst}: {total / 1e6:.1f} MB of model files")
 

@@ -1,5 +1,9 @@
 #!/usr/bin/env python3
-"""How the baselines' fixed settings were chosen, on training materials only.
+"""Decided: IPCA's ridge weight ``lam = 0.1`` (``DEFAULT_LAMBDA``) and NBRDF's learning rate
+1e-3 (``DEFAULT_LR``), both chosen on training materials only. Reported in
+``docs/notes/baselines.md``, "IPCA's ridge weight" and "NBRDF's learning rate".
+
+How the baselines' fixed settings were chosen, on training materials only.
 
 ``lambda``: the ridge weight of ``ipca``. The 80 training materials (all tables in
 ``--data`` not named in ``--test-list``) are split: every 4th (sorted by name) is a
@@ -13,8 +17,8 @@ most 6000 steps, patience 400; prints error, steps and seconds per (N, lr).
 
 Example (the figures in docs/baselines.md)::
 
-    python benchmarks/baselines_tune.py lambda --data proxies/merl --test-list ../shared/data/merl-test.txt
-    python benchmarks/baselines_tune.py nbrdf-lr --data proxies/merl --test-list ../shared/data/merl-test.txt
+    python benchmarks/studies/baselines_tune.py lambda --data proxies/merl --test-list ../shared/data/merl-test.txt
+    python benchmarks/studies/baselines_tune.py nbrdf-lr --data proxies/merl --test-list ../shared/data/merl-test.txt
 
 (``proxies/merl``: the reference proxies, made by
 ``python ../shared/tools/nbrdf_to_merl.py merl proxies/merl``; ``docs/data.md``.)
