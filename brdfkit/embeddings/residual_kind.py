@@ -1,0 +1,40 @@
+"""The ``residual`` embedding kind: a basis embedding's coefficients plus the weight of a
+hypernetwork residual's correction, refined on renders and chosen per material
+(:mod:`brdfkit.residual`)."""
+
+from __future__ import annotations
+
+from brdfkit.embeddings.kind import EmbeddingKind
+
+__all__ = ["KIND"]
+
+
+def _load(path, device):
+    from brdfkit.io.digest import cached_file_digest
+    from brdfkit.residual.residual_file import load_residual
+
+    return load_residual(path), cached_file_digest(path)
+
+
+def _default_size(residual):
+    from brdfkit.basis.coefficients import DEFAULT_SIZE
+
+    sizes = residual.sizes()
+    return DEFAULT_SIZE if DEFAULT_SIZE in sizes else sizes[-1]
+
+
+def _encode(residual, digest, table, *, source, size, steps, refine, max_seconds=None):
+    from brdfkit.residual.encoding import encode_residual
+
+    return encode_residual(residual, table, digest=digest, size=size, source=source, steps=steps if refine else 0)
+
+
+def _open(residual, digest, emb, name, device):
+    from brdfkit.residual.brdf import ResidualBRDF, check_embedding
+
+    c, gain = check_embedding(emb, residual, digest, name)
+    return ResidualBRDF(residual, c, gain, name=name or "embedding", device=device)
+
+
+KIND = EmbeddingKind("residual", "coefficients of a PCA basis plus a hypernetwork's correction, chosen per material "
+                     "(3 numbers a component)", "residual", _load, lambda r: r.sizes(), _default_size, _encode, _open)

@@ -1,0 +1,116 @@
+"""A PCA basis plus a hypernetwork residual: :class:`BasisResidual`.
+
+A material of ``K`` coefficients per channel ``c`` decodes, channel by channel, to the
+mapped table (:mod:`brdfkit.basis.mapping`)::
+
+    x'(cell) = mean + U_K c + g f(HD(cell); W(c / sigma))
+
+the basis's closed form plus ``g`` times the correction of the network that serves ``K``
+components (:mod:`brdfkit.residual.network`),
+``g`` the embedding's ``correction`` option (1: the correction the encoder chose; 0: the
+basis alone; a blend of two materials blends it). Channels are separate observations, as
+they are to the basis. Decoding is NumPy only.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+
+import numpy as np
+
+from brdfkit.errors import InputError
+from brdfkit.residual.network import evaluate, hyponet_weights, net_input
+
+__all__ = ["BasisResidual"]
+
+
+@functools.lru_cache(maxsize=2)
+def _cell_hd(cells_key: bytes, n: int) -> np.ndarray:
+    from brdfkit.geometry import grid_hd
+
+    cells = np.frombuffer(cells_key, dtype=np.int64, count=n)
+    return np.ascontiguousarray(grid_hd()[cells])
+
+
+@dataclasses.dataclass
+class BasisResidual:
+    """A basis and the residual network that corrects it.
+
+    Attributes
+    ----------
+    basis
+        :class:`~brdfkit.basis.model.PcaBasis` (all its components).
+    basis_digest
+        SHA-256 of the basis file (what the residual was trained on).
+    nets
+        ``[(ResidualConfig, state)]``: the networks, each serving the component counts of
+        its config (one a size, the shipped way: ``docs/notes/compression.md``), its
+        tensors by name as float32 NumPy arrays.
+    offered
+        The sizes (numbers per material, ``3 K``) ``encode`` offers it at: where it won
+        on held-out materials (the file records them); the rest of ``cfg``'s range still
+        decodes.
+    meta
+        The training record (materials, steps, seed, command).
+    """
+
+    basis: object
+    basis_digest: str
+    nets: list
+    offered: tuple = ()
+    meta: dict = dataclasses.field(default_factory=dict)
+
+    @property
+    def components(self) -> tuple:
+        """The numbers of components it decodes, ascending (its networks', within the basis's)."""
+        return tuple(sorted({k for cfg, _ in self.nets for k in range(cfg.k_min, cfg.k_max + 1)
+                             if k <= self.basis.n_components}))
+
+    def sizes(self) -> tuple:
+        """Sizes ``encode`` offers (ascending): ``3 K`` for each ``K`` it decodes, less those
+        its file does not offer."""
+        served = tuple(3 * k for k in self.components)
+        return tuple(s for s in served if s in self.offered) if self.offered else served
+
+    def check_k(self, k: int) -> None:
+        if k not in self.components:
+            shown = ", ".join(str(3 * c) for c in self.components)
+            raise InputError(f"this basis residual decodes embeddings of {shown} numbers, not {3 * k}")
+
+    def net_for(self, k: int) -> tuple:
+        """``(index, cfg, state)`` of the network that serves ``k`` components (the
+        narrowest when several do)."""
+        self.check_k(k)
+        found = [(cfg.k_max - cfg.k_min, i) for i, (cfg, _) in enumerate(self.nets) if cfg.k_min <= k <= cfg.k_max]
+        i = min(found)[1]
+        return (i, *self.nets[i])
+
+    def cell_hd(self) -> np.ndarray:
+        """float32 ``(P, 6)`` HD vectors of the basis's cells (cached)."""
+        cells = np.ascontiguousarray(self.basis.cells, dtype=np.int64)
+        return _cell_hd(cells.tobytes(), cells.size)
+
+    def correction(self, coefficients: np.ndarray, hd: np.ndarray | None = None) -> np.ndarray:
+        """The mapped correction ``(N, 3)`` float32 of coefficients ``(K, 3)`` at HD
+        vectors ``hd (N, 6)`` (default: every cell of the basis)."""
+        c = np.asarray(coefficients, np.float64)
+        _, cfg, state = self.net_for(c.shape[0])
+        z = net_input((c / self.basis.sigma[:c.shape[0], None].astype(np.float64)).T, cfg.k_max)
+        hd = self.cell_hd() if hd is None else hd
+        weights = hyponet_weights(state, cfg, z)
+        return np.stack([evaluate(weights, hd, ch) for ch in range(3)], axis=1)
+
+    def mapped(self, coefficients: np.ndarray, gain: float = 1.0) -> np.ndarray:
+        """Mapped values ``(P, 3)`` at the basis's cells, the mean included."""
+        c = np.asarray(coefficients, np.float32)
+        part = self.basis.leading(c.shape[0])
+        out = part.mean[:, None] + part.components.T @ c
+        if gain:
+            out = out + np.float32(gain) * self.correction(c)
+        return out
+
+    def decode(self, coefficients: np.ndarray, gain: float = 1.0) -> np.ndarray:
+        """Dense table float64 ``(90, 90, 180, 3)``, 1/sr, ``> 0``, NaN off the basis's
+        cells."""
+        return self.basis.decode_mapped(self.mapped(coefficients, gain))

@@ -1,0 +1,170 @@
+"""The residual's hypernetwork: a basis embedding's coefficients in, a small hyponet's
+weights out (the paper's idea, Gokbudak et al. 2024, conditioned on the basis's
+coefficients instead of a learnt latent).
+
+For one colour channel of a material, the input is its ``K`` coefficients in training
+standard deviations (``c_k / sigma_k``), padded with zeros to ``k_max`` and followed by a
+mask of ``K`` ones (so one network serves every size ``K <= k_max``):
+``z = [c_1/s_1 ... c_K/s_K, 0 ... 0, 1 ... 1, 0 ... 0]``, ``2 k_max`` numbers. A body
+``2 k_max -> hidden -> hidden`` (ReLU) and a linear head give the change of the hyponet's
+weights from a learnt base; the hyponet ``6 -> width -> width -> 1`` (ReLU) maps a cell's
+Rusinkiewicz HD vector (:func:`brdfkit.geometry.hd_vectors`) to the correction of that
+channel's mapped value. The head's rows of the last layer start at zero and so does the
+last layer's base: an untrained network corrects nothing, and the model *is* the basis.
+
+:class:`ResidualNet` is the torch module that training fits; :func:`hyponet_weights` and
+:func:`evaluate` are the same forward pass in NumPy, which ``decode``, ``render`` and
+``metrics`` use so that they load no torch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+
+import numpy as np
+
+__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "net_input", "hyponet_weights", "evaluate"]
+
+
+@dataclasses.dataclass(frozen=True)
+class ResidualConfig:
+    """The network's shape.
+
+    Attributes
+    ----------
+    k_min, k_max
+        The numbers of components ``K`` it serves (embeddings of ``3 k_min`` to
+        ``3 k_max`` numbers); its input has ``2 k_max`` numbers.
+    width
+        The hyponet's hidden width.
+    hidden
+        The hypernetwork body's width.
+    """
+
+    k_min: int = 1
+    k_max: int = 30
+    width: int = 32
+    hidden: int = 64
+
+    def __post_init__(self):
+        for name in ("k_min", "k_max", "width", "hidden"):
+            v = getattr(self, name)
+            if isinstance(v, bool) or not isinstance(v, int) or v < 1:
+                raise ValueError(f"residual config: {name} must be a positive whole number, not {v!r}")
+        if self.k_min > self.k_max:
+            raise ValueError(f"residual config: k_min {self.k_min} > k_max {self.k_max}")
+
+    def to_json(self) -> str:
+        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+
+    @classmethod
+    def from_json(cls, text: str) -> "ResidualConfig":
+        d = json.loads(text)
+        if not isinstance(d, dict) or set(d) - {f.name for f in dataclasses.fields(cls)}:
+            raise ValueError(f"not a residual config: {text[:80]!r}")
+        return cls(**d)
+
+
+def hyponet_shapes(width: int) -> list:
+    """The hyponet's tensors in order: ``w1 (6, W), b1 (W,), w2 (W, W), b2 (W,), w3 (W, 1),
+    b3 (1,)``."""
+    return [(6, width), (width,), (width, width), (width,), (width, 1), (1,)]
+
+
+def net_input(c_norm: np.ndarray, k_max: int) -> np.ndarray:
+    """The input ``(B, 2 k_max)`` float32 of coefficients in training standard deviations
+    ``(B, K)``: padded to ``k_max``, the mask of the ``K`` given after them.
+
+    Examples
+    --------
+    >>> net_input(np.array([[1.0, 2.0]]), 3).tolist()
+    [[1.0, 2.0, 0.0, 1.0, 1.0, 0.0]]
+    """
+    c_norm = np.asarray(c_norm, np.float32)
+    b, k = c_norm.shape
+    z = np.zeros((b, 2 * k_max), np.float32)
+    z[:, :k] = c_norm
+    z[:, k_max:k_max + k] = 1.0
+    return z
+
+
+def _relu(x):
+    return np.maximum(x, 0.0, out=x)
+
+
+def hyponet_weights(state: dict, cfg: ResidualConfig, z: np.ndarray) -> list:
+    """The hyponet's tensors (:func:`hyponet_shapes`, each with a leading ``B``) for inputs
+    ``z (B, 2 k_max)``, from a state dict of NumPy arrays (:class:`ResidualNet`'s names):
+    the same numbers as the torch module's, in float32."""
+    h = _relu(z @ state["body.0.weight"].T + state["body.0.bias"])
+    h = _relu(h @ state["body.2.weight"].T + state["body.2.bias"])
+    flat = h @ state["head.weight"].T + state["head.bias"]
+    out, at = [], 0
+    for i, shape in enumerate(hyponet_shapes(cfg.width)):
+        n = int(np.prod(shape))
+        out.append(state[f"base.{i}"][None] + flat[:, at:at + n].reshape((-1,) + shape))
+        at += n
+    return out
+
+
+def evaluate(weights: list, hd: np.ndarray, row: int, chunk: int = 262144) -> np.ndarray:
+    """The hyponet of row ``row`` of ``weights`` at HD vectors ``hd (N, 6)``: ``(N,)``
+    float32 mapped corrections."""
+    w1, b1, w2, b2, w3, b3 = (w[row] for w in weights)
+    out = np.empty(hd.shape[0], np.float32)
+    for s in range(0, hd.shape[0], chunk):
+        h = _relu(hd[s:s + chunk] @ w1 + b1)
+        h = _relu(h @ w2 + b2)
+        out[s:s + chunk] = (h @ w3)[:, 0] + b3[0]
+    return out
+
+
+def ResidualNet(cfg: ResidualConfig):
+    """The torch module of the network (made on call: torch is imported only here).
+
+    ``forward(z, hd)``: ``z (B, 2 k_max)`` inputs (:func:`net_input`), ``hd`` the HD
+    vectors ``(B, C, 6)`` (per row) or ``(C, 6)`` (shared); returns the corrections
+    ``(B, C)``.
+    """
+    import torch
+
+    class _ResidualNet(torch.nn.Module):
+        def __init__(self):
+            super().__init__()
+            self.cfg = cfg
+            shapes = hyponet_shapes(cfg.width)
+            self.sizes = [int(np.prod(s)) for s in shapes]
+            self.body = torch.nn.Sequential(torch.nn.Linear(2 * cfg.k_max, cfg.hidden), torch.nn.ReLU(),
+                                            torch.nn.Linear(cfg.hidden, cfg.hidden), torch.nn.ReLU())
+            self.head = torch.nn.Linear(cfg.hidden, sum(self.sizes))
+            base = []
+            for shape in shapes:
+                p = torch.zeros(shape)
+                if len(shape) == 2 and shape[1] != 1:
+                    torch.nn.init.kaiming_uniform_(p.T, a=5 ** 0.5)
+                base.append(torch.nn.Parameter(p))
+            self.base = torch.nn.ParameterList(base)
+            with torch.no_grad():
+                self.head.weight.mul_(0.1)
+                self.head.bias.zero_()
+                self.head.weight[sum(self.sizes[:4]):].zero_()  # the last layer's change starts at 0
+
+        def weights(self, z):
+            flat = self.head(self.body(z))
+            out, at = [], 0
+            for base, n in zip(self.base, self.sizes):
+                out.append(base + flat[:, at:at + n].reshape((-1,) + tuple(base.shape)))
+                at += n
+            return out
+
+        def forward(self, z, hd):
+            w1, b1, w2, b2, w3, b3 = self.weights(z)
+            if hd.dim() == 2:
+                h = torch.relu(torch.einsum("cd,bdh->bch", hd, w1) + b1[:, None])
+            else:
+                h = torch.relu(torch.bmm(hd, w1) + b1[:, None])
+            h = torch.relu(torch.bmm(h, w2) + b2[:, None])
+            return (torch.bmm(h, w3) + b3[:, None])[..., 0]
+
+    return _ResidualNet()

@@ -1,0 +1,307 @@
+"""Training a basis residual (``brdfkit fit --method residual``).
+
+The training pairs are the training tables' channels, each a separate observation: its
+least-squares coefficients on the basis's ``k_max`` leading components (in training
+standard deviations) and its mapped table less the basis's mean, at every basis cell
+(float16). Each row of a step draws its size ``K`` in ``k_min .. k_max``; its target is the
+residual of its ``K`` leading components at ``cells`` cells drawn uniformly, and the loss
+the mean square of the mapped error (the basis's own objective). With probability
+``mixup`` a row is blended with another in the mapped space, where a blend of two
+materials has exactly the blend of their coefficients and residuals (NeuMaDiff's blends).
+
+One network is trained for each size of ``sizes`` (its ``K`` always), in turn: the
+shipped way, measured against one network for every size (``shared``: each row draws
+``K`` in ``k_min .. k_max``), which lost 1.3 to 1.6 dB at equal steps
+(``docs/notes/compression.md``). The file holds them all.
+
+A budget in steps (a network), seeded; a checkpoint every ``checkpoint_every`` steps
+(``OUTPUT.ckpt``, ``--resume`` continues it to the bit); under ``torchrun`` each process
+draws its own rows and the gradients are averaged (PyTorch DDP), so ``world`` processes
+take steps of ``world x batch`` rows.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import time
+
+import numpy as np
+
+from brdfkit.errors import InputError
+
+__all__ = ["TRAIN_DEFAULTS", "fit_residual", "training_pairs"]
+
+TRAIN_DEFAULTS = {"steps": 8000, "batch": 24, "cells": 4096, "lr": 1e-3, "mixup": 0.5, "sizes": "9,21,39",
+                  "shared": False, "k_min": 1, "k_max": 13, "width": 32, "hidden": 64, "seed": 0,
+                  "checkpoint_every": 1000, "storage": "float32"}
+"""The options of :func:`fit_residual` and their defaults (``-O KEY=VALUE``)."""
+
+
+def training_pairs(basis, paths, k_max: int, say=lambda m: None):
+    """``(z, mapped)``: coefficients in training standard deviations ``(3 M, k_max)``
+    float32 and mapped tables less the mean ``(3 M, P)`` float16, a row per channel."""
+    from brdfkit.io.merl import read_merl
+
+    part = basis.leading(k_max)
+    sigma = part.sigma.astype(np.float64)
+    zs, rows = [], []
+    for i, p in enumerate(paths):
+        table = read_merl(p)
+        mapped = np.nan_to_num(part.mapped_table(table) - part.mean[:, None])  # unmeasured: the mean
+        zs.append((part.project(table) / sigma[:, None]).T)
+        rows.append(mapped.T.astype(np.float16))
+        if (i + 1) % 20 == 0:
+            say(f"read {i + 1} of {len(paths)} tables")
+    return np.concatenate(zs).astype(np.float32), np.concatenate(rows)
+
+
+def _identity(names, basis_digest, opts) -> str:
+    keep = {k: v for k, v in opts.items() if k not in ("checkpoint_every", "storage")}
+    return json.dumps({"materials": names, "basis": basis_digest, "options": keep}, sort_keys=True)
+
+
+def plan(opts: dict) -> list:
+    """The ``(k_min, k_max)`` of each network to train, in order."""
+    if opts["shared"]:
+        return [(opts["k_min"], opts["k_max"])]
+    return [(s // 3, s // 3) for s in _sizes(opts["sizes"])]
+
+
+def _sizes(text) -> list:
+    try:
+        sizes = sorted({int(s) for s in str(text).replace(" ", "").split(",") if s})
+    except ValueError:
+        sizes = []
+    if not sizes or any(s < 3 or s % 3 for s in sizes):
+        raise InputError(f"-O sizes={text}: a comma-separated list of sizes, each 3 numbers a component (9,21,39)")
+    return sizes
+
+
+def _step_batch(g, z, mapped, comp, sigma, opts, torch, k_min, k_max):
+    """One step's rows: inputs ``(B, 2 k_max)``, cell indices ``(B, C)`` and targets."""
+    n, p, b = z.shape[0], mapped.shape[1], opts["batch"]
+    rows = torch.randint(n, (b,), generator=g)
+    cells = torch.randint(p, (b, opts["cells"]), generator=g)
+    z = z[:, :k_max]
+    zb = torch.as_tensor(z)[rows]
+    tb = torch.as_tensor(mapped[rows.numpy()[:, None], cells.numpy()], dtype=torch.float32)
+    other = torch.randint(n, (b,), generator=g)
+    t = torch.rand(b, generator=g) * (torch.rand(b, generator=g) < opts["mixup"])
+    zb = (1 - t[:, None]) * zb + t[:, None] * torch.as_tensor(z)[other]
+    to = torch.as_tensor(mapped[other.numpy()[:, None], cells.numpy()], dtype=torch.float32)
+    tb = (1 - t[:, None]) * tb + t[:, None] * to
+    ks = torch.randint(k_min, k_max + 1, (b,), generator=g)
+    mask = (torch.arange(k_max)[None, :] < ks[:, None]).float()
+    zb = zb * mask
+    tb = tb - torch.einsum("bk,kbc->bc", zb * sigma[:k_max], comp[:k_max][:, cells])
+    return torch.cat([zb, mask], dim=1), cells, tb
+
+
+def fit_residual(data, output, *, basis=None, exclude=(), progress: bool = True, resume: bool = False,
+                 device=None, **options) -> str:
+    """Train a residual of ``basis`` on the MERL tables ``data`` and write it to ``output``.
+
+    Parameters
+    ----------
+    data
+        ``.binary`` files or folders of them (:func:`brdfkit.io.folders.collect_materials`).
+    basis
+        The basis file (or a built-in's name) it corrects; required.
+    options
+        :data:`TRAIN_DEFAULTS`'s keys: ``steps`` (a network), ``batch`` (rows a process
+        and step), ``cells`` (cells a row), ``lr`` (Adam), ``mixup``, ``sizes`` (a network
+        each), or ``shared`` with ``k_min``/``k_max`` (one network for those component
+        counts), ``width``/``hidden`` (the networks), ``seed``, ``checkpoint_every``,
+        ``storage`` (:data:`brdfkit.residual.residual_file.STORAGES`).
+
+    Returns
+    -------
+    str
+        ``output``.
+    """
+    import torch
+
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.distributed import ProcessGroup, StopSignals
+    from brdfkit.io.folders import collect_materials
+    from brdfkit.residual.network import ResidualConfig, ResidualNet
+
+    opts = _options(options)
+    if basis is None:
+        raise InputError("fit --method residual needs -O basis=BASIS (a basis file or a built-in's name)")
+    from brdfkit.basis.basis_file import load_basis
+    from brdfkit.io.digest import file_digest
+    from brdfkit.models.builtin import resolve_basis
+
+    bpath = resolve_basis(basis)
+    pca = load_basis(bpath)
+    nets_plan = plan(opts)
+    k_top = max(k for _, k in nets_plan)
+    if k_top > pca.n_components:
+        raise InputError(f"a network of {k_top} components: the basis has {pca.n_components}")
+    paths, names, _, _ = collect_materials(data, exclude)
+    refuse_overwrite_of_inputs(output, [*paths, bpath])
+    group = ProcessGroup(device)
+    say = (lambda m: print(f"fit residual: {m}", flush=True)) if progress and group.rank == 0 else (lambda m: None)
+    t0 = time.monotonic()
+    z, mapped = training_pairs(pca, paths, k_top, say)
+    say(f"{len(paths)} tables, {mapped.shape[1]:,} cells, {z.shape[0]} channels in {time.monotonic() - t0:.0f} s")
+    part = pca.leading(k_top)
+    data_t = (z, mapped, torch.as_tensor(part.components), torch.as_tensor(part.sigma), _cell_hd(part))
+    run = _Run(os.fspath(output) + ".ckpt", _identity(names, file_digest(bpath), opts), opts, group, say)
+    done = run.resume() if resume else []
+    with StopSignals() as stop:
+        for i in range(len(done), len(nets_plan)):
+            k_min, k_max = nets_plan[i]
+            state = run.train(i, ResidualConfig(k_min, k_max, opts["width"], opts["hidden"]), data_t, stop, done)
+            if state is None:
+                say(f"stopped; --resume continues from {run.ckpt}")
+                group.close()
+                return os.fspath(output)
+            done.append(state)
+    digests = group.gather_hex(_states_digest(done))
+    if len(set(digests)) != 1:
+        from brdfkit.errors import TrainingError
+
+        raise TrainingError(f"the processes ended with different weights ({', '.join(d[:12] for d in digests)})")
+    if group.rank == 0:
+        cfgs = [ResidualConfig(lo, hi, opts["width"], opts["hidden"]) for lo, hi in nets_plan]
+        _write(output, list(zip(cfgs, done)), bpath, opts, names, group.world, digests)
+        say(f"wrote {output}: {len(done)} network(s), {time.monotonic() - t0:.0f} s")
+    group.barrier()
+    group.close()
+    return os.fspath(output)
+
+
+def _options(given: dict) -> dict:
+    unknown = sorted(set(given) - set(TRAIN_DEFAULTS) - {"minutes"})
+    if unknown or given.get("minutes") is not None:
+        raise InputError(f"fit --method residual takes -O {', '.join(sorted(TRAIN_DEFAULTS))} and --steps (a budget "
+                         f"in steps), not {', '.join(unknown) or '--minutes'}")
+    opts = dict(TRAIN_DEFAULTS)
+    for k, v in given.items():
+        if v is not None:
+            try:
+                opts[k] = type(TRAIN_DEFAULTS[k])(v) if not isinstance(TRAIN_DEFAULTS[k], bool) else \
+                    str(v).lower() in ("1", "true", "yes")
+            except (TypeError, ValueError):
+                raise InputError(f"-O {k}={v!r}: expected a {type(TRAIN_DEFAULTS[k]).__name__}") from None
+    for k in ("steps", "batch", "cells", "k_min", "k_max", "width", "hidden", "checkpoint_every"):
+        if opts[k] < 1:
+            raise InputError(f"-O {k}={opts[k]}: must be at least 1")
+    if not (opts["lr"] > 0 and 0 <= opts["mixup"] <= 1 and opts["k_min"] <= opts["k_max"]):
+        raise InputError("residual options: lr > 0, 0 <= mixup <= 1 and k_min <= k_max")
+    from brdfkit.residual.residual_file import STORAGES
+
+    if opts["storage"] not in STORAGES:
+        raise InputError(f"-O storage={opts['storage']}: one of {', '.join(STORAGES)}")
+    _sizes(opts["sizes"])
+    return opts
+
+
+def _cell_hd(part):
+    import torch
+
+    from brdfkit.geometry import grid_hd
+
+    return torch.as_tensor(np.ascontiguousarray(grid_hd()[part.cells]))
+
+
+class _Run:
+    """The networks' training: checkpoints (``ckpt``, checked by ``identity``), the DDP
+    group, the log."""
+
+    def __init__(self, ckpt, identity, opts, group, say):
+        self.ckpt, self.identity, self.opts, self.group, self.say = ckpt, identity, opts, group, say
+        self.saved = None  # the checkpoint being resumed from, until its network is rebuilt
+
+    def resume(self) -> list:
+        """The finished networks' states of the checkpoint; its current network continues."""
+        import torch
+
+        if not os.path.isfile(self.ckpt):
+            raise InputError(f"--resume: no checkpoint {self.ckpt}")
+        state = torch.load(self.ckpt, weights_only=True)
+        if state.get("identity") != self.identity:
+            raise InputError(f"--resume: {self.ckpt} was made from other tables, basis or options")
+        self.saved = state
+        self.say(f"resumed at network {state['index'] + 1}, step {state['step']}")
+        return list(state["done"])
+
+    def save(self, index, net, opt, step, done) -> None:
+        import torch
+
+        from brdfkit.atomic import atomic_path
+
+        with atomic_path(self.ckpt) as tmp:
+            torch.save({"identity": self.identity, "index": index, "done": done, "net": net.state_dict(),
+                        "opt": opt.state_dict(), "step": step}, tmp)
+
+    def train(self, index, cfg, data_t, stop, done):
+        """Network ``index`` trained to ``steps``; its state, or ``None`` when stopped."""
+        import torch
+
+        from brdfkit.residual.network import ResidualNet
+
+        opts, group = self.opts, self.group
+        torch.manual_seed(opts["seed"] * 1_009 + index)
+        net = ResidualNet(cfg).to(group.device)
+        opt = torch.optim.Adam(net.parameters(), lr=opts["lr"])
+        step = 0
+        if self.saved is not None and self.saved["index"] == index:
+            net.load_state_dict(self.saved["net"])
+            opt.load_state_dict(self.saved["opt"])
+            step, self.saved = int(self.saved["step"]), None
+        model = torch.nn.parallel.DistributedDataParallel(net) if group.active else net
+        step = self._loop(index, cfg, model, net, opt, data_t, step, stop, done)
+        if step < opts["steps"]:
+            return None
+        return {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
+
+    def _loop(self, index, cfg, model, net, opt, data_t, step, stop, done) -> int:
+        import torch
+
+        opts, group = self.opts, self.group
+        z, mapped, comp, sigma, hd = data_t
+        shown, seen = 0.0, 0.0
+        while step < opts["steps"] and not stop.requested:
+            # Each (seed, network, rank, step) draws its own rows: a resumed run draws what
+            # it would have.
+            g = torch.Generator().manual_seed(((opts["seed"] * 101 + index) * 7_919 + group.rank) * 1_000_003 + step)
+            zb, cells, tb = _step_batch(g, z, mapped, comp, sigma, opts, torch, cfg.k_min, cfg.k_max)
+            loss = ((model(zb.to(group.device), hd[cells].to(group.device)) - tb.to(group.device)) ** 2).mean()
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+            step += 1
+            shown, seen = shown + float(loss.detach()), seen + float((tb ** 2).mean())
+            if step % 500 == 0:
+                self.say(f"network {index + 1} (K {cfg.k_min}-{cfg.k_max}) step {step} of {opts['steps']}: mapped "
+                         f"MSE {shown / 500:.5f} (the basis alone {seen / 500:.5f})")
+                shown, seen = 0.0, 0.0
+            if group.rank == 0 and (step % opts["checkpoint_every"] == 0 or stop.requested):
+                self.save(index, net, opt, step, done)
+        return step
+
+
+def _states_digest(states: list) -> str:
+    """SHA-256 of the networks' weights (names sorted, float32 bytes): the ranks must agree."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for i, state in enumerate(states):
+        for name, t in sorted(state.items()):
+            h.update(f"{i}.{name}".encode())
+            h.update(t.detach().cpu().float().contiguous().numpy().tobytes())
+    return h.hexdigest()
+
+
+def _write(output, nets, bpath, opts, names, world, digests) -> None:
+    from brdfkit.io.digest import file_digest
+    from brdfkit.residual.residual_file import save_residual
+
+    meta = {"materials": names, "steps": opts["steps"], "seed": opts["seed"], "options": opts, "world_size": world,
+            "rank_digests": digests}  # no clock in the file: its digest names it in embeddings
+    save_residual(output, nets, basis_digest=file_digest(bpath), basis_file=os.path.basename(bpath), meta=meta,
+                  storage=opts["storage"])

@@ -1,0 +1,235 @@
+"""The basis residual (``brdfkit.residual``): its file, its NumPy decode against the torch
+module it was trained as, training through ``brdfkit fit --method residual`` (seeded,
+resumable), encode and decode through the registry's ``residual`` kind, blends, and
+every way a residual embedding is refused."""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from brdfkit.errors import ModelMismatchError
+from brdfkit.io.embedding import read_embedding
+from brdfkit.residual import ResidualConfig, load_residual, save_residual
+from brdfkit.residual.network import ResidualNet, evaluate, hyponet_weights, net_input
+
+from conftest import run_brdfkit, quiet_env
+from helpers_training import tiny_library
+
+TINY = ["-O", "sizes=6,12", "-O", "width=8", "-O", "hidden=16", "-O", "batch=4", "-O", "cells=256",
+        "-O", "checkpoint_every=2"]
+
+
+@pytest.fixture(scope="module")
+def trained(tmp_path_factory):
+    """A tiny basis of the synthetic library and a residual of it, 6 steps."""
+    lib = tiny_library(tmp_path_factory)
+    out = tmp_path_factory.mktemp("residual")
+    basis = out / "basis.safetensors"
+    r = run_brdfkit(["fit", "--method", "basis", lib, "--components", "4", "-o", basis], env=quiet_env())
+    assert r.returncode == 0, r.stderr
+    res = out / "res.safetensors"
+    r = run_brdfkit(["fit", "--method", "residual", lib, "-O", f"basis={basis}", "--steps", "6", *TINY, "-o", res],
+                    env=quiet_env(), timeout=300)
+    assert r.returncode == 0, r.stderr
+    return lib, basis, res
+
+
+def test_numpy_decode_is_the_torch_module(tmp_path):
+    import torch
+
+    cfg = ResidualConfig(k_min=1, k_max=5, width=8, hidden=16)
+    torch.manual_seed(0)
+    net = ResidualNet(cfg)
+    with torch.no_grad():
+        for p in net.parameters():
+            p.add_(0.1 * torch.randn_like(p))
+    z = net_input(np.random.default_rng(0).standard_normal((3, 3)), 5)
+    hd = np.random.default_rng(1).standard_normal((100, 6)).astype(np.float32)
+    state = {k: v.numpy() for k, v in net.state_dict().items()}
+    weights = hyponet_weights(state, cfg, z)
+    with torch.no_grad():
+        want = net(torch.as_tensor(z), torch.as_tensor(hd)).numpy()
+    got = np.stack([evaluate(weights, hd, row) for row in range(3)])
+    np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
+
+
+def test_an_untrained_residual_is_its_basis(tmp_path):
+    """The last layer starts at zero: before training the model decodes as the basis."""
+    from brdfkit.basis import load_basis
+    from brdfkit.io.digest import file_digest
+    from brdfkit.testing.examples import tiny_basis_file
+
+    bpath = tiny_basis_file(tmp_path / "b.safetensors")
+    cfg = ResidualConfig(k_min=1, k_max=4, width=8, hidden=16)
+    save_residual(tmp_path / "r.safetensors", [(cfg, ResidualNet(cfg).state_dict())],
+                  basis_digest=file_digest(bpath), basis_file="b.safetensors")
+    res = load_residual(tmp_path / "r.safetensors")
+    c = np.array([[0.5, -0.2, 0.1], [0.1, 0.3, -0.4]])
+    np.testing.assert_array_equal(res.decode(c, 1.0), res.decode(c, 0.0))
+    np.testing.assert_allclose(res.decode(c, 0.0), load_basis(bpath).leading(2).decode(c), rtol=1e-6)
+
+
+def test_fit_writes_one_network_a_size_and_resumes_to_the_bit(trained, tmp_path):
+    """A network for each size, in one file that names its basis; a run stopped by Ctrl-C
+    (after its first checkpoint) and resumed gives the same bytes as a run never stopped;
+    the same run twice gives the same bytes."""
+    import signal
+    import subprocess
+    import time
+
+    from brdfkit.io.digest import file_digest
+    from conftest import brdfkit_command
+
+    lib, basis, res = trained
+    r = load_residual(res)
+    assert r.basis_digest == file_digest(basis) and r.meta["steps"] == 6 and r.meta["world_size"] == 1
+    assert r.sizes() == (6, 12) and [(c.k_min, c.k_max) for c, _ in r.nets] == [(2, 2), (4, 4)]
+    part = tmp_path / "part.safetensors"
+    run = ["fit", "--method", "residual", lib, "-O", f"basis={basis}", *TINY, "-o", part, "--steps", "6"]
+    proc = subprocess.Popen(brdfkit_command() + [str(a) for a in run], env=quiet_env(), stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE, text=True)
+    ckpt = tmp_path / "part.safetensors.ckpt"
+    for _ in range(600):
+        if ckpt.exists() or proc.poll() is not None:
+            break
+        time.sleep(0.1)
+    proc.send_signal(signal.SIGINT)
+    proc.communicate(timeout=300)
+    r2 = run_brdfkit(run + ["--resume"], env=quiet_env(), timeout=300)
+    assert r2.returncode == 0, r2.stderr
+    assert part.read_bytes() == res.read_bytes()
+    again = tmp_path / "again.safetensors"
+    r3 = run_brdfkit(run[:-4] + ["-o", again, "--steps", "6"], env=quiet_env(), timeout=300)
+    assert r3.returncode == 0, r3.stderr
+    assert again.read_bytes() == res.read_bytes()
+
+
+def test_a_basis_fitted_twice_is_the_same_bytes(trained, tmp_path):
+    """safetensors' own writer orders the header as a hash map does, differently in each
+    process: brdfkit writes its own, sorted (a basis's SHA-256 names it in embeddings)."""
+    lib, basis, _ = trained
+    r = run_brdfkit(["fit", "--method", "basis", lib, "--components", "4", "-o", tmp_path / "b.safetensors"],
+                    env=quiet_env())
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "b.safetensors").read_bytes() == basis.read_bytes()
+
+
+@pytest.mark.parametrize("opt", ["-O", "--minutes"])
+def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt):
+    lib, basis, _ = trained
+    extra = ["-O", "sizes=99"] if opt == "-O" else ["--minutes", "1"]
+    r = run_brdfkit(["fit", "--method", "residual", lib, "-O", f"basis={basis}", *extra, "-o", tmp_path / "x"],
+                    env=quiet_env())
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
+
+
+def test_encode_decode_blend_through_the_residual_kind(trained, tmp_path):
+    """``encode`` with a residual file makes a ``residual`` embedding that records both
+    parts' digests, the same bytes every time; ``decode`` reads it back without torch's
+    help; a blend of two stays a valid, positive material."""
+    from brdfkit.io.digest import file_digest
+
+    lib, basis, res = trained
+    for name in ("synth-000", "synth-001"):
+        for out in ("a", "b"):
+            r = run_brdfkit(["encode", lib / f"{name}.binary", "-m", res, "--size", "12", "--steps", "4",
+                             "-o", tmp_path / out], env=quiet_env(), timeout=300)
+            assert r.returncode == 0, r.stderr
+        assert (tmp_path / "a" / f"{name}.emb").read_bytes() == (tmp_path / "b" / f"{name}.emb").read_bytes()
+    emb = read_embedding(tmp_path / "a" / "synth-000.emb")
+    assert emb.kind == "residual" and emb.size == 12
+    assert emb.parts == {"basis": file_digest(basis), "residual": file_digest(res)}
+    assert emb.options["correction"] in (0.0, 1.0)
+    r = run_brdfkit(["interpolate", tmp_path / "a" / "synth-000.emb", tmp_path / "a" / "synth-001.emb", "--t", "0.3",
+                     "-o", tmp_path / "mix.emb"], env=quiet_env())
+    assert r.returncode == 0, r.stderr
+    r = run_brdfkit(["decode", tmp_path / "mix.emb", "-m", res, "-o", tmp_path / "mix.binary"], env=quiet_env())
+    assert r.returncode == 0, r.stderr
+    from brdfkit.io.merl import read_merl
+
+    table = read_merl(tmp_path / "mix.binary")
+    measured = np.isfinite(table)
+    assert measured.any() and (table[measured] > 0).all()
+
+
+def test_a_residual_embedding_is_refused_by_another_decoder_in_one_line(trained, tmp_path):
+    from brdfkit.io.embedding import Embedding
+    from brdfkit.io.digest import file_digest
+    from brdfkit.residual.brdf import check_embedding
+
+    lib, basis, res = trained
+    r = load_residual(res)
+    good = Embedding(np.zeros(6), "residual", file_digest(res), parts={"basis": r.basis_digest}, options={})
+    check_embedding(good, r, file_digest(res))
+    for bad, what in ((Embedding(np.zeros(6), "residual", "0" * 64), "made with"),
+                      (Embedding(np.zeros(6), "residual", file_digest(res), parts={"basis": "1" * 64}), "basis"),
+                      (Embedding(np.zeros(9), "residual", file_digest(res)), "numbers"),
+                      (Embedding(np.zeros(6), "residual", file_digest(res), options={"correction": 3.0}), "outside")):
+        with pytest.raises(ModelMismatchError, match=what):
+            check_embedding(bad, r, file_digest(res))
+
+
+def test_a_residual_file_that_lies_is_refused(trained, tmp_path):
+    from brdfkit.errors import FormatError, InputError
+
+    _, basis, res = trained
+    r = load_residual(res)
+    save_residual(tmp_path / "other.safetensors", r.nets, basis_digest="2" * 64, basis_file="none")
+    with pytest.raises(InputError, match="basis it corrects"):
+        load_residual(tmp_path / "other.safetensors")
+    cfg, state = r.nets[0]
+    save_residual(tmp_path / "bad.safetensors", [(cfg, dict(state, **{"head.bias": state["head.bias"][:3]}))],
+                  basis_digest=r.basis_digest)
+    with pytest.raises(FormatError, match="head.bias"):
+        load_residual(tmp_path / "bad.safetensors", basis=(r.basis, r.basis_digest))
+    (tmp_path / "junk.safetensors").write_bytes(b"not a file")
+    with pytest.raises(FormatError):
+        load_residual(tmp_path / "junk.safetensors")
+
+
+def test_a_new_kind_is_one_registry_entry(monkeypatch, tmp_path):
+    """A toy kind (a material as its mean albedo, 3 numbers) added as one entry of KINDS:
+    encode and decode take it with no other change."""
+    from brdfkit import api
+    from brdfkit.embeddings import EmbeddingKind, registry
+    from brdfkit.io.embedding import Embedding
+    from brdfkit.testing.examples import lambertian_table
+
+    class Flat:
+        def __init__(self, values):
+            self.values = values
+
+        def to_table(self):
+            return lambertian_table(tuple(np.pi * self.values))
+
+    def encode(obj, digest, table, *, source, size, steps, refine, max_seconds=None):
+        return Embedding(np.nanmean(table.reshape(-1, 3), axis=0), "toy", digest, source)
+
+    toy = EmbeddingKind("toy", "mean albedo", "basis", lambda p, d: (None, "ab" * 32), lambda o: (3,),
+                        lambda o: 3, encode, lambda o, d, e, n, dev: Flat(e.values))
+    monkeypatch.setitem(registry.KINDS, "toy", toy)
+    path = tmp_path / "toy.safetensors"
+    from brdfkit.testing.examples import tiny_basis_file
+
+    tiny_basis_file(path)  # a file whose header says "basis", the toy's part
+    emb = api.encode(lambertian_table((0.3, 0.2, 0.1)), str(path), kind="toy")
+    assert emb.kind == "toy" and emb.size == 3
+    table = api.decode(emb, str(path))
+    np.testing.assert_allclose(np.nanmax(table.reshape(-1, 3), axis=0), np.array([0.3, 0.2, 0.1]) / np.pi)
+
+
+def test_int8_storage_decodes_as_the_float32_network_to_its_rounding(trained, tmp_path):
+    """The built-ins store the heads in int8 (a scale a row): the correction stays within a
+    few thousandths of the float32 network's, and the other tensors are float16."""
+    _, _, res = trained
+    r = load_residual(res)
+    save_residual(tmp_path / "q.safetensors", r.nets, basis_digest=r.basis_digest, storage="int8")
+    q = load_residual(tmp_path / "q.safetensors", basis=(r.basis, r.basis_digest))
+    c = np.array([[1.0, 0.5, -0.2], [0.3, -0.1, 0.2]])
+    a, b = r.correction(c), q.correction(c)
+    assert np.abs(a - b).max() <= 5e-3 * max(np.abs(a).max(), 1e-3)
+    assert os.path.getsize(tmp_path / "q.safetensors") < 0.45 * os.path.getsize(res)
