@@ -5,33 +5,54 @@ BRDF Representation", ECCV 2024. The public API is imported lazily: ``import brd
 loads neither torch nor mitsuba; each name pulls in only the module that defines it
 (``__init__.pyi`` lists them for IDEs and type checkers).
 
-The package, one folder per domain; data flows down this list, never up (each package's
-docstring says what it may import):
+The package, one folder per domain, in layers (:data:`LAYERS`): a module imports only from
+its own layer and the layers above it in this table, inside functions too
+(``tests/test_layout.py``):
 
-============================ ===========================================================
-``errors``, ``atomic``,      what every layer shares: one-line errors, atomic outputs,
-``console``, ``runtime``     messages and progress, the torch device and thread count
-``geometry/``                Rusinkiewicz coordinates, the MERL grid, its lookups
-``io/``                      files: MERL ``.binary``, sample and direction CSVs, ``.emb``,
-                             the checked safetensors reader, folders of tables
-``materials/``               materials brdfkit makes: GGX and stiff cases, the shipped
-                             NBRDF networks
-``models/``                  the built-in models: files, manifest, names to files
-``hypernet/``                the hypernetwork: network, model files, mapping, encode,
-                             decode, refinement on samples and on screen, tuning,
-                             ``training/`` (loop, data, checkpoints, DDP)
-``methods/``                 sparse-reconstruction methods by name (``hypernet``,
-                             ``ipca``, ``nbrdf``, ``prior``)
-``acquisition/``             where to measure: sampling, planning, designs, the protocol
-``brdf_file``                a BRDF file of any kind, opened by one loader
-``render/``                  the reference scene, quadrature, the display encoding,
-                             the render-aligned error, Mitsuba 3
-``evaluation/``              metrics and comparisons of files
-``figures/``                 plots, comparison sheets, interpolation strips
-``bench/``, ``demos/``       the benchmark; the demos
-``api``                      the public functions (load_model, encode, decode, sparse, ...)
-``cli/``                     the ``brdfkit`` command line, thin over the library
-============================ ===========================================================
+==== ======================================= ============================================
+     where                                   what
+==== ======================================= ============================================
+1    ``errors``, ``atomic``, ``console``,    the foundation: one-line errors, atomic
+     ``runtime``, ``distributed``            outputs, messages and progress, the torch
+                                             device and thread count, ``torchrun``'s
+                                             process group
+2    ``geometry/``                           Rusinkiewicz coordinates, the MERL grid, its
+                                             lookups
+3    ``io/``                                 file formats: MERL ``.binary``, RGL
+                                             ``.bsdf``, sample and direction CSVs,
+                                             ``.emb``, the checked safetensors reader
+4    ``materials/``, ``models/``             materials brdfkit makes (GGX, stiff cases,
+                                             NBRDF networks); the built-in models: bundles
+                                             of parts, the manifest, names to files
+5    ``render/``                             the reference scene, quadrature, the scene
+                                             suite, the render-aligned error, the display
+                                             encoding, Mitsuba 3's ``brdfkit`` BSDF
+6    ``basis/``, ``hypernet/``               the PCA basis; the hypernetwork (network,
+                                             files, encode, decode, refinement, training);
+                                             neither imports the other
+7    ``prior/``, ``residual/``               the learnt prior of a basis; the hypernetwork
+                                             residual of a basis
+8    ``embeddings/``                         embedding kinds by name (``KINDS``), decoders,
+                                             a model's parts, blends
+9    ``methods/``                            sparse-reconstruction methods by name
+                                             (``METHODS``) and the choice a ``-m`` value
+                                             makes
+10   ``files/``                              a BRDF file of any type, opened, converted,
+                                             rendered
+11   ``acquisition/``                        where to measure: sampling, planning,
+                                             designs, the benchmark protocol
+12   ``evaluation/``                         metrics, comparisons, held-out error
+13   ``figures/``                            plots, comparison sheets, interpolation
+                                             strips
+14   ``training/``, ``bench/``, ``testing/`` what ``brdfkit fit`` trains (``FITTERS``);
+                                             the benchmark; the tests' examples and fuzzer
+15   ``api``                                 the front: the library's verbs (encode,
+                                             decode, sparse, interpolate, fit, ...)
+16   ``demos/``                              ``brdfkit demo``, run through the front as a
+                                             user would
+17   ``cli/``                                the ``brdfkit`` command line, thin over the
+                                             library
+==== ======================================= ============================================
 
 Examples
 --------
@@ -45,6 +66,12 @@ from __future__ import annotations
 import importlib
 
 __version__ = "0.1.0"
+
+LAYERS = (("errors", "atomic", "console", "runtime", "distributed"), ("geometry",), ("io",), ("materials", "models"), ("render",),
+          ("basis", "hypernet"), ("prior", "residual"), ("embeddings",), ("methods",), ("files",), ("acquisition",),
+          ("evaluation",), ("figures",), ("training", "bench", "testing"), ("api",), ("demos",), ("cli",))
+"""The packages and top-level modules in their layers, lowest first (the table above):
+data flows down this list, never up."""
 
 
 def lazy_attributes(package: str, names: dict):

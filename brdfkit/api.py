@@ -19,7 +19,6 @@ subclasses ``FormatError`` and ``ModelMismatchError``) with a one-line message.
 
 from __future__ import annotations
 
-import math
 import os
 
 import numpy as np
@@ -32,34 +31,34 @@ __all__ = ["load_model", "encode", "decode", "sparse", "interpolate", "fit"]
 
 
 def load_model(path: str | os.PathLike, device=None):
-    """Load a hypernetwork model file (``.safetensors``, never pickle), or a built-in
+    """Load a hypernetwork's network file (``.safetensors``, never pickle), or a built-in
     model by name.
 
     Parameters
     ----------
     path
-        File written by ``brdfkit fit`` / :func:`brdfkit.hypernet.model_file.save_model`, or the
+        File written by ``brdfkit fit`` / :func:`brdfkit.hypernet.network_file.save_network`, or the
         name of an installed built-in model (``brdfkit models``; ``docs/models.md``: a
         value is a file when it exists, holds a path separator or ends in
-        ``.safetensors``), its file checked against the manifest's fingerprint.
+        ``.safetensors``), its file checked against the manifest's digest.
     device
         ``torch.device`` or string; ``None``: CUDA when available, else CPU.
 
     Returns
     -------
-    brdfkit.hypernet.loaded.NeuralModel
+    brdfkit.hypernet.loaded.LoadedNetwork
 
     Examples
     --------
     >>> from brdfkit.testing.examples import tiny_model
     >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")  # an untrained model
-    >>> model.cfg.latent_dim, len(model.fingerprint)
+    >>> model.cfg.latent_dim, len(model.digest)
     (7, 64)
     """
-    from brdfkit.models.builtin import resolve_model
-    from brdfkit.hypernet.model_file import load_model as _load
+    from brdfkit.models.builtin import resolve_network
+    from brdfkit.hypernet.network_file import load_network
 
-    return _load(resolve_model(path), device)
+    return load_network(resolve_network(path), device)
 
 
 def _load_input(obj, source: str):
@@ -75,8 +74,8 @@ def _load_input(obj, source: str):
         if path.lower().endswith(".csv"):
             from brdfkit.io.samples import read_samples
             return read_samples(path), name
-        if path.lower().endswith(".bsdf"):  # an RGL file, at the MERL grid (brdf_file)
-            from brdfkit.brdf_file import read_table
+        if path.lower().endswith(".bsdf"):  # an RGL file, at the MERL grid (brdfkit.files.brdf_file)
+            from brdfkit.files.brdf_file import read_table
             return read_table(path), name
         from brdfkit.io.merl import read_merl
         return read_merl(path), name
@@ -90,31 +89,33 @@ def _load_input(obj, source: str):
                      f"table, or the path of a .binary or .csv file")
 
 
-def _decoder(kind: str | None, model, device):
-    """The :class:`~brdfkit.methods.embedding.Decoder` ``encode`` uses: ``model`` a name,
-    a path or ``None`` (:func:`~brdfkit.methods.embedding.choose_decoder`), a decoder as
-    it is, or a loaded hypernetwork (its built-in's basis unless ``kind="latent"``, when
-    it ships one; else its latent)."""
-    from brdfkit.methods.embedding import Decoder, choose_decoder, get_kind
+def _decoder(kind: str | None, model, device, size: int | None = None):
+    """The :class:`~brdfkit.embeddings.Decoder` ``encode`` uses: ``model`` a name, a path
+    or ``None`` (:func:`~brdfkit.embeddings.choose_decoder`), a decoder as it is, or a
+    loaded hypernetwork (for an installed built-in's network, the decoder its name gives
+    for ``kind`` and ``size``; else the network itself)."""
+    from brdfkit.embeddings import Decoder, choose_decoder, get_kind, kind_of_part
 
     if model is None or isinstance(model, (str, os.PathLike)):
-        return choose_decoder(kind, model, device)
+        return choose_decoder(kind, model, device, size)
     if isinstance(model, Decoder):
         if kind is not None and get_kind(kind).name != model.kind:
             raise InputError(f"--kind {kind}: the given decoder is a {model.kind} one")
         return model
-    if not hasattr(model, "fingerprint") or not hasattr(model, "cfg"):
+    if not hasattr(model, "digest") or not hasattr(model, "cfg"):
         raise InputError(f"model: expected a name, a path, a Decoder or a loaded hypernetwork, not a "
                          f"{type(model).__name__}")
-    from brdfkit.models.builtin import builtin_models
+    from brdfkit.models.builtin import installed_bundles
 
-    entry = next((m for m in builtin_models() if m.fingerprint == model.fingerprint), None)
-    if kind != "latent" and entry is not None and entry.basis:
-        return choose_decoder("basis", entry.name, device)
-    if kind not in (None, "latent"):
-        raise InputError(f"model {model.fingerprint[:12]} ships no PCA basis (only the installed built-ins with a "
-                         f"learnt prior do); encode a latent instead")
-    return Decoder.of_model(model)
+    own = kind_of_part("network").name
+    entry = next((m for m in installed_bundles() if m.part("network") and m.parts["network"].digest == model.digest),
+                 None)
+    if entry is not None and (kind is None or get_kind(kind).name != own):
+        return choose_decoder(kind, entry.name, device, size)
+    if kind is not None and get_kind(kind).name != own:
+        raise InputError(f"model {model.digest[:12]} is a hypernetwork of no installed built-in: it encodes {own} "
+                         f"embeddings only")
+    return Decoder.of_network(model)
 
 
 def encode(data, model=None, *, kind: str | None = None, size: int | None = None, steps: int | None = None,
@@ -125,7 +126,7 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
     that ships a PCA basis: the coefficients of the basis's leading components, the
     table's projection refined on renders of the objective scenes
     (:mod:`brdfkit.basis.coefficients`; it holds for materials outside the training set,
-    where a hypernetwork's latent does not). With ``kind="latent"`` (or a model that is a
+    where a hypernetwork's latent does not). With ``kind="hypernet"`` (or a model that is a
     hypernetwork file) it is the hypernetwork's latent: the set encoder's pass over all
     measured cells (Gokbudak et al. 2024), refined on the same renders
     (:func:`brdfkit.hypernet.refine_on_screen.compress_table`). Either way the same table
@@ -141,11 +142,11 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
         path of a MERL ``.binary``, an RGL ``.bsdf`` or a ``.csv`` sample set.
     model
         A built-in's name, a basis or hypernetwork file, a loaded hypernetwork
-        (:func:`load_model`), a :class:`~brdfkit.methods.embedding.Decoder`, or ``None``:
+        (:func:`load_model`), a :class:`~brdfkit.embeddings.Decoder`, or ``None``:
         the default built-in.
     kind
-        ``"basis"``, ``"latent"`` or ``None`` (module text above;
-        :data:`brdfkit.methods.embedding.KINDS`).
+        ``"basis"``, ``"residual"``, ``"hypernet"`` or ``None`` (module text above;
+        :data:`brdfkit.embeddings.KINDS`).
     size
         Numbers per material (a basis embedding: ``3 K``, default 39; a latent: the
         model's latent size).
@@ -177,23 +178,26 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
     >>> model = load_model(tiny_model("tiny.safetensors"), device="cpu")  # no basis: a latent
     >>> emb = encode(lambertian_table(), model, refine=False)  # the encoder's one pass
     >>> emb.kind, emb.size, emb.sample_count
-    ('latent', 7, 1111432)
+    ('hypernet', 7, 1111432)
     >>> from brdfkit.acquisition.sampling import draw_samples
     >>> encode(draw_samples(lambertian_table(), 40, seed=0), model).sample_count
     40
     """
-    from brdfkit.methods.embedding import encode_with
+    from brdfkit.embeddings import encode_with
 
     data, name = _load_input(data, source)
     if not isinstance(data, np.ndarray):
-        if kind not in (None, "latent"):
+        from brdfkit.embeddings import get_kind, kind_of_part
+
+        own = kind_of_part("network").name
+        if kind is not None and get_kind(kind).name != own:
             raise InputError(f"{name or 'samples'}: a {kind} embedding is made from a dense table; a sample set is "
                              f"encoded as a hypernetwork latent")
-        dec = _decoder("latent", model, device)
+        dec = _decoder(own, model, device)
         from brdfkit.hypernet.encoding import encode_samples
 
         return encode_samples(dec.obj, data, name)
-    return encode_with(_decoder(kind, model, device), data, source=name, size=size, steps=steps,
+    return encode_with(_decoder(kind, model, device, size), data, source=name, size=size, steps=steps,
                        max_seconds=max_seconds, refine=refine)
 
 
@@ -206,7 +210,7 @@ def decode(embedding, model=None, *, source: str = "", device=None) -> np.ndarra
         :class:`Embedding` or the path of an ``.emb`` file.
     model
         The decoder that made it: a built-in's name, a file, a loaded hypernetwork or a
-        :class:`~brdfkit.methods.embedding.Decoder`; ``None``: the installed built-in part
+        :class:`~brdfkit.embeddings.Decoder`; ``None``: the installed built-in part
         whose digest the embedding records (another decoder:
         :class:`~brdfkit.errors.ModelMismatchError`).
     source
@@ -228,7 +232,7 @@ def decode(embedding, model=None, *, source: str = "", device=None) -> np.ndarra
     >>> table.shape, bool(np.nanmin(table) >= 0)
     ((90, 90, 180, 3), True)
     """
-    from brdfkit.methods.embedding import Decoder, decoder_for, open_embedding
+    from brdfkit.embeddings import Decoder, decoder_for, open_embedding
 
     name = source
     if isinstance(embedding, (str, os.PathLike)):
@@ -249,7 +253,7 @@ def _method_of(model) -> str:
 
     if isinstance(model, PcaBasis):
         return "ipca"
-    if hasattr(model, "fingerprint") and hasattr(model, "cfg") and hasattr(model, "rho_ref"):
+    if hasattr(model, "digest") and hasattr(model, "cfg") and hasattr(model, "rho_ref"):
         return "hypernet"
     if hasattr(model, "basis") and hasattr(model, "net"):
         return "prior"
@@ -313,18 +317,8 @@ def sparse(samples, model=None, *, method: str = "auto", seed: int = 0, device=N
 
 
 def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool = False) -> Embedding:
-    """Blend two embeddings of the same kind, decoder and size: ``(1 - t) a + t b``
-    (``brdfkit interpolate``; for a basis embedding, a blend of the log-mapped tables).
-
-    Computed in float64 and rounded to float32, so ``t = 0`` gives ``a`` and ``t = 1``
-    gives ``b`` exactly.
-
-    Raises
-    ------
-    ModelMismatchError
-        The embeddings differ in kind, decoder or size.
-    InputError
-        ``t`` not a finite number, or outside ``[0, 1]`` without ``allow_extrapolation``.
+    """Blend two embeddings of the same kind, decoders and size: ``(1 - t) a + t b``
+    (``brdfkit interpolate``; :func:`brdfkit.embeddings.blend.interpolate`).
 
     Examples
     --------
@@ -333,34 +327,17 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
     >>> b = Embedding(np.ones(6, np.float32), "basis", "f" * 64, "b")
     >>> interpolate(a, b, 0.25).values.tolist()
     [0.25, 0.25, 0.25, 0.25, 0.25, 0.25]
-    >>> interpolate(a, b, 0.0).values is not a.values, bool((interpolate(a, b, 1.0).values == b.values).all())
-    (True, True)
     """
-    try:
-        t = float(t)
-    except (TypeError, ValueError):
-        raise InputError(f"t: {t!r} is not a number") from None
-    if not math.isfinite(t):
-        raise InputError(f"t: {t!r} is not a finite number")
-    if not allow_extrapolation and not 0.0 <= t <= 1.0:
-        raise InputError(f"t = {t:g} is outside [0, 1]; pass allow_extrapolation=True to extrapolate")
-    if a.kind != b.kind:
-        raise ModelMismatchError(f"cannot interpolate a {a.kind} embedding ({a.source or 'a'}) with a {b.kind} one "
-                                 f"({b.source or 'b'}): encode both the same way")
-    if a.decoder != b.decoder or a.size != b.size:
-        raise ModelMismatchError(
-            f"cannot interpolate embeddings of different decoders or sizes: {a.source or 'a'} is {a.size} numbers "
-            f"of decoder {a.decoder[:12]}, {b.source or 'b'} {b.size} of decoder {b.decoder[:12]}")
-    la = a.values.astype(np.float64)
-    lb = b.values.astype(np.float64)
-    latent = ((1.0 - t) * la + t * lb).astype(np.float32)
-    if not np.isfinite(latent).all():
-        raise InputError(f"t = {t:g} extrapolates beyond float32 range")
-    return Embedding(latent, a.kind, a.decoder, f"interpolate({a.source or 'a'}, {b.source or 'b'}, t={t:g})", 0)
+    from brdfkit.embeddings.blend import interpolate as blend
+
+    return blend(a, b, t, allow_extrapolation)
 
 
-def fit(*args, **kwargs):
-    """Train a hypernetwork; see :func:`brdfkit.hypernet.training.loop.fit` (imported on first use)."""
-    from brdfkit.hypernet.training.loop import fit as _fit
+def fit(data, output, method: str = "hypernet", **options) -> str:
+    """Train one part of a model from MERL tables (``brdfkit fit``): ``method`` names what
+    (:data:`brdfkit.training.FITTERS`: ``hypernet``, ``basis``, ``prior``, ``residual``),
+    ``options`` its options by name (``exclude``, ``steps``, ``seed``, ...). Returns
+    ``output``."""
+    from brdfkit.training import get_fitter
 
-    return _fit(*args, **kwargs)
+    return get_fitter(method).fit(data, output, **options)

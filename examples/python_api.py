@@ -33,7 +33,7 @@ def main(argv: list[str]) -> int:
 
     import brdfkit
     from brdfkit.evaluation.metrics import brdf_log_rmse
-    from brdfkit.methods.embedding import decoder_for, open_embedding
+    from brdfkit.embeddings import decoder_for, open_embedding
     from brdfkit.materials.synthetic import write_library
 
     # The library leaves torch's thread pool as it is; size it to the idle cores first, as
@@ -42,7 +42,7 @@ def main(argv: list[str]) -> int:
     brdfkit.set_torch_threads()
 
     model = brdfkit.load_model(argv[0])
-    print(f"model {argv[0]}: latent {model.cfg.latent_dim}, fingerprint {model.fingerprint[:12]}, "
+    print(f"model {argv[0]}: latent {model.cfg.latent_dim}, digest {model.digest[:12]}, "
           f"device {model.device}")
 
     with tempfile.TemporaryDirectory() as tmp:

@@ -178,10 +178,10 @@ def bad_embedding_files(folder, good_doc: dict, other_doc: dict) -> dict:
         "latent_length": (put("length.emb", {**good_doc, "values": good_doc["values"][:-1]}),
                           f"values has {len(good_doc['values']) - 1} values but size is {good_doc['size']}"),
         "latent_dim": (put("dim.emb", {**good_doc, "size": 5, "values": good_doc["values"][:5]}),
-                       f"embedding {{path}} (latent, 5 numbers, decoder {fp[:12]}) was not made by the given model "
+                       f"embedding {{path}} (hypernet, 5 numbers, decoder {fp[:12]}) was not made by the given model "
                        f"{fp[:12]} (latent 7); encode the material again with this model"),
         "other_model": (put("other-model.emb", other_doc),
-                        f"embedding {{path}} was made with latent decoder {other_doc['decoder'][:12]}, not with "
+                        f"embedding {{path}} was made with hypernet decoder {other_doc['decoder'][:12]}, not with "
                         f"model.safetensors ({fp[:12]}); encode the material again with it"),
     }
 

@@ -2,7 +2,7 @@
 
 Not a conftest: plain functions imported by the test modules that need them. Models are
 untrained (the tests check plumbing, invariances and formats, not accuracy), saved with
-the real :func:`brdfkit.hypernet.model_file.save_model` and loaded with the real loader.
+the real :func:`brdfkit.hypernet.network_file.save_network` and loaded with the real loader.
 """
 
 from __future__ import annotations
@@ -31,16 +31,16 @@ def material_table(index: int = 0) -> np.ndarray:
 
 def make_model(path, config: dict | None = None, seed: int = 0, rho_ref=None) -> str:
     """Save an untrained model (``TINY_CONFIG`` unless ``config`` is given; ``{}`` is the
-    paper's default architecture) and return its fingerprint."""
+    paper's default architecture) and return its digest."""
     import torch
 
     from brdfkit.hypernet.network import HyperBRDF, HyperConfig
-    from brdfkit.hypernet.model_file import save_model
+    from brdfkit.hypernet.network_file import save_network
 
     torch.manual_seed(seed)
     cfg = HyperConfig(**(TINY_CONFIG if config is None else config))
     ref = material_table(0) if rho_ref is None else rho_ref
-    return save_model(path, HyperBRDF(cfg), ref, {"materials": ["stiff-white"], "steps": 0})
+    return save_network(path, HyperBRDF(cfg), ref, {"materials": ["stiff-white"], "steps": 0})
 
 
 
@@ -66,7 +66,7 @@ def pack_tiny_builtins(src, folder, names, command=None, **entry) -> list:
     entries = []
     for name, seed in names:
         make_model(src / f"{name}.safetensors", seed=seed)
-        packing.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+        packing.pack_network(src / f"{name}.safetensors", folder / f"{name}.safetensors",
                            reference_file="tiny.reference.safetensors")
         entries.append(packing.manifest_entry(folder / f"{name}.safetensors", name,
                                               command=command or f"brdfkit fit ({name})", **entry))

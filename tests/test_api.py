@@ -60,7 +60,7 @@ def test_any_number_of_samples(models, table, n):
     e = api.encode(draw_samples(table, n, seed=n), m)
     assert e.values.shape == (40,) and e.values.dtype == np.float32
     assert np.isfinite(e.values).all()
-    assert e.sample_count == n and e.decoder == m.fingerprint
+    assert e.sample_count == n and e.decoder == m.digest
 
 
 def test_encoder_matches_model_definition(models, table):
@@ -244,7 +244,7 @@ def test_interpolate_endpoints_exact(models, table):
     np.testing.assert_array_equal(api.interpolate(a, b, 1.0).values, b.values)
     mid = api.interpolate(a, b, 0.5)
     np.testing.assert_allclose(mid.values, (a.values.astype(np.float64) + b.values) / 2, rtol=1e-6)
-    assert mid.decoder == m.fingerprint and mid.values.dtype == np.float32
+    assert mid.decoder == m.digest and mid.values.dtype == np.float32
     assert api.decode(mid, m).shape == (90, 90, 180, 3)
 
 
@@ -262,7 +262,7 @@ def test_interpolate_refusals(models, table):
     other = api.encode(draw_samples(table, 20), models["tiny2"])
     with pytest.raises(ModelMismatchError, match="different decoders"):
         api.interpolate(a, other, 0.5)
-    wrong_dim = Embedding(np.zeros(5, np.float32), "latent", a.decoder)
+    wrong_dim = Embedding(np.zeros(5, np.float32), "hypernet", a.decoder)
     with pytest.raises(ModelMismatchError):
         api.interpolate(a, wrong_dim, 0.5)
 

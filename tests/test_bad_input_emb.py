@@ -50,7 +50,7 @@ def test_embedding_of_another_latent_size_through_interpolate_binary(good, bad_e
     code, _, err = run_cli(capsys, ["interpolate", path, path, "--t", "0.5", "-o", tmp_path / "x.emb",
                               "--binary", tmp_path / "x.binary", "-m", good / "model.safetensors"])
     assert code == 2
-    assert "(latent, 5 numbers, decoder" in one_error_line(err)
+    assert "(hypernet, 5 numbers, decoder" in one_error_line(err)
     assert os.listdir(tmp_path) == []
 
 

@@ -78,7 +78,7 @@ def test_damaged_exr_gives_one_line_and_a_clean_stdout(tmp_path):
 def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, monkeypatch):
     # Regression: `brdfkit metrics GOOD.binary BAD.binary` rendered GOOD (256 px: 2.5 min
     # on the busy 2-core machine) before it read BAD and refused it.
-    import brdfkit.render.file_render as cli_render
+    import brdfkit.files.render_file as cli_render
 
     def no_render(*a, **k):
         raise AssertionError("rendered before checking the inputs")
@@ -90,4 +90,4 @@ def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, mon
         code, _, err = run_cli(capsys, ["metrics", *args, "--json"])
         assert code == 2
         line = one_error_line(err)
-        assert (str(bad) in line) if bad else ("other.emb was made with latent decoder" in line), line
+        assert (str(bad) in line) if bad else ("other.emb was made with hypernet decoder" in line), line

@@ -27,19 +27,19 @@ def test_model_whose_header_length_starts_with_0x80_loads(tmp_path):
     import torch
 
     from brdfkit.hypernet.network import HyperBRDF, HyperConfig
-    from brdfkit.hypernet.model_file import load_model, save_model
+    from brdfkit.hypernet.network_file import load_network, save_network
 
     torch.manual_seed(0)
     net = HyperBRDF(HyperConfig(latent_dim=3, encoder_hidden=(4,), hypo_hidden=4, hypo_layers=1,
                                 decoder_hidden=4, decoder_layers=1))
     path = tmp_path / "m.safetensors"
     for pad in range(64):
-        fp = save_model(path, net, material_table(0), {"pad": "_" * (8 * pad)})
+        fp = save_network(path, net, material_table(0), {"pad": "_" * (8 * pad)})
         if path.read_bytes()[:1] == b"\x80":
             break
     else:
         pytest.fail("no padding gave a header length with low byte 0x80")
-    assert load_model(path, "cpu").fingerprint == fp
+    assert load_network(path, "cpu").digest == fp
 
 
 MODEL_COMMANDS = {  # command -> arguments before -m, given the good folder and the output folder
@@ -99,7 +99,7 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
     import json
     import re
 
-    from brdfkit.hypernet.model_file import load_model
+    from brdfkit.hypernet.network_file import load_network
 
     def edit(header):
         cfg = json.loads(header["__metadata__"]["config"])
@@ -110,7 +110,7 @@ def test_model_config_asking_for_a_huge_network_is_refused_at_once(good, tmp_pat
     path.write_bytes(rewrite_header((good / "model.safetensors").read_bytes(), edit))
     t0 = time.perf_counter()
     with pytest.raises(FormatError, match="model config cannot be built") as e:
-        load_model(path, "cpu")
+        load_network(path, "cpu")
     assert time.perf_counter() - t0 < 2.0
     assert re.search(message, str(e.value)), str(e.value)
 
@@ -128,12 +128,12 @@ def test_ipca_basis_with_materials_not_a_list(tmp_path):
 
 
 def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
-    # Found by benchmarks/fuzz_parsers.py: a fingerprint "\n" in a model file's metadata,
+    # Found by benchmarks/fuzz_parsers.py: a "fingerprint" (the digest key) "\n" in a network file's metadata,
     # and a safetensors header key with a line break (quoted by the parser's error), gave
     # two-line messages. BrdfkitError now prints every non-printable character as a space.
     from brdfkit.errors import FormatError
     from brdfkit.hypernet.mapping import load_reference, save_reference
-    from brdfkit.hypernet.model_file import load_model
+    from brdfkit.hypernet.network_file import load_network
 
     from conftest import run_brdfkit
 
@@ -141,8 +141,8 @@ def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
     bad_fp.write_bytes(rewrite_header((good / "model.safetensors").read_bytes(),
                                        lambda h: h["__metadata__"].update(fingerprint="\n\x1b[31mred")))
     with pytest.raises(FormatError) as e:
-        load_model(bad_fp, "cpu")
-    assert str(e.value).isprintable() and "weights do not match the recorded fingerprint" in str(e.value)
+        load_network(bad_fp, "cpu")
+    assert str(e.value).isprintable() and "weights do not match the recorded digest" in str(e.value)
     save_reference(tmp_path / "ref.safetensors", material_table(0))
     bad_ref = tmp_path / "bad-ref.safetensors"
     bad_ref.write_bytes(rewrite_header((tmp_path / "ref.safetensors").read_bytes(),

@@ -254,9 +254,9 @@ def test_registry_names_and_uniform_interface(basis, library, tmp_path):
     path = tmp_path / "basis.safetensors"
     save_basis(path, basis)
     samples = draw_samples(library[1], 500, seed=2)
-    np.testing.assert_array_equal(ipca.reconstruct(samples, str(path)), basis.reconstruct(samples))
+    np.testing.assert_array_equal(ipca.reconstruct(samples, str(path)), basis.reconstruct(samples, floor=0.0))  # as published
     np.testing.assert_array_equal(ipca.reconstruct(samples, ipca.load(path), lam=0.5),
-                                  basis.reconstruct(samples, lam=0.5))
+                                  basis.reconstruct(samples, lam=0.5, floor=0.0))
     with pytest.raises(InputError, match="needs a PCA basis"):
         ipca.reconstruct(samples)
     nbrdf = get_method("nbrdf")
@@ -297,16 +297,27 @@ def test_cli_fit_basis_then_sparse(cli_files, capsys, monkeypatch):
 
     monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
     d = cli_files
-    code, _, err = run_cli(capsys, ["fit", "--method", "ipca", d / "data", "--exclude-list", d / "exclude.txt",
+    code, _, err = run_cli(capsys, ["fit", "--method", "basis", d / "data", "--exclude-list", d / "exclude.txt",
                                     "--components", 5, "-o", d / "basis.safetensors"])
     assert code == 0, err
+    assert "note:" not in err
     basis = load_basis(d / "basis.safetensors")
     assert basis.materials == ["mat-0", "mat-1", "mat-2"] and basis.n_components == 5
+    # `fit --method ipca`, the old name, still trains the same basis, with a one-line note.
+    code, _, err = run_cli(capsys, ["fit", "--method", "ipca", d / "data", "--exclude-list", d / "exclude.txt",
+                                    "--components", 5, "-o", d / "basis-ipca.safetensors"])
+    assert code == 0, err
+    notes = [line for line in err.splitlines() if line.startswith("note:")]
+    assert notes == ["note: fit --method ipca is now fit --method basis"] and "wrote PCA basis" in err
+    again = load_basis(d / "basis-ipca.safetensors")
+    assert (again.materials, again.n_components, again.w_floor) == (basis.materials, 5, basis.w_floor)
+    for field in ("cells", "reference", "mean", "components", "sigma"):
+        np.testing.assert_array_equal(getattr(again, field), getattr(basis, field))
 
     code, _, err = run_cli(capsys, ["sparse", d / "samples.csv", "--method", "ipca", "-m", d / "basis.safetensors",
                                     "-o", d / "ipca.binary"])
     assert code == 0, err
-    want = basis.reconstruct(read_samples(d / "samples.csv"))
+    want = basis.reconstruct(read_samples(d / "samples.csv"), floor=0.0)  # IPCA as published
     got = read_merl(d / "ipca.binary")
     np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
     np.testing.assert_allclose(got[~np.isnan(want)], want[~np.isnan(want)], rtol=1e-12)
@@ -316,7 +327,7 @@ def test_cli_fit_basis_then_sparse(cli_files, capsys, monkeypatch):
     assert code == 2 and "needs a PCA basis" in one_error_line(err)
     code, _, err = run_cli(capsys, ["fit", d / "data", "--components", 3, "-o", d / "y.safetensors"])
     assert code == 2 and "--components" in one_error_line(err)
-    code, _, err = run_cli(capsys, ["fit", "--method", "ipca", d / "data", "--components", 99,
+    code, _, err = run_cli(capsys, ["fit", "--method", "basis", d / "data", "--components", 99,
                                     "-o", d / "y.safetensors"])
     assert code == 2 and "components" in one_error_line(err)
     assert not (d / "x.binary").exists() and not (d / "y.safetensors").exists()
@@ -385,12 +396,17 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
     save_basis(path, basis)
     samples = draw_samples(library[1], 300, seed=4)
     np.testing.assert_array_equal(reconstruct(samples, method="ipca", model=path, lam=0.5),
-                                  basis.reconstruct(samples, lam=0.5))
+                                  basis.reconstruct(samples, lam=0.5, floor=0.0))
     with pytest.raises(InputError, match="unknown method"):
         reconstruct(samples, method="pca")
-    assert [n for n, m in METHODS.items() if m.fit_fn is not None] == ["hypernet", "ipca", "prior"]
-    with pytest.raises(InputError, match="has no model to fit"):
-        get_method("nbrdf").fit([], tmp_path / "x.safetensors")
+    # What `brdfkit fit` trains is its own registry; a reconstruction method has no fit.
+    from brdfkit.training import FITTERS, get_fitter
+
+    assert list(FITTERS) == ["hypernet", "basis", "prior", "residual"]
+    assert get_fitter("ipca") is FITTERS["basis"]  # the old name of the basis recipe
+    assert not any(hasattr(m, "fit") or hasattr(m, "fit_fn") for m in METHODS.values())
+    with pytest.raises(InputError, match="unknown --method 'nbrdf' for fit"):
+        get_fitter("nbrdf")
 
 
 def test_ipca_weight_floor(library, tmp_path):

@@ -129,9 +129,12 @@ def test_interpolation_keeps_the_kind_and_refuses_mixing_kinds():
     b = Embedding(np.ones(6, np.float32), "basis", FP, "b")
     mid = interpolate(a, b, 0.5)
     assert (mid.kind, mid.decoder, mid.values.tolist()) == ("basis", FP, [0.5] * 6)
-    latent = Embedding(np.ones(6, np.float32), "latent", FP, "c")
-    with pytest.raises(ModelMismatchError, match="basis embedding .* latent one"):
+    latent = Embedding(np.ones(6, np.float32), "hypernet", FP, "c")
+    with pytest.raises(ModelMismatchError, match="basis embedding .* hypernet one"):
         interpolate(a, latent, 0.5)
+    old = Embedding(np.ones(6, np.float32), "latent", FP, "c")  # the kind's old name: the same kind
+    with pytest.raises(ModelMismatchError, match="basis embedding .* hypernet one"):
+        interpolate(a, old, 0.5)
 
 
 def test_basis_files_encode_and_decode_through_the_library_and_the_registry(basis_and_table, tmp_path):
@@ -140,7 +143,7 @@ def test_basis_files_encode_and_decode_through_the_library_and_the_registry(basi
     from brdfkit.api import decode, encode
     from brdfkit.basis import save_basis
     from brdfkit.io.digest import file_digest
-    from brdfkit.methods.embedding import KINDS, choose_decoder, get_kind
+    from brdfkit.embeddings import KINDS, choose_decoder, get_kind
 
     basis, held = basis_and_table
     save_basis(tmp_path / "b.safetensors", basis)
@@ -152,9 +155,13 @@ def test_basis_files_encode_and_decode_through_the_library_and_the_registry(basi
         decode(emb, tmp_path / "other.safetensors")
     with pytest.raises(InputError, match="is not among the installed built-in"):
         decode(emb)  # no -m, and no built-in has this digest
-    assert set(KINDS) == {"basis", "latent"} and choose_decoder(None, tmp_path / "b.safetensors").kind == "basis"
-    with pytest.raises(InputError, match="a basis decoder, not a latent one"):
-        choose_decoder("latent", tmp_path / "b.safetensors")
+    assert set(KINDS) == {"basis", "hypernet", "residual"}
+    assert choose_decoder(None, tmp_path / "b.safetensors").kind == "basis"
+    with pytest.raises(InputError, match="a basis file, not the network a hypernet embedding needs"):
+        choose_decoder("hypernet", tmp_path / "b.safetensors")
+    with pytest.raises(InputError, match="a basis file, not the network a hypernet embedding needs"):
+        choose_decoder("latent", tmp_path / "b.safetensors")  # the old name of the kind
+    assert get_kind("latent") is get_kind("hypernet") is KINDS["hypernet"]
     with pytest.raises(InputError, match="unknown embedding kind 'pca'"):
         get_kind("pca")
 
@@ -165,13 +172,17 @@ def test_a_model_without_a_basis_makes_latents_and_refuses_basis(tmp_path):
 
     model = load_model(tiny_model(tmp_path / "tiny.safetensors"), device="cpu")
     emb = encode(lambertian_table(), model, refine=False)
-    assert emb.kind == "latent" and emb.size == 7
-    with pytest.raises(InputError, match="ships no PCA basis"):
+    assert emb.kind == "hypernet" and emb.size == 7
+    old = encode(lambertian_table(), model, kind="latent", refine=False)  # the kind's old name
+    assert old.kind == "hypernet" and old.values.tobytes() == emb.values.tobytes()
+    with pytest.raises(InputError, match="is a hypernetwork of no installed built-in: it encodes hypernet "
+                                         "embeddings only"):
         encode(lambertian_table(), model, kind="basis")
     with pytest.raises(InputError, match="kind 'pca'"):
         encode(lambertian_table(), tmp_path / "tiny.safetensors", kind="pca")
-    foreign = Embedding(np.zeros(6, np.float32), "basis", model.fingerprint, "x")
-    with pytest.raises(InputError, match="ships no PCA basis"):
+    foreign = Embedding(np.zeros(6, np.float32), "basis", model.digest, "x")
+    with pytest.raises(InputError, match="is a hypernetwork of no installed built-in: it encodes hypernet "
+                                         "embeddings only"):
         decode(foreign, model)
 
 
@@ -181,7 +192,8 @@ def test_bench_takes_model_kind_size_entries(tmp_path, basis_and_table):
     from brdfkit.bench.worker import Worker
     from brdfkit.testing.examples import tiny_model
 
-    assert compression_entry("m.safetensors:latent") == ("m.safetensors", "latent", None)
+    assert compression_entry("m.safetensors:hypernet") == ("m.safetensors", "hypernet", None)
+    assert compression_entry("m.safetensors:latent") == ("m.safetensors", "latent", None)  # the old name
     assert compression_entry("merl80-l40") == ("merl80-l40", None, None)
     assert compression_entry("b.safetensors:basis-21") == ("b.safetensors", "basis", 21)
     with pytest.raises(InputError, match="unknown embedding kind"):
@@ -189,14 +201,14 @@ def test_bench_takes_model_kind_size_entries(tmp_path, basis_and_table):
     model = str(tiny_model(tmp_path / "t.safetensors"))
     basis = str(tmp_path / "b.safetensors")
     save_basis(basis, basis_and_table[0])
-    cfg = BenchConfig(output=str(tmp_path / "o"), data=None, compression_models=(f"{model}:latent", model,
-                      f"{basis}:basis-6", basis), compression_data=str(tmp_path), resolution=8)
+    cfg = BenchConfig(output=str(tmp_path / "o"), data=None, compression_models=(f"{model}:hypernet", model,
+                      f"{basis}:basis-6", basis, f"{model}:latent"), compression_data=str(tmp_path), resolution=8)
     cfg.validate()
     resolved = cfg.resolved()
-    assert resolved.compression_models == (f"{model}:latent-7", f"{model}:latent-7", f"{basis}:basis-6",
-                                           f"{basis}:basis-12")
+    assert resolved.compression_models == (f"{model}:hypernet-7", f"{model}:hypernet-7", f"{basis}:basis-6",
+                                           f"{basis}:basis-12", f"{model}:hypernet-7")
     labels = [label for label, _, _ in Worker(resolved).compressors]
-    assert labels == ["latent-7 (t)", "latent-7 (t)", "basis-6 (b)", "basis-12 (b)"]
-    with pytest.raises(InputError, match="--size 9: latent embeddings of t.safetensors hold 7 numbers"):
-        BenchConfig(output=str(tmp_path / "o"), compression_models=(f"{model}:latent-9",),
+    assert labels == ["hypernet-7 (t)", "hypernet-7 (t)", "basis-6 (b)", "basis-12 (b)", "hypernet-7 (t)"]
+    with pytest.raises(InputError, match="--size 9: hypernet embeddings of t.safetensors hold 7 numbers"):
+        BenchConfig(output=str(tmp_path / "o"), compression_models=(f"{model}:hypernet-9",),
                     compression_data=str(tmp_path)).resolved()

@@ -232,7 +232,7 @@ def test_int8_storage(basis, tmp_path):
 @pytest.mark.parametrize("half,stride,int8", [(True, 2, False), (True, 1, False), (False, 2, False),
                                               (True, 2, True)])
 def test_resaving_a_stored_basis_gives_the_identical_tensors(basis, tmp_path, half, stride, int8):
-    """What ``brdfkit.methods.prior.fit`` relies on: a basis read back from compact storage and stored the
+    """What ``brdfkit.prior.fit`` relies on: a basis read back from compact storage and stored the
     same way again is bit-identical, so a model trained on it sees what it ships with."""
     first, second = tmp_path / "a.safetensors", tmp_path / "b.safetensors"
     save_basis(first, basis, half=half, phi_stride=stride, int8=int8)

@@ -45,11 +45,13 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     shutil.copy(setup["lib"] / f"{setup['names'][0]}.binary", comp / "alias.binary")
     cmd = [*brdfkit_command(), "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
            "-m", setup["model"], "--ipca", setup["basis"], "--n", "40,160", "--seeds", "1",
-           "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", setup["model"],
+           "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", f"{setup['model']},pca-1",
            "--compression-data", comp, "--threads", "1", "-o", out]
     proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=300, env=quiet_env())
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert proc.stdout == ""  # progress and messages go to stderr
+    # pca-K, the old spelling of basis-K, still runs, with a note
+    assert "note: pca-1 is now basis-1" in proc.stderr
     result = json.loads((out / "bench.json").read_text())
     assert result["complete"] and result["format"] == "brdfkit-bench"
     assert set(result["environment"]["method_defaults"]) == {"hypernet", "ipca", "nbrdf", "prior"}
@@ -85,8 +87,18 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     assert row["psnr_sd_materials"] == pytest.approx(np.std(vals, ddof=1))
 
     comp_recs = [r for r in result["records"] if r["kind"] == "compression"]
-    assert [r["method"] for r in comp_recs] == ["latent-6 (tiny)", "pca-2 (6 numbers, basis)"] * 2
+    assert result["config"]["compression_models"] == [f"{setup['model']}:hypernet-6", "basis-1"]
+    assert [r["method"] for r in comp_recs] == ["hypernet-6 (tiny)", "basis-1 (3 numbers)",
+                                                "basis-2 (6 numbers, basis)"] * 2
+    assert [r["size"] for r in comp_recs] == [6, 3, 6] * 2 and not any("latent" in r for r in comp_recs)
     assert all("error" not in r and r["time_s"] > 0 for r in comp_recs)
+    # basis-1 is the projection onto the basis's leading component
+    from brdfkit.basis import load_basis
+
+    one = load_basis(setup["basis"]).leading(1)
+    rec = next(r for r in comp_recs if r["method"] == "basis-1 (3 numbers)" and r["material"] == "alias")
+    table = read_merl(comp / "alias.binary")
+    assert rec["log_rmse"] == pytest.approx(brdf_log_rmse(one.decode(one.project(table)), table), rel=1e-9)
     # the model and the basis were trained on all three library tables, not on alias.binary
     assert {(r["material"], r["trained_on"]) for r in comp_recs} == {(setup["names"][1], True), ("alias", False)}
 
@@ -104,8 +116,9 @@ def test_bench_cli_end_to_end(setup, tmp_path):
 
     md = (out / "bench.md").read_text()
     assert "## Sparse reconstruction" in md and "## Compression" in md and "Failures" not in md
-    assert "| hypernet | 40 |" in md and "| pca-2 (6 numbers, basis) | 6 |" in md
-    assert "| latent-6 (tiny) | no |" in md and "| pca-2 (6 numbers, basis) | yes |" in md
+    assert "| hypernet | 40 |" in md and "| basis-2 (6 numbers, basis) | 6 |" in md
+    assert "| model | numbers | PSNR (dB) |" in md and "| basis-1 (3 numbers) | 3 |" in md
+    assert "| hypernet-6 (tiny) | no |" in md and "| basis-2 (6 numbers, basis) | yes |" in md
     from PIL import Image
 
     for png in ("error_vs_n.png", "error_vs_time.png", "error_vs_cpu_time.png", "compression.png"):
@@ -207,6 +220,54 @@ def test_summary_spreads():
     assert row["psnr_sd_seeds"] == pytest.approx(np.std([15.0, 17.0], ddof=1))
     assert row["psnr_sd_materials"] == pytest.approx(np.std([11.0, 21.0], ddof=1))
     assert (row["count"], row["failures"], row["materials"]) == (4, 1, 2)
+
+
+def test_compression_records_of_earlier_runs_still_summarise(tmp_path):
+    """Compression records written before the size column was called ``size`` hold it as
+    ``latent``: the summary, the merge and bench.md read either."""
+    from brdfkit.bench.report import write_markdown
+    from brdfkit.bench.summary import record_size
+
+    def rec(mat, psnr, old):
+        r = {"kind": "compression", "material": mat, "method": "pca-2 (6 numbers)", "psnr": psnr, "delta_e": 1.0,
+             "ssim": 0.9, "log_rmse": 0.1, "time_s": 1.0, "trained_on": False}
+        r["latent" if old else "size"] = 6
+        return r
+
+    recs = [rec("a", 10.0, True), rec("b", 20.0, False)]
+    assert [record_size(r) for r in recs] == [6, 6]
+    rows = summarise(recs)["compression"]
+    assert len(rows) == 1 and rows[0]["size"] == 6 and rows[0]["psnr"] == pytest.approx(15.0)
+    old_summary = {"compression": [dict({k: v for k, v in rows[0].items() if k != "size"}, latent=6)],
+                   "sparse": []}
+    result = {"config": {"command": "brdfkit bench", "jobs": 1, "compression_data": "comp", "resolution": 16},
+              "environment": {"machine": "m", "cpus": 2, "torch": "t", "threads": 1, "device": "cpu"},
+              "started": "then", "elapsed_s": 1.0, "complete": True, "records": recs,
+              "materials": {"compression_count": 2}, "summary": old_summary}
+    write_markdown(str(tmp_path / "bench.md"), result)
+    assert "| pca-2 (6 numbers) | 6 |" in (tmp_path / "bench.md").read_text()
+
+
+def test_basis_k_entries_and_their_old_spelling(capsys):
+    """``--compression-models basis-K`` is the projection onto the ``--ipca`` basis's K leading
+    components; ``pca-K``, its old spelling, still works, with a one-line note; a file
+    whose name starts with ``basis-`` stays a file."""
+    from brdfkit.bench.config import _basis_spelling, basis_components
+    from brdfkit.errors import InputError
+
+    assert basis_components("basis-13") == basis_components("pca-13") == 13
+    assert basis_components("merl80-l40:basis-21") is None and basis_components("merl80-l40") is None
+    assert basis_components("basis-merl.safetensors") is None
+    for bad in ("basis-0", "pca-0", "pca-x"):
+        with pytest.raises(InputError, match="K takes a whole number"):
+            basis_components(bad)
+    assert _basis_spelling("basis-13") == "basis-13" and capsys.readouterr().err == ""
+    assert _basis_spelling("pca-13") == "basis-13"
+    assert capsys.readouterr().err.strip() == "note: pca-13 is now basis-13"
+    cfg = BenchConfig(output="o", compression_models=("pca-2", "basis-3"), compression_data="d", ipca="b")
+    assert cfg.compressors()[:2] == [("basis", 2), ("basis", 3)]
+    with pytest.raises(InputError, match="basis-K takes the K leading components of --ipca"):
+        BenchConfig(output="o", compression_models=("pca-2",), compression_data="d").validate()
 
 
 def test_methods_model_files_and_options_by_name(setup, tmp_path):

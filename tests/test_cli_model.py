@@ -64,7 +64,25 @@ def test_encode_continues_past_bad_files(files, tmp_path):
     m = api.load_model(files / "model.safetensors", "cpu")
     e = read_embedding(out / "mat.emb")
     np.testing.assert_allclose(e.values, api.encode(material_table(1), m, refine=False).values, atol=1e-6)
-    assert e.source == "mat.binary" and e.decoder == m.fingerprint
+    assert e.source == "mat.binary" and e.decoder == m.digest
+
+
+def test_encode_kind_hypernet_and_its_old_name_latent(files, tmp_path, capsys):
+    """``--kind hypernet`` makes the hypernetwork's latent; ``--kind latent``, the kind's
+    name before, still makes the same embedding, written with the new name."""
+    outs = {}
+    for kind in ("hypernet", "latent"):
+        code, _, err = run_cli(capsys, ["encode", files / "mat.binary", files / "samples.csv", "-m",
+                                        files / "model.safetensors", "--kind", kind, "--no-refine",
+                                        "-o", tmp_path / kind])
+        assert code == 0, err
+        outs[kind] = [(tmp_path / kind / f).read_bytes() for f in ("mat.emb", "samples.emb")]
+        e = read_embedding(tmp_path / kind / "mat.emb")
+        assert e.kind == "hypernet" and e.decoder == api.load_model(files / "model.safetensors", "cpu").digest
+    assert outs["latent"] == outs["hypernet"]
+    code, _, err = run_cli(capsys, ["encode", files / "mat.binary", "-m", files / "model.safetensors",
+                                    "--kind", "basis", "-o", tmp_path / "b"])
+    assert code == 2 and "a network file, not the basis a basis embedding needs" in one_error_line(err)
 
 
 def test_encode_beside_input_and_env_model(files, tmp_path, capsys, monkeypatch):
@@ -115,7 +133,7 @@ def test_decode_other_models_embedding_refused(files, tmp_path):
     r = _run(["decode", tmp_path / "x.emb", "-m", files / "other.safetensors", "-o", tmp_path / "y.binary"])
     assert r.returncode == 2
     line = one_error_line(r.stderr)
-    assert "x.emb" in line and m.fingerprint[:12] in line and "other.safetensors" in line
+    assert "x.emb" in line and m.digest[:12] in line and "other.safetensors" in line
     assert not (tmp_path / "y.binary").exists()
 
 
@@ -257,7 +275,7 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
     from brdfkit.errors import InputError
     from brdfkit.render.display import display_encode
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
-    from brdfkit.render.file_render import reference_scene
+    from brdfkit.render.scene import reference_scene
     from brdfkit.render.quadrature import render
     from brdfkit.figures.interpolation_strip import interpolation_strip
 
@@ -269,7 +287,7 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
     png = np.asarray(Image.open(sheet).convert("RGB"))
     assert png.shape[0] > 16 and png.shape[1] > 3 * 16
 
-    from brdfkit.methods.embedding import decoder_for
+    from brdfkit.embeddings import decoder_for
 
     a, b = read_embedding(two_embs / "a.emb"), read_embedding(two_embs / "b.emb")
     dec = decoder_for(a, files / "model.safetensors", "cpu")

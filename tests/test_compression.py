@@ -143,13 +143,13 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     done = tune(d / "model.safetensors", data, out, steps=3, options=opts)
     assert done["steps"] == 3 and done["materials"] == ["a", "b"]
     tuned = api.load_model(out, "cpu")
-    assert tuned.meta["tune"]["from"] == m.fingerprint and tuned.fingerprint != m.fingerprint
+    assert tuned.meta["tune"]["from"] == m.digest and tuned.digest != m.digest
     np.testing.assert_array_equal(tuned.rho_ref, m.rho_ref)
     # Resumed to 5 steps = run to 5 in one go (the batches are seeded by the step).
     tune(d / "model.safetensors", data, out, steps=5, options=opts, resume=True)
     one_go = tmp_path / "one-go.safetensors"
     tune(d / "model.safetensors", data, one_go, steps=5, options=opts)
-    assert api.load_model(out, "cpu").fingerprint == api.load_model(one_go, "cpu").fingerprint
+    assert api.load_model(out, "cpu").digest == api.load_model(one_go, "cpu").digest
     assert not tmp_leftovers(tmp_path)
     with pytest.raises(InputError, match="another model, data or options"):
         tune(d / "model.safetensors", data, out, steps=6, options=TuneOptions(batch=1, scenes=("studio-0",), resolution=8),

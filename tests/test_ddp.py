@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from brdfkit.io.merl import read_merl
-from brdfkit.hypernet.model_file import load_model
+from brdfkit.hypernet.network_file import load_network
 from brdfkit.hypernet.mapping import median_reference
 
 from conftest import brdfkit_command, quiet_env, tiny_cli_options, tmp_leftovers
@@ -41,12 +41,12 @@ def test_two_process_fit_gives_one_model_with_identical_ranks(tmp_path_factory, 
     assert sorted(os.listdir(tmp_path)) == ["m.safetensors", "m.safetensors.ckpt"]
     assert tmp_leftovers(tmp_path) == []
     assert proc.stderr.count("wrote ") == 1
-    model = load_model(out, "cpu")
+    model = load_network(out, "cpu")
     meta = model.meta
     assert meta["world_size"] == 2
     assert 0 < meta["steps"] < 100000 and meta["skipped_steps"] == 0
-    # Each rank reported the fingerprint of its own final weights: both equal the file's.
-    assert meta["rank_fingerprints"] == [model.fingerprint, model.fingerprint]
+    # Each rank reported the digest of its own final weights: both equal the file's.
+    assert meta["rank_digests"] == [model.digest, model.digest]
     # The reference is the median of ALL training materials, not of rank 0's share.
     stack = np.stack([read_merl(lib / f"synth-00{i}.binary").astype(np.float32).reshape(-1)
                       for i in range(3)])

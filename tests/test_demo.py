@@ -13,7 +13,7 @@ from rich.console import Console
 from brdfkit.demos.synthetic_training import choose_holdout, render_psnr, write_demo_library
 from brdfkit.io.embedding import read_embedding
 from brdfkit.io.merl import read_merl
-from brdfkit.hypernet.model_file import load_model
+from brdfkit.hypernet.network_file import load_network
 
 from conftest import brdfkit_command, quiet_env, tiny_cli_options
 
@@ -53,7 +53,7 @@ def test_demo_runs_end_to_end(tmp_path):
     assert "were not kept" in report and not (out / "materials").exists() and not (out / "decoded").exists()
     assert not [n for n in os.listdir(out) if n.startswith(".")]
 
-    model = load_model(out / "model.safetensors", "cpu")
+    model = load_network(out / "model.safetensors", "cpu")
     held = model.meta["excluded"]
     assert len(held) == 1 and held[0] not in model.meta["materials"]
     assert model.meta["steps"] == 20
@@ -63,7 +63,7 @@ def test_demo_runs_end_to_end(tmp_path):
         assert (out / rel).is_file(), rel
     for f in (f"{name}.emb", f"{name}-40samples.emb", f"{name}-400samples.emb"):
         emb = read_embedding(out / "embeddings" / f)
-        assert emb.decoder == model.fingerprint
+        assert emb.decoder == model.digest
     mixes = [f for f in os.listdir(out / "embeddings") if "+" in f]
     assert len(mixes) == 1
     # A kept library (--keep-tables) is reused by the next run with the same count and seed.

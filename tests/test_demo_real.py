@@ -50,15 +50,15 @@ def shelf(tmp_path_factory):
     import torch
 
     from brdfkit.basis import fit_basis
-    from brdfkit.methods.prior.prior_file import save_prior
-    from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
+    from brdfkit.prior.prior_file import save_prior
+    from brdfkit.prior.model import PriorConfig, PriorModel, prior_net
 
     src = tmp_path_factory.mktemp("trained")
     folder = tmp_path_factory.mktemp("builtin")
     entries = []
     for name, latent, seed in SHELF:
         make_model(src / f"{name}.safetensors", {**TINY_CONFIG, "latent_dim": latent}, seed=seed)
-        packing.pack_model(src / f"{name}.safetensors", folder / f"{name}.safetensors",
+        packing.pack_network(src / f"{name}.safetensors", folder / f"{name}.safetensors",
                            reference_file="tiny.reference.safetensors")
         entries.append(packing.manifest_entry(folder / f"{name}.safetensors", name, command="brdfkit fit (tiny)",
                                               validation={40: 0.3}))
@@ -68,10 +68,10 @@ def shelf(tmp_path_factory):
     fp = save_prior(folder / "merl80-l40.prior.safetensors",
                     PriorModel(basis, prior_net(cfg), cfg, {"materials": ["stiff-white", "ggx"]}),
                     basis_file="tiny.basis.safetensors")
-    from brdfkit.methods.prior.prior_file import basis_entry
+    from brdfkit.prior.prior_file import basis_entry
 
-    entries[0].update(prior="merl80-l40.prior.safetensors", prior_fingerprint=fp,
-                      **basis_entry(folder / "merl80-l40.prior.safetensors"))
+    entries[0]["parts"].update(prior={"file": "merl80-l40.prior.safetensors", "digest": fp},
+                               **basis_entry(folder / "merl80-l40.prior.safetensors"))
     builtin.write_manifest(folder, entries, default="merl80-l40")
     return folder
 
@@ -207,25 +207,25 @@ def test_real_demo_end_to_end(shelf, tmp_path):
                                rtol=1e-12, equal_nan=True)
     for stem in ("prior-40", "prior-400", "ipca-40", "ipca-400"):
         assert np.isfinite(read_merl(out / "reconstructed" / f"violet-rubber-{stem}.binary")).any()
-    entries = {m.name: m for m in builtin.read_manifest(shelf).models}
-    assert len({m.fingerprint for m in entries.values()}) == 3
+    entries = {m.name: m for m in builtin.read_manifest(shelf).bundles}
+    assert len({m.part("network").digest for m in entries.values()}) == 3
     for m, latent, _ in SHELF:
         emb = read_embedding(out / "embeddings" / f"teflon-{m}.emb")
         # merl80-l40 ships a basis (3 components): a basis embedding of 9 numbers, named by the basis file
         basis = m == "merl80-l40"
-        assert (emb.kind, emb.size) == (("basis", 9) if basis else ("latent", latent))
-        assert emb.decoder == (entries[m].basis_fingerprint if basis else entries[m].fingerprint)
+        assert (emb.kind, emb.size) == (("basis", 9) if basis else ("hypernet", latent))
+        assert emb.decoder == entries[m].part("basis" if basis else "network").digest
         assert (out / "decoded" / f"teflon-{m}.binary").is_file()
     assert sorted(os.listdir(out / "decoded")) == sorted(
         [f"{n}-{m}.binary" for n in ("violet-rubber", "teflon") for m, _, _ in SHELF]
         + ["violet-rubber+teflon-t0.5-merl80-l40.binary"])
     blend = read_embedding(out / "embeddings" / "violet-rubber+teflon-t0.5-merl80-l40.emb")
-    assert blend.decoder == entries["merl80-l40"].basis_fingerprint
+    assert blend.decoder == entries["merl80-l40"].part("basis").digest
     assert len((out / "samples" / "teflon-40.csv").read_text().splitlines()) > 40
     doc = json.loads((out / "errors.json").read_text())
     assert doc["columns"] == SPARSE_COLUMNS + LABELS and list(doc["errors"]["teflon"]) == doc["columns"]
     assert [(c["column"], c["kind"], c["embedding"], c["size"]) for c in doc["compressions"]] == [
-        (LABELS[0], "in-sample", "latent", 40), (LABELS[1], "in-sample", "latent", 7),
+        (LABELS[0], "in-sample", "hypernet", 40), (LABELS[1], "in-sample", "hypernet", 7),
         (LABELS[2], "unseen", "basis", 9)]
     assert doc["compression_steps"] == 20 and doc["interpolation_model"] == "merl80-l40"
     assert doc["psnr"]["teflon"].keys() == doc["errors"]["teflon"].keys()  # the renders the tables rank by
@@ -254,7 +254,7 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
         ("merl-rgl-l40", "in-sample", LABELS[0]), ("merl-rgl-l7", "in-sample", LABELS[1]),
         ("merl80-l40", "unseen", LABELS[2])]
     # Every full table refined on screen for the demo's steps, read when the demo runs.
-    assert calls == [("latent", 40, True, 3), ("latent", 7, True, 3), ("basis", 9, True, 3)]
+    assert calls == [("hypernet", 40, True, 3), ("hypernet", 7, True, 3), ("basis", 9, True, 3)]
     assert res.compression_steps == 3
     assert [t for t, _ in res.times if t.startswith("encode")] == [
         f"encode + refine (3 steps), {label} (mean)" for label in LABELS]
@@ -274,7 +274,7 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
 
     calls.clear()
     res = run_real_demo(tmp_path / "e", only=["teflon"], render=False, device="cpu", steps=0)
-    assert calls == [("latent", 40, False, 0), ("latent", 7, False, 0), ("basis", 9, False, 0)]  # no refinement
+    assert calls == [("hypernet", 40, False, 0), ("hypernet", 7, False, 0), ("basis", 9, False, 0)]  # no refinement
     assert res.times[2 + 2][0] == f"encode (encoder pass only), {LABELS[0]} (mean)"
 
 

@@ -17,14 +17,14 @@ from conftest import format_error
 FP = "ab" * 32
 
 
-def _emb(dim=40, seed=0, fp=FP, kind="latent"):
+def _emb(dim=40, seed=0, fp=FP, kind="hypernet"):
     rng = np.random.default_rng(seed)
     # Values across many magnitudes, including ones whose float32 decimal repr is long.
     lat = (rng.normal(size=dim) * 10.0 ** rng.integers(-6, 3, dim)).astype(np.float32)
     return Embedding(lat, kind, fp, "teflon.binary", 1234)
 
 
-@pytest.mark.parametrize("kind", ["latent", "basis"])
+@pytest.mark.parametrize("kind", ["hypernet", "basis"])
 def test_round_trip_exact(tmp_path, kind):
     e = _emb(39, kind=kind)
     write_embedding(tmp_path / "a.emb", e)
@@ -40,24 +40,40 @@ def test_small_self_describing_json(tmp_path):
     assert len(text) < 4096
     doc = json.loads(text)
     assert doc["format"] == "brdfkit-embedding" and doc["version"] == 2
-    assert doc["size"] == 40 == len(doc["values"]) and doc["kind"] == "latent" and doc["decoder"] == FP
+    assert doc["size"] == 40 == len(doc["values"]) and doc["kind"] == "hypernet" and doc["decoder"] == FP
     assert set(doc) == {"format", "version", "kind", "size", "values", "decoder", "source", "sample_count"}
 
 
 @pytest.mark.parametrize("basis", [None, "cd" * 32])
 def test_version_1_files_read_as_the_same_embedding(tmp_path, basis):
-    """A version 1 file: a latent and its model's fingerprint, or (with ``basis``) the
-    coefficients of that basis file."""
+    """A version 1 file: a latent and its model's digest (``model_fingerprint``), or (with
+    ``basis``) the coefficients of that basis file."""
     doc = _doc()
     if basis:
         doc["basis"] = basis
     (tmp_path / "v1.emb").write_text(json.dumps(doc))
     r = read_embedding(tmp_path / "v1.emb")
-    assert (r.kind, r.decoder, r.size) == (("basis", basis, 3) if basis else ("latent", FP, 3))
+    assert (r.kind, r.decoder, r.size) == (("basis", basis, 3) if basis else ("hypernet", FP, 3))
     assert r.values.tolist() == [0.5, -1.0, 2.0] and (r.source, r.sample_count) == ("x", 3)
     write_embedding(tmp_path / "v2.emb", r)  # written again as version 2, the same values
     again = read_embedding(tmp_path / "v2.emb")
     assert (again.kind, again.decoder, again.values.tolist()) == (r.kind, r.decoder, r.values.tolist())
+
+
+def test_the_old_kind_name_latent_reads_as_hypernet(tmp_path):
+    """``latent``, the name of the ``hypernet`` kind before, in a version 2 file or given to
+    :class:`Embedding`, is the same embedding; it is written back as ``hypernet``."""
+    write_embedding(tmp_path / "new.emb", _emb())
+    doc = json.loads((tmp_path / "new.emb").read_text())
+    doc["kind"] = "latent"
+    (tmp_path / "old.emb").write_text(json.dumps(doc))
+    r = read_embedding(tmp_path / "old.emb")
+    new = read_embedding(tmp_path / "new.emb")
+    assert r.kind == "hypernet" and (r.decoder, r.source, r.sample_count) == (new.decoder, new.source, new.sample_count)
+    np.testing.assert_array_equal(r.values, new.values)
+    assert _emb(kind="latent").kind == "hypernet"
+    write_embedding(tmp_path / "again.emb", r)
+    assert json.loads((tmp_path / "again.emb").read_text())["kind"] == "hypernet"
 
 
 def test_write_refuses_non_finite(tmp_path):
@@ -153,7 +169,7 @@ def test_write_refuses_a_malformed_kind_or_decoder(tmp_path):
 def test_a_latent_of_another_model_is_refused():
     from brdfkit.hypernet.neural_brdf import check_latent
 
-    model = types.SimpleNamespace(fingerprint=FP, cfg=types.SimpleNamespace(latent_dim=40))
+    model = types.SimpleNamespace(digest=FP, cfg=types.SimpleNamespace(latent_dim=40))
     check_latent(_emb(), model)
     with pytest.raises(ModelMismatchError) as e:
         check_latent(_emb(fp="cd" * 32), model, "x.emb")

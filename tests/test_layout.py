@@ -41,6 +41,67 @@ def _imports(tree):
                     yield a.name, []
 
 
+def _target(node):
+    """The brdfkit packages or top-level modules an import statement names."""
+    from brdfkit import LAYERS
+
+    known = {p for layer in LAYERS for p in layer}
+    if isinstance(node, ast.ImportFrom) and node.module == "brdfkit":
+        return [a.name if a.name in known else "" for a in node.names]
+    if isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("brdfkit."):
+        return [node.module.split(".")[1]]
+    if isinstance(node, ast.Import):
+        return [a.name.split(".")[1] for a in node.names if a.name.startswith("brdfkit.")]
+    return []
+
+
+def test_the_layer_table_names_every_package_and_top_level_module():
+    """``brdfkit.LAYERS`` holds every package and top-level module once, and the table of
+    ``brdfkit/__init__.py``'s docstring shows the same layers in the same order."""
+    import re
+
+    import brdfkit
+
+    names = [p for layer in brdfkit.LAYERS for p in layer]
+    present = {f[:-3] if f.endswith(".py") else f for f in os.listdir(ROOT)
+               if (f.endswith(".py") and f != "__init__.py")
+               or os.path.isfile(os.path.join(ROOT, f, "__init__.py"))}
+    assert sorted(names) == sorted(present) and len(names) == len(set(names))
+    rows, number = [], None
+    for line in brdfkit.__doc__.splitlines():
+        m = re.match(r"(\d+)\s{2,}(.*)", line)
+        if m:
+            number = int(m.group(1))
+            rows.append((number, []))
+        if number is not None and re.match(r"(\d+)?\s+``", line):
+            rows[-1][1].extend(re.findall(r"``(\w+)/?``", line.split("  ")[0] + line[5:45]))
+    assert [tuple(names) for _, names in rows] == [tuple(layer) for layer in brdfkit.LAYERS], rows
+
+
+def test_data_flows_one_way():
+    """No module imports from a layer below its own (``brdfkit.LAYERS``), inside functions
+    included: no library module imports ``api``, ``files`` or ``cli`` from below them."""
+    from brdfkit import LAYERS
+
+    layer = {p: i for i, ps in enumerate(LAYERS) for p in ps}
+    upward = []
+    for rel, src in _modules():
+        here = _package(rel)
+        if here == "__init__":
+            continue
+        for node in ast.walk(ast.parse(src)):
+            for there in _target(node):
+                if there and layer[there] > layer[here]:
+                    upward.append((rel, here, there))
+    assert not upward, upward
+
+
+def test_the_residual_imports_the_basis_and_not_the_hypernetwork():
+    found = [(rel, module) for rel, src in _modules() if _package(rel) == "residual"
+             for module, _ in _imports(ast.parse(src)) if module.startswith("brdfkit.hypernet")]
+    assert not found, found
+
+
 def test_at_most_six_top_level_modules():
     top = [f for f in os.listdir(ROOT) if f.endswith(".py") and f != "__init__.py"]
     assert len(top) <= 6, sorted(top)

@@ -14,7 +14,8 @@ from hypothesis import strategies as st
 
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE
-from brdfkit.hypernet.mapping import EPS, from_mapped, load_reference, median_reference, save_reference, to_mapped
+from brdfkit.hypernet.mapping import (CAP, EPS, FLOOR, from_mapped, load_reference, median_reference, save_reference,
+                                      to_mapped)
 from brdfkit.io.merl import write_merl
 
 from conftest import format_error, tmp_leftovers
@@ -30,7 +31,7 @@ def test_round_trip(rho, ref):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         mapped = to_mapped(np.array([rho]), ref)
-        back = from_mapped(mapped, ref)
+        back = from_mapped(mapped, ref, floor=0)  # the exact inverse (the paper's)
     assert np.isfinite(mapped).all() and np.isfinite(back).all() and back[0] >= 0
     if rho > 1e-6:
         assert abs(back[0] - rho) <= 1e-6 * rho
@@ -44,7 +45,7 @@ def test_stable_at_extremes(ref):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         mapped = to_mapped(rho, ref)
-        back = from_mapped(mapped, ref)
+        back = from_mapped(mapped, ref, floor=0)
     assert np.isfinite(mapped).all() and (mapped > 0).all()
     assert back[0] == 0.0  # exactly: clamped at 0, never a tiny negative
     np.testing.assert_allclose(back[1:], rho[1:], rtol=1e-6, atol=1e-14)
@@ -70,6 +71,7 @@ def test_nan_propagates_without_warnings():
         warnings.simplefilter("error")
         mapped = to_mapped(rho, ref)
         back = from_mapped(mapped, ref)
+        from_mapped(mapped, ref, floor=0)
     np.testing.assert_array_equal(np.isnan(mapped), [True, True, False])
     np.testing.assert_array_equal(np.isnan(back), [True, True, False])
     assert not np.isinf(mapped).any() and not np.isinf(back).any()
@@ -78,7 +80,23 @@ def test_nan_propagates_without_warnings():
 def test_negative_input_clamped():
     # impossible for a BRDF, but a network may predict one: the log stays defined
     assert np.isfinite(to_mapped(np.array([-1.0]), 0.1)).all()
-    assert from_mapped(np.array([-5.0]), 0.1)[0] == 0.0
+    assert from_mapped(np.array([-5.0]), 0.1, floor=0)[0] == 0.0
+    assert from_mapped(np.array([-5.0]), 0.1)[0] == min(FLOOR * 0.1, CAP) + 1e-6 * EPS
+
+
+@pytest.mark.parametrize("ref", [0.0, 1e-3, 1.0, 1e3])
+def test_the_decoded_value_is_bounded_below_where_the_mapping_resolves_nothing(ref):
+    """The default inverse never crosses zero: a network's "below eps" decodes to
+    min(FLOOR * ref, CAP), never to 0 (black bands); every value above that bound comes
+    back as it went in."""
+    bound = min(FLOOR * ref, CAP) + 1e-6 * EPS
+    rho = np.array([0.0, 1.5 * bound, 100 * bound, 1e4 * bound, 1e3])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        back = from_mapped(to_mapped(rho, ref), ref)
+        low = from_mapped(np.array([-30.0, -1.0, 0.0]), ref)
+    assert back[0] == bound and (low >= bound).all() and (np.diff(low) >= 0).all()
+    np.testing.assert_allclose(back[1:], rho[1:], rtol=1e-6)
 
 
 def test_torch_matches_numpy():

@@ -31,7 +31,7 @@ def _same(a, b):
 def test_one_pass_equals_separate_renders_table_and_neural(tmp_path):
     from brdfkit import api
     from brdfkit.io.embedding import write_embedding
-    from brdfkit.brdf_file import load_brdf
+    from brdfkit.files.brdf_file import load_brdf
     from brdfkit.acquisition.sampling import draw_samples
 
     make_model(tmp_path / "m.safetensors", seed=0)

@@ -96,9 +96,9 @@ def test_reference_tables_are_0644_under_umask_022(tmp_path, umask_022):
 
 
 def test_fit_writes_its_model_file_0644_under_umask_022(tmp_path, library, umask_022):
-    """``brdfkit fit --method ipca`` (seconds; the hypernet's model file goes through the
+    """``brdfkit fit --method basis`` (seconds; the hypernet's network file goes through the
     same writer, ``safetensors`` into :func:`brdfkit.atomic.atomic_path`)."""
-    r = run_brdfkit(["fit", library, "--method", "ipca", "--components", "2",
+    r = run_brdfkit(["fit", library, "--method", "basis", "--components", "2",
                      "-o", tmp_path / "basis.safetensors",
                      "--quiet"])
     assert r.returncode == 0, r.stderr

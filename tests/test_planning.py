@@ -258,7 +258,7 @@ def test_plan_for_a_learnt_prior_file_is_the_plan_for_its_basis(tmp_path, capsys
 
     write_library(tmp_path / "lib", 4, seed=2, stiff=False)  # two folds of two: the fewest the prior's fit takes
     basis, prior = tmp_path / "b.safetensors", tmp_path / "p.safetensors"
-    for args in (["fit", "--method", "ipca", tmp_path / "lib", "--components", "3", "-o", basis],
+    for args in (["fit", "--method", "basis", tmp_path / "lib", "--components", "3", "-o", basis],
                  ["fit", "--method", "prior", tmp_path / "lib", "-O", f"basis={basis}", "-O", "folds=2",
                   "--steps", "3", "-o", prior]):
         code, _, err = run_cli(capsys, args)

@@ -1,6 +1,6 @@
 """The learnt-prior method (``prior``): the closed-form fit around a prior mean
-(:mod:`brdfkit.methods.prior.model`), its model file (:mod:`brdfkit.methods.prior.prior_file`)
-and its training (:mod:`brdfkit.methods.prior.fit`, ``brdfkit fit --method prior``).
+(:mod:`brdfkit.prior.model`), its model file (:mod:`brdfkit.prior.prior_file`)
+and its training (:mod:`brdfkit.prior.fit`, ``brdfkit fit --method prior``).
 
 Tables are cheap analytic ones (a Lambertian base and a Gaussian lobe in ``theta_h``
 with a Fresnel-like rise in ``theta_d``, computed on the ``(theta_h, theta_d)`` rows
@@ -23,8 +23,8 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.geometry import GRID_SHAPE, HALF_PI, grid_angles, valid_mask
 from brdfkit.methods import get_method
 from brdfkit.basis import EPS, fit_basis, load_basis, save_basis
-from brdfkit.methods.prior.prior_file import is_prior_file, load_prior, save_prior
-from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, sample_rows, solve
+from brdfkit.prior.prior_file import is_prior_file, load_prior, save_prior
+from brdfkit.prior.model import PriorConfig, PriorModel, prior_net, sample_rows, solve
 from brdfkit.io.samples import SampleSet
 from brdfkit.acquisition.sampling import draw_samples
 
@@ -199,11 +199,11 @@ def test_save_load_round_trip_inline(noisy, tables, tmp_path):
     fp = save_prior(path, noisy)
     assert len(fp) == 64 and is_prior_file(path)
     back = load_prior(path)
-    assert back.fingerprint == fp
+    assert back.digest == fp
     _same_model(noisy, back, samples)
     assert back.meta == {"materials": noisy.meta["materials"], "steps": 0}
     assert not np.array_equal(back.coefficients(samples), back.coefficients(samples, use_prior=False))
-    # Saving the same model again gives the same fingerprint (it names the content).
+    # Saving the same model again gives the same digest (it names the content).
     assert save_prior(tmp_path / "again.safetensors", noisy) == fp
     assert not [p for p in tmp_path.iterdir() if p.name.startswith(".brdfkit-tmp-")]
 
@@ -215,7 +215,7 @@ def test_save_load_round_trip_inline(noisy, tables, tmp_path):
     save_basis(tmp_path / "b.safetensors", noisy.basis, half=True, phi_stride=2)
     stored = load_basis(tmp_path / "b.safetensors")
     _same_model(dataclasses.replace(noisy, basis=stored), back2, samples)
-    assert back2.fingerprint == fp2
+    assert back2.digest == fp2
 
 
 def test_shared_basis_file(basis, tables, tmp_path):
@@ -230,7 +230,7 @@ def test_shared_basis_file(basis, tables, tmp_path):
     assert fa != fb
     for model, name, fp in ((a, "a", fa), (b, "b", fb)):
         back = load_prior(tmp_path / f"{name}.safetensors")
-        assert back.fingerprint == fp
+        assert back.digest == fp
         _same_model(model, back, samples)
     # The model file holds no basis tensor of its own.
     from safetensors import safe_open
@@ -282,7 +282,7 @@ def _tensor_span(path, name):
     return 8 + n + begin, 8 + n + end
 
 
-def test_a_changed_weight_is_refused_by_the_fingerprint(noisy, tmp_path):
+def test_a_changed_weight_is_refused_by_the_digest(noisy, tmp_path):
     path = tmp_path / "prior.safetensors"
     save_prior(path, noisy)
     good = path.read_bytes()
@@ -291,19 +291,19 @@ def test_a_changed_weight_is_refused_by_the_fingerprint(noisy, tmp_path):
         raw = bytearray(good)
         raw[start + 4 * ((end - start) // 8)] ^= 0x01  # the lowest mantissa bit of one float
         path.write_bytes(bytes(raw))
-        with pytest.raises(FormatError, match="prior.safetensors: .*fingerprint"):
+        with pytest.raises(FormatError, match="prior.safetensors: .*digest"):
             load_prior(path)
     path.write_bytes(good)
     load_prior(path)
 
 
-def test_the_fingerprint_covers_the_likelihood_in_the_config(noisy, tmp_path):
+def test_the_digest_covers_the_likelihood_in_the_config(noisy, tmp_path):
     """The config's likelihood changes what the model reconstructs: an edited config is a
     damaged file. A file from before the likelihood options (no ``weight`` in its config,
-    a fingerprint of the weights and the basis alone) still loads."""
+    a digest of the weights and the basis alone) still loads."""
     import hashlib
 
-    from brdfkit.methods.prior.prior_file import _digest
+    from brdfkit.prior.prior_file import _digest
     from helpers_bad_input import rewrite_header
 
     path = tmp_path / "prior.safetensors"
@@ -490,7 +490,7 @@ def data(make_table, tmp_path_factory):
 
 
 def test_fit_prior_smoke(data, tables):
-    from brdfkit.methods.prior.fit import fit_prior
+    from brdfkit.prior.fit import fit_prior
 
     out = data / "api.safetensors"
     assert fit_prior([data / "data"], out, progress=False, exclude=["nothing-such"], **TINY_FIT) == out
@@ -511,7 +511,7 @@ def test_fit_prior_minutes_choose_steps_that_replay(data):
     of that many ``steps`` gives the same weights."""
     import torch
 
-    from brdfkit.methods.prior.fit import fit_prior
+    from brdfkit.prior.fit import fit_prior
 
     tiny = {**TINY_FIT, "steps": None}
     fit_prior([data / "data"], data / "m.safetensors", progress=False, minutes=0.002, **tiny)
@@ -610,7 +610,7 @@ def test_solve_is_the_weighted_ridge_of_its_docstring(weight):
     import torch
 
     from brdfkit.basis import EPS
-    from brdfkit.methods.prior.model import solve
+    from brdfkit.prior.model import solve
 
     rng = np.random.default_rng(3)
     s, k = 50, 3
@@ -635,7 +635,7 @@ def test_solve_is_the_weighted_ridge_of_its_docstring(weight):
 
 
 def test_a_config_the_fit_cannot_use_is_refused():
-    from brdfkit.methods.prior.model import PriorConfig
+    from brdfkit.prior.model import PriorConfig
 
     for bad in ({"weight": "bright"}, {"s2": 0.0}, {"lam": -1.0}):
         with pytest.raises(ValueError):
@@ -669,11 +669,11 @@ def test_solve_takes_a_prior_spread_per_channel():
 def test_a_model_with_a_learnt_spread_round_trips_and_starts_as_the_plain_fit(basis, tables, tmp_path):
     """``spread=True``: an untrained head keeps ``sigma`` (the plain fit); a trained one
     changes the fit; the file keeps the option and reconstructs the same to the bit. Files
-    without it record no ``spread`` (their fingerprints stay as they were)."""
+    without it record no ``spread`` (their digests stay as they were)."""
     import torch
     from safetensors import safe_open
 
-    from brdfkit.methods.prior.model import SPREAD_LOG_BOUND
+    from brdfkit.prior.model import SPREAD_LOG_BOUND
 
     cfg = dataclasses.replace(CFG, spread=True)
     net = prior_net(cfg).eval()

@@ -34,12 +34,12 @@ PRIOR = "tiny-p.prior.safetensors"
 
 def _pack_prior(path, tables) -> str:
     """An untrained learnt prior over a 3-component basis of ``tables``, the basis in
-    :data:`BASIS` beside it; returns its fingerprint."""
+    :data:`BASIS` beside it; returns its digest."""
     import torch
 
     from brdfkit.basis import fit_basis
-    from brdfkit.methods.prior.prior_file import save_prior
-    from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
+    from brdfkit.prior.prior_file import save_prior
+    from brdfkit.prior.model import PriorConfig, PriorModel, prior_net
 
     basis = fit_basis(tables, n_components=3, names=["stiff-white", "ggx"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
@@ -56,9 +56,9 @@ def shelf(tmp_path_factory):
     folder = tmp_path_factory.mktemp("builtin")
     entries = pack_tiny_builtins(src, folder, (("tiny-p", 0), ("tiny-h", 1)), validation={40: 0.3})
     fp = _pack_prior(folder / PRIOR, [material_table(0), material_table(1)])
-    from brdfkit.methods.prior.prior_file import basis_entry
+    from brdfkit.prior.prior_file import basis_entry
 
-    entries[0].update(prior=PRIOR, prior_fingerprint=fp, **basis_entry(folder / PRIOR))
+    entries[0]["parts"].update(prior={"file": PRIOR, "digest": fp}, **basis_entry(folder / PRIOR))
     builtin.write_manifest(folder, entries, default="tiny-p")
     return folder, write_inputs(tmp_path_factory.mktemp("inputs"))
 
@@ -127,23 +127,25 @@ def test_sparse_default_without_a_prior_is_the_hypernetwork(installed, capsys, m
     folder, inputs = installed
     alt = tmp_path / "builtin"
     shutil.copytree(folder, alt)
-    entries = [m.to_json() for m in builtin.read_manifest(alt).models]
+    entries = [m.to_json() for m in builtin.read_manifest(alt).bundles]
     for e in entries:
-        for key in ("path", "default", "installed"):
+        for key in ("default", "installed"):
             e.pop(key)
+        for part in e["parts"].values():
+            part.pop("path")
     builtin.write_manifest(alt, entries, default="tiny-h")
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(alt))
     code, _, err = run_cli(capsys, ["sparse", inputs / "s.csv", "-o", tmp_path / "h.binary",
                                     "--emb", tmp_path / "h.emb"])
     assert code == 0, err
     assert "(method hypernet, model tiny-h, the default built-in)" in err
-    assert read_embedding(tmp_path / "h.emb").decoder == builtin.builtin_models()[1].fingerprint
+    assert read_embedding(tmp_path / "h.emb").decoder == builtin.installed_bundles()[1].part("network").digest
 
 
 def test_sparse_builtin_name_for_every_method(installed, capsys, tmp_path):
     folder, inputs = installed
     s = inputs / "s.csv"
-    fps = {m.name: m.fingerprint for m in builtin.builtin_models()}
+    fps = {m.name: m.part("network").digest for m in builtin.installed_bundles()}
     cases = [([], "tiny-p", "prior", folder / PRIOR),
              ([], "tiny-h", "hypernet", folder / "tiny-h.safetensors"),
              (["--method", "prior"], "tiny-p", "prior", folder / PRIOR),
@@ -213,6 +215,34 @@ def test_damaged_basis_refused(shelf, monkeypatch, capsys, tmp_path):
         assert code == 2 and "not the one it was saved with" in one_error_line(err)
 
 
+def test_version_1_manifest_with_a_prior_still_reads(shelf, monkeypatch, capsys, tmp_path):
+    """A version 1 manifest named a built-in's learnt prior and its basis beside the
+    hypernetwork (``prior`` / ``prior_fingerprint``, ``basis`` / ``basis_fingerprint``): it
+    reads as the same bundles, and ``sparse`` takes the same prior by default."""
+    folder = tmp_path / "builtin"
+    shutil.copytree(shelf[0], folder)
+    doc = json.loads((folder / "manifest.json").read_text())
+    models = []
+    for e in doc["bundles"]:
+        e = dict(e)
+        parts = e.pop("parts")
+        old = {"file": parts["network"]["file"], "fingerprint": parts["network"]["digest"]}
+        for key in ("prior", "basis"):
+            if key in parts:
+                old.update({key: parts[key]["file"], f"{key}_fingerprint": parts[key]["digest"]})
+        models.append({**e, **old})
+    v2 = builtin.read_manifest(folder)
+    old = {"format": doc["format"], "version": 1, "default": doc["default"], "models": models}
+    (folder / "manifest.json").write_text(json.dumps(old))
+    assert builtin.read_manifest(folder) == v2
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(folder))
+    assert builtin.resolve_prior("tiny-p") == str(folder / PRIOR)
+    assert builtin.resolve_basis("tiny-p") == str(folder / BASIS)
+    code, _, err = run_cli(capsys, ["sparse", shelf[1] / "s.csv", "-o", tmp_path / "a.binary"])
+    assert code == 0 and "(method prior, model tiny-p, the default built-in)" in err, err
+    _check_table(tmp_path / "a.binary", "prior", folder / PRIOR, shelf[1] / "s.csv")
+
+
 # --- brdfkit models, brdfkit.load_model ---------------------------------------------------------
 
 def test_models_command_shows_the_prior(installed, capsys):
@@ -223,24 +253,28 @@ def test_models_command_shows_the_prior(installed, capsys):
     for line in out.splitlines():
         if line.startswith("tiny-") and "/" not in line:
             rows.setdefault(line.split()[0], line.split())
-    assert rows["tiny-p"][1:4] == ["*", "7", "yes"] and rows["tiny-h"][1:3] == ["7", "-"]
-    assert f"tiny-p learnt prior: {folder / PRIOR}" in out
-    assert "checked: 2 model(s) and 1 learnt prior(s) load and match the manifest" in out
+    assert rows["tiny-p"][1] == "*" and set(rows["tiny-p"][2:5]) == {"network", "prior", "basis"}
+    assert rows["tiny-p"][5] == "7"
+    assert rows["tiny-h"][1:3] == ["network", "7"]
+    assert f"tiny-p prior: {folder / PRIOR}" in out and f"tiny-p basis: {folder / BASIS}" in out
+    assert f"tiny-p network: {folder / 'tiny-p.safetensors'}" in out
+    assert "checked: 2 model(s), 4 part(s): each loads and matches the manifest" in out
     code, out, err = run_cli(capsys, ["models", "--json"])
     assert code == 0, err
-    models = {m["name"]: m for m in json.loads(out)["models"]}
-    assert models["tiny-p"]["prior"] == PRIOR and models["tiny-p"]["prior_installed"]
-    assert len(models["tiny-p"]["prior_fingerprint"]) == 64
-    assert models["tiny-h"]["prior"] is None and not models["tiny-h"]["prior_installed"]
+    models = {m["name"]: m for m in json.loads(out)["bundles"]}
+    prior = models["tiny-p"]["parts"]["prior"]
+    assert prior["file"] == PRIOR and prior["installed"] and len(prior["digest"]) == 64
+    assert models["tiny-p"]["parts"]["basis"]["file"] == BASIS
+    assert set(models["tiny-h"]["parts"]) == {"network"}
 
 
 def test_load_model_takes_a_builtin_name(installed):
     folder, _ = installed
     m = api.load_model("tiny-h", device="cpu")
-    assert m.fingerprint == builtin.builtin_models()[1].fingerprint
+    assert m.digest == builtin.installed_bundles()[1].part("network").digest
     import brdfkit
 
-    assert brdfkit.load_model("tiny-p", device="cpu").fingerprint == builtin.builtin_models()[0].fingerprint
+    assert brdfkit.load_model("tiny-p", device="cpu").digest == builtin.installed_bundles()[0].part("network").digest
 
 
 # --- brdfkit bench ------------------------------------------------------------------------------
@@ -286,7 +320,7 @@ def test_bench_takes_builtin_names(installed, capsys, tmp_path):
     r = cfg.resolved()
     assert (r.model, r.ipca, r.models, r.compression_models) == (
         str(folder / "tiny-h.safetensors"), str(folder / BASIS), {"prior": str(folder / PRIOR)},
-        (str(folder / "tiny-h.safetensors") + ":latent-7",))  # what `encode -m tiny-h` makes: its latent
+        (str(folder / "tiny-h.safetensors") + ":hypernet-7",))  # what `encode -m tiny-h` makes: its latent
     assert BenchConfig(output="o", model="x/m.safetensors").resolved().model == "x/m.safetensors"
     with pytest.raises(InputError, match="'tiny-h' ships no learnt prior"):
         BenchConfig(output="o", models={"prior": "tiny-h"}).resolved()

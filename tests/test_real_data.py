@@ -59,7 +59,7 @@ def test_real_files_render_as_mitsuba_evaluates_them():
     toward the camera, at 500 random pairs each."""
     import torch
 
-    from brdfkit.brdf_file import load_brdf
+    from brdfkit.files.brdf_file import load_brdf
     from brdfkit.testing.mitsuba_measured import measured_eval
 
     files = [p for p in _rgl_files() if p.stem in ("paper_white_rgb", "ilm_solo_m_68_rgb", "cardboard_rgb")]

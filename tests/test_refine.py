@@ -55,7 +55,7 @@ def test_latent_refinement_fits_the_samples_and_the_material(setup):
     assert np.isfinite(before).any()
     # The embedding is the refined latent: decoding it gives the refined material.
     np.testing.assert_allclose(api.decode(r.embedding, model), r.brdf.to_table(), rtol=1e-6, equal_nan=True)
-    assert r.embedding.sample_count == 400 and r.embedding.decoder == model.fingerprint
+    assert r.embedding.sample_count == 400 and r.embedding.decoder == model.digest
 
 
 def test_weights_stage_and_model_untouched(setup):

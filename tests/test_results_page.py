@@ -34,8 +34,8 @@ def _prior(path, tables) -> None:
     import torch
 
     from brdfkit.basis import fit_basis
-    from brdfkit.methods.prior.prior_file import save_prior
-    from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
+    from brdfkit.prior.prior_file import save_prior
+    from brdfkit.prior.model import PriorConfig, PriorModel, prior_net
 
     basis = fit_basis(tables, n_components=3, names=["a", "b"])
     cfg = PriorConfig(n_components=3, latent_dim=4, width=8)
@@ -109,9 +109,9 @@ def test_page_from_bench_results(runs, tmp_path):
     assert "**Coverage: 1 of the 2 test materials** of `test.txt` (missing: mat-z)" in page
     assert "N = 40: prior PSNR " in proc.stdout and "Done when met:" in proc.stdout
     # compression: all, MERL and RGL rows of each model, the paper's figure on the IPCA row
-    assert "| latent-7 (hyp) | all | 2 |" in page and "| latent-7 (hyp) | RGL | 1 |" in page
-    assert "| pca-3 (9 numbers, basis) | MERL | 1 | 100.00 | - |" in page
-    assert "| pca-3 (9 numbers, basis) | all | 2 | 100.00 ± 0.00 | - |" in page
+    assert "| hypernet-7 (hyp) | all | 2 |" in page and "| hypernet-7 (hyp) | RGL | 1 |" in page
+    assert "| basis-3 (9 numbers, basis) | MERL | 1 | 100.00 | - |" in page
+    assert "| basis-3 (9 numbers, basis) | all | 2 | 100.00 ± 0.00 | - |" in page
     assert "2 materials (1 MERL, 1 RGL)" in page
     # the commands, verbatim
     cmds = results.plan(str(proxies), str(rdir), "../shared/data/merl-test.txt", 2)
@@ -120,6 +120,19 @@ def test_page_from_bench_results(runs, tmp_path):
     for name in ("bench-error-vs-cpu-time.png", "bench-error-vs-n.png", "bench-compression.png"):
         assert (out.parent / "images" / name).stat().st_size > 0
         assert f"images/{name}" in page
+
+
+def test_compression_records_of_earlier_runs(runs):
+    """A compression bench.json from before the renames (the size as ``latent``, the labels
+    ``latent-K`` and ``pca-K``) still gives its rows and the paper's figures."""
+    proxies, rdir = runs
+    doc = json.loads((rdir / "bench-compression" / "bench.json").read_text())
+    for r in doc["records"]:
+        r["latent"] = r.pop("size")
+        r["method"] = r["method"].replace("hypernet-", "latent-").replace("basis-3 (9", "pca-3 (9")
+    page = "\n".join(results_page.compression_section(doc, str(proxies), figure=False))
+    assert "| latent-7 (hyp) | all | 2 |" in page and "| latent-7 (hyp) | RGL | 1 |" in page
+    assert "| pca-3 (9 numbers, basis) | MERL | 1 | 100.00 | - |" in page
 
 
 def test_missing_bench_is_one_line(tmp_path):
@@ -196,13 +209,20 @@ def test_run_order(runs, tmp_path, monkeypatch, capsys):
 def test_the_papers_ipca_figure_sits_beside_eight_components():
     import results_page  # benchmarks/ is on sys.path (above)
 
+    assert results_page._paper_comp("basis-8 (24 numbers)", 24) == "29.89"
+    assert results_page._paper_comp("basis-8 (24 numbers, ipca80)", 24) == "29.89"
+    assert results_page._paper_comp("basis-13 (39 numbers, ipca80)", 39) == "-"
+    assert results_page._paper_comp("basis-2 (6 numbers)", 6) == "-"
+    assert results_page._paper_comp("hypernet-40 (merl-rgl-l40)", 40) == "47.68"
+    assert results_page._paper_comp("hypernet-16 (tiny)", 16) == "-"
+    assert results_page._paper_comp("basis-39 (merl80-basis)", 39) == "-"  # a basis embedding, not a projection
+    assert results_page._paper_comp("basis-24 (merl80-basis)", 24) == "-"
+    # the labels of earlier records
     assert results_page._paper_comp("pca-8 (24 numbers)", None) == "29.89"
     assert results_page._paper_comp("pca-8 (24 numbers, ipca80)", None) == "29.89"
     assert results_page._paper_comp("pca-13 (39 numbers, ipca80)", None) == "-"
     assert results_page._paper_comp("pca-2 (6 numbers)", None) == "-"
     assert results_page._paper_comp("latent-40 (merl-rgl-l40)", 40) == "47.68"
     assert results_page._paper_comp("latent-16 (tiny)", 16) == "-"
-    assert results_page._paper_comp("basis-39 (merl80-basis)", 39) == "-"
-    # the labels of earlier records
     assert results_page._paper_comp("ipca 8 components", None) == "29.89"
     assert results_page._paper_comp("hypernet 40-D (merl-rgl-l40)", 40) == "47.68"

@@ -240,7 +240,7 @@ def test_spectral_file_agrees_with_mitsuba_spectral(tmp_path):
 @needs_mitsuba
 def test_mitsuba_render_of_a_written_file_matches_the_quadrature(written):
     """A small path-traced render by Mitsuba's plugin against brdfkit's render of the
-    source table (``benchmarks/rgl_roundtrip.py --mitsuba`` runs it at enough samples)."""
+    source table (``benchmarks/studies/rgl_roundtrip.py --mitsuba`` runs it at enough samples)."""
     import dataclasses
 
     from brdfkit.evaluation.metrics import psnr

@@ -77,7 +77,7 @@ def test_render_evaluation_is_mitsubas_conditioned_on_the_view(files):
     light)``, and on the skewed file far from the other conditioning."""
     import torch
 
-    from brdfkit.brdf_file import load_brdf
+    from brdfkit.files.brdf_file import load_brdf
     from brdfkit.render.measured import MeasuredBRDF
 
     light, view = _pairs(400, 3)
@@ -143,10 +143,10 @@ def test_convert_prints_the_non_reciprocity_and_applies_the_rule(files, skewed_g
 def test_render_of_a_non_reciprocal_file_is_mitsubas(files):
     """brdfkit's render of the skewed file agrees with Mitsuba's render of it better than
     the render of any reciprocal table of it can (a small version of
-    ``benchmarks/rgl_real.py --mitsuba``)."""
+    ``benchmarks/studies/rgl_real.py --mitsuba``)."""
     import dataclasses
 
-    from brdfkit.brdf_file import load_brdf
+    from brdfkit.files.brdf_file import load_brdf
     from brdfkit.evaluation.metrics import psnr
     from brdfkit.render.quadrature import render
     from brdfkit.render.renderable import TableBRDF

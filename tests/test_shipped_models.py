@@ -43,10 +43,12 @@ def test_the_three_models_are_listed_installed_and_intact(shipped, tmp_path):
     r = _run("models", "--json", "--check", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
-    entries = doc["models"] if isinstance(doc, dict) else doc
-    by_name = {e["name"]: e for e in entries}
+    by_name = {e["name"]: e for e in doc["bundles"]}
     assert {by_name[n]["latent_dim"] for n in NAMES} == {40, 7}
-    assert by_name["merl80-l40"]["prior"] and by_name["merl-rgl-l40"]["prior"]
+    for n in ("merl80-l40", "merl-rgl-l40"):
+        assert set(by_name[n]["parts"]) >= {"network", "basis", "prior"}
+        assert all(p["installed"] for p in by_name[n]["parts"].values())
+    assert set(by_name["merl-rgl-l7"]["parts"]) == {"network"}
     # The benchmark's model never saw a test material.
     from brdfkit.hypernet.packing import load_builtin
     test = set(open(os.path.join(os.path.dirname(__file__), "..", "..", "shared", "data", "merl-test.txt")).read().split()) \
@@ -109,7 +111,7 @@ def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped
     # merl80-l40's basis was fitted on its model's 80 training materials: no test material
     model = set(get_method("hypernet").load("merl80-l40", "cpu").meta.get("materials") or ())
     assert set(bases["merl80-l40"].materials) == model and len(model) == 80
-    assert next(m for m in read_manifest().models if m.name == "merl80-l40").materials == 80
+    assert next(m for m in read_manifest().bundles if m.name == "merl80-l40").materials == 80
 
 
 def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_count(shipped, tmp_path):

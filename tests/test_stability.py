@@ -79,7 +79,7 @@ def test_mapping_round_trip_on_stiff_tables(stiff, ref_kind):
         t = stiff[name]
         mapped = to_mapped(t, ref)
         assert np.isfinite(mapped[np.isfinite(t)]).all()
-        back = from_mapped(mapped, ref)
+        back = from_mapped(mapped, ref, floor=0)  # the exact inverse; the default's bound: test_mapping
         big = np.isfinite(t) & (t > 1e-6)
         rel = np.abs(back[big] - t[big]) / t[big]
         assert rel.max() <= 1e-6, (name, rel.max())
@@ -91,11 +91,13 @@ def test_from_mapped_stays_finite_in_float32():
     mapped = torch.tensor([1e3, 89.0, float("inf"), -float("inf"), float("nan"), 5.0])  # float32
     out = from_mapped(mapped, torch.full((6,), 1e8))
     assert torch.isfinite(out[[0, 1, 2, 3, 5]]).all() and torch.isnan(out[4])
-    assert out[0] == out[2] == RHO_MAX and out[3] == 0
-    # everything up to RHO_MAX still round-trips
+    assert out[0] == out[2] == RHO_MAX and 0 < out[3] <= 2e-5  # -inf: the lower bound, never 0
+    assert from_mapped(mapped, torch.full((6,), 1e8), floor=0)[3] == 0
+    # everything up to RHO_MAX still round-trips (the exact inverse; above its bound, the default)
     rho = np.array([0.0, 1e-6, 1.0, 6.5e7, 1e9, RHO_MAX])
     for ref in (0.0, 0.3, 1e4):
-        np.testing.assert_allclose(from_mapped(to_mapped(rho, ref), ref), rho, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(from_mapped(to_mapped(rho, ref), ref, floor=0), rho, rtol=1e-6, atol=1e-12)
+        np.testing.assert_allclose(from_mapped(to_mapped(rho, ref), ref)[2:], rho[2:], rtol=1e-6)
 
 
 # --- training on stiff materials, and the trained model on them -------------------------
@@ -259,8 +261,8 @@ def test_million_samples_bounded_time_and_memory(model, stiff):
 def test_absurd_extrapolation_is_refused_not_nan(model, stiff):
     # Regression: t = 1e20 overflowed the hyponet's float32 activations into NaN, which
     # write_merl would have stored as "not measured" cells.
-    a = Embedding(np.full(model.cfg.latent_dim, 0.5), "latent", model.fingerprint, "a")
-    b = Embedding(np.full(model.cfg.latent_dim, -0.5), "latent", model.fingerprint, "b")
+    a = Embedding(np.full(model.cfg.latent_dim, 0.5), "hypernet", model.digest, "a")
+    b = Embedding(np.full(model.cfg.latent_dim, -0.5), "hypernet", model.digest, "b")
     far = api.interpolate(a, b, 1e30, allow_extrapolation=True)
     with pytest.raises(InputError, match=r"hyponet overflows on this embedding .* cannot be decoded"):
         api.decode(far, model)
@@ -335,7 +337,7 @@ def test_proxy_mirror_and_black(trained, tmp_path_factory, small_scene, name):
     path = proxy_material(tmp_path_factory, name)
     table = read_merl(path)
     for ref in (model.rho_ref.astype(np.float64), 0.0, 1e4):
-        back = from_mapped(to_mapped(table, ref), ref)
+        back = from_mapped(to_mapped(table, ref), ref, floor=0)
         big = np.isfinite(table) & np.isfinite(back) & (table > 1e-6)
         assert (np.abs(back[big] - table[big]) <= 1e-6 * table[big]).all()
     emb = api.encode(path, model)

@@ -19,7 +19,7 @@ from brdfkit.hypernet import network as hypernet
 from brdfkit.hypernet.training.checkpoint import load_checkpoint
 from brdfkit.errors import FormatError, InputError
 from brdfkit.io.merl import read_merl
-from brdfkit.hypernet.model_file import load_model, weights_fingerprint
+from brdfkit.hypernet.network_file import load_network, weights_digest
 from brdfkit.hypernet.training.loop import TrainingError, fit
 from brdfkit.hypernet.mapping import median_reference
 from brdfkit.io.folders import collect_materials, read_exclude_list
@@ -48,7 +48,7 @@ def untrained(cfg, seed=0):
 def test_trained_model_reconstructs_far_better_than_untrained(lib, tmp_path):
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, steps=200)
-    model = load_model(out, "cpu")
+    model = load_network(out, "cpu")
     assert model.meta["steps"] == 200 and model.meta["skipped_steps"] == 0
     assert model.meta["materials"] == ["synth-000", "synth-001", "synth-002"]
     init = untrained(model.cfg)
@@ -64,7 +64,7 @@ def test_trained_model_reconstructs_far_better_than_untrained(lib, tmp_path):
 def test_reference_is_median_of_training_materials(lib, tmp_path):
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, steps=2, exclude=["synth-002"])
-    model = load_model(out, "cpu")
+    model = load_network(out, "cpu")
     assert model.meta["materials"] == ["synth-000", "synth-001"]
     assert model.meta["excluded"] == ["synth-002"]
     tables = [read_merl(lib / f"synth-00{i}.binary") for i in (0, 1)]
@@ -109,19 +109,19 @@ def test_nan_step_is_skipped_without_update(lib, tmp_path, monkeypatch):
     _nan_loss_on(monkeypatch, calls={1, 2, 3})
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, steps=3)
-    model = load_model(out, "cpu")
+    model = load_network(out, "cpu")
     assert model.meta["skipped_steps"] == 3
     # Nothing was trained on: the weights are exactly the seed's initial weights.
-    assert model.fingerprint == weights_fingerprint(untrained(model.cfg))
+    assert model.digest == weights_digest(untrained(model.cfg))
 
 
 def test_training_goes_on_after_a_nan_step(lib, tmp_path, monkeypatch):
     _nan_loss_on(monkeypatch, calls={2})
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, steps=6)
-    model = load_model(out, "cpu")
+    model = load_network(out, "cpu")
     assert model.meta["skipped_steps"] == 1 and model.meta["steps"] == 6
-    assert model.fingerprint != weights_fingerprint(untrained(model.cfg))
+    assert model.digest != weights_digest(untrained(model.cfg))
     assert all(torch.isfinite(p).all() for p in model.net.parameters())
 
 
@@ -144,8 +144,8 @@ def test_resume_continues_exactly(lib, tmp_path):
     tiny_fit(lib, split, steps=5)
     assert load_checkpoint(str(split) + ".ckpt")["step"] == 5
     tiny_fit(lib, split, steps=10, resume=True)
-    a, b = load_model(whole, "cpu"), load_model(split, "cpu")
-    assert a.fingerprint == b.fingerprint
+    a, b = load_network(whole, "cpu"), load_network(split, "cpu")
+    assert a.digest == b.digest
     assert b.meta["resumed_from_steps"] == [5] and b.meta["steps"] == 10
 
 
@@ -203,7 +203,7 @@ def test_interrupted_fit_resumes_from_checkpoint(lib, tmp_path, sig):
     _, err = proc.communicate(timeout=120)
     assert proc.returncode == 0, err
     assert f"at step {done}" in err
-    meta = load_model(out, "cpu").meta
+    meta = load_network(out, "cpu").meta
     assert meta["steps"] == done + 15 and meta["resumed_from_steps"] == [done]
 
 
@@ -212,14 +212,14 @@ def test_minutes_budget_stops_training(lib, tmp_path):
     t0 = time.monotonic()
     tiny_fit(lib, out, steps=10_000_000, minutes=0.08)
     assert time.monotonic() - t0 < 60  # 10 million steps would take hours
-    meta = load_model(out, "cpu").meta
+    meta = load_network(out, "cpu").meta
     assert 0 < meta["steps"] < 10_000_000
     # --minutes chose the step count once (issue 28): --steps replays the run, bit for bit.
     assert meta["budget"]["steps"] == meta["steps"] and meta["budget"]["probe_steps"] > 0
     again = tmp_path / "again.safetensors"
     tiny_fit(lib, again, steps=meta["steps"])
-    assert load_model(again, "cpu").fingerprint == load_model(out, "cpu").fingerprint
-    assert load_model(again, "cpu").meta["budget"] is None
+    assert load_network(again, "cpu").digest == load_network(out, "cpu").digest
+    assert load_network(again, "cpu").meta["budget"] is None
 
 
 # --- inputs --------------------------------------------------------------------------------

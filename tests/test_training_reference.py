@@ -3,7 +3,7 @@
 reference file once packed.
 
 Tiny fits (``conftest.TINY``, 2 steps) on the 3 synthetic materials of the training tests;
-reference models are untrained files written with the real ``save_model``.
+reference models are untrained files written with the real ``save_network``.
 """
 
 from __future__ import annotations
@@ -18,7 +18,7 @@ from brdfkit.hypernet.mapping import median_reference, to_mapped
 from brdfkit.io.merl import read_merl
 from brdfkit.models import builtin
 from brdfkit.hypernet import packing
-from brdfkit.hypernet.model_file import load_model
+from brdfkit.hypernet.network_file import load_network
 from brdfkit.hypernet.training.dataset import TrainingSet
 from brdfkit.hypernet.training.loop import fit
 
@@ -72,7 +72,7 @@ def test_given_reference_replaces_the_median(lib, tables, source, tmp_path, monk
     monkeypatch.setattr(TrainingSet, "load", classmethod(spy))
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, reference=str(source[0]))
-    model, given = load_model(out, "cpu"), load_model(source[0], "cpu")
+    model, given = load_network(out, "cpu"), load_network(source[0], "cpu")
     assert model.rho_ref.tobytes() == given.rho_ref.tobytes()  # bit for bit, NaN included
     assert model.meta["reference_from"] == source[1]
 
@@ -91,7 +91,7 @@ def test_given_reference_replaces_the_median(lib, tables, source, tmp_path, monk
 def test_default_records_no_reference_source(lib, tmp_path):
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out)
-    assert load_model(out, "cpu").meta["reference_from"] is None
+    assert load_network(out, "cpu").meta["reference_from"] is None
 
 
 def test_models_on_other_materials_share_one_reference_file(lib, tmp_path, monkeypatch):
@@ -101,19 +101,19 @@ def test_models_on_other_materials_share_one_reference_file(lib, tmp_path, monke
     tiny_fit(lib, first, exclude=["synth-002"])
     shelf = tmp_path / "shelf"
     shelf.mkdir()
-    packing.pack_model(first, shelf / "two.safetensors", reference_file="ref.safetensors")
+    packing.pack_network(first, shelf / "two.safetensors", reference_file="ref.safetensors")
     entry = packing.manifest_entry(shelf / "two.safetensors", "two", command="fit", validation={})
     builtin.write_manifest(shelf, [entry], default="two")
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
     tiny_fit(lib, second, reference="two")
-    assert load_model(second, "cpu").meta["reference_from"] == entry["fingerprint"]
-    packing.pack_model(second, shelf / "three.safetensors", reference_file="ref.safetensors")
-    a, b = (load_model(shelf / f"{n}.safetensors", "cpu") for n in ("two", "three"))
+    assert load_network(second, "cpu").meta["reference_from"] == entry["parts"]["network"]["digest"]
+    packing.pack_network(second, shelf / "three.safetensors", reference_file="ref.safetensors")
+    a, b = (load_network(shelf / f"{n}.safetensors", "cpu") for n in ("two", "three"))
     assert a.rho_ref.tobytes() == b.rho_ref.tobytes()
     # Without the option the reference is the median of 3 materials, and cannot be shared.
     tiny_fit(lib, tmp_path / "own.safetensors")
     with pytest.raises(ValueError, match="another reference table") as e:
-        packing.pack_model(tmp_path / "own.safetensors", shelf / "own.safetensors", reference_file="ref.safetensors")
+        packing.pack_network(tmp_path / "own.safetensors", shelf / "own.safetensors", reference_file="ref.safetensors")
     assert "-O reference=MODEL" in str(e.value) and "same materials" not in str(e.value)
 
 
@@ -166,4 +166,4 @@ def test_resume_with_another_reference_is_refused(lib, source, tmp_path):
     with pytest.raises(InputError, match="another reference table"):
         tiny_fit(lib, other, steps=3, resume=True)
     tiny_fit(lib, other, steps=3, resume=True, reference=str(source[0]))  # the same one: resumes
-    assert load_model(other, "cpu").meta["resumed_from_steps"] == [2]
+    assert load_network(other, "cpu").meta["resumed_from_steps"] == [2]

@@ -20,7 +20,7 @@ The Nielsen et al. design
 Nielsen, Jensen and Ramamoorthi 2015, "On Optimal, Minimal BRDF Sampling for
 Reflectance Acquisition" (SIGGRAPH Asia), reconstruct a material by fitting a PCA basis
 of log-mapped BRDFs to the samples (:mod:`brdfkit.methods.ipca`; the learnt prior,
-:mod:`brdfkit.methods.prior`, solves the same least-squares problem around a learnt
+:mod:`brdfkit.prior`, solves the same least-squares problem around a learnt
 mean). The fit solves ``A c = b`` with ``A`` the ``N x K`` matrix of the basis rows at
 the samples; its sensitivity to noise in ``b`` is the condition number of ``A``, so they
 choose the directions that make it small. As in their code, the rows are those of the

@@ -2,8 +2,8 @@
 
 :mod:`brdfkit.acquisition.planning`'s ``render`` design. Nielsen et al. 2015 choose directions that
 keep the basis fit well conditioned; that ignores two things brdfkit is judged by: what
-the fit already knows before any sample (the prior of the training coefficients, which
-:func:`brdfkit.methods.prior.model.solve` and IPCA's ridge both use), and which errors
+the fit already knows before any sample (the ridge's Gaussian regulariser fitted to the
+training coefficients, which :func:`brdfkit.prior.model.solve` and IPCA both use), and which errors
 show on screen (a render weighs the BRDF by the light it reflects, the display encoding
 by the brightness of the pixel). This design chooses the directions that minimise the
 *expected render error* of the fit, a Bayesian (L-optimal) experimental design in the
@@ -12,20 +12,20 @@ Statistical Science 10(3)).
 
 The model
 ---------
-In the units of the ridge fit (coefficients ``z = c / sigma``, prior ``z ~ N(0, I)``), a
-sample at cell ``i`` with design row ``a_i = components_i * sigma`` (as
+In the units of the ridge fit (coefficients ``z = c / sigma``, its Gaussian regulariser
+``z ~ N(0, I)``), a sample at cell ``i`` with design row ``a_i = components_i * sigma`` (as
 :mod:`brdfkit.acquisition.planning` builds it) and precision ``q_i`` leaves the posterior covariance::
 
     S(N) = (I + sum_{i in N} q_i a_i a_i^T)^-1
 
-``q_i = 1 / lam + g_i^p / s2`` is the precision :func:`~brdfkit.methods.prior.model.solve`
+``q_i = 1 / lam + g_i^p / s2`` is the precision :func:`~brdfkit.prior.model.solve`
 gives the sample (IPCA's likelihood ``lam``; the metric's ``s2``, ``g`` its linearisation,
 ``p`` 2 for ``weight = "metric"``, 1 for ``"energy"``); for a plain PCA basis (IPCA) it is
 ``1 / lam`` alone. The render error of the fit is, to first order, ``|J (z_hat - z)|^2``
 with ``J`` the Jacobian of the displayed image (exposure, clip, sRGB OETF: what PSNR and
 Delta E see, :func:`brdfkit.render.screen.screen_error`) with respect to ``z``; its
 expectation is ``trace(J^T J S(N))``. ``J`` and ``g`` depend on the material: they are
-averaged over materials drawn from the basis's prior (``draws`` of them, and the mean
+averaged over materials drawn from the ridge's Gaussian (``draws`` of them, and the mean
 material), i.e. over the spread of the training materials the basis was fitted to.
 
 ``J`` comes from :class:`brdfkit.render.screen.Screen`, the 32 px render whose PSNR ranks
@@ -41,7 +41,7 @@ each step takes the candidate that lowers it most, then updates ``S`` by rank on
 products ``A S`` and ``A S M`` over all candidates are updated by rank one too, so a step
 costs ``O(P K)`` for ``P`` candidates and ``K`` components. The candidates are those of
 :mod:`brdfkit.acquisition.planning` (measurable cells the basis covers). The design is deterministic:
-``seed`` only seeds the prior draws.
+``seed`` only seeds the Gaussian draws.
 """
 
 from __future__ import annotations
@@ -54,7 +54,7 @@ from brdfkit.geometry import GRID_SHAPE
 __all__ = ["DEFAULT_DRAWS", "Likelihood", "render_metric", "cell_precision", "greedy_render"]
 
 DEFAULT_DRAWS = 16
-"""Materials drawn from the basis's prior to average ``J^T J`` and ``q`` over (besides the
+"""Materials drawn from the ridge's Gaussian to average ``J^T J`` and ``q`` over (besides the
 mean material)."""
 
 _SCENES = (0.0, 0.5)  # turns of the reference environment about the vertical
@@ -63,7 +63,7 @@ _SCENES = (0.0, 0.5)  # turns of the reference environment about the vertical
 class Likelihood:
     """The sample precision of the fit a plan is for: ``weight`` (``"metric"``,
     ``"energy"`` or ``None`` for IPCA's ridge alone), ``s2`` and ``lam``, as
-    :class:`brdfkit.methods.prior.model.PriorConfig` holds them."""
+    :class:`brdfkit.prior.model.PriorConfig` holds them."""
 
     def __init__(self, weight: str | None = None, s2: float = 1e-2, lam: float = 0.1):
         if weight not in (None, "metric", "energy") or not (s2 > 0 and lam > 0):
@@ -74,7 +74,7 @@ class Likelihood:
         return f"Likelihood(weight={self.weight!r}, s2={self.s2}, lam={self.lam})"
 
 
-def _prior_draws(basis, draws: int, seed: int) -> np.ndarray:
+def _gaussian_draws(basis, draws: int, seed: int) -> np.ndarray:
     """Coefficients ``(draws + 1, K)`` of materials drawn from ``N(0, diag(sigma^2))``,
     the first the mean material (all zero)."""
     rng = np.random.default_rng(seed)
@@ -86,21 +86,19 @@ def _rho(tab: np.ndarray, w: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.
     """BRDF ``rho`` (1/sr, ``>= 0``) and ``d rho / d mapped`` of coefficients ``c (D, K)``
     at rows ``tab (M, K + 2)`` (``[reference, mean, components]``) with cosine weights
     ``w (M,)``: ``(D, M)`` each (the inverse mapping of :meth:`PcaBasis.decode`)."""
-    from brdfkit.basis import EPS
+    from brdfkit.basis.mapping import EPS, from_mapped
 
     ref, mean, comp = tab[:, 0], tab[:, 1], tab[:, 2:]
     m = mean[None, :] + c @ comp.T
-    e = np.exp(m) * (ref + EPS)[None, :]
-    x = e - EPS
-    pos = x > 0
-    return np.where(pos, x / w, 0.0), np.where(pos, e / w, 0.0)
+    rho = from_mapped(m, w, ref, floor=0.0)  # the criterion's published form
+    return rho, np.where(rho > 0, np.exp(m) * (ref + EPS)[None, :] / w, 0.0)
 
 
 def render_metric(basis, draws: int = DEFAULT_DRAWS, seed: int = 0, scenes=_SCENES,
                   device=None) -> np.ndarray:
     """``M = E[J^T J]`` ``(K, K)`` float64 in the ridge fit's units ``z = c / sigma``: the
     expected squared change of the displayed screen images (module docstring) per unit
-    change of ``z``, averaged over the prior draws and summed over the scenes."""
+    change of ``z``, averaged over the Gaussian draws and summed over the scenes."""
     import torch
 
     from brdfkit.render.display import display_slope
@@ -109,12 +107,12 @@ def render_metric(basis, draws: int = DEFAULT_DRAWS, seed: int = 0, scenes=_SCEN
 
     k = basis.n_components
     sig = basis.sigma.astype(np.float64)
-    cs = _prior_draws(basis, draws, seed)
+    cs = _gaussian_draws(basis, draws, seed)
     out = np.zeros((k, k))
     for turn in scenes:
         sc = screen(device, env=rotated_envmap(turn) if turn else None)
         th, td, pd = (t.double().cpu().numpy() for t in (sc.theta_h, sc.theta_d, sc.phi_d))
-        tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), th, td, pd).astype(np.float64)
+        tab = lookup_trilinear(basis.lookup_table().reshape(GRID_SHAPE + (-1,)), th, td, pd).astype(np.float64)
         w = basis.weight(th, td, pd)
         ok = np.isfinite(tab).all(1) & (w > 0)
         tab, w = tab[ok], w[ok]
@@ -138,20 +136,20 @@ def render_metric(basis, draws: int = DEFAULT_DRAWS, seed: int = 0, scenes=_SCEN
 def cell_precision(basis, cells: np.ndarray, likelihood: Likelihood, draws: int = DEFAULT_DRAWS,
                    seed: int = 0) -> np.ndarray:
     """The precision ``q (P,)`` of a sample at each of ``cells`` (flat MERL indices the
-    basis covers), averaged over the prior draws (module docstring)."""
+    basis covers), averaged over the Gaussian draws (module docstring)."""
     from brdfkit.geometry import cell_angles, cos_theta_i
     from brdfkit.basis import EPS
 
     q = np.full(len(cells), 1.0 / likelihood.lam)
     if likelihood.weight is None:
         return q
-    tab = basis._table()[cells].astype(np.float64)
+    tab = basis.lookup_table()[cells].astype(np.float64)
     th, td, pd = cell_angles(cells)
     w = basis.weight(th, td, pd)
     cos = np.clip(cos_theta_i(th, td, pd), 0.0, None)
     p = 2 if likelihood.weight == "metric" else 1
     acc = np.zeros(len(cells))
-    cs = _prior_draws(basis, draws, seed)
+    cs = _gaussian_draws(basis, draws, seed)
     for c in cs:
         rho, _ = _rho(tab, w, c[None, :])
         g = cos * (rho[0] + EPS / w) / (1 + rho[0] * cos)

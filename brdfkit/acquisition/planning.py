@@ -91,9 +91,9 @@ def plan_target(spec=None):
     ----------
     spec
         A built-in model's name (its learnt prior: the basis and the prior's likelihood),
-        a learnt-prior file (likewise), a PCA basis file (``brdfkit fit --method ipca``;
+        a learnt-prior file (likewise), a PCA basis file (``brdfkit fit --method basis``;
         IPCA's ridge fit), an :class:`~brdfkit.basis.PcaBasis` or
-        :class:`~brdfkit.methods.prior.model.PriorModel`, or ``None`` (the default
+        :class:`~brdfkit.prior.model.PriorModel`, or ``None`` (the default
         built-in's learnt prior).
 
     Returns
@@ -111,7 +111,7 @@ def plan_target(spec=None):
     from brdfkit.atomic import check_input_file
     from brdfkit.basis import DEFAULT_LAMBDA, PcaBasis, load_basis
     from brdfkit.methods.choice import file_method, resolve_for
-    from brdfkit.models.builtin import is_path_spec, read_manifest
+    from brdfkit.models.builtin import default_bundle, is_path_spec
     from brdfkit.acquisition.optimal_design import Likelihood
 
     def prior(path, label):
@@ -128,10 +128,10 @@ def plan_target(spec=None):
     if hasattr(spec, "basis") and hasattr(spec, "cfg"):
         return spec.basis, "the given learnt prior", Likelihood(spec.cfg.weight, spec.cfg.s2, spec.cfg.lam)
     if spec is None:
-        entry = next((m for m in read_manifest().installed() if m.default), None)
+        entry = default_bundle()
         if entry is None:
             raise InputError("no PCA basis given: pass -m NAME (a built-in model with a learnt prior, "
-                             "`brdfkit models`) or -m BASIS.safetensors (`brdfkit fit --method ipca`); "
+                             "`brdfkit models`) or -m BASIS.safetensors (`brdfkit fit --method basis`); "
                              "no default built-in model is installed")
         return prior(resolve_for("prior", entry.name), f"{entry.name}, the default built-in")
     spec = os.fspath(spec)
@@ -144,7 +144,7 @@ def plan_target(spec=None):
     if kind == "prior":
         return prior(spec, os.path.basename(spec))
     raise InputError(f"{spec}: not a PCA basis or a learnt-prior model file; planning needs a basis: a built-in "
-                     f"name with a learnt prior, a learnt-prior file or a file from `brdfkit fit --method ipca`")
+                     f"name with a learnt prior, a learnt-prior file or a file from `brdfkit fit --method basis`")
 
 
 def design_rows(basis, directions: DirectionSet) -> np.ndarray:
@@ -162,7 +162,7 @@ def design_rows(basis, directions: DirectionSet) -> np.ndarray:
     """
     from brdfkit.basis import cosine_weight
 
-    at = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), directions.theta_h, directions.theta_d,
+    at = lookup_trilinear(basis.lookup_table().reshape(GRID_SHAPE + (-1,)), directions.theta_h, directions.theta_d,
                           directions.phi_d)[:, 2:].astype(np.float64)
     used = np.isfinite(at).all(axis=1) & (cosine_weight(directions.theta_h, directions.theta_d,
                                                         directions.phi_d) > 0)

@@ -4,7 +4,7 @@ Ramamoorthi 2015), the core of brdfkit's compression and of its learnt prior.
 A material is a point in the basis: ``K`` coefficients per colour channel, ``3 K``
 numbers. ``brdfkit encode`` makes those numbers from a dense table (a *basis
 embedding*), ``decode`` turns them back into a table, ``interpolate`` blends them, the
-learnt prior (:mod:`brdfkit.methods.prior`) fits them to sparse samples around a learnt
+learnt prior (:mod:`brdfkit.prior`) fits them to sparse samples around a learnt
 mean, and the IPCA baseline (:mod:`brdfkit.methods.ipca`) fits them by ridge regression.
 
 One module per concept, in the order data flows:

@@ -9,7 +9,7 @@ Tensors ``cells`` (int64 ``(P,)``, sorted flat MERL indices) or, in compact file
 holds them; metadata the format, its version, ``n_components``, the mapping's ``eps``,
 ``phi_d_stride`` (1, or 2 for every other ``phi_d`` cell, :mod:`brdfkit.basis.storage`), ``dtype`` and
 the training ``materials`` (JSON). The same tensors and metadata, prefixed, hold the basis
-inside a learnt-prior model file (:mod:`brdfkit.methods.prior.prior_file`).
+inside a learnt-prior model file (:mod:`brdfkit.prior.prior_file`).
 """
 
 from __future__ import annotations
@@ -44,11 +44,11 @@ def save_basis(path: str | os.PathLike, basis: PcaBasis, *, half: bool = False, 
               int8: bool = False) -> None:
     """Write ``basis`` as one safetensors file (format ``brdfkit-basis``), atomically;
     ``half``, ``phi_stride`` and ``int8`` as :func:`basis_tensors` takes them."""
-    from safetensors.numpy import save_file
+    from brdfkit.io.tensorfile import write_safetensors
 
     tensors, meta = basis_tensors(basis, half=half, phi_stride=phi_stride, int8=int8, where=os.fspath(path))
     with atomic_path(path) as tmp:
-        save_file(tensors, tmp, metadata=meta)
+        write_safetensors(tmp, tensors, meta)
 
 
 def basis_tensors(basis: PcaBasis, *, half: bool = False, phi_stride: int = 1, int8: bool = False,

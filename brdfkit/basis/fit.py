@@ -1,4 +1,4 @@
-"""Fitting the PCA basis of :mod:`.model` to training tables (``brdfkit fit --method ipca``).
+"""Fitting the PCA basis of :mod:`.model` to training tables (``brdfkit fit --method basis``).
 
 PCA over the cells measured by at least one training table (a training table missing a
 cell counts as the reference there, ``x' = 0``); the ``3 M x P`` matrix is centred and
@@ -18,7 +18,8 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight
 from brdfkit.basis.basis_file import save_basis
-from brdfkit.basis.model import DEFAULT_COMPONENTS, EPS, PcaBasis
+from brdfkit.basis.mapping import to_mapped
+from brdfkit.basis.model import DEFAULT_COMPONENTS, PcaBasis
 
 __all__ = ["fit_basis", "fit_basis_files"]
 
@@ -100,7 +101,7 @@ def fit_basis(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
         else:
             reference[s:s + chunk] = np.median(block, axis=0)
         ref = reference[s:s + chunk]
-        np.log((block + np.float32(EPS)) / (ref + np.float32(EPS)), out=block)
+        to_mapped(block, np.float32(1.0), ref, out=block)  # block holds weighted values already
         np.nan_to_num(block, copy=False, nan=0.0)  # a missing value counts as the reference
         mean[s:s + chunk] = block.mean(axis=0, dtype=np.float64)
         block -= mean[s:s + chunk]
@@ -128,7 +129,7 @@ def fit_basis_files(data, output, *, exclude=(), progress: bool = True,
                    w_floor: float = 0.0, int8: bool = False) -> str:
     """Fit a basis to the MERL tables ``data`` (files or folders, as
     :func:`brdfkit.io.folders.collect_materials` reads them) less the materials named in
-    ``exclude``, and save it to ``output`` (``brdfkit fit --method ipca``; ``half`` and
+    ``exclude``, and save it to ``output`` (``brdfkit fit --method basis``; ``half`` and
     ``phi_stride``, ``-O half=true -O phi_stride=2``, store it as the package ships
     bases, :func:`~.basis_file.basis_tensors`; ``w_floor``, ``-O w_floor=0.05``, bounds the mapping's
     weight, :class:`PcaBasis`; ``int8``, ``-O int8=true`` with ``half``, stores the components in
@@ -143,7 +144,7 @@ def fit_basis_files(data, output, *, exclude=(), progress: bool = True,
     if not isinstance(half, bool) or phi_stride not in (1, 2) or isinstance(w_floor, bool) \
             or not isinstance(w_floor, (int, float)) or not 0 <= w_floor < 1 or not isinstance(int8, bool) \
             or (int8 and not half):
-        raise InputError(f"--method ipca: options half (true/false), phi_stride (1 or 2), w_floor (in [0, 1)) and "
+        raise InputError(f"--method basis: options half (true/false), phi_stride (1 or 2), w_floor (in [0, 1)) and "
                          f"int8 (true/false, with half=true), got {half!r}, {phi_stride!r}, {w_floor!r} and {int8!r}")
     save_basis(output, fit_basis(paths, components, names=names, w_floor=w_floor), half=half, phi_stride=phi_stride,
               int8=int8)

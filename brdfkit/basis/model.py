@@ -11,14 +11,17 @@ published code (``MapBRDF`` of brdf.compute.dtu.dk)::
     x'   = ln((x + eps) / (x_ref + eps)),   eps = 0.001
 
 with ``x_ref`` the per-cell median of the cosine-weighted training values (over every
-material *and* channel, see below). This is deliberately not
+material *and* channel, see below), in one function and its inverse
+(:mod:`brdfkit.basis.mapping`). This is deliberately not
 :func:`brdfkit.hypernet.mapping.to_mapped`, the hypernetwork paper's variant
 ``ln((rho + 0.002) / (rho_ref + 0.002) + 1)``: its ``+ 1`` flattens every value below
 the reference towards 0, which throws away the dark half of the data a linear basis has
-to model. The inverse is ``rho = ((exp(x') (x_ref + eps) - eps) / w``, clamped at 0.
+to model. The inverse is ``rho = ((exp(x') (x_ref + eps) - eps) / w`` passed through a
+softplus of scale ``0.01 eps``, so that it never crosses zero
+(:func:`brdfkit.basis.mapping.from_mapped`).
 
 A basis may bound the weight from below, ``w = max(cos_i cos_o, w_floor)`` (``brdfkit
-fit --method ipca -O w_floor=W``; Nielsen's mapping is ``w_floor = 0``). Why: ``eps`` is a
+fit --method basis -O w_floor=W``; Nielsen's mapping is ``w_floor = 0``). Why: ``eps`` is a
 floor of ``eps / w`` in BRDF units, which grows without bound towards grazing angles
 (``w`` about 5e-3 at ``theta_h = 86 deg``: 0.2 /sr), so there every value of a dark or
 diffuse material maps to nearly the same ``x'``; the basis cannot tell them apart, and the
@@ -49,8 +52,8 @@ cell exactly), the sample is mapped with its exact ``w``, and the coefficients s
 
 with ``A`` the components at the samples, ``b`` the mapped samples minus the mean and
 ``sigma_k`` the standard deviation of the training coefficients of component ``k``: a
-ridge on coefficients measured in training standard deviations, i.e. a Gaussian prior
-fitted to the training set (Nielsen et al. regularise the singular-value-scaled
+ridge on coefficients measured in training standard deviations, i.e. a Gaussian
+regulariser fitted to the training set (Nielsen et al. regularise the singular-value-scaled
 components with one fixed ``eta`` in the same way). ``lam`` is :data:`DEFAULT_LAMBDA`
 unless given (see ``docs/baselines.md`` for how it was chosen).
 """
@@ -61,13 +64,13 @@ import dataclasses
 
 import numpy as np
 
+from brdfkit.basis.mapping import EPS, FLOOR, from_mapped, to_mapped
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff
 from brdfkit.geometry.trilinear import lookup_trilinear
 
 __all__ = ["PcaBasis", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_weight"]
 
-EPS = 0.001
 DEFAULT_COMPONENTS = 8
 DEFAULT_LAMBDA = 0.1
 
@@ -141,7 +144,7 @@ class PcaBasis:
         w = grid_cosine_weight()[self.cells if cells is None else cells].astype(np.float64)
         return np.where(w > 0, np.maximum(w, self.w_floor), 0.0)
 
-    def _table(self) -> np.ndarray:
+    def lookup_table(self) -> np.ndarray:
         """Dense ``(N_CELLS, K + 2)`` float32 ``[reference, mean, components...]``, NaN
         off the basis cells, built once for trilinear lookups."""
         if self._dense is None:
@@ -168,7 +171,7 @@ class PcaBasis:
             raise InputError(f"ridge lambda must be a finite number >= 0, got {lam}")
         if len(samples) == 0:
             raise InputError(f"{samples.source or 'samples'}: no samples to fit")
-        at = lookup_trilinear(self._table().reshape(GRID_SHAPE + (-1,)),
+        at = lookup_trilinear(self.lookup_table().reshape(GRID_SHAPE + (-1,)),
                               samples.theta_h, samples.theta_d, samples.phi_d)
         w = self.weight(samples.theta_h, samples.theta_d, samples.phi_d)
         # Samples no basis cell reaches, with no weight (on the horizon), or unmeasured
@@ -181,38 +184,44 @@ class PcaBasis:
             raise InputError(f"{samples.source or 'samples'}: {what}")
         at, w = at[use], w[use]
         ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
-        x = np.clip(np.asarray(samples.rgb, np.float64)[use], 0.0, None) * w[:, None]
-        b = np.log((x + EPS) / (ref[:, None] + EPS)) - mean[:, None]
+        b = to_mapped(np.asarray(samples.rgb, np.float64)[use], w[:, None], ref[:, None]) - mean[:, None]
         a = comp * self.sigma.astype(np.float64)[None, :]
         lhs = a.T @ a + lam * np.eye(self.n_components)
         z = np.linalg.lstsq(lhs, a.T @ b, rcond=None)[0] if lam == 0 else np.linalg.solve(lhs, a.T @ b)
         return z * self.sigma.astype(np.float64)[:, None]
 
-    def decode(self, coefficients: np.ndarray) -> np.ndarray:
+    def decode(self, coefficients: np.ndarray, floor: float = FLOOR) -> np.ndarray:
         """Dense table from coefficients ``(K, 3)``: float64 ``(90, 90, 180, 3)``, 1/sr,
-        ``>= 0``, NaN off the basis cells."""
-        c = np.asarray(coefficients, np.float32)
-        mapped = self.mean[:, None] + self.components.T @ c  # (P, 3), float32
-        ref = self.reference[:, None].astype(np.float64)
-        # expm1 form of exp(x') (x_ref + eps) - eps: exact where x' ~ 0 and x_ref ~ 0.
-        x = np.expm1(mapped.astype(np.float64)) * (ref + EPS) + ref
-        w = self.cell_weight()
+        ``> 0`` (``>= 0`` with ``floor=0``: :func:`brdfkit.basis.mapping.from_mapped`),
+        NaN off the basis cells."""
+        mapped = self.mean[:, None] + self.components.T @ np.asarray(coefficients, np.float32)
+        return self.decode_mapped(mapped, floor)
+
+    def decode_mapped(self, mapped: np.ndarray, floor: float = FLOOR) -> np.ndarray:
+        """Dense table from mapped values at the basis's cells ``(P, 3)`` (the mean
+        included): float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis cells
+        (:func:`brdfkit.basis.mapping.from_mapped`)."""
         out = np.full((N_CELLS, 3), np.nan)
-        out[self.cells] = np.clip(x / w[:, None], 0.0, None)
+        out[self.cells] = from_mapped(mapped, self.cell_weight()[:, None], self.reference[:, None].astype(np.float64),
+                                      floor)
         return out.reshape(GRID_SHAPE + (3,))
 
-    def reconstruct(self, samples, lam: float | None = None) -> np.ndarray:
+    def mapped_table(self, table: np.ndarray) -> np.ndarray:
+        """A dense table's mapped values at the basis's cells, ``(P, 3)`` float64, NaN
+        where the table is unmeasured (:func:`brdfkit.basis.mapping.to_mapped`)."""
+        flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[self.cells]
+        return to_mapped(flat, self.cell_weight()[:, None], self.reference[:, None].astype(np.float64))
+
+    def reconstruct(self, samples, lam: float | None = None, floor: float = FLOOR) -> np.ndarray:
         """Dense table fitted to a sample set (see :meth:`coefficients`, :meth:`decode`)."""
-        return self.decode(self.coefficients(samples, lam))
+        return self.decode(self.coefficients(samples, lam), floor)
 
     def project(self, table: np.ndarray) -> np.ndarray:
         """Least-squares coefficients ``(K, 3)`` of a dense table over all basis cells it
         measures (no regulariser): the best this basis can do for that material."""
-        flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[self.cells]
-        w = self.cell_weight()
-        ok = np.isfinite(flat).all(axis=1)
-        b = np.log((np.clip(flat[ok], 0, None) * w[ok, None] + EPS) /
-                   (self.reference[ok, None].astype(np.float64) + EPS)) - self.mean[ok, None]
+        mapped = self.mapped_table(table)
+        ok = np.isfinite(mapped).all(axis=1)
+        b = mapped[ok] - self.mean[ok, None]
         a = (self.components if ok.all() else self.components[:, ok]).astype(np.float64)
         # Normal equations (K x K): a tenth of lstsq's time over a million cells. Not
         # a @ b alone: a stored basis (int8, half phi_d) is orthonormal only to 1e-3.

@@ -27,10 +27,10 @@ import functools
 
 import numpy as np
 
-from brdfkit.basis.model import EPS
+from brdfkit.basis.mapping import from_mapped
 from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, fractional_indices
 
-__all__ = ["DEFAULT_LR", "DEFAULT_TRUST", "refine_coefficients", "trilinear_corners"]
+__all__ = ["DEFAULT_LR", "DEFAULT_TRUST", "refine_coefficients", "heldout_error", "trilinear_corners"]
 
 DEFAULT_LR = 0.06
 """Adam's learning rate, in units of each component's training standard deviation."""
@@ -93,20 +93,25 @@ def trilinear_corners(theta_h, theta_d, phi_d, measured):
 @dataclasses.dataclass
 class _Cells:
     """The basis at the cells some pairs reach (torch float32): mean ``(U,)``,
-    components ``(U, K)``, and the inverse mapping's ``scale = (x_ref + eps) / w`` and
-    ``offset = x_ref / w`` (:meth:`~brdfkit.basis.model.PcaBasis.decode`)."""
+    components ``(U, K)``, the mapping's weight ``(U,)`` and reference ``(U,)``, and
+    ``extra(c) -> (U, 3)``, mapped values added to the basis's (``None``: none; a
+    residual's correction, :mod:`brdfkit.residual`)."""
 
     mean: object
     comp: object
-    scale: object
-    offset: object
+    weight: object
+    reference: object
+    extra: object = None
 
     def rho(self, c):
-        """BRDF ``(U, 3)`` (1/sr, ``>= 0``) of coefficients ``c`` ``(K, 3)``: :meth:`~brdfkit.basis.model.PcaBasis.decode` at these cells."""
+        """BRDF ``(U, 3)`` (1/sr) of coefficients ``c`` ``(K, 3)``:
+        :meth:`~brdfkit.basis.model.PcaBasis.decode` at these cells."""
         import torch
 
         mapped = torch.addmm(self.mean[:, None], self.comp, c.to(self.comp.dtype))
-        return torch.clamp(torch.expm1(mapped) * self.scale[:, None] + self.offset[:, None], min=0.0)
+        if self.extra is not None:
+            mapped = mapped + self.extra(c)
+        return from_mapped(mapped, self.weight[:, None], self.reference[:, None])
 
 
 @dataclasses.dataclass
@@ -180,9 +185,10 @@ def _sparse_product():
     return SparseProduct
 
 
-def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
+def _prepare(basis, screen, measured, idx, factor, extra=None) -> _Pairs:
     """:class:`_Pairs` of a screen's pairs ``idx`` (int64 torch ``(m,)``, repeats allowed),
-    each weighted by ``factor`` (``(m,)``, or ``None``: 1)."""
+    each weighted by ``factor`` (``(m,)``, or ``None``: 1); ``extra(cells) -> (c ->
+    mapped (U, 3))`` adds a correction at the cells used (:class:`_Cells`)."""
     import torch
 
     i = idx.cpu().numpy()
@@ -194,11 +200,11 @@ def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
 
     weight = basis.cell_weight(used)
     weight = np.where(weight > 0, weight, 1.0)
-    ref = basis.reference[row].astype(np.float64)
     # float32 (the basis's own precision): half the time of float64 a step.
     f32 = {"dtype": torch.float32}
     cells = _Cells(torch.tensor(basis.mean[row], **f32), torch.tensor(basis.components[:, row].T, **f32),
-                   torch.tensor((ref + EPS) / weight, **f32), torch.tensor(ref / weight, **f32))
+                   torch.tensor(weight, **f32), torch.tensor(basis.reference[row], **f32),
+                   extra(used) if extra is not None else None)
     rw = screen.rw.double().cpu().numpy()[i]
     if factor is not None:
         rw = rw * factor.double().cpu().numpy()[:, None]
@@ -213,7 +219,7 @@ def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
     return _Pairs(cells, matrix, transposed, n)
 
 
-def refine_coefficients(basis, table, coefficients, config=None, trust: float = DEFAULT_TRUST
+def refine_coefficients(basis, table, coefficients, config=None, trust: float = DEFAULT_TRUST, extra=None
                         ) -> tuple[np.ndarray, dict]:
     """Refine a table's basis coefficients on renders of the objective scenes (module docstring).
 
@@ -231,6 +237,10 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
         training standard deviations, :data:`DEFAULT_LR` when ``None``).
     trust
         Weight of the trust term (:data:`DEFAULT_TRUST`; 0: the render error alone).
+    extra
+        ``extra(cells) -> (c -> mapped (U, 3))``: a correction added to the basis's mapped
+        values at the cells a render reaches, differentiable in the coefficients (a
+        residual's, :mod:`brdfkit.residual.encoding`); ``None``: the basis alone.
 
     Returns
     -------
@@ -249,30 +259,60 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
     if cfg.steps == 0:
         return c0, {"steps": 0, "best_step": 0, "stopped": "steps", "heldout": []}
     with torch_threads(THREADS):
-        return _descend(basis, table, c0, cfg, objective_views(table, cfg, torch.device("cpu")), trust)
+        return _descend(basis, table, c0, cfg, objective_views(table, cfg, torch.device("cpu")), trust, extra)
 
 
-def _descend(basis, table, c0, cfg, views, trust=0.0):
-    """The Adam steps of :func:`refine_coefficients` over ``views`` (one scene a step)."""
+def heldout_error(basis, table, coefficients, config=None, extra=None) -> float:
+    """The render error on the objective scenes' held-out pixels of coefficients ``(K, 3)``
+    (with ``extra`` as :func:`refine_coefficients` takes it): what a refinement keeps its
+    result by, and what an encoder may choose between candidates by."""
+    import torch
+
+    from brdfkit.render.objective import THREADS, ObjectiveConfig, objective_views
+    from brdfkit.runtime import torch_threads
+
+    cfg = config or ObjectiveConfig()
+    with torch_threads(THREADS):
+        views = objective_views(table, cfg, torch.device("cpu"))
+        return _held_error(basis, views, extra)(torch.tensor(np.asarray(coefficients, np.float64)))
+
+
+def _held_error(basis, views, extra):
+    """``c -> error`` on the views' held-out pixels (full pairs)."""
     import torch
 
     from brdfkit.render.screen import screen_error
 
     measured = np.zeros(N_CELLS, bool)
     measured[basis.cells] = True
-    fits = [_prepare(basis, v.screen, measured, v.idx, v.weight) for v in views]
-    helds = [_prepare(basis, v.screen, measured, v.held_pairs, None) for v in views]
+    helds = [_prepare(basis, v.screen, measured, v.held_pairs, None, extra) for v in views]
     targets = [v.target.float().cpu() for v in views]
-    sigma = torch.tensor(basis.sigma, dtype=torch.float64)[:, None]
-    start = torch.tensor(c0)
 
     def held_error(c):
         with torch.no_grad():
             return float(np.mean([float(screen_error(h.render(c), t, v.held_pixels.cpu()))
                                   for v, h, t in zip(views, helds, targets)]))
 
+    return held_error
+
+
+def _descend(basis, table, c0, cfg, views, trust=0.0, extra=None):
+    """The Adam steps of :func:`refine_coefficients` over ``views`` (one scene a step)."""
+    import torch
+
+    from brdfkit.render.objective import Adam
+    from brdfkit.render.screen import screen_error
+
+    measured = np.zeros(N_CELLS, bool)
+    measured[basis.cells] = True
+    fits = [_prepare(basis, v.screen, measured, v.idx, v.weight, extra) for v in views]
+    targets = [v.target.float().cpu() for v in views]
+    sigma = torch.tensor(basis.sigma, dtype=torch.float64)[:, None]
+    start = torch.tensor(c0)
+    held_error = _held_error(basis, views, extra)
+
     z = torch.zeros_like(start, requires_grad=True)
-    opt = torch.optim.Adam([z], lr=cfg.learning_rate(DEFAULT_LR))
+    opt = Adam([z], lr=cfg.learning_rate(DEFAULT_LR))
     best = (held_error(start), 0, start.clone())
     first, step, stopped = best[0], 0, "steps"
     while step < cfg.steps:

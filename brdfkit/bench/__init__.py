@@ -26,8 +26,10 @@ scored:
 
 **Compression.** For every material of the compression data and every compression model,
 the full table is encoded and decoded (:func:`brdfkit.api.encode`, :func:`brdfkit.api.decode`)
-and scored the same way (``time_s`` = encode + decode); with a PCA basis, its best
-reconstruction (:meth:`brdfkit.basis.PcaBasis.project` then ``decode``) too.
+and scored the same way (``time_s`` = encode + decode; ``size``, the numbers per
+material, ``latent`` in the records of earlier runs); with a PCA basis, its best
+reconstruction (:meth:`brdfkit.basis.PcaBasis.project` then ``decode``) too, and the
+projection onto its ``K`` leading components for each ``basis-K`` entry (``pca-K`` before).
 
 Every reconstruction is scored by :func:`brdfkit.evaluation.metrics.score`, the function
 ``brdfkit metrics`` uses, in the scenes of ``BenchConfig.scenes`` (the reference scene, or

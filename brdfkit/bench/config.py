@@ -10,7 +10,7 @@ from brdfkit.errors import InputError
 from brdfkit.acquisition.protocol import SAMPLINGS, draw_seed
 
 __all__ = ["BenchConfig", "DEFAULT_N", "DEFAULT_METHODS", "DEFAULT_RESOLUTION", "METRICS", "sample_seed",
-           "default_methods", "pca_components", "compression_entry"]
+           "default_methods", "basis_components", "compression_entry"]
 
 DEFAULT_N = (40, 160, 400, 2000, 4000)
 DEFAULT_METHODS = ("hypernet", "ipca", "nbrdf")
@@ -59,9 +59,10 @@ class BenchConfig:
         What to test on encode -> decode of every table in ``compression_data`` (plus the
         PCA basis, when ``ipca`` is given): ``MODEL[:KIND[-SIZE]]`` entries
         (:func:`compression_entry`: ``merl80-l40``, ``merl80-l40:basis-21``,
-        ``merl80-l40:latent``, a basis or hypernetwork file), each encoded as ``brdfkit
-        encode -m MODEL --kind KIND --size SIZE`` does; ``pca-K`` names the ``ipca``
-        basis's ``K`` leading components (its projection, ``3 K`` numbers).
+        ``merl80-l40:hypernet``, a basis or hypernetwork file), each encoded as ``brdfkit
+        encode -m MODEL --kind KIND --size SIZE`` does; ``basis-K`` names the ``ipca``
+        basis's ``K`` leading components (its projection, ``3 K`` numbers; ``pca-K``
+        before).
     scenes
         The suite scenes the image metrics are taken in (:mod:`brdfkit.render.scene_suite`);
         with more than one, ``psnr``, ``delta_e`` and ``ssim`` are their means and each
@@ -143,7 +144,7 @@ class BenchConfig:
             cfg, **{f: resolve_for(name, getattr(cfg, f)) for f, name in fields.items() if getattr(cfg, f)},
             models={m: resolve_for(m, p) if p else p for m, p in cfg.models.items()},
             plan_model=_plan_file(cfg.plan_model) if cfg.plan_model else None,
-            compression_models=tuple(p if pca_components(p) else _resolve_compressor(p, cfg.device)
+            compression_models=tuple(_basis_spelling(p) if basis_components(p) else _resolve_compressor(p, cfg.device)
                                      for p in cfg.compression_models))
 
     def with_default_methods(self) -> "BenchConfig":
@@ -162,14 +163,14 @@ class BenchConfig:
     def compressors(self) -> list:
         """The compression benchmark's entries: ``("embedding", (path, kind, size))`` for
         each ``MODEL:KIND-SIZE`` of :attr:`compression_models` (resolved,
-        :func:`compression_entry`), ``("pca", K)`` for its ``pca-K`` entries, then
+        :func:`compression_entry`), ``("basis", K)`` for its ``basis-K`` entries, then
         ``("method", (method, model file))`` for every method that can compress and whose
         model file is given (the PCA basis, a learnt prior: the projection on their basis)."""
         from brdfkit.methods import METHODS
 
         if not self.compression_models:
             return []
-        named = [("pca", pca_components(p)) if pca_components(p) else ("embedding", compression_entry(p))
+        named = [("basis", basis_components(p)) if basis_components(p) else ("embedding", compression_entry(p))
                  for p in self.compression_models]
         return named + [("method", (m, self.model_file(name))) for name, m in METHODS.items()
                         if m.compress_fn is not None and self.model_file(name)]
@@ -231,8 +232,8 @@ class BenchConfig:
                 raise InputError(f"--model-file: method {m!r} takes no model file")
         for m, opts in self.options.items():
             get_method(m).make_options(**opts)
-        if any(pca_components(p) for p in self.compression_models) and not self.ipca:
-            raise InputError("--compression-models pca-K takes the K leading components of --ipca BASIS: give --ipca")
+        if any(basis_components(p) for p in self.compression_models) and not self.ipca:
+            raise InputError("--compression-models basis-K takes the K leading components of --ipca BASIS: give --ipca")
         from brdfkit.render.scene_suite import scene_names
 
         if tuple(scene_names(",".join(self.scenes))) != tuple(self.scenes):
@@ -247,7 +248,7 @@ class BenchConfig:
             raise InputError(f"--jobs must be at least 1, got {self.jobs}")
         if self.threads is not None and self.threads < 1:
             raise InputError(f"--threads must be at least 1, got {self.threads}")
-        models = [compression_entry(p)[0] for p in self.compression_models if not pca_components(p)]
+        models = [compression_entry(p)[0] for p in self.compression_models if not basis_components(p)]
         for f in [self.model, self.ipca, self.plan_model, self.test_list, *models, *self.models.values()]:
             if f:
                 check_input_file(f)
@@ -265,10 +266,10 @@ def compression_entry(spec) -> tuple[str, str | None, int | None]:
     --------
     >>> compression_entry("merl80-l40"), compression_entry("merl80-l40:basis-21")
     (('merl80-l40', None, None), ('merl80-l40', 'basis', 21))
-    >>> compression_entry("m.safetensors:latent")
-    ('m.safetensors', 'latent', None)
+    >>> compression_entry("m.safetensors:hypernet")
+    ('m.safetensors', 'hypernet', None)
     """
-    from brdfkit.methods.embedding import get_kind
+    from brdfkit.embeddings import get_kind
 
     text = str(spec)
     model, sep, what = text.rpartition(":")
@@ -284,7 +285,7 @@ def compression_entry(spec) -> tuple[str, str | None, int | None]:
 def _resolve_compressor(spec, device=None) -> str:
     """``PATH:KIND-SIZE`` of a ``--compression-models`` entry: the decoder file, kind and
     size ``brdfkit encode`` would use."""
-    from brdfkit.methods.embedding import choose_decoder
+    from brdfkit.embeddings import choose_decoder
 
     model, kind, size = compression_entry(spec)
     dec = choose_decoder(kind, model, "cpu")
@@ -293,15 +294,38 @@ def _resolve_compressor(spec, device=None) -> str:
     return f"{dec.path}:{dec.kind}-{size}"
 
 
-def pca_components(spec) -> int | None:
-    """``K`` of a ``--compression-models`` entry ``pca-K`` (a PCA of ``K`` components),
-    else ``None``; :class:`InputError` for ``pca-`` without a positive whole number."""
+def basis_components(spec) -> int | None:
+    """``K`` of a ``--compression-models`` entry ``basis-K`` (the projection onto the
+    ``K`` leading components of the ``ipca`` basis; ``pca-K``, its old spelling, too),
+    else ``None`` (``basis-merl.safetensors`` is a file); :class:`InputError` for
+    ``basis-0`` and for ``pca-`` without a positive whole number.
+
+    Examples
+    --------
+    >>> basis_components("basis-13"), basis_components("pca-13"), basis_components("merl80-l40:basis-21")
+    (13, 13, None)
+    """
     text = str(spec)
-    if not text.startswith("pca-"):
+    prefix = next((p for p in ("basis-", "pca-") if text.startswith(p)), None)
+    if prefix is None:
         return None
-    if not text[4:].isdigit() or int(text[4:]) < 1:
-        raise InputError(f"--compression-models {text}: pca-K takes a whole number of components K >= 1")
-    return int(text[4:])
+    k = text[len(prefix):]
+    if prefix == "basis-" and not (k.isascii() and k.isdigit()):
+        return None  # a model's name or file
+    if not (k.isascii() and k.isdigit()) or int(k) < 1:
+        raise InputError(f"--compression-models {text}: {prefix}K takes a whole number of components K >= 1")
+    return int(k)
+
+
+def _basis_spelling(spec) -> str:
+    """A ``basis-K`` entry as it is; ``pca-K`` as ``basis-K``, with a note on stderr."""
+    text = str(spec)
+    if text.startswith("pca-"):
+        from brdfkit.console import console
+
+        console().print(f"note: {text} is now basis-{text[4:]}", soft_wrap=True, highlight=False)
+        return f"basis-{text[4:]}"
+    return text
 
 
 def default_methods(model: str | None, prior: str | None = None) -> tuple[tuple, str | None]:

@@ -6,7 +6,7 @@ import os
 
 from brdfkit.atomic import atomic_open, atomic_path
 from brdfkit.bench.config import METRICS
-from brdfkit.bench.summary import mean
+from brdfkit.bench.summary import mean, record_size
 
 __all__ = ["write_markdown", "write_plots", "label"]
 
@@ -79,10 +79,10 @@ def write_markdown(path: str, result: dict) -> None:
         lines += ["", "## Compression (encode the full table, decode)", "",
                   f"{result['materials']['compression_count']} material(s) from `{cfg['compression_data']}`; "
                   f"mean ± standard deviation over materials; time = encode + decode.", "",
-                  "| model | latent / components | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | wall time (s) | "
+                  "| model | numbers | PSNR (dB) | Delta E 2000 | SSIM | BRDF log RMSE | wall time (s) | "
                   "CPU time (s) | ok / failed |", "| --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: |"]
         for row in summ["compression"]:
-            lines.append(f"| {row['method']} | {row['latent']} | {_pmm(row, 'psnr', 2)} | {_pmm(row, 'delta_e', 2)} | "
+            lines.append(f"| {row['method']} | {record_size(row)} | {_pmm(row, 'psnr', 2)} | {_pmm(row, 'delta_e', 2)} | "
                          f"{_pmm(row, 'ssim', 4)} | {_pmm(row, 'log_rmse', 4)} | {_fmt(row['time_s'], 3)} | "
                          f"{_fmt(row['cpu_s'], 3)} | {row['count']} / {row['failures']} |")
     scenes = cfg.get("scenes") or ["reference"]

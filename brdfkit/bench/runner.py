@@ -19,7 +19,7 @@ from brdfkit.errors import InputError
 from brdfkit.io.folders import list_materials
 from brdfkit.bench.config import BenchConfig
 from brdfkit.bench.report import write_markdown, write_plots
-from brdfkit.bench.summary import summarise
+from brdfkit.bench.summary import record_size, summarise
 from brdfkit.bench.worker import Worker, error_text, failed_records, init_process, renderer_digest, run_task
 
 __all__ = ["run_bench", "merge_results", "FORMAT_VERSION"]
@@ -278,7 +278,7 @@ def merge_results(paths, output: str, allow_incomplete: bool = False, replace: b
         for r in run["records"]:
             if r["material"] not in common[r["kind"]] or (r["kind"], r["method"]) in later:
                 continue
-            key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), r.get("latent"),
+            key = (r["kind"], r["material"], r["method"], r.get("n"), r.get("seed"), record_size(r),
                    r.get("sampling", "uniform") if r["kind"] == "sparse" else None)
             if key in seen:
                 raise InputError(f"two runs both hold {r['kind']} {r['material']} {r['method']} "

@@ -15,7 +15,7 @@ import numpy as np
 
 from brdfkit.bench.config import METRICS
 
-__all__ = ["summarise", "mean", "family"]
+__all__ = ["summarise", "mean", "family", "record_size"]
 
 
 def family(name: str) -> str:
@@ -33,11 +33,17 @@ def _sd(values):
     return float(np.std(v, ddof=1)) if len(v) > 1 else None
 
 
+def record_size(r: dict):
+    """A compression record's ``size`` (numbers per material); ``latent`` in the records
+    of runs from before it was called ``size``."""
+    return r.get("size", r.get("latent"))
+
+
 def _summary_rows(records, keys) -> list[dict]:
     """One row per distinct ``keys`` value tuple: means, spreads, counts."""
     groups: dict = {}
     for r in records:
-        groups.setdefault(tuple(r.get(k) for k in keys), []).append(r)
+        groups.setdefault(tuple(record_size(r) if k == "size" else r.get(k) for k in keys), []).append(r)
     rows = []
     for gk, recs in groups.items():
         ok = [r for r in recs if "error" not in r]
@@ -63,26 +69,27 @@ def _summary_rows(records, keys) -> list[dict]:
 
 def summarise(records: list[dict], group_by_prefix: bool = False) -> dict:
     """Summaries of bench records: ``{"sparse": rows, "compression": rows}``; each row
-    holds the keys (method, sampling and N / latent, and ``family`` with
-    ``group_by_prefix``; a sparse record without ``sampling``, from a run before planned
-    samples, is ``uniform``), the mean
+    holds the keys (method, sampling and N / ``size``, the numbers per material, and
+    ``family`` with ``group_by_prefix``; a sparse record without ``sampling``, from a run
+    before planned samples, is ``uniform``; a compression record's ``latent``, from a run
+    before ``size``, is its ``size``), the mean
     of every metric and its spreads (see the module doc), counts and failures."""
     sparse = [r for r in records if r["kind"] == "sparse"]
     for r in sparse:
         r.setdefault("sampling", "uniform")  # records of runs from before planned samples
     comp = [r for r in records if r["kind"] == "compression"]
     out = {"sparse": _summary_rows(sparse, ("method", "sampling", "n")),
-           "compression": _summary_rows(comp, ("method", "latent")),
-           "compression_by_training": _summary_rows(comp, ("method", "latent", "trained_on"))}
+           "compression": _summary_rows(comp, ("method", "size")),
+           "compression_by_training": _summary_rows(comp, ("method", "size", "trained_on"))}
     if group_by_prefix:
         for r in records:
             r["family"] = family(r["material"])
         out["sparse_by_family"] = _summary_rows(sparse, ("family", "method", "sampling", "n"))
-        out["compression_by_family"] = _summary_rows(comp, ("family", "method", "latent"))
+        out["compression_by_family"] = _summary_rows(comp, ("family", "method", "size"))
     for key in out:
         out[key].sort(key=lambda row: tuple(str(row.get(k)) if not isinstance(row.get(k), (int, float))
                                             else f"{row.get(k):012.3f}" for k in
-                                            ("family", "method", "sampling", "n", "latent", "trained_on")
+                                            ("family", "method", "sampling", "n", "size", "trained_on")
                                             if k in row))
     return out
 

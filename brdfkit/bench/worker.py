@@ -31,12 +31,13 @@ def renderer_digest() -> str:
 
 def failed_records(cfg: BenchConfig, kind: str, name: str, error: str, compressors=()) -> list[dict]:
     """The records of every reconstruction of one material, all failed with ``error``
-    (``compressors``: the ``(label, latent)`` of the compression methods)."""
+    (``compressors``: the ``(label, size)`` of the compression methods, ``size`` the numbers
+    per material)."""
     if kind == "sparse":
         return [{"kind": kind, "material": name, "method": m, "n": int(k), "seed": s, "sampling": sampling,
                  "error": error}
                 for m in cfg.methods for k in cfg.n for s in cfg.seed_list() for sampling in cfg.sampling]
-    return [{"kind": kind, "material": name, "method": label, "latent": dim, "error": error}
+    return [{"kind": kind, "material": name, "method": label, "size": dim, "error": error}
             for label, dim in compressors]
 
 
@@ -108,7 +109,7 @@ class Worker:
         the renderer's code), not the name: a table reached under another name (a symlink
         in a second folder) reuses its render."""
         env = self.envs[scene]
-        key = hashlib.sha256("\n".join([file_digest(path), repr(self.scene), env.fingerprint(),
+        key = hashlib.sha256("\n".join([file_digest(path), repr(self.scene), env.digest(),
                                         repr(env.bright), renderer_digest()]).encode()).hexdigest()[:16]
         return os.path.join(self.cfg.cache or os.path.join(self.cfg.output, "cache"),
                             f"{name}-{self.cfg.resolution}px-{key}.exr")
@@ -231,7 +232,7 @@ class Worker:
         records = []
         for label, dim, compress in self.compressors:
             records.append(self._timed(
-                dict(base, method=label, latent=dim, trained_on=name in self.trained.get(label, ())), table,
+                dict(base, method=label, size=dim, trained_on=name in self.trained.get(label, ())), table,
                 ref_imgs, lambda compress=compress: compress(table, name)))
         return records
 
@@ -239,10 +240,11 @@ class Worker:
 def _compressor(cfg: BenchConfig, entry: str, what, device) -> tuple:
     """``(label, numbers per material, compress(table, name) -> table, training materials)``
     of one entry of :meth:`BenchConfig.compressors`; the label says what runs: ``basis-39
-    (merl80-basis)``, ``latent-40 (merl80-l40)``, ``pca-13 (39 numbers)`` (of the ``ipca``
-    basis), ``pca-8 (24 numbers, basis8)`` (a method's own basis, whole)."""
+    (merl80-basis)`` (a basis embedding of 39 numbers), ``hypernet-40 (merl80-l40)``,
+    ``basis-13 (39 numbers)`` (the projection onto the ``ipca`` basis's 13 leading
+    components), ``basis-8 (24 numbers, basis8)`` (a method's own basis, whole)."""
     if entry == "embedding":
-        from brdfkit.methods.embedding import encode_with, load_decoder, open_embedding
+        from brdfkit.embeddings import encode_with, load_decoder, open_embedding
 
         path, kind, size = what
         dec = load_decoder(kind, path, device)
@@ -253,12 +255,12 @@ def _compressor(cfg: BenchConfig, entry: str, what, device) -> tuple:
             return open_embedding(encode_with(dec, table, source=name, size=size), dec, name).to_table()
 
         return f"{kind}-{size} ({stem})", size, compress, trained
-    if entry == "pca":  # the ipca basis's K leading components, projected
+    if entry == "basis":  # the ipca basis's K leading components, projected
         from brdfkit.basis.basis_file import load_basis
         from brdfkit.models.builtin import resolve_basis
 
         basis = load_basis(resolve_basis(cfg.model_file("ipca"))).leading(what)
-        return (f"pca-{what} ({3 * what} numbers)", 3 * what, lambda table, name: basis.decode(basis.project(table)),
+        return (f"basis-{what} ({3 * what} numbers)", 3 * what, lambda table, name: basis.decode(basis.project(table)),
                 set(basis.materials))
     method, path = what
     model = method.load(path, device)

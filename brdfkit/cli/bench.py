@@ -31,7 +31,7 @@ def _str_list(value: str | None) -> tuple:
               help="Hypernetwork model (.safetensors, or a built-in name) for the method 'hypernet'; a built-in "
                    "with a learnt prior gives the method 'prior' its model too.")
 @click.option("--ipca", type=click.Path(dir_okay=False), default=None, metavar="NAME|FILE",
-              help="PCA basis (.safetensors from `brdfkit fit --method ipca`, or a built-in name: its basis) "
+              help="PCA basis (.safetensors from `brdfkit fit --method basis`, or a built-in name: its basis) "
                    "for 'ipca' and the compression reference.")
 @click.option("--model-file", "model_files", multiple=True, metavar="METHOD=FILE",
               help="The model file (or built-in name) of any method that needs one (repeatable), e.g. "
@@ -57,8 +57,9 @@ def _str_list(value: str | None) -> tuple:
 @click.option("--compression-models", default=None,
               help="What to test on encode -> decode, comma-separated: MODEL[:KIND[-SIZE]], a built-in's name or "
                    "a basis or hypernetwork file, encoded as `brdfkit encode -m MODEL --kind KIND --size SIZE` does "
-                   "(e.g. merl80-l40, merl80-l40:basis-21, merl80-l40:latent, merl-rgl-l7); pca-K: the projection on "
-                   "the K leading components of --ipca (3 K numbers: pca-13 beside basis-39).")
+                   "(e.g. merl80-l40, merl80-l40:basis-21, merl80-l40:hypernet, merl-rgl-l7); basis-K (pca-K before): "
+                   "the projection on the K leading components of --ipca (3 K numbers: basis-13 beside "
+                   "merl80-l40:basis-39).")
 @click.option("--compression-data", type=click.Path(file_okay=False), default=None,
               help="Folder of MERL tables for the compression benchmark.")
 @click.option("--scenes", default="reference", show_default=True, metavar="all|A,B",

@@ -22,18 +22,18 @@ def model_option(f):
 
 
 def require_model(model_path: str | None) -> str:
-    """The hypernetwork model file to use: ``-m`` / ``$BRDFKIT_MODEL`` (a file or a
+    """The hypernetwork's network file to use: ``-m`` / ``$BRDFKIT_MODEL`` (a file or a
     built-in name), else the default built-in; else an error saying how to get one."""
-    from brdfkit.models.builtin import default_model, resolve_model
+    from brdfkit.models.builtin import default_bundle, resolve_network
 
     if model_path:
-        return resolve_model(model_path)
-    found = default_model()
-    if found is None:
+        return resolve_network(model_path)
+    found = default_bundle()
+    if found is None or found.part("network") is None:
         raise InputError("no model given: pass -m NAME or -m MODEL.safetensors, or set BRDFKIT_MODEL (no default "
                          "built-in model is installed; `brdfkit models` lists the built-in ones; make a model with "
                          "`brdfkit fit DATA... -o model.safetensors`, or run `brdfkit demo`, which trains one)")
-    return found
+    return resolve_network(found.name)
 
 
 def parse_float(value: str, name: str) -> float:

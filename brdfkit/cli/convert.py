@@ -50,17 +50,17 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
     """
     import os
 
-    from brdfkit.brdf_file import OUTPUT_KINDS, EmbeddingDecoders, convert
+    from brdfkit.files.brdf_file import OUTPUT_TYPES, EmbeddingDecoders, convert
     from brdfkit.console import console
     from brdfkit.errors import InputError
 
     bsdf_options = [f"--{n.replace('_', '-')}" for n in ("resolution", "theta_i", "spectral", "description")
                     if _given(n)]
     settings = None
-    if OUTPUT_KINDS.get(os.path.splitext(output)[1].lower()) == "merl" and bsdf_options:
+    if OUTPUT_TYPES.get(os.path.splitext(output)[1].lower()) == "merl" and bsdf_options:
         raise InputError(f"{output}: options of an RGL .bsdf output ({', '.join(bsdf_options)}) given for a "
                          f"MERL table")
-    if OUTPUT_KINDS.get(os.path.splitext(output)[1].lower()) == "rgl":
+    if OUTPUT_TYPES.get(os.path.splitext(output)[1].lower()) == "rgl":
         from brdfkit.io.rgl.fit import FitSettings
 
         settings = FitSettings(resolution=resolution, theta_i=theta_i)
@@ -70,7 +70,7 @@ def command(source, model_path, output, resolution, theta_i, spectral, descripti
         console().print(f"{source}: non-reciprocity {report['non_reciprocity']:.4f} (log RMS between the file "
                         f"conditioned on either direction, over the MERL grid); made reciprocal by the "
                         f"{reciprocity} rule (--reciprocity)", soft_wrap=True)
-    what = "MERL table" if report["output_kind"] == "merl" else \
+    what = "MERL table" if report["output_type"] == "merl" else \
         f"RGL .bsdf, {'spectral' if spectral else 'RGB'}, {resolution} x {resolution} x {theta_i} theta_i"
     console().print(f"wrote {output} ({what}, {report['bytes'] / 1e6:.2f} MB) from {source}: read "
                     f"{report['read_s']:.1f} s, written {report['write_s']:.1f} s", soft_wrap=True)

@@ -25,7 +25,7 @@ def command(embedding, model_path, output):
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.io.embedding import read_embedding
     from brdfkit.io.merl import write_merl
-    from brdfkit.methods.embedding import decoder_for
+    from brdfkit.embeddings import decoder_for
 
     if output is None:
         output = os.path.splitext(embedding)[0] + ".binary"

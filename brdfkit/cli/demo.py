@@ -127,7 +127,7 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
         return
     from rich.console import Console
 
-    from brdfkit.demos.real_materials import COMPRESSION_KINDS, INTERPOLATION_MODEL, SPARSE_MODEL, run_real_demo
+    from brdfkit.demos.real_materials import COMPRESSION_SETS, INTERPOLATION_MODEL, SPARSE_MODEL, run_real_demo
 
     res = run_real_demo(out_dir, only=[s.strip() for s in only.split(",") if s.strip()] if only else None,
                         seed=seed, device=device, render=do_render, resolution=resolution, keep_tables=keep_tables)
@@ -151,7 +151,7 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     report.print(f"{res.sparse_method} N, ipca N: reconstructed from N samples by brdfkit sparse's default "
                  f"method on {SPARSE_MODEL} ({res.sparse_method}) and by IPCA on its PCA basis; {SPARSE_MODEL} "
                  f"never saw these materials. " + _compression_caption(res) + "; "
-                 + "; ".join(f"{kind} ({', '.join(ms)}): {COMPRESSION_KINDS.get(kind, kind)}"
+                 + "; ".join(f"{kind} ({', '.join(ms)}): {COMPRESSION_SETS.get(kind, kind)}"
                              for kind, ms in kinds.items())
                  + ". PSNR and Delta E as brdfkit metrics takes them (docs/render.md); errors.json also "
                    "holds brdf_log_rmse.")

@@ -6,6 +6,12 @@ import click
 
 from brdfkit.console import ProgressBar, console
 from brdfkit.cli.common import model_option
+from brdfkit.embeddings.registry import KINDS
+
+
+def _kind_names() -> list:
+    """The ``--kind`` values: each kind's name, then the old names it still takes."""
+    return [k.name for k in KINDS.values()] + [a for k in KINDS.values() for a in k.aliases]
 
 
 @click.command("encode")
@@ -22,13 +28,13 @@ from brdfkit.cli.common import model_option
               help="Most refinement steps per table [default: 80 for a basis embedding, 40 for a latent]; a "
                    "latent's stops sooner when held-out pixels stop improving. The same input gives the same "
                    "bytes, however busy the machine.")
-@click.option("--kind", type=click.Choice(["basis", "latent"]), default=None,
-              help="basis: the coefficients of a PCA basis, refined on screen (the default for a built-in that "
-                   "ships one, and for a basis file: it holds for materials outside the training set); latent: "
-                   "the hypernetwork's latent (the default for a hypernetwork file, and for sample sets).")
+@click.option("--kind", type=click.Choice(_kind_names()), default=None,
+              help="What the numbers are: " + "; ".join(f"{k.name}: {k.summary}" for k in KINDS.values())
+                   + ". Default: for a built-in, the first of these it ships a part for that offers --size; for a "
+                     "file, the part it is; for sample sets, hypernet. (latent: the old name of hypernet.)")
 @click.option("--size", type=click.IntRange(min=1), default=None,
-              help="Numbers per material: a basis embedding holds 3 a component (3, 6, 9 ... up to 3 x the basis's "
-                   "components; default 39); a latent holds the model's latent size.")
+              help="Numbers per material: a basis or residual embedding holds 3 a component (3, 6, 9 ... up to "
+                   "3 x the basis's components; default 39); a hypernet embedding the network's latent size.")
 @click.option("--max-seconds", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Also stop a latent's refinement after this many seconds (off by default: a cut result "
                    "depends on the machine's speed; the output says when it cut).")
@@ -51,12 +57,12 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import BrdfkitError, InputError
     from brdfkit.io.embedding import write_embedding
-    from brdfkit.methods.embedding import choose_decoder
+    from brdfkit.embeddings import choose_decoder, get_kind, kind_of_part
 
     tables = [p for p in inputs if not p.lower().endswith(".csv")]
     # One decoder for the tables, loaded once; sample sets take the hypernetwork's latent.
-    dec = choose_decoder(kind, model_path) if tables else None
-    lat = choose_decoder("latent", model_path) if len(tables) < len(inputs) else None
+    dec = choose_decoder(kind, model_path, size=size) if tables else None
+    lat = choose_decoder(kind_of_part("network").name, model_path) if len(tables) < len(inputs) else None
     if size is not None and dec is not None:
         dec.check_size(size)  # before any work
     if output_dir:
@@ -66,6 +72,7 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
     planned: dict[str, str] = {}
     cut: list[str] = []
     kinds: set[str] = set()
+    starts: set[str] = set()  # what each kind is before refinement (EmbeddingKind.start)
     done = 0
 
     def one(path: str) -> None:
@@ -82,6 +89,7 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
         write_embedding(target, emb)
         planned[key] = path
         kinds.add(f"{emb.kind} {emb.size} numbers, {(lat if samples else dec).label}")
+        starts.add(get_kind(emb.kind).start)
         if emb.refinement and emb.refinement["stopped"] == "max_seconds":
             cut.append(f"{stem} ({emb.refinement['steps']} steps)")
 
@@ -99,7 +107,7 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
         one(inputs[0])
         done = 1
     where = output_dir if output_dir else "beside the inputs"
-    start = " or ".join(k for k, w in (("projection", "basis"), ("encoder pass", "latent")) if any(w in x for x in kinds))
+    start = " or ".join(sorted(s for s in starts if s))
     how = "refined on screen" if refine and steps != 0 else f"{start or 'no refinement'}, not refined"
     out.print(f"encoded {done} of {len(inputs)} file{'s' if len(inputs) != 1 else ''} "
               f"({'; '.join(sorted(kinds)) or 'none'}; {how}) into {where}", soft_wrap=True)

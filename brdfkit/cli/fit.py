@@ -6,17 +6,18 @@ import click
 from click.core import ParameterSource
 
 from brdfkit.errors import InputError
-from brdfkit.methods import METHODS
 from brdfkit.cli.common import parse_option
+from brdfkit.training import FITTERS
 
 
 @click.command("fit")
 @click.argument("data", nargs=-1, required=True, type=click.Path())
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
               help="Model file to write (.safetensors); the checkpoint goes to OUTPUT.ckpt.")
-@click.option("--method", type=click.Choice([n for n, m in METHODS.items() if m.fit_fn is not None]),
+@click.option("--method", type=click.Choice([*FITTERS, *(a for f in FITTERS.values() for a in f.aliases)]),
               default="hypernet", show_default=True,
-              help="What to train.")
+              help="What to train: " + "; ".join(f"{f.name}, {f.summary}" for f in FITTERS.values())
+                   + " (ipca: the old name of basis).")
 @click.option("--latent-dim", type=click.IntRange(min=1), default=40, show_default=True,
               help="Embedding size (40 as in the paper; 7 for compression).")
 @click.option("--exclude-list", type=click.Path(dir_okay=False), default=None,
@@ -42,7 +43,7 @@ from brdfkit.cli.common import parse_option
               help="Advanced option (query_size, context_min, context_max, lr, lr_schedule, "
                    "warmup_steps, architecture ...); see docs/training.md.")
 @click.option("--components", type=click.IntRange(min=1), default=None,
-              help="Principal components of --method ipca [default: 8, as Nielsen et al. 2015].")
+              help="Principal components of --method basis [default: 8, as Nielsen et al. 2015].")
 @click.option("-q", "--quiet", is_flag=True, help="No progress display.")
 def command(data, output, method, latent_dim, exclude_list, exclude_names, steps, minutes, seed,
             device, resume, batch_materials, checkpoint_minutes, components, options, quiet):
@@ -59,7 +60,13 @@ def command(data, output, method, latent_dim, exclude_list, exclude_names, steps
         from brdfkit.io.folders import read_exclude_list
         exclude += read_exclude_list(exclude_list)
     refuse_overwrite_of_inputs(output, list(data) + ([exclude_list] if exclude_list else []))
-    chosen = METHODS[method]
+    from brdfkit.training import get_fitter
+
+    chosen = get_fitter(method)
+    if chosen.name != method:
+        from brdfkit.console import console
+
+        console().print(f"note: fit --method {method} is now fit --method {chosen.name}")
     given = dict(parse_option(o) for o in options)
     # Then the options the user gave (each method's fit has its own defaults and refuses
     # the options it does not take).
@@ -68,7 +75,7 @@ def command(data, output, method, latent_dim, exclude_list, exclude_names, steps
         ("latent_dim", latent_dim), ("steps", steps), ("minutes", minutes), ("seed", seed), ("device", device),
         ("resume", resume), ("batch_materials", batch_materials), ("checkpoint_minutes", checkpoint_minutes),
         ("components", components)) if source(key) is not ParameterSource.DEFAULT)
-    if components is not None and "components" not in (chosen.fit_options or ()):
-        owners = [n for n, m in METHODS.items() if "components" in (m.fit_options or ())]
-        raise InputError(f"--components applies to --method {' or '.join(owners)} only")
+    if components is not None and chosen.name != "basis" and chosen.options is not None and \
+            "components" not in (chosen.options() if callable(chosen.options) else chosen.options):
+        raise InputError("--components applies to --method basis or prior only")
     chosen.fit(list(data), output, exclude=exclude, progress=not quiet, **given)

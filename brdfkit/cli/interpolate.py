@@ -108,7 +108,7 @@ def _strip(a, b, sheet, steps, size, model_path):
     steps, size = steps or STEPS, size or SIZE
     check_strip(steps, size)  # before the model loads
     ea, eb = _read_named(a, b)
-    from brdfkit.methods.embedding import decoder_for
+    from brdfkit.embeddings import decoder_for
 
     tiles = interpolation_strip(decoder_for(ea, model_path, name=a), ea, eb, sheet, steps=steps, size=size,
                                 progress=True)

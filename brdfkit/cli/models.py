@@ -18,14 +18,9 @@ def _duration(seconds) -> str:
     return f"{seconds / 3600:.1f} h"
 
 
-def _prior_path(m) -> str:
-    return os.path.join(os.path.dirname(m.path), m.prior)
-
-
-def _prior_state(m) -> str:
-    if not m.prior:
-        return "-"
-    return "yes" if os.path.isfile(_prior_path(m)) else "missing"
+def _parts(m) -> str:
+    """The bundle's parts, by name, a missing file marked."""
+    return " ".join(name + ("" if os.path.isfile(p.path) else " (missing)") for name, p in m.parts.items())
 
 
 def _table(columns):
@@ -41,7 +36,8 @@ def _table(columns):
 
 def _json(m) -> dict:
     d = m.to_json()
-    d["prior_installed"] = bool(m.prior) and os.path.isfile(_prior_path(m))
+    for p in d["parts"].values():
+        p["installed"] = os.path.isfile(p["path"])
     return d
 
 
@@ -50,59 +46,52 @@ def _key(k: str):
 
 
 def _print_renders(out, installed) -> None:
-    """The models' validation figures as renders: PSNR dB / Delta E 2000 per N (or
-    ``encode``), and how they were measured (which materials, held out or not)."""
-    have = [m for m in installed if m.renders.get("psnr")]
-    if not have:
+    """The bundles' and their parts' validation figures as renders: PSNR dB / Delta E
+    2000 per N (or ``encode``, ``encode-SIZE``), and how they were measured (which
+    materials, held out or not)."""
+    rows = [(m.name, m.renders) for m in installed if m.renders.get("psnr")]
+    rows += [(f"{m.name} {name}", p.renders) for m in installed for name, p in m.parts.items()
+             if p.renders.get("psnr")]
+    if not rows:
         return
-    keys = sorted({k for m in have for k in m.renders["psnr"]}, key=_key)
-    out.print("\nValidation: renders, PSNR dB / Delta E 2000 (N: from N samples; encode: encode + decode; "
-              "-: not measured; which materials, below)")
+    keys = sorted({k for _, r in rows for k in r["psnr"]}, key=_key)
+    out.print("\nValidation: renders, PSNR dB / Delta E 2000 (N: from N samples; encode-SIZE: encode + decode at "
+              "SIZE numbers; -: not measured; which materials, below)")
     val = _table(("name", *(f"N={k}" if str(k).isdigit() else str(k) for k in keys)))
-    for m in have:
-        p, e = m.renders["psnr"], m.renders.get("delta_e", {})
-        val.add_row(m.name, *(f"{p[k]:.1f}/{e[k]:.2f}" if k in p and k in e else "-" for k in keys))
+    for name, r in rows:
+        p, e = r["psnr"], r.get("delta_e", {})
+        val.add_row(name, *(f"{p[k]:.1f}/{e[k]:.2f}" if k in p and k in e else "-" for k in keys))
     out.print(val)
-    for m in have:
-        r = m.renders
-        out.print(f"{m.name}: {r.get('materials', 'held-out materials')}; scenes "
+    for name, r in rows:
+        out.print(f"{name}: {r.get('materials', 'held-out materials')}; scenes "
                   f"{', '.join(r.get('scenes', ['reference']))}; {r.get('resolution', '?')} px", soft_wrap=True)
 
 
 @click.command("models")
-@click.option("--json", "as_json", is_flag=True, help="Print the manifest's entries as JSON on stdout.")
+@click.option("--json", "as_json", is_flag=True, help="Print the manifest's bundles as JSON on stdout.")
 @click.option("--check", is_flag=True,
-              help="Also load each model (and learnt prior) and check its weights against the manifest.")
+              help="Also load each part of each built-in and check it against the manifest.")
 def command(as_json, check):
     """List the built-in models: the names `-m` takes, with how each was trained.
 
+    A built-in model is a bundle of parts: its hypernetwork (network), PCA basis (basis),
+    learnt prior (prior) and basis residual (residual); each job takes the part it needs.
     Validation figures are renders (PSNR and Delta E 2000) of reconstructions from N
     samples of held-out materials, or of encode + decode (the materials named, held out
-    or not), then the BRDF log RMSE. A
-    model with a learnt prior (column prior) reconstructs sparse samples with it by
-    default (`brdfkit sparse`, docs/models.md). The folder is the package's
-    brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
+    or not), then the BRDF log RMSE. A model with a learnt prior reconstructs sparse
+    samples with it by default (`brdfkit sparse`, docs/models.md). The folder is the
+    package's brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
     """
     from brdfkit.models.builtin import read_manifest
-    from brdfkit.hypernet.packing import load_builtin
 
     man = read_manifest()
     installed = man.installed()
     if check:
-        from brdfkit.methods.prior.prior_file import load_prior
-        from brdfkit.models.builtin import resolve_basis, resolve_prior
-
         for m in installed:
-            # Resolving checks the file's recorded fingerprint against the manifest,
-            # loading its weights against the recorded fingerprint: FormatError if not.
-            load_builtin(m.name, device="cpu")
-            if m.prior:
-                load_prior(resolve_prior(m.name), device="cpu")  # and its basis file's digest
-            if m.basis:
-                resolve_basis(m.name)  # the basis file's SHA-256 against the manifest's
+            _check(m)
     if as_json:
         click.echo(json.dumps({"folder": man.folder, "default": man.default,
-                               "models": [_json(m) for m in man.models]}, indent=1))
+                               "bundles": [_json(m) for m in man.bundles]}, indent=1))
         return
     if not installed:
         click.echo(f"no built-in models installed (in {man.folder}); pass -m MODEL.safetensors from `brdfkit fit`")
@@ -115,13 +104,13 @@ def command(as_json, check):
     ns = sorted({n for m in installed for n in m.validation})
     out = Console(markup=False)  # a path or list name may hold "[...]"
     out.print(f"Built-in models in {man.folder}", soft_wrap=True)
-    tab = _table(("name", "dim", "prior", "mats", "steps", "time"))
+    tab = _table(("name", "parts", "dim", "mats", "steps", "time"))
     for m in installed:
-        tab.add_row(m.name + (" *" if m.default else ""), str(m.latent_dim), _prior_state(m),
+        tab.add_row(m.name + (" *" if m.default else ""), _parts(m), "-" if m.latent_dim is None else str(m.latent_dim),
                     "-" if m.materials is None else str(m.materials), "-" if m.steps is None else f"{m.steps:,}",
                     _duration(m.train_seconds))
     out.print(tab)
-    out.print("*: the default. prior: has a learnt prior (sparse's default method with it).")
+    out.print("*: the default. dim: its hypernetwork's latent. A prior is sparse's default method.")
     _print_renders(out, installed)
     if ns:
         out.print("\nBRDF-space: log RMSE on held-out materials from N samples (-: not measured)")
@@ -132,14 +121,20 @@ def command(as_json, check):
     out.print()
     for m in installed:
         lists = f"; materials: {m.materials_list}" if m.materials_list else ""
-        out.print(f"{m.name}: {m.path} (fingerprint {m.fingerprint[:12]}{lists})", soft_wrap=True)
-        if m.prior:
-            out.print(f"{m.name} learnt prior: {_prior_path(m)} (fingerprint {m.prior_fingerprint[:12]})",
-                      soft_wrap=True)
-    missing = [m.name for m in man.models if not m.installed]
+        for name, p in m.parts.items():
+            out.print(f"{m.name} {name}: {p.path} (digest {p.digest[:12]}{lists})", soft_wrap=True)
+    missing = [m.name for m in man.bundles if not m.installed]
     if missing:
         out.print(f"in the manifest but not installed: {', '.join(missing)}")
     if check:
-        priors = sum(1 for m in installed if m.prior)
-        also = f" and {priors} learnt prior(s)" if priors else ""
-        out.print(f"checked: {len(installed)} model(s){also} load and match the manifest")
+        parts = sum(len(m.parts) for m in installed)
+        out.print(f"checked: {len(installed)} model(s), {parts} part(s): each loads and matches the manifest")
+
+
+def _check(m) -> None:
+    """Load each part of bundle ``m``: resolving checks a file's digest against the
+    manifest, loading its weights against the digest it records (FormatError if not)."""
+    from brdfkit.embeddings.parts import load_part
+
+    for name in m.parts:
+        load_part(m.name, name)

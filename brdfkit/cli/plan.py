@@ -17,7 +17,7 @@ def _given(name: str) -> bool:
 @click.option("-n", "--count", "n", type=click.IntRange(min=1), required=True, help="Number of directions.")
 @click.option("-m", "--model", "model", type=click.Path(dir_okay=False), default=None, metavar="NAME|FILE",
               help="The PCA basis to plan for: a built-in with a learnt prior (`brdfkit models`; its basis), a "
-                   "learnt-prior file or a basis file from `brdfkit fit --method ipca`; default: the default "
+                   "learnt-prior file or a basis file from `brdfkit fit --method basis`; default: the default "
                    "built-in's (none for --design uniform).")
 @click.option("--design", type=click.Choice(_DESIGNS), default="render", show_default=True,
               help="nielsen: minimum condition number of the basis rows (Nielsen et al. 2015); render: minimum "

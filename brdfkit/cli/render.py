@@ -54,12 +54,12 @@ def command(brdf, model_path, output, png, mitsuba, scene, bsdf_id, spp, resolut
     """
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import InputError
-    from brdfkit.brdf_file import brdf_kind
-    from brdfkit.render.file_render import render_brdf_file
+    from brdfkit.files.brdf_file import file_type
+    from brdfkit.files.render_file import render_brdf_file
     from brdfkit.runtime import set_torch_threads
     from brdfkit.render.image import write_exr, write_png
 
-    brdf_kind(brdf)
+    file_type(brdf)
     scene_file = scene if scene.lower().endswith(".xml") or os.path.isfile(scene) else None
     if scene_file is None:
         from brdfkit.render.scene_suite import scene_names

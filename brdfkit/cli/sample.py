@@ -10,15 +10,15 @@ from brdfkit.errors import InputError
 
 
 def _table(path: str):
-    """The dense table of a BRDF file through the one loader (:func:`brdfkit.brdf_file.read_table`:
+    """The dense table of a BRDF file through the one loader (:func:`brdfkit.files.brdf_file.read_table`:
     ``.binary``, ``.bsdf``, ``.emb``); a file of any other name is read as a MERL table,
     whose reader says what it is not."""
     import os
 
-    from brdfkit.brdf_file import KINDS, read_table
+    from brdfkit.files.brdf_file import FILE_TYPES, read_table
     from brdfkit.io.merl import read_merl
 
-    return read_table(path) if os.path.splitext(path)[1].lower() in KINDS else read_merl(path)
+    return read_table(path) if os.path.splitext(path)[1].lower() in FILE_TYPES else read_merl(path)
 
 
 def _given(name: str) -> bool:

@@ -11,7 +11,7 @@ from brdfkit.cli.common import model_option, parse_option, require_model
 @click.argument("data", nargs=-1, required=True, type=click.Path())
 @model_option
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
-              help="Tuned model file to write (.safetensors); the checkpoint goes to OUTPUT.ckpt.")
+              help="Tuned network file to write (.safetensors); the checkpoint goes to OUTPUT.ckpt.")
 @click.option("--exclude-list", type=click.Path(dir_okay=False), default=None,
               help="Text file of material names to leave out, one a line.")
 @click.option("--exclude", "exclude_names", multiple=True, metavar="NAME", help="A material to leave out.")

@@ -43,7 +43,7 @@ import time
 
 from brdfkit.errors import InputError
 
-__all__ = ["SPARSE_MODEL", "COMPRESSIONS", "COMPRESSION_MODELS", "COMPRESSION_KINDS", "COMPRESSION_STEPS",
+__all__ = ["SPARSE_MODEL", "COMPRESSIONS", "COMPRESSION_MODELS", "COMPRESSION_SETS", "COMPRESSION_STEPS",
            "INTERPOLATION_MODEL", "SAMPLE_COUNTS", "SHEET_RESOLUTION", "RealDemoResult", "demo_materials",
            "check_models", "compression_labels", "run_real_demo"]
 
@@ -55,7 +55,7 @@ COMPRESSIONS = (("merl-rgl-l40", "in-sample"), ("merl-rgl-l7", "in-sample"), ("m
 not). Labels say what the embedding holds (:func:`compression_labels`): ``in-sample
 basis-39 (merl-rgl-l40)`` (39 coefficients of its basis), ``in-sample 7-D (merl-rgl-l7)``."""
 COMPRESSION_MODELS = tuple(m for m, _ in COMPRESSIONS)
-COMPRESSION_KINDS = {"in-sample": "trained on all 151 MERL + RGL materials, these included (the paper's "
+COMPRESSION_SETS = {"in-sample": "trained on all 151 MERL + RGL materials, these included (the paper's "
                                   "compression protocol)",
                      "unseen": "trained without the 20 MERL test materials"}
 """What each kind of :data:`COMPRESSIONS` means, for the output."""
@@ -88,9 +88,9 @@ def check_models() -> None:
     InputError
         One of :data:`SPARSE_MODEL`, :data:`COMPRESSION_MODELS` is not installed.
     """
-    from brdfkit.models.builtin import builtin_models
+    from brdfkit.models.builtin import installed_bundles
 
-    have = {m.name for m in builtin_models()}
+    have = {m.name for m in installed_bundles()}
     missing = [n for n in dict.fromkeys((SPARSE_MODEL, *COMPRESSION_MODELS)) if n not in have]
     if missing:
         what = "no built-in model is installed" if not have else f"built-in model(s) not installed: {', '.join(missing)}"
@@ -104,9 +104,9 @@ def compression_labels(latent_dims: dict) -> list[tuple[str, str, str, str]]:
     Parameters
     ----------
     latent_dims
-        ``{model: latent size}`` of the loaded models (the labels say what the model
-        files hold, not what their names suggest), or ``{model: text}`` such as
-        ``"basis-39"`` for a model whose default embedding is a basis embedding.
+        ``{model: text}`` such as ``"residual-39"``: the kind and size of each model's
+        default embedding (the labels say what the files hold, not what their names
+        suggest), or ``{model: latent size}``.
 
     Returns
     -------
@@ -314,7 +314,7 @@ class _Models:
     methods: list
     """``[(label, method, loaded model)]`` of the sparse reconstructions: the choice, IPCA."""
     hyper: dict
-    """``{name: decoder}`` of :data:`COMPRESSION_MODELS` (:class:`brdfkit.methods.embedding.Decoder`:
+    """``{name: decoder}`` of :data:`COMPRESSION_MODELS` (:class:`brdfkit.embeddings.Decoder`:
     the basis of a built-in that ships one, else its hypernetwork)."""
     comps: list
     """``[(model, kind, label, short)]`` of the compressions (:func:`compression_labels`)."""
@@ -331,11 +331,10 @@ def _load_models(device) -> _Models:
     sparse_model = sparse_method.load(choice.path, device)
     ipca = get_method("ipca")
     ipca_model = ipca.load(SPARSE_MODEL)
-    from brdfkit.methods.embedding import choose_decoder
+    from brdfkit.embeddings import choose_decoder
 
     hyper = {m: choose_decoder(None, m, device) for m in COMPRESSION_MODELS}
-    comps = compression_labels({m: f"basis-{d.default_size}" if d.kind == "basis" else d.default_size
-                                for m, d in hyper.items()})
+    comps = compression_labels({m: f"{d.kind}-{d.default_size}" for m, d in hyper.items()})
     methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
     return _Models(choice, methods, hyper, comps)
 

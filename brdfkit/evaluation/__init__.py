@@ -10,6 +10,6 @@
   scored at it; a BRDF file scored at a sample file's directions.
 
 May import: everything below it (the ground floor, geometry, io, render, the methods'
-registry, brdf_file and, through it, the hypernetwork). colour-science is imported inside the functions that
+registry, :mod:`brdfkit.files` and, through it, the hypernetwork). colour-science is imported inside the functions that
 need it.
 """

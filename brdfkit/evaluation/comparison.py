@@ -2,7 +2,7 @@
 ``brdfkit metrics``.
 
 A BRDF file (MERL ``.binary``, RGL ``.bsdf``, or ``.emb`` with its model) is rendered in the reference
-scene by the quadrature renderer (:func:`brdfkit.render.file_render.render_brdf_file`); an
+scene by the quadrature renderer (:func:`brdfkit.files.render_file.render_brdf_file`); an
 ``.exr`` is taken as it is. Each pair is scored by :func:`brdfkit.evaluation.metrics.score`, the
 same function the benchmark uses. Two folders are compared file by file, matched by
 file stem.
@@ -15,7 +15,7 @@ import dataclasses
 import hashlib
 import os
 
-from brdfkit.brdf_file import EmbeddingDecoders, read_table
+from brdfkit.files.brdf_file import EmbeddingDecoders, read_table
 from brdfkit.errors import InputError
 from brdfkit.io.digest import file_digest
 
@@ -112,7 +112,7 @@ class FileLoader:
         """Renders of BRDF files in a suite scene (:mod:`brdfkit.render.scene_suite`):
         float32 ``(R, R, 3)`` each; the ones not cached are rendered together in one
         quadrature pass."""
-        from brdfkit.render import file_render as files
+        from brdfkit.files import render_file as files
 
         settings = files.reference_scene(resolution or self.resolution)
         keys = [self._render_key(p, settings, scene) for p in paths]

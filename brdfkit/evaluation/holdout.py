@@ -309,7 +309,7 @@ def score_at_samples(pred, ref, model_path=None) -> dict:
     its reciprocal table, ``.emb`` decoded with ``model_path`` or the built-in it names)
     scored at every sample of the sample file ``ref`` (:func:`sample_errors`). The
     samples are read first: a bad reference costs no decoding."""
-    from brdfkit.brdf_file import EmbeddingDecoders, read_table
+    from brdfkit.files.brdf_file import EmbeddingDecoders, read_table
     from brdfkit.io.sample_files import read_sample_file
 
     samples = read_sample_file(ref)

@@ -9,6 +9,6 @@
 * :mod:`~brdfkit.figures.interpolation_strip`: ``brdfkit interpolate --sheet``: the
   material-editing strip.
 
-May import: everything below it (evaluation, render, brdf_file, the hypernetwork, the
-embeddings of :mod:`brdfkit.methods.embedding`).
+May import: everything below it (evaluation, render, :mod:`brdfkit.files`, the hypernetwork, the
+embeddings of :mod:`brdfkit.embeddings`).
 """

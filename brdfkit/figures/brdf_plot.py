@@ -69,13 +69,13 @@ def load_tables(paths: Sequence[str | os.PathLike], model_path: str | os.PathLik
     An ``.emb`` decodes with ``model_path`` (the decoder that made it: a file or a
     built-in's name; ``None``: the installed built-in part whose digest it records).
     """
-    from brdfkit.brdf_file import EmbeddingDecoders, brdf_kind, read_table
+    from brdfkit.files.brdf_file import EmbeddingDecoders, file_type, read_table
 
     paths = [os.fspath(p) for p in paths]
     if not paths:
         raise InputError("plot: no input (give MERL .binary tables and/or .emb embeddings)")
     for path in paths:  # every name checked before anything is read or decoded
-        brdf_kind(path)
+        file_type(path)
     models = EmbeddingDecoders(model_path)
     return {label: read_table(path, models) for label, path in zip(input_labels(paths), paths)}
 

@@ -64,8 +64,8 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     Parameters
     ----------
     decoder
-        The :class:`~brdfkit.methods.embedding.Decoder` that made both embeddings
-        (:func:`brdfkit.methods.embedding.decoder_for`).
+        The :class:`~brdfkit.embeddings.Decoder` that made both embeddings
+        (:func:`brdfkit.embeddings.decoder_for`).
     a, b
         :class:`~brdfkit.io.embedding.Embedding` at ``t = 0`` and ``t = 1``; their
         ``source`` (a file name) is shown in the caption.
@@ -94,10 +94,9 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     ModelMismatchError
         ``a`` and ``b`` differ in kind, size or decoder, or ``decoder`` did not make them.
     """
-    from brdfkit.api import interpolate
     from brdfkit.console import ProgressBar
-    from brdfkit.methods.embedding import open_embedding
-    from brdfkit.render.file_render import reference_scene
+    from brdfkit.embeddings import interpolate, open_embedding
+    from brdfkit.render.scene import reference_scene
     from brdfkit.render.quadrature import render_many
     from brdfkit.figures.canvas import pyplot, save_png, show_render
 
@@ -113,7 +112,7 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     names = [os.path.basename(e.source) if e.source else n for e, n in ((a, "A"), (b, "B"))]
     fig = pyplot().figure(dpi=dpi)
     labels = [fig.text(0, 0, _label(t), ha="center", va="bottom", fontsize=FONT_PT) for t in ts]
-    blended = "basis coefficients" if a.kind == "basis" else a.kind
+    blended = f"{a.kind} embeddings"
     caption = fig.text(0, 0, f"A = {names[0]}, B = {names[1]}: {blended} (1 - t) A + t B, reference scene",
                        ha="center", va="bottom", fontsize=FONT_PT, color="0.3")
     renderer = fig.canvas.get_renderer()

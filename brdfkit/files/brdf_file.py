@@ -1,9 +1,9 @@
-"""A BRDF file of any kind, opened by one loader.
+"""A BRDF file of any type, opened by one loader.
 
-brdfkit's commands take BRDFs as files of these kinds (:data:`KINDS`):
+brdfkit's commands take BRDFs as files of these types (:data:`FILE_TYPES`):
 
 =========== ============= ================================================================
-suffix      kind          opened as
+suffix      type          opened as
 =========== ============= ================================================================
 ``.binary`` ``merl``      the dense table it holds (:func:`brdfkit.io.merl.read_merl`)
 ``.bsdf``   ``rgl``       an RGL file (Dupuy and Jakob 2018): for a render, evaluated as
@@ -14,7 +14,7 @@ suffix      kind          opened as
 ``.emb``    ``embedding`` what its decoder makes of it: a basis embedding's closed form
                           (:class:`brdfkit.basis.coefficients.BasisBRDF`), a latent's
                           hyponet (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`);
-                          :func:`brdfkit.methods.embedding.open_embedding`
+                          :func:`brdfkit.embeddings.open_embedding`
 =========== ============= ================================================================
 
 :func:`read_table` gives any of them as a dense table (what ``plot``, ``metrics`` and
@@ -26,7 +26,7 @@ installed built-in part whose digest the embedding records, each loaded once for
 the files of a command.
 
 May import: the ground floor, :mod:`brdfkit.io`, :mod:`brdfkit.models`,
-:mod:`brdfkit.hypernet`, :mod:`brdfkit.methods.embedding`, :mod:`brdfkit.render.renderable` and
+:mod:`brdfkit.hypernet`, :mod:`brdfkit.embeddings`, :mod:`brdfkit.render.renderable` and
 :mod:`brdfkit.render.measured`;
 torch only for an embedding or a render.
 """
@@ -39,32 +39,32 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["KINDS", "TABLE_KINDS", "OUTPUT_KINDS", "brdf_kind", "EmbeddingDecoders", "read_table", "load_brdf", "convert"]
+__all__ = ["FILE_TYPES", "TABLE_TYPES", "OUTPUT_TYPES", "file_type", "EmbeddingDecoders", "read_table", "load_brdf", "convert"]
 
-KINDS = {".binary": "merl", ".bsdf": "rgl", ".emb": "embedding"}
-"""BRDF file suffixes and their kinds."""
-TABLE_KINDS = ("merl", "rgl")
-"""The kinds that hold a table (read without a model)."""
+FILE_TYPES = {".binary": "merl", ".bsdf": "rgl", ".emb": "embedding"}
+"""BRDF file suffixes and their types."""
+TABLE_TYPES = ("merl", "rgl")
+"""The file types that hold a table (read without a model)."""
 
 
-def brdf_kind(path) -> str:
+def file_type(path) -> str:
     """``"merl"``, ``"rgl"`` or ``"embedding"`` from a file's suffix; InputError otherwise.
 
     Examples
     --------
-    >>> brdf_kind("teflon.binary"), brdf_kind("mix.EMB"), brdf_kind("satin_gold_rgb.bsdf")
+    >>> file_type("teflon.binary"), file_type("mix.EMB"), file_type("satin_gold_rgb.bsdf")
     ('merl', 'embedding', 'rgl')
     """
-    kind = KINDS.get(os.path.splitext(os.fspath(path))[1].lower())
-    if kind is None:
+    ftype = FILE_TYPES.get(os.path.splitext(os.fspath(path))[1].lower())
+    if ftype is None:
         raise InputError(f"{os.fspath(path)}: not a BRDF file: not a MERL table (.binary), an RGL file "
                          f"(.bsdf) or an embedding (.emb)")
-    return kind
+    return ftype
 
 
-def _read_table_file(path, kind: str) -> np.ndarray:
+def _read_table_file(path, ftype: str) -> np.ndarray:
     """The table of a ``merl`` or ``rgl`` file."""
-    if kind == "merl":
+    if ftype == "merl":
         from brdfkit.io.merl import read_merl
 
         return read_merl(path)
@@ -80,11 +80,11 @@ class EmbeddingDecoders:
     ----------
     model_path
         A ``-m`` value (a built-in's name or a decoder file): each embedding takes the part
-        of its kind it names (:func:`brdfkit.methods.embedding.decoder_for`); ``None``: the
+        of its kind it names (:func:`brdfkit.embeddings.decoder_for`); ``None``: the
         installed built-in part whose digest the embedding records.
     model
-        An already loaded decoder (a :class:`~brdfkit.methods.embedding.Decoder`, or a
-        :class:`~brdfkit.hypernet.loaded.NeuralModel` for latents), instead of ``model_path``.
+        An already loaded decoder (a :class:`~brdfkit.embeddings.Decoder`, or a
+        :class:`~brdfkit.hypernet.loaded.LoadedNetwork` for latents), instead of ``model_path``.
     device
         Torch device of a hypernetwork (default: CUDA if available, else CPU).
     before_load
@@ -99,12 +99,12 @@ class EmbeddingDecoders:
         self._before_load = before_load
 
     def decoder(self, emb, name: str = ""):
-        """The :class:`~brdfkit.methods.embedding.Decoder` of embedding ``emb`` (checked)."""
-        from brdfkit.methods.embedding import Decoder, decoder_for
+        """The :class:`~brdfkit.embeddings.Decoder` of embedding ``emb`` (checked)."""
+        from brdfkit.embeddings import Decoder, decoder_for
 
         given = self._given
         if given is not None and not isinstance(given, Decoder):  # a loaded hypernetwork
-            given = Decoder.of_model(given)
+            given = Decoder.of_network(given)
         if given is not None and given.kind == emb.kind and given.digest == emb.decoder:
             return given
         if self._before_load is not None:
@@ -115,7 +115,7 @@ class EmbeddingDecoders:
     def open(self, path, name: str | None = None):
         """The renderable BRDF of the embedding file ``path`` (``eval_dirs``, ``to_table``)."""
         from brdfkit.io.embedding import read_embedding
-        from brdfkit.methods.embedding import open_embedding
+        from brdfkit.embeddings import open_embedding
 
         emb = read_embedding(path)
         brdf = open_embedding(emb, self.decoder(emb, os.fspath(path)), os.fspath(path))  # messages name the file
@@ -129,9 +129,9 @@ def read_table(path, models: EmbeddingDecoders | None = None) -> np.ndarray:
     unmeasured; an RGL ``.bsdf`` evaluated at the grid's directions; an embedding decoded
     by its decoder (``models``: default, the built-in part whose digest it records)."""
     path = os.fspath(path)
-    kind = brdf_kind(path)
-    if kind in TABLE_KINDS:
-        return _read_table_file(path, kind)
+    ftype = file_type(path)
+    if ftype in TABLE_TYPES:
+        return _read_table_file(path, ftype)
     return (models or EmbeddingDecoders()).open(path).to_table()
 
 
@@ -163,21 +163,21 @@ def load_brdf(path, model_path=None, device=None, model=None):
 
     path = check_input_file(path)
     name = os.path.splitext(os.path.basename(path))[0]
-    kind = brdf_kind(path)
-    if kind == "rgl":
+    ftype = file_type(path)
+    if ftype == "rgl":
         from brdfkit.io.rgl_bsdf import read_bsdf
         from brdfkit.render.measured import MeasuredBRDF
 
         return MeasuredBRDF(read_bsdf(path), name=name)
-    if kind == "merl":
+    if ftype == "merl":
         from brdfkit.render.renderable import TableBRDF
 
-        return TableBRDF(_read_table_file(path, kind), name=name, device=device)
+        return TableBRDF(_read_table_file(path, ftype), name=name, device=device)
     models = model if isinstance(model, EmbeddingDecoders) else EmbeddingDecoders(model_path, model=model, device=device)
     return models.open(path, name)
 
 
-OUTPUT_KINDS = {".binary": "merl", ".bsdf": "rgl"}
+OUTPUT_TYPES = {".binary": "merl", ".bsdf": "rgl"}
 """What :func:`convert` writes (an ``.emb`` is made by ``brdfkit encode``)."""
 
 
@@ -188,9 +188,9 @@ def convert(src, dst, *, models: EmbeddingDecoders | None = None, settings=None,
     Parameters
     ----------
     src
-        Any BRDF file (:data:`KINDS`): read as its dense table (:func:`read_table`).
+        Any BRDF file (:data:`FILE_TYPES`): read as its dense table (:func:`read_table`).
     dst
-        The output, ``.binary`` or ``.bsdf`` (:data:`OUTPUT_KINDS`), written atomically;
+        The output, ``.binary`` or ``.bsdf`` (:data:`OUTPUT_TYPES`), written atomically;
         never one of the inputs.
     models
         The model ``.emb`` inputs decode with (default: the built-in the embedding names).
@@ -209,7 +209,7 @@ def convert(src, dst, *, models: EmbeddingDecoders | None = None, settings=None,
     Returns
     -------
     dict
-        ``{"input_kind", "output_kind", "bytes", "read_s", "write_s"}``, and for a
+        ``{"input_type", "output_type", "bytes", "read_s", "write_s"}``, and for a
         ``.bsdf`` input ``"non_reciprocity"`` (the log RMS between its two
         conditionings, :meth:`brdfkit.io.rgl_bsdf.RglBsdf.reciprocal_table`) and
         ``"reciprocity"``, the rule applied.
@@ -225,21 +225,21 @@ def convert(src, dst, *, models: EmbeddingDecoders | None = None, settings=None,
     from brdfkit.atomic import check_input_file, refuse_overwrite_of_inputs
 
     src, dst = os.fspath(src), os.fspath(dst)
-    out_kind = OUTPUT_KINDS.get(os.path.splitext(dst)[1].lower())
-    if out_kind is None:
+    out_type = OUTPUT_TYPES.get(os.path.splitext(dst)[1].lower())
+    if out_type is None:
         raise InputError(f"{dst}: convert writes a MERL table (.binary) or an RGL file (.bsdf); "
                          f"an embedding (.emb) is made by `brdfkit encode`")
-    if out_kind == "merl" and (spectral or settings is not None):
+    if out_type == "merl" and (spectral or settings is not None):
         raise InputError(f"{dst}: the resolution and colour options apply to an RGL .bsdf output, "
                          f"not to a MERL table")
-    in_kind = brdf_kind(src)
+    in_type = file_type(src)
     refuse_overwrite_of_inputs(dst, [src, getattr(models, "model_path", None)])
     if settings is not None:
         settings.check()
     check_input_file(src)
     t0 = time.perf_counter()
     extra = {}
-    if in_kind == "rgl":
+    if in_type == "rgl":
         from brdfkit.io.rgl_bsdf import read_bsdf
 
         table, asymmetry = read_bsdf(src).reciprocal_table(reciprocity)
@@ -247,7 +247,7 @@ def convert(src, dst, *, models: EmbeddingDecoders | None = None, settings=None,
     else:
         table = read_table(src, models)
     t1 = time.perf_counter()
-    if out_kind == "merl":
+    if out_type == "merl":
         from brdfkit.io.merl import write_merl
 
         write_merl(dst, table)
@@ -257,5 +257,15 @@ def convert(src, dst, *, models: EmbeddingDecoders | None = None, settings=None,
         if description is None:
             description = f"brdfkit: {os.path.basename(src)}"
         write_bsdf(dst, table, settings or FitSettings(), spectral=spectral, description=description)
-    return {"input_kind": in_kind, "output_kind": out_kind, "bytes": os.path.getsize(dst),
+    return {"input_type": in_type, "output_type": out_type, "bytes": os.path.getsize(dst),
             "read_s": t1 - t0, "write_s": time.perf_counter() - t1, **extra}
+
+
+def _register_with_mitsuba() -> None:
+    """The Mitsuba plugin opens the files scenes name with :func:`load_brdf`."""
+    from brdfkit.render.mitsuba3.bsdf import set_file_opener
+
+    set_file_opener(load_brdf)
+
+
+_register_with_mitsuba()

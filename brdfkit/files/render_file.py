@@ -3,9 +3,9 @@ Mitsuba 3 renders it, or ``.emb`` with its model): the work of ``brdfkit render`
 ``brdfkit metrics`` for BRDF inputs.
 
 Three renderers (``docs/render.md``): the deterministic quadrature of the reference
-scene (:mod:`.quadrature`, the default), the reference scene path-traced by Mitsuba 3,
-or a user's Mitsuba XML scene with the BRDF bound to one of its BSDFs
-(:mod:`.mitsuba3`).
+scene (:mod:`brdfkit.render.quadrature`, the default), the reference scene path-traced by
+Mitsuba 3, or a user's Mitsuba XML scene with the BRDF bound to one of its BSDFs
+(:mod:`brdfkit.render.mitsuba3`).
 """
 
 from __future__ import annotations
@@ -14,16 +14,9 @@ import dataclasses
 import os
 
 from brdfkit.console import ProgressBar
+from brdfkit.render.scene import reference_scene
 
-__all__ = ["render_brdf_file", "render_brdf_files", "reference_scene"]
-
-
-def reference_scene(resolution: int | None = None, supersample: int = 1):
-    """The reference scene at ``resolution`` pixels square (default its own 256)."""
-    from brdfkit.render.scene import REFERENCE
-
-    return dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
-                               supersample=int(supersample))
+__all__ = ["render_brdf_file", "render_brdf_files"]
 
 
 def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = True, model=None,
@@ -48,7 +41,7 @@ def render_brdf_files(paths, *, resolution: int | None = None, progress: bool = 
         float32 ``(R, R, 3)`` linear RGB image per file.
     """
     from brdfkit.render.renderable import TableBRDF
-    from brdfkit.brdf_file import load_brdf
+    from brdfkit.files.brdf_file import load_brdf
     from brdfkit.render.quadrature import render_many
     from brdfkit.render.scene_suite import scene_env
 
@@ -104,7 +97,7 @@ def render_brdf_file(path, model_path=None, *, resolution: int | None = None, mi
         ``(image, how)``: float32 ``(H, W, 3)`` linear RGB, and a short description for
         messages (renderer, samples, BRDF evaluations).
     """
-    from brdfkit.brdf_file import load_brdf
+    from brdfkit.files.brdf_file import load_brdf
     from brdfkit.render.scene import REFERENCE
 
     from brdfkit.render.scene_suite import scene_env

@@ -7,14 +7,15 @@ One module per concept, in the order data flows:
   per-cell reference table (the paper's pre-processing), reference tables.
 * :mod:`~brdfkit.hypernet.network`: the trainable ``nn.Module``\\ s (set encoder,
   hypernetwork decoder, batched hyponet), :class:`HyperConfig` and the paper's loss.
-* :mod:`~brdfkit.hypernet.model_file`: model files (``.safetensors``):
-  :func:`save_model`, :func:`load_model`, :func:`weights_fingerprint`; never unpickles.
-* :mod:`~brdfkit.hypernet.model_storage`: compact storage in model files (the reference
-  table at its measured cells, float16, a reference file shared by several models).
-* :mod:`~brdfkit.hypernet.packing`: a trained model packed for shipping as a built-in
-  (:mod:`brdfkit.models`), its manifest entry.
-* :mod:`~brdfkit.hypernet.loaded`: :class:`NeuralModel`, a loaded model with its reference
-  table lookups and a typed cache of what is derived from it.
+* :mod:`~brdfkit.hypernet.network_file`: network files (``.safetensors``):
+  :func:`save_network`, :func:`load_network`, :func:`weights_digest`; never unpickles.
+* :mod:`~brdfkit.hypernet.network_storage`: compact storage in network files (the
+  reference table at its measured cells, float16, a reference file shared by several
+  networks).
+* :mod:`~brdfkit.hypernet.packing`: a trained network packed for shipping as part of a
+  built-in model (:mod:`brdfkit.models`), its bundle's manifest entry.
+* :mod:`~brdfkit.hypernet.loaded`: :class:`LoadedNetwork`, a loaded network with its
+  reference table lookups and a typed cache of what is derived from it.
 * :mod:`~brdfkit.hypernet.kernels`: the fused inference kernels (encoder mean, decoder for
   one latent, blocked hyponet), built from the network's public layer lists.
 * :mod:`~brdfkit.hypernet.encoding`: :func:`encode_samples`, :func:`encode_table`
@@ -43,10 +44,10 @@ from brdfkit import lazy_attributes
 _NAMES = {
     **dict.fromkeys(("HyperConfig", "HyperBRDF", "hyper_loss", "hyponet_forward", "hyponet_shapes",
                      "IN_FEATURES", "OUT_FEATURES"), "brdfkit.hypernet.network"),
-    **dict.fromkeys(("save_model", "load_model", "weights_fingerprint", "state_fingerprint", "MODEL_FORMAT",
-                     "MODEL_VERSION", "MODEL_VERSIONS"), "brdfkit.hypernet.model_file"),
-    **dict.fromkeys(("load_builtin", "pack_model", "manifest_entry"), "brdfkit.hypernet.packing"),
-    **dict.fromkeys(("NeuralModel", "ModelCache"), "brdfkit.hypernet.loaded"),
+    **dict.fromkeys(("save_network", "load_network", "weights_digest", "state_digest", "MODEL_FORMAT",
+                     "MODEL_VERSION", "MODEL_VERSIONS"), "brdfkit.hypernet.network_file"),
+    **dict.fromkeys(("load_builtin", "pack_network", "manifest_entry"), "brdfkit.hypernet.packing"),
+    **dict.fromkeys(("LoadedNetwork", "NeuralModel", "ModelCache"), "brdfkit.hypernet.loaded"),
     **dict.fromkeys(("encode_samples", "encode_table"), "brdfkit.hypernet.encoding"),
     "NeuralBRDF": "brdfkit.hypernet.neural_brdf",
 }

@@ -4,7 +4,7 @@ Gokbudak et al. 2024, Sec. 3: the set encoder maps every sample ``[H, D, rho']``
 and difference vectors with ``phi_h = 0``, log-relative mapped RGB) through a shared MLP
 and averages, so any number of samples in any order gives an embedding. Sample values go
 through :func:`brdfkit.hypernet.mapping.to_mapped` with the model's ``rho_ref`` at the samples' own
-angles (:meth:`~brdfkit.hypernet.loaded.NeuralModel.reference_at`); the encoder runs through
+angles (:meth:`~brdfkit.hypernet.loaded.LoadedNetwork.reference_at`); the encoder runs through
 the fused kernel :func:`brdfkit.hypernet.kernels.encode_mean`.
 """
 
@@ -26,7 +26,7 @@ def encode_samples(model, samples, source: str = "") -> Embedding:
     Parameters
     ----------
     model
-        :class:`~brdfkit.hypernet.loaded.NeuralModel`.
+        :class:`~brdfkit.hypernet.loaded.LoadedNetwork`.
     samples
         The measurements (angles in radians, RGB in 1/sr).
     source
@@ -35,7 +35,7 @@ def encode_samples(model, samples, source: str = "") -> Embedding:
     Returns
     -------
     Embedding
-        Kind ``"latent"``: the float32 latent, the model's fingerprint as its decoder,
+        Kind ``"hypernet"``: the float32 latent, the model's digest as its decoder,
         ``sample_count = N``.
     """
     n = len(samples)
@@ -44,7 +44,7 @@ def encode_samples(model, samples, source: str = "") -> Embedding:
     hd = np.asarray(samples.hd(), dtype=np.float64)
     ref = model.reference_at(samples.theta_h, samples.theta_d, samples.phi_d)
     latent = encode_mean(model, hd, np.asarray(samples.rgb, dtype=np.float64), ref)
-    return Embedding(latent, "latent", model.fingerprint, source or samples.source, n)
+    return Embedding(latent, "hypernet", model.digest, source or samples.source, n)
 
 
 def encode_table(model, table: np.ndarray, source: str = "") -> Embedding:
@@ -62,4 +62,4 @@ def encode_table(model, table: np.ndarray, source: str = "") -> Embedding:
     if bad.any():
         ref = np.where(bad, model.reference_fallback()[None, :], ref)
     latent = encode_mean(model, grid_hd()[idx], flat[idx].astype(np.float64, copy=False), ref)
-    return Embedding(latent, "latent", model.fingerprint, source, int(idx.size))
+    return Embedding(latent, "hypernet", model.digest, source, int(idx.size))

@@ -65,7 +65,7 @@ def encode_mean(model, hd: np.ndarray, rgb: np.ndarray, ref: np.ndarray) -> np.n
     Parameters
     ----------
     model
-        :class:`~brdfkit.hypernet.loaded.NeuralModel`.
+        :class:`~brdfkit.hypernet.loaded.LoadedNetwork`.
     hd
         ``(N, 6)`` HD vectors.
     rgb

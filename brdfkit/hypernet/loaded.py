@@ -1,6 +1,6 @@
-"""A loaded model: the network, its reference table, and what is derived from them once.
+"""A loaded network file: the network, its reference table, and what is derived from them once.
 
-:class:`NeuralModel` is what :func:`brdfkit.hypernet.model_file.load_model` returns and what
+:class:`LoadedNetwork` is what :func:`brdfkit.hypernet.network_file.load_network` returns and what
 encoding (:mod:`brdfkit.hypernet.encoding`) and decoding (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`)
 take. Besides the file's contents it holds a :class:`ModelCache`: data derived from the
 model on first use (measured cells, torch copies of ``rho_ref``, the fused inference
@@ -24,7 +24,7 @@ from brdfkit.errors import InputError
 from brdfkit.geometry import N_CELLS, cell_angles, cell_index
 from brdfkit.geometry.trilinear import lookup_trilinear
 
-__all__ = ["NeuralModel", "ModelCache", "interp_reference"]
+__all__ = ["LoadedNetwork", "NeuralModel", "ModelCache", "interp_reference"]
 
 # A sample within this many radians of a cell's own angles takes that cell's rho_ref.
 _GRID_TOL = 1e-7
@@ -32,7 +32,7 @@ _GRID_TOL = 1e-7
 
 @dataclasses.dataclass
 class ModelCache:
-    """Data derived from a :class:`NeuralModel` on first use.
+    """Data derived from a :class:`LoadedNetwork` on first use.
 
     The torch entries are keyed by the device they live on (``str(torch.device)``).
 
@@ -70,8 +70,8 @@ class ModelCache:
 
 
 @dataclasses.dataclass
-class NeuralModel:
-    """A loaded model file.
+class LoadedNetwork:
+    """A loaded network file.
 
     Attributes
     ----------
@@ -81,8 +81,8 @@ class NeuralModel:
         Its :class:`~brdfkit.hypernet.network.HyperConfig`.
     rho_ref
         float32 ``(90, 90, 180, 3)`` reference table (1/sr), NaN where unmeasured.
-    fingerprint
-        sha256 hex of the weights (:func:`~brdfkit.hypernet.model_file.weights_fingerprint`).
+    digest
+        sha256 hex of the weights (:func:`~brdfkit.hypernet.network_file.weights_digest`).
     meta
         Training provenance (materials, steps, ...), as saved.
     device
@@ -98,7 +98,7 @@ class NeuralModel:
     net: object
     cfg: object
     rho_ref: np.ndarray
-    fingerprint: str
+    digest: str
     meta: dict
     device: object
     path: str
@@ -106,8 +106,8 @@ class NeuralModel:
     cache: ModelCache = dataclasses.field(default_factory=ModelCache, repr=False, compare=False)
 
     @property
-    def short_fingerprint(self) -> str:
-        return self.fingerprint[:12]
+    def short_digest(self) -> str:
+        return self.digest[:12]
 
     def reference_fallback(self) -> np.ndarray:
         """Per-channel median of ``rho_ref`` over its measured cells, float64 ``(3,)``.
@@ -207,3 +207,7 @@ def _paper_mapping() -> dict:
     from brdfkit.hypernet.mapping import mapping_record
 
     return mapping_record()
+
+
+NeuralModel = LoadedNetwork
+"""The name :class:`LoadedNetwork` had before ("model" now means what ``-m`` takes)."""

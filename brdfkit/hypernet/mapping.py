@@ -7,9 +7,11 @@ Representation", eq. (1)::
     rho' = ln((rho + eps) / (rho_ref + eps) + 1),      eps = 0.002
 
 with ``rho_ref`` the per-cell median of the training materials. The inverse is
-``rho = (exp(rho') - 1) (rho_ref + eps) - eps``, clamped at 0 because a BRDF is
-non-negative. Values are compressed from the 1e-3 ... 1e4 range of measured BRDFs into
-roughly 0 ... 10 while staying exactly invertible.
+``rho = (exp(rho') - 1) (rho_ref + eps) - eps``, bounded below by a small share
+:data:`FLOOR` of ``rho_ref`` (at most :data:`CAP`) (a network's output can say "below ``eps``", where the
+mapping resolves nothing: clamped at 0, that decoded exact zeros where the material is not
+black; ``docs/notes/compression.md``). Values are compressed from the 1e-3 ... 1e4 range
+of measured BRDFs into roughly 0 ... 10 while staying invertible.
 
 Reference tables are stored as safetensors (never pickle): one float32 tensor
 ``rho_ref`` of shape ``(90, 90, 180, 3)`` and metadata naming the materials.
@@ -29,10 +31,16 @@ from brdfkit.errors import FormatError
 from brdfkit.geometry import N_CELLS, TABLE_SHAPE, array_module
 from brdfkit.io.tensorfile import open_safetensors
 
-__all__ = ["EPS", "RHO_MAX", "to_mapped", "from_mapped", "mapping_record", "median_reference",
+__all__ = ["EPS", "FLOOR", "CAP", "RHO_MAX", "to_mapped", "from_mapped", "mapping_record", "median_reference",
            "save_reference", "load_reference", "REFERENCE_FORMAT"]
 
 EPS = 0.002
+FLOOR = 0.001
+"""The decoded value's lower bound as a share of ``rho_ref`` (as the basis's,
+:data:`brdfkit.basis.mapping.FLOOR`), at most :data:`CAP`."""
+CAP = 0.005 * EPS
+"""The largest lower bound (1/sr): true values above it map and come back exactly."""
+_TINY = 1e-6 * EPS  # keeps the bound positive where rho_ref is 0
 # The largest BRDF value from_mapped returns (1/sr): 150 times the brightest cell of a GGX
 # mirror with alpha = 0.002 on the MERL grid (6.5e7), 3e6 times that of MERL's
 # chrome-steel. Without it an extrapolated embedding decodes to float32 infinity
@@ -46,7 +54,7 @@ _SNAP = EPS * 2.0 ** -40
 
 
 def mapping_record() -> dict:
-    """This mapping as model files record it (JSON): ``{"name": "log-relative",
+    """This mapping as network files record it (JSON): ``{"name": "log-relative",
     "formula": ..., "eps": 0.002}``. A model decodes correctly only with the mapping it
     was trained with."""
     return {"name": "log-relative", "formula": "ln((rho + eps) / (rho_ref + eps) + 1)", "eps": EPS}
@@ -75,12 +83,14 @@ def to_mapped(rho, rho_ref):
     return xp.log1p((rho + EPS) / (rho_ref + EPS))
 
 
-def from_mapped(mapped, rho_ref):
-    """Inverse of :func:`to_mapped`, clamped to ``0 <= rho <= RHO_MAX``; NaN propagates.
+def from_mapped(mapped, rho_ref, floor: float = FLOOR):
+    """Inverse of :func:`to_mapped`, bounded to ``0 < rho <= RHO_MAX``; NaN propagates.
 
-    ``expm1`` keeps full precision where ``mapped`` is small (dark materials). The upper
-    clamp leaves every value that :func:`to_mapped` can give for ``rho <= RHO_MAX``
-    unchanged, and keeps a network's out-of-range prediction finite in float32.
+    ``expm1`` keeps full precision where ``mapped`` is small (dark materials). Below, the
+    value is bounded by ``min(floor rho_ref, CAP)`` (``floor=0``: clamped at 0, the
+    paper's): unchanged wherever it is above that bound. The upper clamp leaves every
+    value that :func:`to_mapped` can give for ``rho <= RHO_MAX`` unchanged, and keeps a
+    network's out-of-range prediction finite in float32.
     """
     xp = array_module(mapped)
     if xp is np:
@@ -90,6 +100,9 @@ def from_mapped(mapped, rho_ref):
     # depending on the platform's SIMD exp/log; snap that round-off to exactly 0 (a real
     # BRDF value is many orders of magnitude above EPS * 2^-40).
     rho = xp.where(xp.abs(rho) < _SNAP, xp.zeros_like(rho), rho)
+    if floor:
+        bound = xp.clip(floor * (rho_ref if xp is not np else np.asarray(rho_ref, np.float64)), None, CAP) + _TINY
+        rho = xp.maximum(rho, bound if xp is np else xp.as_tensor(bound, dtype=rho.dtype))
     return xp.clip(rho, 0.0, RHO_MAX)
 
 
@@ -150,14 +163,14 @@ def median_reference(tables) -> np.ndarray:
 def save_reference(path: str | os.PathLike, rho_ref: np.ndarray,
                    materials: Sequence[str] = ()) -> None:
     """Save a reference table as safetensors, atomically."""
-    from safetensors.numpy import save_file
+    from brdfkit.io.tensorfile import write_safetensors
 
     arr = np.ascontiguousarray(rho_ref, dtype=np.float32)
     if arr.shape != TABLE_SHAPE:
         raise ValueError(f"reference table must have shape {TABLE_SHAPE}, not {arr.shape}")
     meta = {"format": REFERENCE_FORMAT, "version": "1", "materials": json.dumps(list(materials))}
     with atomic_path(path) as tmp:
-        save_file({"rho_ref": arr}, tmp, metadata=meta)
+        write_safetensors(tmp, {"rho_ref": arr}, meta)
 
 
 def load_reference(path: str | os.PathLike) -> np.ndarray:

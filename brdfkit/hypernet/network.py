@@ -41,7 +41,7 @@ __all__ = ["HyperConfig", "SetEncoder", "HyperDecoder", "HyperBRDF", "hyponet_fo
 
 @dataclasses.dataclass(frozen=True)
 class HyperConfig:
-    """Architecture and loss settings; stored as JSON in the model file.
+    """Architecture and loss settings; stored as JSON in the network file.
 
     Attributes
     ----------

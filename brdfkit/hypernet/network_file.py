@@ -1,22 +1,22 @@
-"""Model files: one ``.safetensors`` file holding a trained hypernetwork.
+"""Network files: one ``.safetensors`` file holding a trained hypernetwork.
 
-A model file (``docs/formats.md``, "Model files") holds, with no pickled Python at all:
+A network file (``docs/formats.md``) holds, with no pickled Python at all:
 
 * every tensor of ``HyperBRDF.state_dict()`` as float32 (or float16, ``half``), named
   ``net.<state_dict name>``;
 * the reference table of the log-relative mapping (Gokbudak et al. 2024, eq. 1), in 1/sr,
   NaN where no training material is measured: in version 1 ``rho_ref``, dense float32
   ``(90, 90, 180, 3)``; in version 2 its measured cells only, in the file or in a shared
-  reference file beside it (:mod:`brdfkit.hypernet.model_storage`);
+  reference file beside it (:mod:`brdfkit.hypernet.network_storage`);
 * string metadata: ``format = "brdfkit-model"``, ``version = "1"`` or ``"2"``, ``config`` (the
-  :class:`~brdfkit.hypernet.network.HyperConfig` as JSON), ``fingerprint`` (see
-  :func:`weights_fingerprint`), ``mapping`` (JSON, the mapping the model was trained
+  :class:`~brdfkit.hypernet.network.HyperConfig` as JSON), ``fingerprint`` (the
+  weights' digest, :func:`weights_digest`; the key's name kept since format 1), ``mapping`` (JSON, the mapping the model was trained
   with: :func:`brdfkit.hypernet.mapping.mapping_record`, ``eps = 0.002``), ``meta`` (JSON:
   training materials, steps, ...) and, in version 2, ``reference`` (JSON: how the
   reference is stored and its digest). Files written before ``mapping`` was recorded
   were all trained with the paper's mapping, which is assumed when it is absent.
 
-The fingerprint identifies the weights: an embedding records the fingerprint of the model
+The digest identifies the weights: an embedding records the digest of the model
 that made it, and decoding it with another model is refused
 (:class:`~brdfkit.errors.ModelMismatchError`). Loading recomputes it, so a file whose
 weights were altered or damaged is refused too.
@@ -36,15 +36,15 @@ from brdfkit.errors import FormatError
 from brdfkit.geometry import TABLE_SHAPE
 from brdfkit.hypernet.mapping import mapping_record
 from brdfkit.io.tensorfile import check_format, open_safetensors
-from brdfkit.hypernet import model_storage as storage
-from brdfkit.hypernet.loaded import NeuralModel
+from brdfkit.hypernet import network_storage as storage
+from brdfkit.hypernet.loaded import LoadedNetwork
 
-__all__ = ["MODEL_FORMAT", "MODEL_VERSION", "MODEL_VERSIONS", "save_model", "load_model",
-           "weights_fingerprint", "state_fingerprint"]
+__all__ = ["MODEL_FORMAT", "MODEL_VERSION", "MODEL_VERSIONS", "save_network", "load_network",
+           "weights_digest", "state_digest"]
 
 MODEL_FORMAT = "brdfkit-model"
-# "1": dense float32 reference (what a plain save_model still writes, readable by every
-# brdfkit); "2": compact or shared reference, float16 or float32 (save_model(compact=True)).
+# "1": dense float32 reference (what a plain save_network still writes, readable by every
+# brdfkit); "2": compact or shared reference, float16 or float32 (save_network(compact=True)).
 MODEL_VERSION = "2"
 MODEL_VERSIONS = ("1", "2")
 _PREFIX = "net."
@@ -59,18 +59,18 @@ def _unwrap(net):
     return net
 
 
-def weights_fingerprint(net) -> str:
-    """sha256 hex of a network's weights: :func:`state_fingerprint` of its state dict."""
-    return state_fingerprint(_unwrap(net).state_dict())
+def weights_digest(net) -> str:
+    """sha256 hex of a network's weights: :func:`state_digest` of its state dict."""
+    return state_digest(_unwrap(net).state_dict())
 
 
-def state_fingerprint(state: dict) -> str:
+def state_digest(state: dict) -> str:
     """sha256 hex of a state dict.
 
     For each name in sorted order: the UTF-8 name, then the tensor's values as float32
     bytes (C order, native little-endian). Independent of device and of how the tensors
     are laid out in memory; a float16 tensor is hashed as the float32 it loads as, so a
-    half-precision file has the fingerprint of the network it loads into.
+    half-precision file has the digest of the network it loads into.
     """
     h = hashlib.sha256()
     for name in sorted(state):
@@ -79,10 +79,10 @@ def state_fingerprint(state: dict) -> str:
     return h.hexdigest()
 
 
-def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | None = None,
+def save_network(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | None = None,
                mapping: dict | None = None, *, compact: bool = False, half: bool = False,
                reference_file: str | None = None) -> str:
-    """Write a model file atomically.
+    """Write a network file atomically.
 
     Parameters
     ----------
@@ -103,8 +103,8 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
         network's file shrinks from 24.4 to 20.5 MB). ``False``: the version 1 layout.
     half
         Store weights and reference as float16 (implies ``compact``; 10.3 MB). They load
-        back as float32; the fingerprint is that of the rounded weights, as loaded, so it
-        differs from ``weights_fingerprint(net)`` unless the weights were float16 values
+        back as float32; the digest is that of the rounded weights, as loaded, so it
+        differs from ``weights_digest(net)`` unless the weights were float16 values
         already, and saving the loaded model again (half or not) keeps it.
     reference_file
         A bare file name: keep the reference in this shared file beside ``path`` instead
@@ -117,7 +117,7 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
     Returns
     -------
     str
-        The weights fingerprint written into the file.
+        The weights digest written into the file.
 
     Raises
     ------
@@ -127,7 +127,7 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
         reference.
     """
     import torch
-    from safetensors.torch import save_file
+    from brdfkit.io.tensorfile import write_safetensors
 
     net = _unwrap(net)
     ref = np.ascontiguousarray(rho_ref, dtype=np.float32)
@@ -136,15 +136,15 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
     state = {name: t.detach().cpu().float().contiguous().clone() for name, t in net.state_dict().items()}
     if half:
         state = storage.half_state(state)
-    # Of the weights as load_model will see them (float16 rounded, back to float32): an
+    # Of the weights as load_network will see them (float16 rounded, back to float32): an
     # embedding made with the loaded model must name this file.
-    fingerprint = state_fingerprint(state)
+    net_digest = state_digest(state)
     tensors = {_PREFIX + name: t for name, t in state.items()}
     metadata = {
         "format": MODEL_FORMAT,
         "version": "1",
         "config": net.cfg.to_json(),
-        "fingerprint": fingerprint,
+        "fingerprint": net_digest,  # the header's key since format 1
         "mapping": json.dumps(mapping or mapping_record(), sort_keys=True),
         "meta": json.dumps(meta or {}, sort_keys=True, default=str),
     }
@@ -162,8 +162,8 @@ def save_model(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict | N
         metadata["reference"] = storage.reference_record("cells" if reference_file is None else "file",
                                                          values, digest, reference_file)
     with atomic_path(path) as tmp:
-        save_file(tensors, tmp, metadata=metadata)
-    return fingerprint
+        write_safetensors(tmp, tensors, metadata)
+    return net_digest
 
 
 def _share_reference(path, name: str, mask, values, digest: str, materials) -> None:
@@ -230,7 +230,7 @@ def _numpy(path: str, f, name: str) -> np.ndarray:
 
 
 def _read_reference(path: str, f, md: dict, names: set) -> np.ndarray:
-    """The reference table of an open model file: float32 ``(90, 90, 180, 3)``."""
+    """The reference table of an open network file: float32 ``(90, 90, 180, 3)``."""
     if md["version"] == "1":
         if "rho_ref" not in names:
             raise FormatError(path, "missing tensor 'rho_ref' (the reference table)")
@@ -257,8 +257,8 @@ def _read_reference(path: str, f, md: dict, names: set) -> np.ndarray:
     return storage.unpack_reference(where, mask, values)
 
 
-def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
-    """Load a model file written by :func:`save_model`; nothing is unpickled.
+def load_network(path: str | os.PathLike, device=None) -> LoadedNetwork:
+    """Load a network file written by :func:`save_network`; nothing is unpickled.
 
     Parameters
     ----------
@@ -269,7 +269,7 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
 
     Returns
     -------
-    NeuralModel
+    LoadedNetwork
 
     Raises
     ------
@@ -277,7 +277,7 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
         Not a safetensors file (a pickle, truncated, other content), another kind of
         safetensors file, an unknown version, a bad config, a mapping other than
         brdfkit's, missing or misshapen tensors, weights that do not match the recorded
-        fingerprint, or a reference table (in the file or a shared file beside it) that
+        digest, or a reference table (in the file or a shared file beside it) that
         is missing or does not match its recorded digest. One line naming the file.
     """
     import torch
@@ -326,15 +326,15 @@ def load_model(path: str | os.PathLike, device=None) -> NeuralModel:
     except (TypeError, ValueError, RuntimeError) as e:
         raise FormatError(path, f"model config cannot be built ({e})") from None
     net.load_state_dict({k: v.float() for k, v in state.items()})
-    fingerprint = weights_fingerprint(net)
+    digest = weights_digest(net)
     recorded = md.get("fingerprint")
-    if recorded != fingerprint:
-        raise FormatError(path, f"weights do not match the recorded fingerprint "
-                                f"({str(recorded)[:12]} recorded, {fingerprint[:12]} computed): "
+    if recorded != digest:
+        raise FormatError(path, f"weights do not match the recorded digest "
+                                f"({str(recorded)[:12]} recorded, {digest[:12]} computed): "
                                 f"the file is damaged or was altered")
     dev = resolve_device(device)
     net = net.to(dev).eval()
     for p in net.parameters():
         p.requires_grad_(False)
-    return NeuralModel(net=net, cfg=cfg, rho_ref=ref,
-                       fingerprint=fingerprint, meta=meta, device=dev, path=path, mapping=mapping)
+    return LoadedNetwork(net=net, cfg=cfg, rho_ref=ref,
+                       digest=digest, meta=meta, device=dev, path=path, mapping=mapping)

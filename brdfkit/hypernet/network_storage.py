@@ -1,11 +1,11 @@
-"""Compact storage of a model file's tensors: the reference table at its measured cells,
-half precision, and a reference table shared by several model files.
+"""Compact storage of a network file's tensors: the reference table at its measured cells,
+half precision, and a reference table shared by several network files.
 
 A dense reference table (Gokbudak et al. 2024, eq. 1: ``rho_ref``, the per-cell median
 of the training materials) is float32 ``(90, 90, 180, 3)``, 17.5 MB, more than twice the
 weights of the default network (1.73 M numbers, 6.9 MB). About a quarter of its cells lie
-below the horizon and are never measured (NaN), so a version 2 model file
-(``docs/formats.md``, "Model files") stores it as
+below the horizon and are never measured (NaN), so a version 2 network file
+(``docs/formats.md``) stores it as
 
 * ``rho_ref_mask``: uint8 ``(182250,)``, ``numpy.packbits`` (little bit order) of the
   1,458,000 cells, in flat-index order, that hold a finite value in some channel;
@@ -16,7 +16,7 @@ and optionally in float16 (``half``), weights included. Models trained on the sa
 materials have the same reference, so a file may instead name a *shared reference file*
 beside it (format ``brdfkit-model-reference``) holding those two tensors once.
 
-Every compact reference carries a digest (:func:`reference_digest`) in the model file, so
+Every compact reference carries a digest (:func:`reference_digest`) in the network file, so
 a damaged or swapped reference is refused like damaged weights.
 """
 
@@ -142,13 +142,13 @@ def write_shared_reference(path: str | os.PathLike, mask: np.ndarray, values: np
                            materials=()) -> str:
     """Write a shared reference file (format ``brdfkit-model-reference``) atomically and
     return its digest."""
-    from safetensors.numpy import save_file
+    from brdfkit.io.tensorfile import write_safetensors
 
     digest = reference_digest(mask, values)
     meta = {"format": SHARED_FORMAT, "version": SHARED_VERSION, "digest": digest,
             "materials": json.dumps(list(materials))}
     with atomic_path(path) as tmp:
-        save_file({MASK: np.ascontiguousarray(mask), VALUES: np.ascontiguousarray(values)}, tmp, metadata=meta)
+        write_safetensors(tmp, {MASK: np.ascontiguousarray(mask), VALUES: np.ascontiguousarray(values)}, meta)
     return digest
 
 
@@ -176,7 +176,7 @@ def read_shared_reference(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarr
 
 
 def reference_record(storage: str, values: np.ndarray, digest: str, file: str | None = None) -> str:
-    """The ``reference`` metadata entry of a version 2 model file (JSON)."""
+    """The ``reference`` metadata entry of a version 2 network file (JSON)."""
     rec = {"storage": storage, "dtype": values.dtype.name, "digest": digest}
     if file is not None:
         rec["file"] = file
@@ -184,13 +184,13 @@ def reference_record(storage: str, values: np.ndarray, digest: str, file: str | 
 
 
 def parse_reference_record(path: str, text) -> dict:
-    """The ``reference`` metadata entry of a version 2 model file, checked.
+    """The ``reference`` metadata entry of a version 2 network file, checked.
 
     Raises
     ------
     FormatError
         Absent, not JSON, an unknown storage, or a shared file named by a path rather
-        than a bare file name (a model file may only point beside itself).
+        than a bare file name (a network file may only point beside itself).
     """
     try:
         rec = json.loads(text) if isinstance(text, str) else None

@@ -6,7 +6,7 @@ direction pair (half and difference vectors, ``phi_h = 0``) to the log-relative 
 RGB value ``rho'``. :class:`NeuralBRDF` holds those weights and evaluates the BRDF in
 physical units by inverting the mapping (:func:`brdfkit.hypernet.mapping.from_mapped`) with the
 model's reference table ``rho_ref`` at the query angles
-(:meth:`~brdfkit.hypernet.loaded.NeuralModel.reference_at`), through the fused kernels of
+(:meth:`~brdfkit.hypernet.loaded.LoadedNetwork.reference_at`), through the fused kernels of
 :mod:`brdfkit.hypernet.kernels`.
 """
 
@@ -27,14 +27,14 @@ __all__ = ["NeuralBRDF", "check_latent"]
 
 def check_latent(emb: Embedding, model, name: str = "") -> None:
     """Refuse an embedding that ``model`` did not make: another kind, another model's
-    fingerprint, another latent size (:class:`~brdfkit.errors.ModelMismatchError`, one line
+    digest, another latent size (:class:`~brdfkit.errors.ModelMismatchError`, one line
     naming both models)."""
-    if emb.kind == "latent" and emb.decoder == model.fingerprint and emb.size == int(model.cfg.latent_dim):
+    if emb.kind == "hypernet" and emb.decoder == model.digest and emb.size == int(model.cfg.latent_dim):
         return
     what = f"embedding {name}" if name else "embedding"
     raise ModelMismatchError(
         f"{what} ({emb.kind}, {emb.size} numbers, decoder {emb.decoder[:12]}) was not made by the given model "
-        f"{model.fingerprint[:12]} (latent {model.cfg.latent_dim}); encode the material again with this model")
+        f"{model.digest[:12]} (latent {model.cfg.latent_dim}); encode the material again with this model")
 
 
 class NeuralBRDF:
@@ -43,7 +43,7 @@ class NeuralBRDF:
     Attributes
     ----------
     model
-        The :class:`~brdfkit.hypernet.loaded.NeuralModel` that decoded it.
+        The :class:`~brdfkit.hypernet.loaded.LoadedNetwork` that decoded it.
     embedding
         The :class:`~brdfkit.io.embedding.Embedding`.
     weights

@@ -5,9 +5,10 @@ encoder: the samples are averaged into a latent ``z0`` and decoded. Refinement t
 optimises, on the same samples,
 
 * ``latent``: the latent itself, starting from ``z0`` (the decoder unchanged), with a
-  prior ``prior * mean((z - z0)^2)`` towards the encoder's answer;
+  tether ``prior_latent * mean((z - z0)^2)`` pulling it towards the encoder's answer;
 * ``weights``: after that, the decoded hyponet's own weights ``W`` (6 -> 60 x 4 -> 3),
-  with a prior ``prior * sum(|W - W0|^2) / sum(|W0|^2)`` towards the decoded ones, which
+  with a tether ``prior_weights * sum(|W - W0|^2) / sum(|W0|^2)`` (a weight decay
+  towards the decoded weights, not the learnt prior of :mod:`brdfkit.prior`), which
   reaches functions no latent decodes to (``docs/notes/generalisation.md``: the latent space does not contain
   unseen materials).
 
@@ -46,7 +47,8 @@ class RefineConfig:
     lr_latent, lr_weights
         Adam learning rates of the two stages.
     prior_latent, prior_weights
-        Weights of the priors towards the encoded latent and the decoded hyponet.
+        Weights of the tethers (quadratic pulls) towards the encoded latent and the
+        decoded hyponet; the names are kept for compatibility: no learnt prior is involved.
     holdout
         Share of the samples held out to choose the step count, in ``(0, 1)``.
     check_every
@@ -124,11 +126,11 @@ def _metric_mse(weights, hd, ref, cos, target):
     return torch.mean((torch.log1p(rho * cos) - target) ** 2)
 
 
-def _stage(init, make_weights, prior, lr, data, fit_idx, held_idx, cfg):
+def _stage(init, make_weights, tether, lr, data, fit_idx, held_idx, cfg):
     """Choose the step count on held-out samples, then run it on all samples.
 
     ``init``: list of tensors optimised (copied); ``make_weights(params)`` the hyponet
-    weights; ``prior(params)`` the prior term. Returns ``(params, steps, (before, after))``.
+    weights; ``tether(params)`` the pull towards the start. Returns ``(params, steps, (before, after))``.
     """
     import torch
 
@@ -146,7 +148,7 @@ def _stage(init, make_weights, prior, lr, data, fit_idx, held_idx, cfg):
                     break
             if step == steps:
                 break
-            loss = _metric_mse(make_weights(params), *sub) + prior(params)
+            loss = _metric_mse(make_weights(params), *sub) + tether(params)
             grads = torch.autograd.grad(loss, params)
             for p, g in zip(params, grads):
                 p.grad = g
@@ -170,7 +172,7 @@ def refine(model, samples, embedding: Embedding | None = None, *, config: Refine
     Parameters
     ----------
     model
-        :class:`~brdfkit.hypernet.loaded.NeuralModel`.
+        :class:`~brdfkit.hypernet.loaded.LoadedNetwork`.
     samples
         :class:`~brdfkit.io.samples.SampleSet`, BRDF in 1/sr; rows with a NaN value are
         unmeasured and left out.
@@ -223,7 +225,7 @@ def _refine(model, samples, embedding, cfg: RefineConfig, seed: int, name: str) 
             [z0], lambda ps: net.hyponet_weights(ps[0]),
             lambda ps: cfg.prior_latent * torch.mean((ps[0] - z0) ** 2),
             cfg.lr_latent, data, fit_idx, held_idx, cfg)
-        out_emb = Embedding(z[0].cpu().numpy().astype(np.float32), "latent", emb.decoder, emb.source,
+        out_emb = Embedding(z[0].cpu().numpy().astype(np.float32), "hypernet", emb.decoder, emb.source,
                             emb.sample_count)
         # Decoded as `decode` decodes the embedding (the fused kernels), so the two agree.
         brdf = NeuralBRDF.from_embedding(model, out_emb, name)

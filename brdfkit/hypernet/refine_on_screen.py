@@ -86,7 +86,7 @@ def compress_table(model, table, config: ObjectiveConfig | None = None, source: 
     Parameters
     ----------
     model
-        :class:`~brdfkit.hypernet.loaded.NeuralModel`.
+        :class:`~brdfkit.hypernet.loaded.LoadedNetwork`.
     table
         ``(90, 90, 180, 3)`` BRDF in 1/sr, NaN where unmeasured.
     config
@@ -120,6 +120,7 @@ def _refine(model, table, cfg: ObjectiveConfig, emb0: Embedding) -> CompressResu
     the mean over all ``K`` scenes."""
     import torch
 
+    from brdfkit.render.objective import Adam
     from brdfkit.render.screen import screen_error
 
     views = objective_views(table, cfg, model.device)
@@ -137,7 +138,7 @@ def _refine(model, table, cfg: ObjectiveConfig, emb0: Embedding) -> CompressResu
     try:
         z0 = torch.from_numpy(np.asarray(emb0.values, np.float32).copy()).to(model.device)[None]
         z = z0.clone().requires_grad_(True)
-        opt = torch.optim.Adam([z], lr=cfg.learning_rate(DEFAULT_LR))
+        opt = Adam([z], lr=cfg.learning_rate(DEFAULT_LR))
         best = (held_error(z0), 0, z0.clone())  # also makes the reference at the pairs
         first, step, stopped = best[0], 0, "steps"
         start = time.perf_counter()
@@ -164,6 +165,6 @@ def _refine(model, table, cfg: ObjectiveConfig, emb0: Embedding) -> CompressResu
             p.requires_grad_(r)
     err, best_step, zb = best
     record = {"steps": step, "best_step": best_step, "stopped": stopped}
-    emb = Embedding(zb[0].cpu().numpy().astype(np.float32), "latent", emb0.decoder, emb0.source,
+    emb = Embedding(zb[0].cpu().numpy().astype(np.float32), "hypernet", emb0.decoder, emb0.source,
                     emb0.sample_count, refinement=record)
     return CompressResult(emb, emb0, step, best_step, (first, err), time.perf_counter() - start, stopped)

@@ -154,7 +154,7 @@ def _identity_without_rates(text):
     return json.dumps(doc, sort_keys=True)
 
 
-def _identity(model_fingerprint, names, opts, seed) -> str:
+def _identity(model_digest, names, opts, seed) -> str:
     """What a checkpoint must have been made for to be resumed: the model, the materials,
     the options but the learning rates, the seed (JSON, sorted keys)."""
     fields = dataclasses.asdict(opts)
@@ -162,7 +162,7 @@ def _identity(model_fingerprint, names, opts, seed) -> str:
         del fields["resolution"]
     for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
         del fields[key]
-    return json.dumps({"model": model_fingerprint, "materials": names, "options": fields, "seed": seed},
+    return json.dumps({"model": model_digest, "materials": names, "options": fields, "seed": seed},
                       sort_keys=True)
 
 
@@ -343,7 +343,7 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     Parameters
     ----------
     model
-        Model file or built-in name (:func:`brdfkit.api.load_model`); its reference table
+        Model file or built-in name (:func:`brdfkit.models.builtin.resolve_network`); its reference table
         and architecture are kept.
     data
         MERL ``.binary`` files or folders (:func:`brdfkit.io.folders.collect_materials`).
@@ -368,11 +368,11 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     """
     import torch
 
-    from brdfkit.api import load_model
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.hypernet.training.checkpoint import checkpoint_path, load_checkpoint
     from brdfkit.io.folders import collect_materials
-    from brdfkit.hypernet.model_file import save_model
+    from brdfkit.hypernet.network_file import load_network, save_network
+    from brdfkit.models.builtin import resolve_network
     from brdfkit.render.scene_suite import scene_env
     from brdfkit.render.screen import screen
     from brdfkit.hypernet.training.dataset import TrainingSet
@@ -387,7 +387,7 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     ckpt = checkpoint_path(output)
     paths, names, excluded, _ = collect_materials(data, exclude)
     dev = resolve_device(None if device == "auto" else device)
-    m = load_model(model, dev)
+    m = load_network(resolve_network(model), dev)
     refuse_overwrite_of_inputs(output, [*paths, m.path])
     refuse_overwrite_of_inputs(ckpt, [*paths, m.path])
     torch.manual_seed(seed)
@@ -395,15 +395,15 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     say(f"reading {len(paths)} materials")
     z0, views = _material_data(m, paths, opts, screens)
     tset = TrainingSet.load(paths, names, reference=m.rho_ref)
-    run = _start(m.net, z0, opts, dev, identity=_identity(m.fingerprint, names, opts, seed), names=names,
+    run = _start(m.net, z0, opts, dev, identity=_identity(m.digest, names, opts, seed), names=names,
                  digest=tset.digest, seed=seed, t0=t0)
     if resume:
         _resume(run, load_checkpoint(ckpt, dev), ckpt, opts)
     _loop(run, m, screens, views, tset, opts, dev, steps, minutes, checkpoint_minutes, ckpt, say)
     run.net.eval()
-    tuned = {"from": m.fingerprint, "steps": run.step, "options": dataclasses.asdict(opts), "seed": seed,
+    tuned = {"from": m.digest, "steps": run.step, "options": dataclasses.asdict(opts), "seed": seed,
              "wall_time_s": round(run.elapsed0 + time.monotonic() - t0, 1), "screen_psnr_ema": run.ema,
              "materials": names, "excluded": excluded}
     meta = dict(m.meta, tune=tuned)
-    save_model(output, run.net, m.rho_ref, meta)
+    save_network(output, run.net, m.rho_ref, meta)
     return tuned

@@ -16,7 +16,7 @@
   :mod:`~brdfkit.io.spectral`: spectra to linear sRGB (colour-science);
   :mod:`~brdfkit.io.sample_files`: any sample file by one reader (``read_sample_file``).
 * :mod:`~brdfkit.io.embedding`: embedding files (``.emb``, JSON).
-* :mod:`~brdfkit.io.tensorfile`: the one checked safetensors reader (model files,
+* :mod:`~brdfkit.io.tensorfile`: the one checked safetensors reader (network files,
   reference tables, PCA bases); never unpickles.
 * :mod:`~brdfkit.io.folders`: folders of tables, material names, exclude lists.
 * :mod:`~brdfkit.io.digest`: the sha256 of a file's bytes.

@@ -1,22 +1,26 @@
 """Embedding files (``.emb``): one material as a few numbers that decode with one model.
 
 An embedding is a material compressed into ``size`` numbers of some *kind*: the
-coefficients of a PCA basis (``"basis"``, :mod:`brdfkit.basis`) or a hypernetwork's latent
-(``"latent"``, Gokbudak et al. 2024). With the file that made it (the basis, the model:
-its *decoder*) it decodes into the material's BRDF; the kinds and their decoders are
-registered by name in :data:`brdfkit.methods.embedding.KINDS`. On disk it is a small,
+coefficients of a PCA basis (``"basis"``, :mod:`brdfkit.basis`), the same corrected by a
+hypernetwork residual (``"residual"``, :mod:`brdfkit.residual`) or a hypernetwork's latent
+(``"hypernet"``, Gokbudak et al. 2024). With the part of a model that made it (its
+*decoder*) it decodes into the material's BRDF; the kinds and their decoders are
+registered by name in :data:`brdfkit.embeddings.KINDS`. On disk it is a small,
 self-describing JSON document (``docs/formats.md``, "Embedding files")::
 
     {"format": "brdfkit-embedding", "version": 2, "kind": "basis", "size": 39,
      "values": [0.12, -0.5, ...], "decoder": "3f2a...",
      "source": "teflon.binary", "sample_count": 1156550}
 
-``decoder`` is the SHA-256 the decoder is known by (a basis file's bytes, a model's
-weights): an embedding decodes only with that decoder, and is how brdfkit finds it among
-the built-in models. Values are written as the shortest decimal that gives back the same
-float32, so a write/read round trip is exact. Version 1 files (a ``latent`` with its
-``model_fingerprint``, and for basis coefficients a ``basis`` SHA-256) are read as the
-same embeddings.
+``decoder`` is the digest (SHA-256) the decoder is known by (a basis file's bytes, a
+network's weights): an embedding decodes only with that decoder, and is how brdfkit finds
+it among the built-in models. ``parts`` (optional) holds the digests of every part that
+decodes it, by part name, when there is more than one (a residual and the basis it
+corrects); ``options`` (optional) its kind's decode options (a residual's ``correction``
+weight). Values are written as the shortest decimal that gives back the same float32, so a
+write/read round trip is exact. Version 1 files (a ``latent`` with its
+``model_fingerprint``, and for basis coefficients a ``basis`` SHA-256) and the kind name
+``latent`` (now ``hypernet``) are read as the same embeddings.
 """
 
 from __future__ import annotations
@@ -42,6 +46,7 @@ _MAX_BYTES = 1 << 20
 _F32_MAX = float(np.finfo(np.float32).max)
 _HEX64 = re.compile(r"[0-9a-f]{64}\Z")
 _KIND = re.compile(r"[a-z][a-z0-9-]*\Z")
+_OLD_KINDS = {"latent": "hypernet"}  # names a kind had before, as files may hold them
 
 
 @dataclasses.dataclass
@@ -55,11 +60,10 @@ class Embedding:
         basis's ``K`` leading components, component-major (``size = 3 K``); for a latent,
         the hypernetwork's latent vector.
     kind
-        ``"basis"`` or ``"latent"`` (:data:`brdfkit.methods.embedding.KINDS`).
+        ``"basis"``, ``"residual"`` or ``"hypernet"`` (:data:`brdfkit.embeddings.KINDS`).
     decoder
-        SHA-256 hex of the decoder: the bytes of the basis file (a basis embedding) or the
-        weights of the hypernetwork (a latent,
-        :func:`brdfkit.hypernet.model_file.weights_fingerprint`).
+        SHA-256 hex digest of the decoder: the bytes of the basis or residual file, or the
+        weights of the hypernetwork (:func:`brdfkit.hypernet.network_file.weights_digest`).
     source
         Where the material came from (a file name), for provenance.
     sample_count
@@ -69,6 +73,12 @@ class Embedding:
         How the values were refined on renders after their closed-form or encoder start,
         or ``None`` (not refined): ``{"steps": int, "best_step": int, "stopped": str}``;
         ``--steps`` of the record replays it.
+    parts
+        ``{part: digest}`` of every part that decodes it, when more than the decoder
+        (a residual's basis), else ``None``.
+    options
+        ``{name: float}`` decode options of its kind (a residual's ``correction``), or
+        ``None``.
 
     Examples
     --------
@@ -84,9 +94,12 @@ class Embedding:
     source: str = ""
     sample_count: int = 0
     refinement: dict | None = None
+    parts: dict | None = None
+    options: dict | None = None
 
     def __post_init__(self):
         self.values = np.asarray(self.values, dtype=np.float32).reshape(-1)
+        self.kind = _OLD_KINDS.get(self.kind, self.kind)
 
     @property
     def size(self) -> int:
@@ -109,6 +122,10 @@ def _to_json(emb: Embedding) -> str:
     }
     if emb.refinement is not None:  # absent from files of unrefined embeddings
         doc["refinement"] = dict(emb.refinement)
+    if emb.parts:
+        doc["parts"] = dict(sorted(emb.parts.items()))
+    if emb.options:
+        doc["options"] = {k: float(v) for k, v in sorted(emb.options.items())}
     return json.dumps(doc, indent=1) + "\n"
 
 
@@ -173,14 +190,15 @@ def read_embedding(path: str | os.PathLike) -> Embedding:
     count = doc.get("sample_count", 0)
     if not _is_int(count) or count < 0:
         raise FormatError(path, f"'sample_count' must be a non-negative integer, not {count!r}")
-    return Embedding(np.array(values, dtype=np.float32), kind, decoder, source, count, _refinement(path, doc))
+    return Embedding(np.array(values, dtype=np.float32), kind, decoder, source, count, _refinement(path, doc),
+                     _parts(path, doc), _options(path, doc))
 
 
 def _fields(path, doc) -> tuple[str, str, list]:
     """``(kind, decoder, values)`` of a version 2 document, checked."""
     kind, decoder = doc.get("kind"), doc.get("decoder")
     if not isinstance(kind, str) or not _KIND.match(kind):
-        raise FormatError(path, f"'kind' must be an embedding kind such as 'basis' or 'latent', not {kind!r}")
+        raise FormatError(path, f"'kind' must be an embedding kind such as 'basis' or 'hypernet', not {kind!r}")
     if not isinstance(decoder, str) or not _HEX64.match(decoder):
         raise FormatError(path, "'decoder' must be a SHA-256 hex digest (64 lowercase hex digits)")
     return kind, decoder, _values(path, doc, "values", "size")
@@ -194,7 +212,7 @@ def _fields_v1(path, doc) -> tuple[str, str, list]:
     if not isinstance(fp, str) or not _HEX64.match(fp):
         raise FormatError(path, "'model_fingerprint' must be a SHA-256 hex digest (64 lowercase hex digits)")
     if basis is None:
-        return "latent", fp, values
+        return "hypernet", fp, values
     if not (isinstance(basis, str) and _HEX64.match(basis)):
         raise FormatError(path, "'basis' must be the sha256 hex (64 characters) of a PCA basis file")
     if len(values) % 3:
@@ -230,3 +248,25 @@ def _refinement(path, doc) -> dict | None:
     if not ok:
         raise FormatError(path, "'refinement' must be {\"steps\": int, \"best_step\": int <= steps, \"stopped\": str}")
     return {"steps": rec["steps"], "best_step": rec["best_step"], "stopped": rec["stopped"]}
+
+
+def _parts(path, doc) -> dict | None:
+    """The optional ``parts`` of an embedding file: part name -> digest, checked."""
+    parts = doc.get("parts")
+    if parts is None:
+        return None
+    if not (isinstance(parts, dict) and parts and all(isinstance(k, str) and _KIND.match(k) and isinstance(v, str)
+                                                      and _HEX64.match(v) for k, v in parts.items())):
+        raise FormatError(path, "'parts' must map part names to SHA-256 hex digests (64 lowercase hex digits)")
+    return dict(parts)
+
+
+def _options(path, doc) -> dict | None:
+    """The optional ``options`` of an embedding file: name -> finite number, checked."""
+    opts = doc.get("options")
+    if opts is None:
+        return None
+    if not (isinstance(opts, dict) and all(isinstance(k, str) and _KIND.match(k) and isinstance(v, (int, float))
+                                           and not isinstance(v, bool) and math.isfinite(v) for k, v in opts.items())):
+        raise FormatError(path, "'options' must map option names to finite numbers")
+    return {k: float(v) for k, v in opts.items()}

@@ -34,7 +34,8 @@ from brdfkit.atomic import check_input_file
 from brdfkit.errors import FormatError
 from brdfkit.io.csvfile import CsvTable, decode_text, read_text_bytes
 from brdfkit.io.measurements import measured_samples
-from brdfkit.io.samples import MAX_ROWS, SampleSet
+from brdfkit.io import samples as _samples
+from brdfkit.io.samples import SampleSet
 
 __all__ = ["read_pbrt_brdf", "MAX_WAVELENGTHS"]
 
@@ -105,8 +106,9 @@ def read_pbrt_brdf(path) -> SampleSet:
         raise FormatError(path, f"line {int(rest_lines[whole * per])}: truncated or misshapen: {rest.size} values "
                                 f"after the wavelengths are not whole samples of 4 angles and {w} values "
                                 f"({whole} whole, then {rest.size % per} values; is the wavelength count right?)")
-    if rest.size // per > MAX_ROWS:
-        raise FormatError(path, f"{rest.size // per} samples, more than the limit of {MAX_ROWS}")
+    limit = _samples.MAX_ROWS  # read when called, as every sample reader reads it
+    if rest.size // per > limit:
+        raise FormatError(path, f"{rest.size // per} samples, more than the limit of {limit}")
     table = CsvTable(path, "spherical+spectral", rest.reshape(-1, per), rest_lines[::per].copy())
     return measured_samples(table, "spherical", wavelengths, hint="the .brdf format holds radians")
 

@@ -1,4 +1,5 @@
-"""Reading brdfkit's safetensors files (model files, reference tables, PCA bases) safely.
+"""Reading and writing brdfkit's safetensors files (network files, reference tables, PCA
+bases, learnt priors, residuals) safely and reproducibly.
 
 `safetensors <https://github.com/huggingface/safetensors>`_ holds tensors and string
 metadata and never runs code: brdfkit stores every array it writes this way and never
@@ -9,6 +10,11 @@ and turns every parser error into a one-line :class:`~brdfkit.errors.FormatError
 names the file. The format-specific checks (metadata ``format`` / ``version``, tensor
 names and shapes) stay with each format's reader; :func:`check_format` checks the
 ``format`` and ``version`` metadata every brdfkit file carries.
+
+:func:`write_safetensors` is the one writer: the safetensors library's ``save_file``
+serialises the metadata in the order of a Rust hash map, which changes from process to
+process, so the same tensors gave files of other bytes (and other SHA-256 digests, which
+embeddings name their decoders by). This writer orders the header's keys.
 """
 
 from __future__ import annotations
@@ -18,13 +24,56 @@ import json
 import os
 from typing import Iterator
 
+import numpy as np
+
 from brdfkit.atomic import check_input_file
 from brdfkit.errors import FormatError
 
-__all__ = ["open_safetensors", "check_header", "check_format", "HEADER_LIMIT"]
+__all__ = ["open_safetensors", "check_header", "check_format", "write_safetensors", "HEADER_LIMIT"]
 
 HEADER_LIMIT = 100 * 1024 * 1024  # safetensors' own limit on the JSON header
 _MERL_FILE_SIZE = 34_992_012  # brdfkit.io.merl.MERL_FILE_SIZE, without importing the reader
+_DTYPES = {np.dtype(k): v for k, v in (("float64", "F64"), ("float32", "F32"), ("float16", "F16"), ("int64", "I64"),
+                                        ("int32", "I32"), ("int16", "I16"), ("int8", "I8"), ("uint8", "U8"),
+                                        ("bool", "BOOL"))}
+
+
+def write_safetensors(path: str | os.PathLike, tensors: dict, metadata: dict | None = None) -> None:
+    """Write ``tensors`` (name -> NumPy array, or a CPU torch tensor) and string
+    ``metadata`` as a safetensors file at ``path``, the same bytes for the same input:
+    header keys sorted, tensors laid out in name order, the header padded with spaces to a
+    multiple of 8 bytes (the format's rule). Not atomic: write into
+    :func:`brdfkit.atomic.atomic_path`'s temporary name.
+
+    Examples
+    --------
+    >>> import tempfile, numpy as np
+    >>> from safetensors.numpy import load_file
+    >>> path = os.path.join(tempfile.mkdtemp(), "t.safetensors")
+    >>> write_safetensors(path, {"b": np.arange(3, dtype=np.int64), "a": np.ones((2, 2), np.float32)}, {"k": "v"})
+    >>> sorted(load_file(path))
+    ['a', 'b']
+    """
+    arrays = {}
+    for name, t in tensors.items():
+        a = t.detach().cpu().numpy() if hasattr(t, "detach") else np.asarray(t)
+        if a.dtype not in _DTYPES:
+            raise ValueError(f"tensor {name}: dtype {a.dtype} has no safetensors name here")
+        arrays[name] = np.ascontiguousarray(a, dtype=a.dtype.newbyteorder("<"))
+    header, at = {}, 0
+    if metadata:
+        header["__metadata__"] = {str(k): str(v) for k, v in sorted(metadata.items())}
+    for name in sorted(arrays):
+        a = arrays[name]
+        header[name] = {"dtype": _DTYPES[a.dtype], "shape": list(a.shape), "data_offsets": [at, at + a.nbytes]}
+        at += a.nbytes
+    text = json.dumps(header, separators=(",", ":"), sort_keys=False).encode("utf-8")
+    text += b" " * (-len(text) % 8)
+    with open(path, "wb") as f:
+        f.write(len(text).to_bytes(8, "little"))
+        f.write(text)
+        for name in sorted(arrays):
+            f.write(arrays[name].tobytes())
 
 
 def check_header(path: str, kind: str, merl_hint: str = "") -> None:

@@ -5,18 +5,20 @@ compared against (Gokbudak et al. 2024, Sec. 4), in the style of colour-science'
 ============ =========================================================== ==============
 name         method                                                      ``-m`` model
 ============ =========================================================== ==============
-``hypernet`` the hypernetwork: encode the samples, decode the hyponet    model file
+``hypernet`` the hypernetwork: encode the samples, decode the hyponet    network file
              (:mod:`.hypernet`, :func:`brdfkit.api.sparse`)
 ``ipca``     PCA basis of log-mapped tables, ridge fit to the samples    PCA basis file
              (Nielsen, Jensen and Ramamoorthi 2015; :mod:`.ipca`)
 ``nbrdf``    one 6-21-21-3 MLP fitted to the samples alone               none
              (Sztrajman et al. 2021; :mod:`.nbrdf`)
 ``prior``    the basis fitted around a learnt prior: a set encoder of the   learnt-prior
-             samples predicts the coefficients' prior mean (:mod:`.prior`)   model file
+             samples predicts the coefficients' prior mean (:mod:`.prior`;   file
+             :mod:`brdfkit.prior`)
 ============ =========================================================== ==============
 
 Every method has the same interface (:class:`~.method.Method`), so ``brdfkit sparse``,
-``brdfkit fit`` and the benchmark loop over them alike::
+``brdfkit validate`` and the benchmark loop over them alike (what ``brdfkit fit`` trains
+is :data:`brdfkit.training.FITTERS`)::
 
     method = get_method("ipca")
     model = method.load("basis.safetensors")          # None for methods without a model

@@ -1,12 +1,13 @@
-"""Which method and model file a ``-m`` value means (``brdfkit sparse``, ``brdfkit bench``).
+"""Which method and file a ``-m`` value means (``brdfkit sparse``, ``brdfkit bench``).
 
-A built-in model (:mod:`brdfkit.models.builtin`, ``docs/models.md``) has up to three
-parts: its hypernetwork, and optionally a learnt prior and the PCA basis that prior is
-fitted with. A built-in name therefore names a different file for each method
-(:func:`resolve_for`); a path is the file as it is. ``--method auto``, ``brdfkit
-sparse``'s default, picks the method too (:func:`choose`): a built-in's learnt prior
-when it has one (the better sparse reconstruction, ``docs/notes/generalisation.md``), else its
-hypernetwork; a file by the format its header records.
+A model (what ``-m`` takes) is a file or the name of a built-in bundle
+(:mod:`brdfkit.models.builtin`, ``docs/models.md``) of up to four parts: its
+hypernetwork (``network``), PCA basis (``basis``), learnt prior (``prior``) and basis
+residual (``residual``). A built-in name therefore names a different file for each method
+(:func:`resolve_for`); a path is the file as it is, its part told by the format its header
+records (:func:`brdfkit.embeddings.parts.file_part`). ``--method auto``, ``brdfkit sparse``'s default, picks the
+method too (:func:`choose`): a built-in's learnt prior when it has one (the better sparse
+reconstruction, ``docs/notes/generalisation.md``), else its hypernetwork; a file by its part.
 """
 
 from __future__ import annotations
@@ -14,14 +15,14 @@ from __future__ import annotations
 import dataclasses
 import os
 
-__all__ = ["AUTO", "Choice", "resolve_for", "file_method", "choose"]
+__all__ = ["AUTO", "METHOD_PARTS", "Choice", "resolve_for", "file_method", "choose"]
 
 AUTO = "auto"
 """The ``--method`` value that lets :func:`choose` pick the method."""
 
-# The part of a built-in each method takes (brdfkit.models.builtin's resolvers); a method
-# not listed gets its -m value as it is (its loader says what it takes).
-_RESOLVERS = {"hypernet": "resolve_model", "ipca": "resolve_basis", "prior": "resolve_prior"}
+METHOD_PARTS = {"hypernet": "network", "ipca": "basis", "prior": "prior"}
+"""The part of a built-in each method takes; a method not listed gets its ``-m`` value as
+it is (its loader says what it takes)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -37,45 +38,32 @@ class Choice:
 
 def resolve_for(method: str, spec: str | os.PathLike) -> str:
     """The model file of ``method`` that a ``-m`` value names: a path as it is; a
-    built-in name its hypernetwork (``hypernet``), its learnt prior (``prior``) or its
-    PCA basis (``ipca``), checked against the manifest.
+    built-in name the part :data:`METHOD_PARTS` gives, checked against the manifest.
 
     Raises
     ------
     InputError
         An unknown name, or a built-in without that part (one line).
     """
-    from brdfkit.models import builtin
+    from brdfkit.models.builtin import resolve_part
 
-    name = _RESOLVERS.get(method)
-    return getattr(builtin, name)(spec) if name else os.fspath(spec)
+    part = METHOD_PARTS.get(method)
+    return resolve_part(spec, part) if part else os.fspath(spec)
 
 
 def file_method(path: str | os.PathLike) -> str:
-    """The method a model file is for, by the format its header records: ``prior``
-    (``brdfkit-prior``), ``ipca`` (``brdfkit-basis``), else ``hypernet`` (whose loader
-    then names what is wrong with a file that is none of them)."""
-    from brdfkit.methods.prior.prior_file import is_prior_file
+    """The method a model file is for (:func:`brdfkit.embeddings.parts.file_part`):
+    ``prior``, ``ipca`` (a basis), else ``hypernet``."""
+    from brdfkit.embeddings.parts import file_part
 
-    if is_prior_file(path):
-        return "prior"
-    from brdfkit.errors import FormatError, InputError
-    from brdfkit.io.tensorfile import open_safetensors
-
-    try:
-        with open_safetensors(os.fspath(path)) as f:
-            fmt = (f.metadata() or {}).get("format")
-    except (FormatError, InputError, OSError):
-        fmt = None
-    from brdfkit.basis.basis_file import is_basis_format
-
-    return "ipca" if is_basis_format(fmt) else "hypernet"
+    part = file_part(path)
+    return {"prior": "prior", "basis": "ipca"}.get(part, "hypernet")
 
 
 def _default_entry():
-    from brdfkit.models.builtin import read_manifest
+    from brdfkit.models.builtin import default_bundle
 
-    return next((m for m in read_manifest().installed() if m.default), None)
+    return default_bundle()
 
 
 def choose(method: str, spec: str | os.PathLike | None) -> Choice:
@@ -93,23 +81,23 @@ def choose(method: str, spec: str | os.PathLike | None) -> Choice:
         An unknown name, or a built-in without the part the method needs.
     """
     if spec is None:
-        if method != AUTO and method not in _RESOLVERS:
+        if method != AUTO and method not in METHOD_PARTS:
             return Choice(method, None, None)
         entry = _default_entry()
         if entry is None:
             return Choice("hypernet" if method == AUTO else method, None, None)
         if method == AUTO:
-            method = "prior" if entry.prior else "hypernet"
+            method = "prior" if entry.part("prior") else "hypernet"
         return Choice(method, resolve_for(method, entry.name), f"{entry.name}, the default built-in")
-    from brdfkit.models.builtin import builtin_models, is_path_spec, resolve_model
+    from brdfkit.models.builtin import installed_bundles, is_path_spec, resolve_network
 
     spec = os.fspath(spec)
     if method != AUTO:
         return Choice(method, resolve_for(method, spec), spec)
     if is_path_spec(spec):
         return Choice(file_method(spec), spec, spec)
-    entry = next((m for m in builtin_models() if m.name == spec), None)
+    entry = next((m for m in installed_bundles() if m.name == spec), None)
     if entry is None:
-        resolve_model(spec)  # raises the unknown-name error listing the installed ones
-    method = "prior" if entry.prior else "hypernet"
+        resolve_network(spec)  # raises the unknown-name error listing the installed ones
+    method = "prior" if entry.part("prior") else "hypernet"
     return Choice(method, resolve_for(method, spec), spec)

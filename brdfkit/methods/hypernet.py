@@ -1,7 +1,7 @@
 """The hypernetwork of Gokbudak et al. 2024 as a reconstruction method: encode the
 samples with the set encoder (:func:`brdfkit.hypernet.encoding.encode_samples`),
 optionally refine the result on the samples (:mod:`brdfkit.hypernet.refine_on_samples`),
-decode the hyponet on the whole grid; its model file comes from
+decode the hyponet on the whole grid; its network file comes from
 :func:`brdfkit.hypernet.training.loop.fit`. The samples go straight to the encoder, not
 through :func:`brdfkit.api.encode`, which takes paths, tables and sample sets alike."""
 
@@ -55,14 +55,7 @@ def _reconstruct(samples, model, options, *, seed, device):
     return result.brdf.to_table(), result.embedding if options.refine_target == "latent" else None
 
 
-def _fit(data, output, *, exclude=(), progress=True, **options):
-    from brdfkit.hypernet.training.loop import fit
-
-    return fit(data, output, exclude=exclude, progress=progress, **options)
-
-
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",
                 "hypernetwork model (.safetensors from `brdfkit fit` or `brdfkit demo`)", options=HypernetOptions,
-                load_model=_load, reconstruct_fn=_reconstruct,
-                fit_fn=_fit, fit_options=None,
+                load_fn=_load, reconstruct_fn=_reconstruct,
                 bench_option="model")

@@ -4,7 +4,7 @@ al. 2024, registered as a reconstruction method: the basis of :mod:`brdfkit.basi
 fitted to sparse samples by regularised least squares
 (:meth:`brdfkit.basis.model.PcaBasis.coefficients`).
 
-Its model is a basis file (``brdfkit fit --method ipca``, :func:`brdfkit.basis.fit.fit_basis_files`),
+Its model is a basis file (``brdfkit fit --method basis``, :func:`brdfkit.basis.fit.fit_basis_files`),
 or a built-in's name: the built-ins ship the basis their learnt prior is fitted with, of
 which the baseline takes Nielsen et al.'s 8 leading components. Without ``-m`` it takes
 the default built-in's.
@@ -38,38 +38,32 @@ class IpcaOptions(MethodOptions):
 
 def _load(path, device):
     from brdfkit.basis.basis_file import load_basis
-    from brdfkit.models.builtin import is_builtin_basis, resolve_basis
+    from brdfkit.models.builtin import is_builtin_part, resolve_basis
 
     path = resolve_basis(path)
     basis = load_basis(path)
     # A built-in's basis has the components its learnt prior fits; the baseline is
     # Nielsen's 8 of them. A file of the user's is used whole.
-    return basis.baseline() if is_builtin_basis(path) else basis
+    return basis.baseline() if is_builtin_part(path, "basis") else basis
 
 
 def _reconstruct(samples, model, options, *, seed, device):
-    return model.reconstruct(samples, lam=options.lam), None
-
-
-def _fit(data, output, *, exclude=(), progress=True, **options):
-    from brdfkit.basis.fit import fit_basis_files
-
-    return fit_basis_files(data, output, exclude=exclude, progress=progress, **options)
+    # Nielsen et al.'s inverse as published (clamped at 0): the baseline keeps its dark band.
+    return model.reconstruct(samples, lam=options.lam, floor=0.0), None
 
 
 def _compress(model, table, name):
-    return model.decode(model.project(table))
+    return model.decode(model.project(table), floor=0.0)
 
 
 def _describe(model, path):
     import os
 
     k, stem = model.n_components, os.path.splitext(os.path.basename(os.fspath(path)))[0]
-    return f"pca-{k} ({3 * k} numbers, {stem})", 3 * k, set(model.materials)
+    return f"basis-{k} ({3 * k} numbers, {stem})", 3 * k, set(model.materials)
 
 
 METHOD = Method("ipca", "PCA basis of log-mapped tables fitted by ridge regression (Nielsen et al. 2015)",
-                "PCA basis (.safetensors from `brdfkit fit --method ipca`, or a built-in's name)",
-                options=IpcaOptions, load_model=_load, reconstruct_fn=_reconstruct, fit_fn=_fit,
-                fit_options=("components", "half", "phi_stride", "w_floor", "int8"), compress_fn=_compress,
+                "PCA basis (.safetensors from `brdfkit fit --method basis`, or a built-in's name)",
+                options=IpcaOptions, load_fn=_load, reconstruct_fn=_reconstruct, compress_fn=_compress,
                 describe_fn=_describe, bench_option="ipca")

@@ -39,18 +39,12 @@ class Method:
         What its model file is, for messages; ``""`` for a method that needs no model.
     options
         Its :class:`MethodOptions` subclass (field defaults are the method's defaults).
-    load_model
-        ``load_model(path: str, device) -> model``; ``None`` when it needs no model.
+    load_fn
+        ``load_fn(path: str, device) -> model``; ``None`` when it needs no model.
     reconstruct_fn
         ``reconstruct_fn(samples, model, options, *, seed, device) -> (table, embedding
         or None)``: dense float64 ``(90, 90, 180, 3)`` in 1/sr, NaN on the cells it does
         not cover.
-    fit_fn
-        ``fit_fn(data, output, *, exclude, progress, **fit_options) -> output``: trains
-        the method's model file from MERL tables (``brdfkit fit --method``); ``None``
-        when the method has no model to fit.
-    fit_options
-        Names of the options ``fit_fn`` takes; ``None``: any (the function checks them).
     compress_fn
         ``compress_fn(model, table, name) -> table``: the best reconstruction of a full
         table through the model (the compression benchmark); ``None`` when it has none.
@@ -68,10 +62,8 @@ class Method:
     summary: str
     model_kind: str
     options: type = MethodOptions
-    load_model: Callable | None = dataclasses.field(default=None, repr=False)
+    load_fn: Callable | None = dataclasses.field(default=None, repr=False)
     reconstruct_fn: Callable | None = dataclasses.field(default=None, repr=False)
-    fit_fn: Callable | None = dataclasses.field(default=None, repr=False)
-    fit_options: tuple | None = ()
     compress_fn: Callable | None = dataclasses.field(default=None, repr=False)
     describe_fn: Callable | None = dataclasses.field(default=None, repr=False)
     bench_option: str | None = None
@@ -79,7 +71,7 @@ class Method:
     @property
     def needs_model(self) -> bool:
         """Whether :meth:`reconstruct` needs a model file (``-m``)."""
-        return self.load_model is not None
+        return self.load_fn is not None
 
     def load(self, path: str | os.PathLike | None, device=None):
         """Load the method's model file; ``None`` for methods that need none."""
@@ -89,7 +81,7 @@ class Method:
             return None
         if path is None:
             raise InputError(f"method {self.name!r} needs a {self.model_kind} (-m FILE)")
-        return self.load_model(os.fspath(path), device)
+        return self.load_fn(os.fspath(path), device)
 
     def make_options(self, **given) -> MethodOptions:
         """The method's options: its defaults, replaced by the ``given`` ones that are
@@ -139,16 +131,3 @@ class Method:
             cover.
         """
         return self.sparse(samples, model, seed=seed, device=device, options=options, **given)[0]
-
-    def fit(self, data, output, *, exclude=(), progress: bool = True, **fit_options) -> str:
-        """Train the method's model file from MERL tables ``data`` (files or folders);
-        ``exclude``: material names held out. Returns ``output``."""
-        if self.fit_fn is None:
-            raise InputError(f"method {self.name!r} has no model to fit")
-        if self.fit_options is not None:
-            extra = sorted(set(fit_options) - set(self.fit_options))
-            if extra:
-                takes = ", ".join(f"--{o.replace('_', '-')}" for o in self.fit_options)
-                raise InputError(f"--method {self.name} takes only {takes + ' and ' if takes else ''}"
-                                 f"--exclude/--exclude-list, not {', '.join(extra)}")
-        return self.fit_fn(data, output, exclude=exclude, progress=progress, **fit_options)

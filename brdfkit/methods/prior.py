@@ -2,17 +2,18 @@
 the prior mean a set encoder reads from the samples. ``brdfkit sparse``'s default with
 the built-in models (``docs/notes/generalisation.md`` says why it is not the paper's decoder).
 
-This package registers the method (:data:`METHOD`); its parts are
+This module registers the method (:data:`METHOD`); the learnt prior itself lives in
+:mod:`brdfkit.prior`:
 
-- :mod:`.model`: the network and the closed-form fit (:class:`~.model.PriorModel`,
-  :func:`~.model.solve`);
-- :mod:`.fit`: its training, ``brdfkit fit --method prior``;
-- :mod:`.training_data`: what the training fits on (the basis, the cells, the held-out
-  fold bases, the tensors on the device);
-- :mod:`.prior_file`: its model file (format ``brdfkit-prior``), which holds or names the
-  PCA basis (:mod:`brdfkit.methods.ipca`).
+- :mod:`brdfkit.prior.model`: the network and the closed-form fit
+  (:class:`~brdfkit.prior.model.PriorModel`, :func:`~brdfkit.prior.model.solve`);
+- :mod:`brdfkit.prior.fit`: its training, ``brdfkit fit --method prior``;
+- :mod:`brdfkit.prior.training_data`: what the training fits on (the basis, the cells,
+  the held-out fold bases, the tensors on the device);
+- :mod:`brdfkit.prior.prior_file`: its file (format ``brdfkit-prior``), which holds or
+  names the PCA basis (:mod:`brdfkit.basis`).
 
-May import: what :mod:`brdfkit.methods` may, and :mod:`brdfkit.methods.ipca`.
+May import: what :mod:`brdfkit.methods` may.
 """
 
 from __future__ import annotations
@@ -21,7 +22,6 @@ import dataclasses
 import os
 
 from brdfkit.methods.method import Method, MethodOptions
-from brdfkit.methods.prior.fit import FIT_OPTIONS
 
 __all__ = ["METHOD", "PriorOptions"]
 
@@ -36,19 +36,13 @@ class PriorOptions(MethodOptions):
 
 def _load(path, device):
     from brdfkit.models.builtin import resolve_prior
-    from brdfkit.methods.prior.prior_file import load_prior
+    from brdfkit.prior.prior_file import load_prior
 
     return load_prior(resolve_prior(path), device)
 
 
 def _reconstruct(samples, model, options, *, seed, device):
     return model.reconstruct(samples, use_prior=options.use_prior), None
-
-
-def _fit(data, output, *, exclude=(), progress=True, **options):
-    from brdfkit.methods.prior.fit import fit_prior
-
-    return fit_prior(data, output, exclude=exclude, progress=progress, **options)
 
 
 def _compress(model, table, name):
@@ -58,12 +52,11 @@ def _compress(model, table, name):
 def _describe(model, path):
     stem = os.path.splitext(os.path.basename(os.fspath(path)))[0]
     k = model.basis.n_components
-    return f"pca-{k} ({3 * k} numbers, {stem})", 3 * k, set(model.meta.get("materials") or ())
+    return f"basis-{k} ({3 * k} numbers, {stem})", 3 * k, set(model.meta.get("materials") or ())
 
 
 METHOD = Method("prior", "PCA basis fitted around a learnt prior: a set encoder of the samples gives the "
                 "coefficients' prior mean (brdfkit's default, docs/notes/generalisation.md)",
                 "learnt-prior model (.safetensors from `brdfkit fit --method prior`, or a built-in name)",
-                options=PriorOptions, load_model=_load, reconstruct_fn=_reconstruct, fit_fn=_fit,
-                fit_options=FIT_OPTIONS,
+                options=PriorOptions, load_fn=_load, reconstruct_fn=_reconstruct,
                 compress_fn=_compress, describe_fn=_describe)  # bench: --model-file prior=FILE

@@ -1,22 +1,37 @@
-"""Built-in models: pretrained model files shipped inside the package, by name.
+"""Built-in models: bundles of pretrained files shipped inside the package, by name.
 
-The folder ``brdfkit/models/`` (or ``$BRDFKIT_BUILTIN_MODELS``, for tests and for models
-kept elsewhere) holds model files and ``manifest.json`` (``docs/models.md``)::
+A *model* is what ``-m`` takes: a file, or the name of a built-in *bundle*. A bundle is a
+set of *parts*, each one file of the folder ``brdfkit/models/`` (or
+``$BRDFKIT_BUILTIN_MODELS``, for tests and for models kept elsewhere), listed in its
+``manifest.json`` (``docs/models.md``):
 
-    {"format": "brdfkit-builtin-models", "version": 1, "default": "merl-rgl-l40",
-     "models": [{"name": "merl-rgl-l40", "file": "merl-rgl-l40.safetensors",
-                 "latent_dim": 40, "materials": 151, "materials_list": "MERL + RGL",
-                 "steps": 30000, "train_seconds": 3000.0, "command": "brdfkit fit ...",
-                 "validation": {"40": 0.21, "400": 0.13, "4000": 0.12},
-                 "fingerprint": "3f2a..."}]}
+============ ========================================================= =================
+part         what it is                                                its digest
+============ ========================================================= =================
+``network``  the hypernetwork (Gokbudak et al. 2024;                   its weights' SHA-256
+             :mod:`brdfkit.hypernet`)                                  (in the file's header)
+``basis``    the PCA basis (:mod:`brdfkit.basis`)                      the file's SHA-256
+``prior``    the learnt prior fitted with that basis                   its content's SHA-256
+             (:mod:`brdfkit.prior`)                                    (in the file's header)
+``residual`` the hypernetwork residual of that basis                   the file's SHA-256
+             (:mod:`brdfkit.residual`)
+============ ========================================================= =================
 
-A built-in model is *installed* when its file is in the folder. It has up to three parts:
-its hypernetwork (``file``), and optionally a learnt prior (``prior``) and the PCA basis
-that prior is fitted with (``basis``), each recorded with its SHA-256. Wherever a model is
-asked for (``-m``, ``$BRDFKIT_MODEL``), a name resolves to the file of the part a job
-takes (:func:`resolve_model`, :func:`resolve_prior`, :func:`resolve_basis`); with none
+::
+
+    {"format": "brdfkit-builtin-models", "version": 2, "default": "merl-rgl-l40",
+     "bundles": [{"name": "merl-rgl-l40", "latent_dim": 40, "materials": 151,
+                  "parts": {"network": {"file": "merl-rgl-l40.safetensors", "digest": "3f2a..."},
+                            "basis": {"file": "merl-rgl-basis.safetensors", "digest": "..."}},
+                  "steps": 30000, "command": "brdfkit fit ...", "validation": {"40": 0.21},
+                  "renders": {...}}]}
+
+Version 1 manifests (``models``, with ``file`` / ``fingerprint``, ``prior`` /
+``prior_fingerprint``, ``basis`` / ``basis_fingerprint``) still read. A bundle is
+*installed* when all its parts' files are in the folder. Wherever a model is asked for, a
+name resolves to the file of the part a job takes (:func:`resolve_part`); with none
 given, an embedding finds the part whose digest it records (:func:`find_by_digest`),
-anything else takes the manifest's default (:func:`default_model`). A resolved part is
+anything else takes the manifest's default (:func:`default_bundle`). A resolved part is
 checked against the digest the manifest records, so a damaged or replaced file is refused
 (:class:`~brdfkit.errors.FormatError`).
 """
@@ -31,56 +46,66 @@ import re
 from brdfkit.atomic import atomic_open
 from brdfkit.errors import FormatError, InputError
 
-__all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "BuiltinModel", "Manifest", "models_folder",
-           "read_manifest", "builtin_models", "is_path_spec", "resolve_model", "default_model",
-           "find_by_digest", "resolve_prior", "resolve_basis", "is_builtin_basis", "write_manifest"]
+__all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "PARTS", "Part", "Bundle", "Manifest",
+           "models_folder", "read_manifest", "installed_bundles", "is_path_spec", "resolve_part", "resolve_network",
+           "resolve_prior", "resolve_basis", "resolve_residual", "default_bundle", "find_by_digest", "is_builtin_part",
+           "write_manifest"]
 
 BUILTIN_ENV = "BRDFKIT_BUILTIN_MODELS"
 MANIFEST = "manifest.json"
 MANIFEST_FORMAT = "brdfkit-builtin-models"
-MANIFEST_VERSION = 1
+MANIFEST_VERSION = 2
+_READS = (1, 2)
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*\Z")
 _HEX64 = re.compile(r"[0-9a-f]{64}\Z")
 
+PARTS = {"network": "hypernetwork", "basis": "PCA basis", "prior": "learnt prior", "residual": "basis residual"}
+"""The parts a bundle may have, and what each is called in messages."""
+_HEADER_DIGEST = ("network", "prior")  # digests recorded in the file's header, not the file's own SHA-256
+
 
 @dataclasses.dataclass(frozen=True)
-class BuiltinModel:
-    """One entry of the manifest.
+class Part:
+    """One part of a bundle: its ``file`` name in the folder, full ``path``, ``digest``
+    (64 hex digits: see the module's table) and its own held-out figures ``renders``
+    (as :attr:`Bundle.renders`; ``{}``: none)."""
+
+    file: str
+    path: str
+    digest: str
+    renders: dict = dataclasses.field(default_factory=dict)
+
+
+@dataclasses.dataclass(frozen=True)
+class Bundle:
+    """One entry of the manifest: a built-in model.
 
     Attributes
     ----------
-    name, file, path
-        Its name (``-m NAME``), file name in the folder, and full path.
+    name
+        Its name (``-m NAME``).
+    parts
+        ``{part: Part}`` (:data:`PARTS`).
     latent_dim
-        Size of its embeddings.
-    fingerprint
-        sha256 hex of its weights (:func:`brdfkit.hypernet.model_file.weights_fingerprint`).
+        Size of its hypernetwork's latent, or ``None`` without a network.
     materials, materials_list
         Number of training materials, and the name of their list (or ``None``).
     steps, train_seconds, command
-        Training steps, wall time (s) and the command that trained it (or ``None``).
+        Training steps, wall time (s) and the commands that trained it (or ``None``).
     validation
         ``{N: BRDF log RMSE}`` on held-out materials from ``N`` samples.
     renders
         The held-out figures as renders judge them: ``{"psnr": {key: dB}, "delta_e":
         {key: value}, "scenes": [...], "resolution": px, "materials": text}``, a key ``N``
-        (sparse reconstruction from N samples) or ``"encode"`` (compression); ``{}``: not
-        measured.
+        (sparse reconstruction from N samples) or ``"encode"`` / ``"encode-SIZE"``
+        (compression); ``{}``: not measured.
     default, installed
-        Whether it is the manifest's default, and whether its file is present.
-    prior, prior_fingerprint
-        Its learnt-prior file (a bare name in the folder) and that model's fingerprint, or
-        ``None``.
-    basis, basis_fingerprint
-        The PCA basis file its learnt prior is fitted with (a bare name) and the SHA-256 of
-        its bytes, or ``None``.
+        Whether it is the manifest's default, and whether all its parts' files are present.
     """
 
     name: str
-    file: str
-    path: str
-    latent_dim: int
-    fingerprint: str
+    parts: dict
+    latent_dim: int | None = None
     materials: int | None = None
     materials_list: str | None = None
     steps: int | None = None
@@ -90,10 +115,10 @@ class BuiltinModel:
     renders: dict = dataclasses.field(default_factory=dict)
     default: bool = False
     installed: bool = False
-    prior: str | None = None
-    prior_fingerprint: str | None = None
-    basis: str | None = None
-    basis_fingerprint: str | None = None
+
+    def part(self, name: str) -> Part | None:
+        """Its part ``name`` (:data:`PARTS`), or ``None``."""
+        return self.parts.get(name)
 
     def to_json(self) -> dict:
         d = dataclasses.asdict(self)
@@ -103,15 +128,15 @@ class BuiltinModel:
 
 @dataclasses.dataclass(frozen=True)
 class Manifest:
-    """The manifest of a built-in models folder: ``models`` in its order, installed or
+    """The manifest of a built-in models folder: ``bundles`` in its order, installed or
     not; ``default`` the default's name (``None``: none)."""
 
     folder: str
     default: str | None
-    models: tuple
+    bundles: tuple
 
-    def installed(self) -> list[BuiltinModel]:
-        return [m for m in self.models if m.installed]
+    def installed(self) -> list[Bundle]:
+        return [m for m in self.bundles if m.installed]
 
 
 def models_folder() -> str:
@@ -122,62 +147,67 @@ def models_folder() -> str:
     return os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "models")
 
 
-def _entry(where: str, folder: str, d, default: str | None) -> BuiltinModel:
+def _v1_parts(d) -> dict:
+    """A version 1 entry's parts, in version 2's shape."""
+    parts = {"network": {"file": d.get("file"), "digest": d.get("fingerprint")}}
+    for key in ("prior", "basis"):
+        if d.get(key) is not None or d.get(f"{key}_fingerprint") is not None:
+            parts[key] = {"file": d.get(key), "digest": d.get(f"{key}_fingerprint")}
+    return parts
+
+
+def _part(folder: str, name: str, p, bad) -> Part:
+    if name not in PARTS:
+        raise bad(f"unknown part {name!r} (parts: {', '.join(PARTS)})")
+    if not isinstance(p, dict):
+        raise bad(f"part {name!r} must be an object")
+    file, digest = p.get("file"), p.get("digest")
+    if not isinstance(file, str) or os.path.basename(file) != file or not file.endswith(".safetensors"):
+        raise bad(f"part {name!r}: 'file' must be a .safetensors file name in the folder")
+    if not isinstance(digest, str) or not _HEX64.match(digest):
+        raise bad(f"part {name!r}: 'digest' must be 64 lowercase hex digits")
+    return Part(file, os.path.join(folder, file), digest, _renders(p.get("renders"), bad))
+
+
+def _entry(where: str, folder: str, d, default: str | None, version: int) -> Bundle:
     if not isinstance(d, dict):
-        raise FormatError(where, "each entry of 'models' must be an object")
+        raise FormatError(where, "each entry of 'bundles' must be an object")
 
     def bad(msg):
         return FormatError(where, f"model {d.get('name')!r}: {msg}")
 
-    name, file, fp = d.get("name"), d.get("file"), d.get("fingerprint")
+    name = d.get("name")
     if not isinstance(name, str) or not _NAME.match(name) or name.lower().endswith(".safetensors"):
         raise bad("'name' must be a word of letters, digits, '.', '_' or '-'")
-    if not isinstance(file, str) or os.path.basename(file) != file or not file.endswith(".safetensors"):
-        raise bad("'file' must be a .safetensors file name in the folder")
-    if not isinstance(fp, str) or not _HEX64.match(fp):
-        raise bad("'fingerprint' must be 64 lowercase hex digits")
+    raw = _v1_parts(d) if version == 1 else d.get("parts")
+    if not isinstance(raw, dict) or not raw:
+        raise bad("'parts' must map part names to {'file', 'digest'}")
+    parts = {k: _part(folder, k, v, bad) for k, v in raw.items()}
     latent = d.get("latent_dim")
-    if isinstance(latent, bool) or not isinstance(latent, int) or latent < 1:
+    if ("network" in parts or latent is not None) and (isinstance(latent, bool) or not isinstance(latent, int)
+                                                       or latent < 1):
         raise bad("'latent_dim' must be a positive whole number")
     mats = d.get("materials")
     if isinstance(mats, list):
         mats = len(mats)
-    for key, kinds, value in (("materials", int, mats), ("steps", int, d.get("steps")),
+    for key, types, value in (("materials", int, mats), ("steps", int, d.get("steps")),
                               ("train_seconds", (int, float), d.get("train_seconds")),
                               ("materials_list", str, d.get("materials_list")), ("command", str, d.get("command"))):
-        if value is not None and (isinstance(value, bool) or not isinstance(value, kinds)):
+        if value is not None and (isinstance(value, bool) or not isinstance(value, types)):
             raise bad(f"'{key}' has the wrong type")
     val = d.get("validation") or {}
     try:
         validation = {int(k): float(v) for k, v in val.items()}
     except (AttributeError, TypeError, ValueError):
         raise bad("'validation' must map sample counts to log RMSE values") from None
-    renders = _renders(d.get("renders"), bad)
-    parts = {key: _part(d, key, bad) for key in ("prior", "basis")}
-    path = os.path.join(folder, file)
-    return BuiltinModel(prior=parts["prior"][0], prior_fingerprint=parts["prior"][1], basis=parts["basis"][0],
-                        basis_fingerprint=parts["basis"][1], name=name, file=file, path=path, latent_dim=latent, fingerprint=fp, materials=mats,
-                        materials_list=d.get("materials_list"), steps=d.get("steps"),
-                        train_seconds=d.get("train_seconds"), command=d.get("command"),
-                        validation=dict(sorted(validation.items())), renders=renders, default=name == default,
-                        installed=os.path.isfile(path))
-
-
-def _part(d, key: str, bad) -> tuple:
-    """An entry's optional part ``key`` (``"prior"``, ``"basis"``): ``(file, digest)``, or
-    ``(None, None)``."""
-    file, digest = d.get(key), d.get(f"{key}_fingerprint")
-    if file is not None and (not isinstance(file, str) or os.path.basename(file) != file
-                             or not file.endswith(".safetensors")):
-        raise bad(f"'{key}' must be a .safetensors file name in the folder")
-    if (file is None) != (digest is None) or (digest is not None and not (isinstance(digest, str)
-                                                                          and _HEX64.match(digest))):
-        raise bad(f"'{key}' and '{key}_fingerprint' (64 lowercase hex digits) go together")
-    return file, digest
+    return Bundle(name=name, parts=parts, latent_dim=latent, materials=mats, materials_list=d.get("materials_list"),
+                  steps=d.get("steps"), train_seconds=d.get("train_seconds"), command=d.get("command"),
+                  validation=dict(sorted(validation.items())), renders=_renders(d.get("renders"), bad),
+                  default=name == default, installed=all(os.path.isfile(p.path) for p in parts.values()))
 
 
 def _renders(r, bad) -> dict:
-    """An entry's ``renders`` checked (see :class:`BuiltinModel`)."""
+    """An entry's (or a part's) ``renders`` checked (see :class:`Bundle`)."""
     if r is None:
         return {}
     ok = isinstance(r, dict) and all(isinstance(r.get(k, {}), dict) for k in ("psnr", "delta_e"))
@@ -195,8 +225,8 @@ def read_manifest(folder: str | os.PathLike | None = None) -> Manifest:
     Raises
     ------
     FormatError
-        A manifest that is not JSON, not this format or version, or has a bad entry (one
-        line naming the manifest).
+        A manifest that is not JSON, not this format or a version this brdfkit reads, or
+        has a bad entry (one line naming the manifest).
     """
     folder = os.path.abspath(os.fspath(folder)) if folder is not None else models_folder()
     where = os.path.join(folder, MANIFEST)
@@ -209,24 +239,25 @@ def read_manifest(folder: str | os.PathLike | None = None) -> Manifest:
         raise FormatError(where, f"not a built-in models manifest ({e})") from None
     if not isinstance(doc, dict) or doc.get("format") != MANIFEST_FORMAT:
         raise FormatError(where, f"not a built-in models manifest (format {MANIFEST_FORMAT!r} expected)")
-    if doc.get("version") != MANIFEST_VERSION:
-        raise FormatError(where, f"manifest version {doc.get('version')!r} is not supported "
-                                 f"(this brdfkit reads version {MANIFEST_VERSION})")
-    default, models = doc.get("default"), doc.get("models")
+    version = doc.get("version")
+    if version not in _READS:
+        raise FormatError(where, f"manifest version {version!r} is not supported "
+                                 f"(this brdfkit reads versions {', '.join(map(str, _READS))})")
+    default, entries = doc.get("default"), doc.get("bundles" if version == 2 else "models")
     if default is not None and not isinstance(default, str):
         raise FormatError(where, "'default' must be a model name")
-    if not isinstance(models, list):
-        raise FormatError(where, "'models' must be a list")
-    entries = tuple(_entry(where, folder, d, default) for d in models)
-    names = [m.name for m in entries]
+    if not isinstance(entries, list):
+        raise FormatError(where, f"'{'bundles' if version == 2 else 'models'}' must be a list")
+    bundles = tuple(_entry(where, folder, d, default, version) for d in entries)
+    names = [m.name for m in bundles]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
         raise FormatError(where, f"model name {dup[0]!r} appears twice")
-    return Manifest(folder, default, entries)
+    return Manifest(folder, default, bundles)
 
 
-def builtin_models() -> list[BuiltinModel]:
-    """The installed built-in models, in the manifest's order."""
+def installed_bundles() -> list[Bundle]:
+    """The installed built-in bundles, in the manifest's order."""
     return read_manifest().installed()
 
 
@@ -238,78 +269,28 @@ def is_path_spec(spec: str | os.PathLike) -> bool:
             or text.lower().endswith(".safetensors"))
 
 
-def _checked(m: BuiltinModel, part: str = "model") -> str:
-    """The path of an installed built-in's ``part`` file (``"model"``, its hypernetwork;
-    ``"prior"``, its learnt prior; ``"basis"``, its PCA basis) after checking it against
-    the digest the manifest records: the fingerprint a model file records in its header
-    (loading then checks the weights against it), a basis file's SHA-256."""
-    from brdfkit.io.tensorfile import open_safetensors
+def _checked(m: Bundle, part: str) -> str:
+    """The path of an installed bundle's ``part`` file after checking it against the
+    digest the manifest records (the module's table)."""
+    p = m.parts[part]
+    if not os.path.isfile(p.path):
+        raise InputError(f"built-in model {m.name!r}: its file {p.file} is not installed")
+    if part in _HEADER_DIGEST:
+        from brdfkit.io.tensorfile import open_safetensors
 
-    file, want = {"model": (m.file, m.fingerprint), "prior": (m.prior, m.prior_fingerprint),
-                  "basis": (m.basis, m.basis_fingerprint)}[part]
-    path = os.path.join(os.path.dirname(m.path), file)
-    if not os.path.isfile(path):
-        raise InputError(f"built-in model {m.name!r}: its file {file} is not installed")
-    if part == "basis":
+        with open_safetensors(p.path, framework="numpy", diagnose="brdfkit model file") as f:
+            recorded = (f.metadata() or {}).get("fingerprint")  # the header's key, kept since format 1
+    else:
         from brdfkit.io.digest import cached_file_digest
 
-        recorded = cached_file_digest(path)
-    else:
-        with open_safetensors(path, framework="numpy", diagnose="brdfkit model file") as f:
-            recorded = (f.metadata() or {}).get("fingerprint")
-    if recorded != want:
-        raise FormatError(path, f"built-in model {m.name!r}: the file's digest is {str(recorded)[:12]}, the "
-                                f"manifest's {want[:12]}: the file is damaged or was replaced")
-    return path
+        recorded = cached_file_digest(p.path)
+    if recorded != p.digest:
+        raise FormatError(p.path, f"built-in model {m.name!r}: the file's digest is {str(recorded)[:12]}, the "
+                                  f"manifest's {p.digest[:12]}: the file is damaged or was replaced")
+    return p.path
 
 
-def _builtin_part(spec, part: str) -> str:
-    """An installed built-in's ``part`` file by name; :class:`InputError` otherwise (an
-    unknown name, or a built-in without that part, naming the built-ins that have it)."""
-    installed = builtin_models()
-    for m in installed:
-        if m.name == spec:
-            if part != "model" and getattr(m, part) is None:
-                what = {"prior": "learnt prior", "basis": "PCA basis"}[part]
-                having = ", ".join(e.name for e in installed if getattr(e, part)) or "none installed"
-                raise InputError(f"built-in model {m.name!r} ships no {what} (built-ins with one: {having}; "
-                                 f"`brdfkit models` lists them)")
-            return _checked(m, part)
-    raise _unknown(os.fspath(spec), installed)
-
-
-def resolve_prior(spec: str | os.PathLike) -> str:
-    """The learnt-prior model file a ``-m`` value names: a path as it is, else the
-    learnt prior of the installed built-in of that name (its fingerprint checked)."""
-    if is_path_spec(spec):
-        return os.fspath(spec)
-    return _builtin_part(spec, "prior")
-
-
-def resolve_basis(spec: str | os.PathLike) -> str:
-    """The PCA basis file a ``-m`` value names: a path as it is, else the basis file of
-    the installed built-in of that name (the one its learnt prior is fitted with), its
-    SHA-256 checked against the manifest.
-
-    Raises
-    ------
-    InputError
-        An unknown name, or a built-in that ships no basis, the message naming the
-        built-ins that do.
-    """
-    if is_path_spec(spec):
-        return os.fspath(spec)
-    return _builtin_part(spec, "basis")
-
-
-def is_builtin_basis(path: str | os.PathLike) -> bool:
-    """Whether ``path`` is the basis file of an installed built-in."""
-    real = os.path.realpath(os.fspath(path))
-    return any(m.basis and os.path.realpath(os.path.join(os.path.dirname(m.path), m.basis)) == real
-               for m in builtin_models())
-
-
-def _unknown(spec: str, installed: list[BuiltinModel]) -> InputError:
+def _unknown(spec: str, installed: list[Bundle]) -> InputError:
     if installed:
         names = ", ".join(m.name for m in installed)
         return InputError(f"unknown model {spec!r}: no such file, and not a built-in model "
@@ -318,53 +299,82 @@ def _unknown(spec: str, installed: list[BuiltinModel]) -> InputError:
                       "(pass a model file made by `brdfkit fit`)")
 
 
-def resolve_model(spec: str | os.PathLike) -> str:
-    """The model file a ``-m`` value names: a path as it is (:func:`is_path_spec`), else
-    the installed built-in of that name, its fingerprint checked.
+def resolve_part(spec: str | os.PathLike, part: str) -> str:
+    """The file of ``part`` (:data:`PARTS`) that a ``-m`` value names: a path as it is
+    (:func:`is_path_spec`), else that part of the installed built-in of that name, its
+    digest checked.
 
     Raises
     ------
     InputError
-        Neither a file nor an installed built-in (one line listing the built-in names).
+        Neither a file nor an installed built-in (one line listing the built-in names),
+        or a built-in without that part (naming those that have it).
     FormatError
-        The built-in's file records another fingerprint than the manifest.
+        The built-in's file records another digest than the manifest.
     """
     if is_path_spec(spec):
         return os.fspath(spec)
-    installed = builtin_models()
+    installed = installed_bundles()
     for m in installed:
         if m.name == spec:
-            return _checked(m)
+            if m.part(part) is None:
+                having = ", ".join(e.name for e in installed if e.part(part)) or "none installed"
+                raise InputError(f"built-in model {m.name!r} ships no {PARTS[part]} (built-ins with one: {having}; "
+                                 f"`brdfkit models` lists them)")
+            return _checked(m, part)
     raise _unknown(os.fspath(spec), installed)
 
 
-def default_model() -> str | None:
-    """The manifest's default built-in, checked, if it is installed; else ``None``."""
-    man = read_manifest()
-    for m in man.installed():
-        if m.default:
-            return _checked(m)
-    return None
+def resolve_network(spec: str | os.PathLike) -> str:
+    """The hypernetwork file a ``-m`` value names (:func:`resolve_part`)."""
+    return resolve_part(spec, "network")
+
+
+def resolve_prior(spec: str | os.PathLike) -> str:
+    """The learnt-prior file a ``-m`` value names (:func:`resolve_part`)."""
+    return resolve_part(spec, "prior")
+
+
+def resolve_basis(spec: str | os.PathLike) -> str:
+    """The PCA basis file a ``-m`` value names (:func:`resolve_part`)."""
+    return resolve_part(spec, "basis")
+
+
+def resolve_residual(spec: str | os.PathLike) -> str:
+    """The basis-residual file a ``-m`` value names (:func:`resolve_part`)."""
+    return resolve_part(spec, "residual")
+
+
+def default_bundle() -> Bundle | None:
+    """The manifest's default bundle if it is installed, else ``None``."""
+    return next((m for m in installed_bundles() if m.default), None)
 
 
 def find_by_digest(digest: str | None) -> str | None:
-    """The installed built-in part whose digest is ``digest`` (an embedding's decoder: a
-    hypernetwork's weights fingerprint or a basis file's SHA-256), checked, or ``None``."""
+    """The installed built-in part whose digest is ``digest`` (the decoder an embedding
+    records), checked, or ``None``."""
     if not digest:
         return None
-    for m in builtin_models():
-        for part, want in (("model", m.fingerprint), ("basis", m.basis_fingerprint)):
-            if want == digest:
+    for m in installed_bundles():
+        for part, p in m.parts.items():
+            if p.digest == digest:
                 return _checked(m, part)
     return None
 
 
+def is_builtin_part(path: str | os.PathLike, part: str) -> bool:
+    """Whether ``path`` is the ``part`` file of an installed built-in."""
+    real = os.path.realpath(os.fspath(path))
+    return any(m.part(part) and os.path.realpath(m.parts[part].path) == real for m in installed_bundles())
+
+
 def write_manifest(folder: str | os.PathLike, entries: list[dict], default: str | None) -> str:
-    """Write ``manifest.json`` into ``folder`` atomically, its entries checked first."""
-    doc = {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION, "default": default, "models": entries}
+    """Write ``manifest.json`` (version 2) into ``folder`` atomically, its entries
+    checked first."""
+    doc = {"format": MANIFEST_FORMAT, "version": MANIFEST_VERSION, "default": default, "bundles": entries}
     path = os.path.join(os.fspath(folder), MANIFEST)
     for d in entries:  # refused before anything is written
-        _entry(path, os.fspath(folder), d, default)
+        _entry(path, os.fspath(folder), d, default, MANIFEST_VERSION)
     with atomic_open(path, "w", encoding="utf-8") as f:
         f.write(json.dumps(doc, indent=1) + "\n")
     return path

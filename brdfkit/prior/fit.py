@@ -37,9 +37,10 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError
-from brdfkit.basis import DEFAULT_COMPONENTS, EPS
-from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net, solve
-from brdfkit.methods.prior.training_data import TrainingTensors, fold_bases, main_basis, to_device, training_cells
+from brdfkit.basis import DEFAULT_COMPONENTS
+from brdfkit.basis.mapping import from_mapped, to_mapped
+from brdfkit.prior.model import PriorConfig, PriorModel, prior_net, solve
+from brdfkit.prior.training_data import TrainingTensors, fold_bases, main_basis, to_device, training_cells
 
 __all__ = ["fit_prior", "FIT_OPTIONS"]
 
@@ -125,8 +126,8 @@ def _mixup(d: TrainingTensors, folds_b, c_pos, q_pos, crho, qrho, mixup, g, dev)
     for rho, pos in ((crho, c_pos), (qrho, q_pos)):
         w = w_all[pos][..., None]
         other = values[partner[:, None], pos]
-        mixed = (torch.exp(t * torch.log(rho * w + EPS) + (1 - t) * torch.log(other * w + EPS)) - EPS) / w
-        rho.copy_(mixed.clamp(min=0))
+        # A blend in the mapped space (any reference cancels: 0 here).
+        rho.copy_(from_mapped(t * to_mapped(rho, w, 0.0) + (1 - t) * to_mapped(other, w, 0.0), w, 0.0, floor=0.0))
 
 
 def _batch_loss(d: TrainingTensors, net, cfg: PriorConfig, recipe: _Recipe, g, dev):
@@ -158,9 +159,9 @@ def _batch_loss(d: TrainingTensors, net, cfg: PriorConfig, recipe: _Recipe, g, d
     c, _ = solve(*rows, sd, cfg.s2, cfg.lam, mu=mu, weight=cfg.weight)
     ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
     mapped = mean + torch.einsum("bqk,blk->bql", comp, c)
-    x = (torch.expm1(mapped.clamp(max=30)) * (ref + EPS) + ref) / w_all[q_pos][..., None]
+    x = from_mapped(mapped.clamp(max=30), w_all[q_pos][..., None], ref, floor=0.0)
     qc = cos_all[q_pos][..., None]
-    loss = ((torch.log1p(x.clamp(min=0) * qc) - torch.log1p(qrho * qc)) ** 2).mean()
+    loss = ((torch.log1p(x * qc) - torch.log1p(qrho * qc)) ** 2).mean()
     reg = recipe.lambda_w * (dc ** 2).mean() + recipe.lambda_z * (z ** 2).mean()
     return loss, reg
 
@@ -246,7 +247,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
         Stop at this many steps or after this many minutes of training, whichever first
         (neither: 3000 steps).
     basis
-        A PCA basis file (``brdfkit fit --method ipca``), or a built-in model's name
+        A PCA basis file (``brdfkit fit --method basis``), or a built-in model's name
         (its basis); ``None``: fit one with ``components`` components to the data.
     folds, mixup, batch_materials, query_size, lr, lambda_w, lambda_z, ema
         The recipe of the module docstring.
@@ -270,7 +271,7 @@ def fit_prior(data, output, *, exclude=(), progress: bool = True, latent_dim: in
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.runtime import resolve_device
     from brdfkit.io.folders import collect_materials
-    from brdfkit.methods.prior.prior_file import save_prior
+    from brdfkit.prior.prior_file import save_prior
 
     if steps is None and minutes is None:
         steps = 3000

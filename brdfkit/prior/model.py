@@ -12,7 +12,7 @@ samples outweigh whatever the network says.
 Closed-form fit (:func:`solve`)
 -------------------------------
 With the basis's mapped value of a sample ``b = ln((rho w + eps) / (x_ref + eps)) - mean``
-(:mod:`brdfkit.methods.ipca`), per channel::
+(:mod:`brdfkit.basis.model`), per channel::
 
     min_c  sum_s q_s (A_s c - b_s)^2 + |(c - mu) / sigma|^2,
     q_s = g_s^2 / s2 + 1 / lam,      g_s = cos_i (rho + eps / w) / (1 + rho cos_i)
@@ -50,7 +50,8 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE
 from brdfkit.geometry.trilinear import lookup_trilinear
-from brdfkit.basis import EPS, PcaBasis
+from brdfkit.basis import PcaBasis
+from brdfkit.basis.mapping import EPS, to_mapped
 
 __all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF", "SPREAD_LOG_BOUND"]
 
@@ -94,7 +95,7 @@ class PriorConfig:
 
     def record(self) -> dict:
         """The config as a model file records it: without ``spread`` when it is off, so a
-        file from before the option is saved again as it was (same fingerprint)."""
+        file from before the option is saved again as it was (same digest)."""
         d = dataclasses.asdict(self)
         if not self.spread:
             del d["spread"]
@@ -178,7 +179,7 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
     import torch
 
     ref, mean, comp = tab[..., 0:1], tab[..., 1:2], tab[..., 2:].double()
-    b = torch.log((rho * w[..., None] + EPS) / (ref + EPS)) - mean
+    b = to_mapped(rho, w[..., None], ref) - mean
     g = cos[..., None] * (rho + EPS / w[..., None]) / (1 + rho * cos[..., None])
     q = ((g if weight == "energy" else g ** 2) / s2 + 1.0 / lam).double()
     sig = sigma.double() if sigma.dim() == 3 else sigma.double()[:, None]  # (B, 3 or 1, K)
@@ -197,7 +198,7 @@ def sample_rows(basis: PcaBasis, samples):
     own angles), as :meth:`PcaBasis.coefficients` reads it."""
     from brdfkit.geometry import cos_theta_i
 
-    tab = lookup_trilinear(basis._table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
+    tab = lookup_trilinear(basis.lookup_table().reshape(GRID_SHAPE + (-1,)), samples.theta_h, samples.theta_d,
                            samples.phi_d).astype(np.float64)
     w = basis.weight(samples.theta_h, samples.theta_d, samples.phi_d)
     rgb = np.asarray(samples.rgb, np.float64)
@@ -221,15 +222,15 @@ class PriorModel:
         :class:`PriorConfig`.
     meta
         Training record (``materials``, ``steps``, ``wall_time_s`` ...).
-    fingerprint
-        sha256 hex of the weights and the basis (:mod:`brdfkit.methods.prior.prior_file`).
+    digest
+        sha256 hex of the weights and the basis (:mod:`brdfkit.prior.prior_file`).
     """
 
     basis: PcaBasis
     net: object
     cfg: PriorConfig
     meta: dict = dataclasses.field(default_factory=dict)
-    fingerprint: str = ""
+    digest: str = ""
 
     def coefficients(self, samples, *, use_prior: bool = True) -> np.ndarray:
         """Basis coefficients ``(K, 3)`` fitted to a sample set (BRDF in 1/sr): the plain

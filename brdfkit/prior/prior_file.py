@@ -4,10 +4,10 @@ One file holds the network's weights (``net.*``) and its basis, either inside
 (``basis.*`` tensors and metadata, as :func:`brdfkit.basis.basis_file.basis_tensors` writes them) or in a
 basis file beside it (metadata ``basis_file``, a bare name, and ``basis_digest``, the
 sha256 of that file), so that the built-in models trained on one basis ship it once.
-Metadata ``config`` is the :class:`~brdfkit.methods.prior.model.PriorConfig` as JSON and
-``fingerprint`` the sha256 of the weights, the basis and that config (the likelihood in
+Metadata ``config`` is the :class:`~brdfkit.prior.model.PriorConfig` as JSON and
+``digest`` the sha256 of the weights, the basis and that config (the likelihood in
 it changes what the model reconstructs), checked on loading. Files written before the
-config held a likelihood (no ``weight`` in it) carry the fingerprint of the weights and
+config held a likelihood (no ``weight`` in it) carry the digest of the weights and
 the basis alone, and are read as they were.
 """
 
@@ -23,7 +23,7 @@ from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.io.digest import file_digest
 from brdfkit.errors import FormatError, InputError
 from brdfkit.basis import basis_tensors, load_basis, read_basis, save_basis, storage_of
-from brdfkit.methods.prior.model import PriorConfig, PriorModel, prior_net
+from brdfkit.prior.model import PriorConfig, PriorModel, prior_net
 
 __all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior", "basis_entry"]
 
@@ -40,7 +40,7 @@ def _digest(tensors: dict) -> str:
     return h.hexdigest()
 
 
-def _fingerprint(net_digest: str, basis_digest: str, config: str) -> str:
+def _content_digest(net_digest: str, basis_digest: str, config: str) -> str:
     """sha256 hex of the network, the basis and the config JSON; without ``weight`` in
     the config (files from before the likelihood options) of the first two only."""
     legacy = "weight" not in json.loads(config)
@@ -49,7 +49,7 @@ def _fingerprint(net_digest: str, basis_digest: str, config: str) -> str:
 
 def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False, phi_stride: int = 1,
                int8: bool = False, basis_file: str | None = None) -> str:
-    """Write ``model`` atomically; returns its fingerprint.
+    """Write ``model`` atomically; returns its digest.
 
     Parameters
     ----------
@@ -60,7 +60,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
         A bare file name: the basis goes into that file beside ``path`` (written when it
         does not exist, else checked to hold the same basis) instead of inside.
     """
-    from safetensors.numpy import save_file
+    from brdfkit.io.tensorfile import write_safetensors
 
     path = os.fspath(path)
     net = {f"net.{k}": v.detach().cpu().float().numpy() for k, v in model.net.state_dict().items()}
@@ -91,11 +91,11 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
         tensors = net
         basis_digest = file_digest(where)
         meta.update(basis_file=basis_file, basis_digest=basis_digest)
-    fingerprint = _fingerprint(_digest(net), basis_digest, meta["config"])
-    meta["fingerprint"] = fingerprint
+    digest = _content_digest(_digest(net), basis_digest, meta["config"])
+    meta["fingerprint"] = digest
     with atomic_path(path) as tmp:
-        save_file(tensors, tmp, metadata=meta)
-    return fingerprint
+        write_safetensors(tmp, tensors, meta)
+    return digest
 
 
 def is_prior_file(path: str | os.PathLike) -> bool:
@@ -110,14 +110,14 @@ def is_prior_file(path: str | os.PathLike) -> bool:
 
 
 def basis_entry(path: str | os.PathLike) -> dict:
-    """The manifest fields of the basis file a learnt prior keeps beside it
-    (:mod:`brdfkit.models.builtin`): ``{"basis": name, "basis_fingerprint": sha256}``, or
+    """The manifest part of the basis file a learnt prior keeps beside it
+    (:mod:`brdfkit.models.builtin`): ``{"basis": {"file": name, "digest": sha256}}``, or
     ``{}`` for a prior that holds its basis inside (header only)."""
     from brdfkit.io.tensorfile import open_safetensors
 
     with open_safetensors(os.fspath(path)) as f:
         meta = f.metadata() or {}
-    return {"basis": meta["basis_file"], "basis_fingerprint": meta["basis_digest"]} if "basis_file" in meta else {}
+    return {"basis": {"file": meta["basis_file"], "digest": meta["basis_digest"]}} if "basis_file" in meta else {}
 
 
 def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
@@ -127,7 +127,7 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
     ------
     FormatError
         Not such a file, a missing or changed basis file, inconsistent tensors, or
-        weights that do not match the recorded fingerprint.
+        weights that do not match the recorded digest.
     """
     import torch
 
@@ -161,8 +161,8 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
         else:
             basis = read_basis(f, path, prefix="basis.")
             basis_digest = _digest({k: f.get_tensor(k) for k in f.keys() if k.startswith("basis.")})
-    if _fingerprint(_digest(net_t), basis_digest, meta["config"]) != meta.get("fingerprint"):
-        raise FormatError(path, "the weights or the config do not match the recorded fingerprint: "
+    if _content_digest(_digest(net_t), basis_digest, meta["config"]) != meta.get("fingerprint"):
+        raise FormatError(path, "the weights or the config do not match the recorded digest: "
                                 "the file is damaged")
     if basis.n_components != cfg.n_components:
         raise FormatError(path, f"the basis has {basis.n_components} components, the network expects "
@@ -188,7 +188,7 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
 def pack_prior(src: str | os.PathLike, dst: str | os.PathLike, basis_file: str) -> str:
     """Re-save a learnt-prior model for shipping with its basis in the shared file
     ``basis_file`` beside ``dst``, stored as the source stores it (so the model is the
-    same to the bit). Returns the packed file's fingerprint (for the manifest)."""
+    same to the bit). Returns the packed file's digest (for the manifest)."""
     from brdfkit.io.tensorfile import open_safetensors
 
     model = load_prior(src)

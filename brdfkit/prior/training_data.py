@@ -1,8 +1,8 @@
-"""The training data of the learnt prior (:func:`brdfkit.methods.prior.fit.fit_prior`): the
+"""The training data of the learnt prior (:func:`brdfkit.prior.fit.fit_prior`): the
 basis, the cells trained on, the held-out fold bases and the tensors on the device.
 
 The fold bases are what makes the residuals the network learns from look like those of
-a material no basis has seen (the module docstring of :mod:`brdfkit.methods.prior.fit`):
+a material no basis has seen (the module docstring of :mod:`brdfkit.prior.fit`):
 each fold's basis is fitted without its materials, stored as the main basis is stored,
 and rotated onto the main basis (orthogonal Procrustes over the cells) so that a
 coefficient means the same in all of them.
@@ -24,7 +24,7 @@ __all__ = ["TrainingTensors", "main_basis", "training_cells", "fold_bases", "to_
 
 
 def _storage(path: str) -> dict:
-    """How the basis file ``path`` stores its basis (:func:`brdfkit.methods.ipca.storage_of`)."""
+    """How the basis file ``path`` stores its basis (:func:`brdfkit.basis.storage_of`)."""
     from brdfkit.io.tensorfile import open_safetensors
 
     with open_safetensors(path) as f:
@@ -52,7 +52,7 @@ def _resolve_basis(spec) -> str:
 def main_basis(basis, components, paths, names, say):
     """The model's basis: the file or built-in ``basis``, or one of ``components``
     components fitted to ``paths``. Returns ``(basis, storage, components)``, ``storage``
-    how its file stores it (:func:`brdfkit.methods.ipca.storage_of`)."""
+    how its file stores it (:func:`brdfkit.basis.storage_of`)."""
     if basis is not None:
         bpath = _resolve_basis(basis)
         storage = _storage(bpath)
@@ -105,13 +105,13 @@ def fold_bases(paths, fold_of, folds, full, cells, components, storage, say):
     sigmas : numpy.ndarray
         float32 ``(folds, K)``: the spread of the rotated coefficients.
     """
-    full_comp = full._table()[cells][:, 2:].astype(np.float64)
+    full_comp = full.lookup_table()[cells][:, 2:].astype(np.float64)
     tabs, sigmas = [], []
     for f in range(folds):
         say(f"fitting the basis of fold {f + 1} of {folds}")
         keep = [p for p, fo in zip(paths, fold_of) if fo != f]
         fb = _as_stored(fit_basis(keep, components, w_floor=full.w_floor), storage)
-        tab = fb._table()[cells].astype(np.float64)
+        tab = fb.lookup_table()[cells].astype(np.float64)
         if not np.isfinite(tab).all():
             tab = np.nan_to_num(tab)  # a cell only the held-out fold measured: the reference
         # Procrustes: one meaning per coefficient in every fold basis.

@@ -16,14 +16,16 @@ Modules, one concept each:
   of a hyponet;
 * :mod:`.display`: the display encoding every image metric, PNG and error uses;
 * :mod:`.image`: EXR and PNG files;
-* :mod:`.file_render`: BRDF files rendered, in the reference scene or a Mitsuba scene;
+* :mod:`.scene_suite`, :mod:`.objective`: the judged scenes, and what a refinement on
+  renders may descend;
 * :mod:`.mitsuba3`: the ``brdfkit`` BSDF for Mitsuba 3 and path-traced renders.
 
 May import: the ground floor, :mod:`brdfkit.geometry` and :mod:`brdfkit.io`; a renderer
 evaluates any object with ``eval_dirs``, and a hyponet through its model's own methods,
-so the core imports nothing of the hypernetwork. ``file_render`` and ``mitsuba3`` open
-BRDF files through :mod:`brdfkit.brdf_file`, inside their functions. Nothing here is
-imported by ``import brdfkit``; torch and Mitsuba load only when used.
+so nothing here imports the hypernetwork, the basis or any layer above. BRDF *files* are
+rendered by :mod:`brdfkit.files.render_file`, which registers the file loader the Mitsuba
+plugin opens a scene's files with. Nothing here is imported by ``import brdfkit``; torch
+and Mitsuba load only when used.
 """
 
 from __future__ import annotations

@@ -91,7 +91,7 @@ class EnvMap:
     def shape(self):
         return self.image.shape[:2]
 
-    def fingerprint(self) -> str:
+    def digest(self) -> str:
         """Short hash of the pixels (names the cached EXR)."""
         return hashlib.sha256(np.ascontiguousarray(self.image).tobytes()).hexdigest()[:16]
 
@@ -135,7 +135,7 @@ class EnvMap:
         folder = os.fspath(folder or os.environ.get("BRDFKIT_CACHE")
                            or os.path.join(os.path.expanduser("~"), ".cache", "brdfkit"))
         os.makedirs(folder, exist_ok=True)
-        path = os.path.join(folder, f"envmap-{self.fingerprint()}.exr")
+        path = os.path.join(folder, f"envmap-{self.digest()}.exr")
         if not os.path.exists(path):
             write_exr(path, self.image)
         return path

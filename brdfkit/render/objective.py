@@ -32,7 +32,7 @@ import numpy as np
 
 from brdfkit.errors import InputError, require_counts
 
-__all__ = ["OBJECTIVE", "THREADS", "ObjectiveConfig", "ObjectiveView", "draw_pairs", "objective_views"]
+__all__ = ["OBJECTIVE", "THREADS", "ObjectiveConfig", "ObjectiveView", "draw_pairs", "objective_views", "Adam"]
 
 OBJECTIVE = ("studio-0", "studio-1", "studio-2", "studio-3")
 """The scenes a refinement descends: four of the suite's objective scenes, none of them
@@ -235,3 +235,47 @@ def objective_views(table, cfg: ObjectiveConfig, device) -> list[ObjectiveView]:
         views.append(ObjectiveView(sc, idx, wts, torch.from_numpy(fit).to(device), held,
                                    torch.isin(sc.pix, held).nonzero().squeeze(1), target.float()))
     return views
+
+
+class Adam:
+    """Adam (Kingma and Ba 2015) over a few tensors, the refinements' optimiser.
+
+    Written out because ``torch.optim.Adam``'s constructor imports ``torch._dynamo``: 2 s
+    of a 5 s ``brdfkit encode`` on an idle 2-core machine, for an update of 39 numbers.
+    The update is torch's (defaults ``betas = (0.9, 0.999)``, ``eps = 1e-8``, no weight
+    decay): ``p -= lr / (1 - b1^t) m / (sqrt(v) / sqrt(1 - b2^t) + eps)``.
+
+    Examples
+    --------
+    >>> import torch
+    >>> z = torch.zeros(2, requires_grad=True)
+    >>> opt = Adam([z], lr=0.1)
+    >>> ((z - 1) ** 2).sum().backward(); opt.step()
+    >>> [round(float(x), 6) for x in z]
+    [0.1, 0.1]
+    """
+
+    def __init__(self, params, lr: float, betas=(0.9, 0.999), eps: float = 1e-8):
+        import torch
+
+        self.params = list(params)
+        self.lr, (self.b1, self.b2), self.eps, self.t = float(lr), betas, float(eps), 0
+        self.m = [torch.zeros_like(p) for p in self.params]
+        self.v = [torch.zeros_like(p) for p in self.params]
+
+    def zero_grad(self, set_to_none: bool = True) -> None:
+        for p in self.params:
+            p.grad = None
+
+    def step(self) -> None:
+        import torch
+
+        self.t += 1
+        c1, c2 = 1 - self.b1 ** self.t, (1 - self.b2 ** self.t) ** 0.5
+        with torch.no_grad():
+            for p, m, v in zip(self.params, self.m, self.v):
+                if p.grad is None:
+                    continue
+                m.mul_(self.b1).add_(p.grad, alpha=1 - self.b1)
+                v.mul_(self.b2).addcmul_(p.grad, p.grad, value=1 - self.b2)
+                p.addcdiv_(m, (v.sqrt() / c2).add_(self.eps), value=-self.lr / c1)

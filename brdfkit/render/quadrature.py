@@ -82,7 +82,7 @@ _PAIRS: dict = {}
 def _techniques(q, env, device):
     """The :class:`~brdfkit.render.pairs.Techniques` of ``(q, env, device)``, the last one
     kept per process (a render of several BRDFs in turn builds it once)."""
-    key = (q, env.fingerprint(), env.bright, str(device))
+    key = (q, env.digest(), env.bright, str(device))
     if key not in _TECHNIQUES:
         _TECHNIQUES.clear()
         _TECHNIQUES[key] = Techniques(NodeSet(q, env), env, device)
@@ -160,7 +160,7 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
         raise ValueError(f"BRDFs rendered together must share a device, got {sorted(map(str, devs))}")
     dev = torch.device(devs[0])
     normals = np.ascontiguousarray(normals, np.float64)
-    key = (q, env.fingerprint(), env.bright, str(dev), tuple(map(float, wo_world)),
+    key = (q, env.digest(), env.bright, str(dev), tuple(map(float, wo_world)),
            hashlib.sha256(normals.tobytes()).hexdigest())
     cached = _PAIRS.get(key)
     if cached is None:

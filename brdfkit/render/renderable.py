@@ -9,7 +9,7 @@ the horizon) and a ``name``. Two kinds exist:
 * :class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`: one material's hyponet, evaluated directly at the
   queried directions (never through a dense table).
 
-:func:`brdfkit.brdf_file.load_brdf` opens either from a file: a MERL ``.binary`` or an
+:func:`brdfkit.files.brdf_file.load_brdf` opens either from a file: a MERL ``.binary`` or an
 embedding ``.emb`` with its model.
 """
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import dataclasses
 import math
 
-__all__ = ["Scene", "REFERENCE", "RESOLUTION", "VIEW_HALF_WIDTH", "SPP", "Quadrature", "QUADRATURE"]
+__all__ = ["Scene", "REFERENCE", "RESOLUTION", "VIEW_HALF_WIDTH", "SPP", "Quadrature", "QUADRATURE", "reference_scene"]
 
 RESOLUTION = 256
 VIEW_HALF_WIDTH = 1.1
@@ -118,3 +118,9 @@ class Scene:
 
 
 REFERENCE = Scene()
+
+
+def reference_scene(resolution: int | None = None, supersample: int = 1):
+    """The reference scene at ``resolution`` pixels square (default its own 256)."""
+    return dataclasses.replace(REFERENCE, resolution=int(resolution or REFERENCE.resolution),
+                               supersample=int(supersample))

@@ -110,7 +110,7 @@ class Screen:
 
     def reference(self, model):
         """The model's ``rho_ref`` at the pairs, float32 ``(M, 3)`` (cached per model;
-        ``model`` a :class:`~brdfkit.hypernet.loaded.NeuralModel`, or anything with its
+        ``model`` a :class:`~brdfkit.hypernet.loaded.LoadedNetwork`, or anything with its
         ``cache``, ``reference_at_pairs`` and ``hyponet_values``)."""
         key = id(self)
         cache = model.cache.screen
@@ -196,7 +196,7 @@ def screen(device=None, resolution: int = SCREEN_RESOLUTION, env=None, q: Quadra
 
     env = env if env is not None else reference_envmap()
     dev = torch.device(device) if device is not None else torch.device("cpu")
-    key = (resolution, env.fingerprint(), env.bright, q, str(dev))
+    key = (resolution, env.digest(), env.bright, q, str(dev))
     if key in _SCREENS:
         return _SCREENS[key]
     normals, inside = Scene(resolution=resolution, quadrature=q).pixel_normals()

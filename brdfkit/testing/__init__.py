@@ -4,7 +4,7 @@
   ``benchmarks/fuzz_parsers.py``; needs hypothesis).
 * :mod:`~brdfkit.testing.mitsuba_measured`: Mitsuba 3's own ``measured`` BSDF on a
   ``.bsdf`` file, in a child process (scalar variants): the judge of the files brdfkit
-  writes (``tests/test_rgl_bsdf.py``, ``benchmarks/rgl_roundtrip.py``).
+  writes (``tests/test_rgl_bsdf.py``, ``benchmarks/studies/rgl_roundtrip.py``).
 
 May import: any library package.
 """

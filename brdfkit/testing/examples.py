@@ -42,11 +42,11 @@ def tiny_model(path: str | os.PathLike, seed: int = 0) -> str:
     :func:`brdfkit.load_model`."""
     import torch
 
-    from brdfkit.hypernet.model_file import save_model
+    from brdfkit.hypernet.network_file import save_network
     from brdfkit.hypernet.network import HyperBRDF, HyperConfig
 
     torch.manual_seed(seed)
-    save_model(path, HyperBRDF(HyperConfig(**TINY_CONFIG)), lambertian_table(), {"materials": [], "steps": 0})
+    save_network(path, HyperBRDF(HyperConfig(**TINY_CONFIG)), lambertian_table(), {"materials": [], "steps": 0})
     return os.fspath(path)
 
 

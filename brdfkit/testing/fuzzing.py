@@ -64,7 +64,7 @@ def _take(path) -> bytes:
         shutil.rmtree(os.path.dirname(path), ignore_errors=True)
 
 
-# The seed model: a hypernetwork small enough that a model file is a few kilobytes (the
+# The seed model: a hypernetwork small enough that a network file is a few kilobytes (the
 # tiny configuration of the test suite), untrained.
 SEED_MODEL_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
                          decoder_hidden=16, decoder_layers=1)
@@ -76,11 +76,11 @@ def model_seed() -> bytes:
 
     from brdfkit.materials import synthetic
     from brdfkit.hypernet.network import HyperBRDF, HyperConfig
-    from brdfkit.hypernet.model_file import save_model
+    from brdfkit.hypernet.network_file import save_network
 
     path = os.path.join(_seed_folder(), "model.safetensors")
     torch.manual_seed(0)
-    save_model(path, HyperBRDF(HyperConfig(**SEED_MODEL_CONFIG)), synthetic.table(synthetic.STIFF[2]),
+    save_network(path, HyperBRDF(HyperConfig(**SEED_MODEL_CONFIG)), synthetic.table(synthetic.STIFF[2]),
                {"materials": ["stiff-white"], "steps": 0})
     return _take(path)
 
@@ -90,7 +90,7 @@ def embedding_seed() -> bytes:
     from brdfkit.io.embedding import Embedding, write_embedding
 
     path = os.path.join(_seed_folder(), "a.emb")
-    write_embedding(path, Embedding(np.linspace(-1, 1, 7), "latent", "ab" * 32, "mat.binary", 40))
+    write_embedding(path, Embedding(np.linspace(-1, 1, 7), "hypernet", "ab" * 32, "mat.binary", 40))
     return _take(path)
 
 
@@ -172,9 +172,9 @@ def _read_measurement_csv(path):
 
 
 def _read_model(path):
-    from brdfkit.hypernet.model_file import load_model
+    from brdfkit.hypernet.network_file import load_network
 
-    return load_model(path, "cpu")
+    return load_network(path, "cpu")
 
 
 def _read_embedding(path):
@@ -220,7 +220,7 @@ PARSERS = {p.name: p for p in (
     Parser("read_pbrt_brdf", _read_pbrt_brdf, ".brdf", brdf_seed),
     Parser("read_measurement_csv", _read_measurement_csv, ".csv", measurement_csv_seed),
     Parser("read_embedding", _read_embedding, ".emb", embedding_seed),
-    Parser("load_model", _read_model, ".safetensors", model_seed, safetensors=True),
+    Parser("load_network", _read_model, ".safetensors", model_seed, safetensors=True),
     Parser("load_reference", _read_reference, ".safetensors", reference_seed, safetensors=True),
     Parser("load_basis", _read_basis, ".safetensors", ipca_seed, safetensors=True),
 )}

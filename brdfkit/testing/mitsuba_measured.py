@@ -1,5 +1,5 @@
 """Mitsuba 3's own ``measured`` BSDF on a ``.bsdf`` file: the judge of the files brdfkit
-writes (``tests/test_rgl_bsdf.py``, ``benchmarks/rgl_roundtrip.py``).
+writes (``tests/test_rgl_bsdf.py``, ``benchmarks/studies/rgl_roundtrip.py``).
 
 Mitsuba runs in a child process with a scalar variant (``scalar_rgb``, or
 ``scalar_spectral`` for spectral files), which needs no libLLVM, so that it neither

@@ -12,7 +12,7 @@ containers and never runs pickled code. It holds:
 * ``net`` (the model's ``state_dict``) and ``optimizer`` (Adam's ``state_dict``);
 * the identity of the run, checked on resume: ``config`` (HyperConfig JSON), ``options``
   (the sampling and optimiser settings, JSON), ``materials``, ``data_digest``, ``seed``,
-  ``world_size``, ``reference_from`` (the weights fingerprint of the model whose
+  ``world_size``, ``reference_from`` (the weights digest of the model whose
   reference table the run trains against, ``fit(reference=...)``; ``None``: the median
   of the training materials; absent in checkpoints from before that option, read as
   ``None``; :meth:`brdfkit.hypernet.training.dataset.GivenReference.check_resumable`).

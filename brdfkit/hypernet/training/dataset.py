@@ -44,8 +44,8 @@ class GivenReference:
 
     Attributes
     ----------
-    path, fingerprint
-        The model file it was taken from and that model's weights fingerprint; ``None``:
+    path, digest
+        The network file it was taken from and that network's weights digest; ``None``:
         the median of the training materials (eq. 1).
     table
         float32 ``(90, 90, 180, 3)``, 1/sr, NaN where unmeasured; ``None`` for the median.
@@ -53,14 +53,14 @@ class GivenReference:
 
     path: str | None = None
     table: np.ndarray | None = None
-    fingerprint: str | None = None
+    digest: str | None = None
 
     def check_resumable(self, ckpt: str, state: dict) -> None:
         """Refuse a checkpoint (``state``, its ``reference_from``) trained against
         another reference: the mapped values, and so the weights, depend on it."""
         was = state.get("reference_from")  # absent in older checkpoints: the median
-        if was != self.fingerprint:
-            then, now = (f"model {str(fp)[:12]}" if fp else "the median" for fp in (was, self.fingerprint))
+        if was != self.digest:
+            then, now = (f"model {str(fp)[:12]}" if fp else "the median" for fp in (was, self.digest))
             raise InputError(f"{ckpt}: checkpoint was trained against another reference table "
                              f"({then} then, {now} now); train afresh without --resume, or give "
                              f"the same reference")
@@ -72,9 +72,9 @@ def given_reference(spec) -> GivenReference:
     Parameters
     ----------
     spec
-        A brdfkit hypernetwork model file (``.safetensors``, loaded on the CPU, nothing
+        A brdfkit network file (``.safetensors``, loaded on the CPU, nothing
         unpickled) or the name of an installed built-in model
-        (:func:`brdfkit.models.builtin.resolve_model`); ``None``: the median of the
+        (:func:`brdfkit.models.builtin.resolve_network`); ``None``: the median of the
         training materials.
 
     Raises
@@ -82,21 +82,21 @@ def given_reference(spec) -> GivenReference:
     InputError
         Not a string or path, no such file, or a name that is no installed built-in.
     FormatError
-        Not a brdfkit model file, or a damaged one; a reference with negative values.
+        Not a brdfkit network file, or a damaged one; a reference with negative values.
     """
-    from brdfkit.models.builtin import resolve_model
-    from brdfkit.hypernet.model_file import load_model
+    from brdfkit.models.builtin import resolve_network
+    from brdfkit.hypernet.network_file import load_network
 
     if spec is None:
         return GivenReference()
     if not isinstance(spec, (str, os.PathLike)) or not os.fspath(spec):
         raise InputError(f"training option reference: {spec!r} is not a model file or built-in model name")
-    path = resolve_model(spec)
-    model = load_model(path, device="cpu")
+    path = resolve_network(spec)
+    model = load_network(path, device="cpu")
     ref = np.ascontiguousarray(model.rho_ref, dtype=np.float32)
     if (ref < 0).any():  # the mapping divides by rho_ref + eps (eq. 1): a BRDF is never negative
         raise FormatError(path, "its reference table has negative values")
-    return GivenReference(path, ref, model.fingerprint)
+    return GivenReference(path, ref, model.digest)
 
 
 class TrainingSet:

@@ -23,7 +23,7 @@ import time
 
 from brdfkit.atomic import refuse_overwrite_of_inputs
 from brdfkit.hypernet.training.display import TrainingDisplay
-from brdfkit.hypernet.training.distributed import ProcessGroup, StopSignals
+from brdfkit.distributed import ProcessGroup, StopSignals
 from brdfkit.errors import InputError, TrainingError
 from brdfkit.hypernet.training.options import TrainOptions, lr_factor, parse_options
 
@@ -43,7 +43,7 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
         A ``.binary`` file or folder, or a sequence of them (folders: their ``*.binary``
         files). Materials are named by file stem and sorted by name.
     output
-        Model file to write (``.safetensors``, via :func:`brdfkit.hypernet.model_file.save_model`);
+        Model file to write (``.safetensors``, via :func:`brdfkit.hypernet.network_file.save_network`);
         the checkpoint goes to ``<output>.ckpt``.
     latent_dim
         Embedding size (40 as in the paper; 7 for compression).
@@ -62,7 +62,7 @@ def fit(data, output, *, latent_dim: int = 40, steps: int | None = None, minutes
     progress
         Show a progress bar and messages on stderr (rank 0 only).
     reference
-        A model file or built-in name whose reference table replaces the median, so that
+        A network file or built-in name whose reference table replaces the median, so that
         models trained on other materials share one reference file (``docs/training.md``).
     **advanced
         :class:`TrainOptions` fields and :class:`~brdfkit.hypernet.network.HyperConfig` fields
@@ -128,7 +128,7 @@ def _collect(data, exclude):
 @dataclasses.dataclass
 class _Run:
     """A training run in progress: the network, its optimiser and the counters that its
-    checkpoint, its progress line and its model file record.
+    checkpoint, its progress line and its network file record.
 
     Attributes
     ----------
@@ -138,7 +138,7 @@ class _Run:
         The architecture and the :class:`TrainOptions`.
     names, digest, seed, world, reference_from
         The materials, the training set's digest, the seed, the number of processes and
-        the fingerprint of the reference's model (``None``: the median of the materials).
+        the digest of the reference's model (``None``: the median of the materials).
     t_start
         ``time.monotonic()`` at the call of :func:`fit`.
     steps, budget
@@ -146,7 +146,7 @@ class _Run:
         of ``--minutes``, turned into ``steps`` before the first step
         (:mod:`brdfkit.hypernet.training.budget`) and then ``None``.
     budget_record
-        How ``--minutes`` chose ``steps`` (``None``: it did not), for the model file.
+        How ``--minutes`` chose ``steps`` (``None``: it did not), for the network file.
     step, elapsed_before, skipped, resumed_from
         Steps done, seconds spent by the runs this one resumes, steps skipped for a
         non-finite loss, and the steps the training was resumed at.
@@ -367,33 +367,33 @@ def _loop(run: _Run, model, sampler, dist, show, ckpt) -> float:
 
 def _finish(run: _Run, dist, show, output, ckpt, rho_ref, excluded, t_loop, start_step):
     """Check that the processes ended with the same weights; rank 0 writes the last
-    checkpoint and the model file (with its provenance) and logs them."""
+    checkpoint and the network file (with its provenance) and logs them."""
     from brdfkit.hypernet.training.checkpoint import save_checkpoint
-    from brdfkit.hypernet.model_file import save_model, weights_fingerprint
+    from brdfkit.hypernet.network_file import save_network, weights_digest
 
     loop_time = time.monotonic() - t_loop
     recent, step, skipped = run.recent, run.step, run.skipped
     final_loss = sum(r[0] for r in recent) / len(recent) if recent else float("nan")
     final_mse = sum(r[1] for r in recent) / len(recent) if recent else float("nan")
-    fingerprints = dist.gather_hex(weights_fingerprint(run.net))
-    if len(set(fingerprints)) != 1:
-        raise TrainingError(f"the processes ended with different weights ({', '.join(f[:12] for f in fingerprints)})")
+    digests = dist.gather_hex(weights_digest(run.net))
+    if len(set(digests)) != 1:
+        raise TrainingError(f"the processes ended with different weights ({', '.join(f[:12] for f in digests)})")
     wall = run.elapsed_before + (time.monotonic() - run.t_start)
     meta = {"method": "hypernet", "materials": run.names, "excluded": excluded, "steps": step,
             "skipped_steps": skipped, "wall_time_s": round(wall, 3), "seed": run.seed,
             "world_size": run.world, "final_loss": final_loss, "final_mapped_mse": final_mse,
             "device": dist.device.type, "options": json.loads(run.opts.identity_json()),
-            "resumed_from_steps": run.resumed_from, "rank_fingerprints": fingerprints,
+            "resumed_from_steps": run.resumed_from, "rank_digests": digests,
             "reference_from": run.reference_from,  # None: the median of "materials"
             "budget": run.budget_record,  # how --minutes chose "steps" (None: --steps alone)
             "query_samples_per_s": round(run.samples_total / loop_time, 1) if loop_time > 0 else None}
     if dist.rank == 0:
         save_checkpoint(ckpt, run.checkpoint_state())
-        fp = save_model(output, run.net, rho_ref, meta)
+        fp = save_network(output, run.net, rho_ref, meta)
         show.print(f"trained {step} steps ({step - start_step} in this run, {loop_time:.1f} s, "
                    f"{meta['query_samples_per_s'] or 0:,.0f} query samples/s); final loss {final_loss:.4g} "
                    f"(mapped MSE {final_mse:.4g})" + (f"; {skipped} non-finite step(s) skipped" if skipped else ""))
-        show.print(f"wrote {output} (fingerprint {fp[:12]}); checkpoint {ckpt}")
+        show.print(f"wrote {output} (digest {fp[:12]}); checkpoint {ckpt}")
     dist.barrier()
 
 
@@ -415,7 +415,7 @@ def _train(dist, paths, names, excluded, unknown, output, ckpt, cfg, opts, steps
 
     torch.manual_seed(seed)  # same initial weights on every rank
     net = network.HyperBRDF(cfg).to(device)
-    run = _Run(net, _optimizer(net, opts), cfg, opts, names, tset.digest, seed, world, ref.fingerprint, t_start,
+    run = _Run(net, _optimizer(net, opts), cfg, opts, names, tset.digest, seed, world, ref.digest, t_start,
                steps, minutes * 60.0 if minutes is not None else None)
     if state is not None:
         _resume(run, state, ckpt, show)

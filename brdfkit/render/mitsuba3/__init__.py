@@ -8,6 +8,7 @@
   user's XML scene with one BSDF replaced, renders in passes.
 
 Mitsuba is imported only inside these modules' functions. May import: the ground floor,
-:mod:`brdfkit.geometry`, :mod:`brdfkit.render` and, to open a BRDF file a scene names,
-:mod:`brdfkit.brdf_file`.
+:mod:`brdfkit.geometry` and :mod:`brdfkit.render`. A BRDF file a scene names is opened by
+the loader :mod:`brdfkit.files.brdf_file` registers from above
+(:func:`~brdfkit.render.mitsuba3.bsdf.set_file_opener`).
 """

@@ -40,7 +40,7 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["LOBE_WEIGHTS", "register_source", "estimate_alpha", "open_source", "bsdf_class"]
+__all__ = ["LOBE_WEIGHTS", "register_source", "set_file_opener", "estimate_alpha", "open_source", "bsdf_class"]
 
 # Mixture weights: cosine, GGX(alpha), GGX(4 alpha).
 LOBE_WEIGHTS = (0.25, 0.5, 0.25)
@@ -48,6 +48,16 @@ LOBE_WEIGHTS = (0.25, 0.5, 0.25)
 _sources: dict = {}
 _counter = itertools.count()
 _classes: dict = {}  # the BSDF class, made once per process
+# What opens a BRDF file a scene names: set from above (brdfkit.files.brdf_file registers
+# its loader), since opening an embedding needs the layers above rendering.
+_opener: list = []
+
+
+def set_file_opener(opener) -> None:
+    """Register ``opener(path, model_path=None, device=None) -> BRDF``, what a BSDF's
+    ``filename`` is opened with (:func:`brdfkit.files.brdf_file.load_brdf` registers
+    itself when imported)."""
+    _opener[:] = [opener]
 
 
 def register_source(brdf) -> str:
@@ -101,8 +111,9 @@ def open_source(props) -> object:
         return _sources[key]
     if "filename" not in props:
         raise InputError("brdfkit BSDF: give a 'filename' (.binary or .emb) or a registered 'source'")
-    from brdfkit.brdf_file import load_brdf
-
+    if not _opener:
+        raise InputError("brdfkit BSDF: a 'filename' needs brdfkit's file loader: import brdfkit.files first "
+                         "(the brdfkit command line does)")
     model = props["model"] if "model" in props else None
     filename = str(props["filename"])
     try:  # resolve relative to the scene file, as Mitsuba does for its own files
@@ -113,7 +124,7 @@ def open_source(props) -> object:
             model = str(mi.file_resolver().resolve(str(model)))
     except Exception:
         pass
-    return load_brdf(filename, model_path=model, device="cpu")
+    return _opener[0](filename, model_path=model, device="cpu")
 
 
 def bsdf_class(mi, dr):

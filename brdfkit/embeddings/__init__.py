@@ -1,0 +1,39 @@
+"""Embeddings: a material as a few numbers of one *kind*, decoded by one part of a model.
+
+An embedding (:class:`brdfkit.io.embedding.Embedding`) is a material as ``size`` numbers
+of one kind, decoded by one file, its *decoder*, which it names by digest:
+
+============ ==================================================== =======================
+kind         what the numbers are                                 decoder (model part)
+============ ==================================================== =======================
+``basis``    coefficients of a PCA basis's leading components,     a basis file
+             ``3 K`` numbers, refined on renders                   (:mod:`brdfkit.basis`)
+``hypernet`` a hypernetwork's latent (Gokbudak et al. 2024),       a hypernetwork file
+             refined on renders (``latent`` before)                (:mod:`brdfkit.hypernet`)
+============ ==================================================== =======================
+
+Each kind is one :class:`EmbeddingKind` in :data:`KINDS`, registered by name as
+:data:`brdfkit.methods.METHODS` registers the reconstruction methods. Modules:
+
+* :mod:`~brdfkit.embeddings.kind`: :class:`EmbeddingKind`;
+* :mod:`~brdfkit.embeddings.registry`: :data:`KINDS`, one module per kind beside it;
+* :mod:`~brdfkit.embeddings.parts`: which part of a model a file is, a part loaded;
+* :mod:`~brdfkit.embeddings.decoders`: the decoder ``encode`` uses and the one an
+  embedding needs;
+* :mod:`~brdfkit.embeddings.blend`: two embeddings blended (``brdfkit interpolate``).
+
+May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io`,
+:mod:`brdfkit.models`, :mod:`brdfkit.render` and the packages of the parts
+(:mod:`brdfkit.basis`, :mod:`brdfkit.hypernet`, :mod:`brdfkit.prior`,
+:mod:`brdfkit.residual`), each inside the functions of the kind that needs it.
+"""
+
+from __future__ import annotations
+
+from brdfkit.embeddings.blend import interpolate
+from brdfkit.embeddings.decoders import Decoder, choose_decoder, decoder_for, encode_with, load_decoder, open_embedding
+from brdfkit.embeddings.kind import EmbeddingKind
+from brdfkit.embeddings.registry import KINDS, get_kind, kind_of_part
+
+__all__ = ["EmbeddingKind", "KINDS", "get_kind", "kind_of_part", "Decoder", "load_decoder", "choose_decoder",
+           "decoder_for", "open_embedding", "encode_with", "interpolate"]

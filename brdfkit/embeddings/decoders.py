@@ -1,0 +1,197 @@
+"""How ``encode`` picks its decoder, and how an embedding finds the one it needs.
+
+A *decoder* is a loaded part of a model that turns an embedding's numbers into a BRDF
+(:class:`Decoder`). :func:`choose_decoder` picks the kind and file ``encode`` uses;
+:func:`decoder_for` finds an embedding's own, by the ``-m`` value given or by the digest
+the embedding records among the installed built-ins
+(:func:`brdfkit.models.builtin.find_by_digest`). Loaded decoders are kept per process.
+Nothing here names a kind: each kind's entry in :data:`brdfkit.embeddings.KINDS` says
+what its part is and how it loads, encodes and opens.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import os
+
+import numpy as np
+
+from brdfkit.embeddings.registry import KINDS, get_kind, kind_of_part
+from brdfkit.errors import InputError, ModelMismatchError
+
+__all__ = ["Decoder", "load_decoder", "choose_decoder", "decoder_for", "open_embedding", "encode_with"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Decoder:
+    """A loaded decoder: its ``kind``, the loaded ``obj`` (a
+    :class:`~brdfkit.basis.model.PcaBasis`, a :class:`~brdfkit.hypernet.loaded.LoadedNetwork`,
+    a :class:`~brdfkit.residual.model.BasisResidual`), the ``digest`` embeddings name it by,
+    its ``path`` and a ``label`` for messages."""
+
+    kind: str
+    obj: object
+    digest: str
+    path: str
+    label: str
+
+    @classmethod
+    def of_network(cls, net) -> "Decoder":
+        """The decoder of a hypernetwork loaded already
+        (:class:`~brdfkit.hypernet.loaded.LoadedNetwork`)."""
+        return cls(kind_of_part("network").name, net, net.digest, getattr(net, "path", ""), net.short_digest)
+
+    @property
+    def sizes(self) -> tuple:
+        """The sizes (numbers per material) its embeddings may have."""
+        return tuple(get_kind(self.kind).sizes(self.obj))
+
+    @property
+    def default_size(self) -> int:
+        """The size its embeddings have unless asked for another."""
+        return int(get_kind(self.kind).default_size(self.obj))
+
+    def check_size(self, size: int) -> None:
+        """:class:`InputError` (one line listing the sizes it offers) for a size it does not offer."""
+        sizes = self.sizes
+        if size not in sizes:
+            shown = f"{sizes[0]}, {sizes[1]}, ... {sizes[-1]}" if len(sizes) > 3 else ", ".join(map(str, sizes))
+            raise InputError(f"--size {size}: {self.kind} embeddings of {self.label} hold {shown} numbers")
+
+
+@functools.lru_cache(maxsize=4)
+def _loaded(kind: str, path: str, stamp: tuple, device: str, label: str) -> Decoder:
+    obj, digest = KINDS[kind].load(path, None if device == "auto" else device)
+    return Decoder(kind, obj, digest, path, label or os.path.basename(path))
+
+
+def load_decoder(kind: str, path: str | os.PathLike, device=None, label: str = "") -> Decoder:
+    """The decoder of ``kind`` in the file ``path``, loaded once per process while the file
+    keeps its size and time; ``label`` names it in messages (default: the file's name)."""
+    from brdfkit.atomic import check_input_file
+
+    path = os.path.abspath(check_input_file(path))
+    st = os.stat(path)
+    return _loaded(get_kind(kind).name, path, (st.st_size, st.st_mtime_ns), "auto" if device is None else str(device),
+                   label)
+
+
+def _file_kind(path: str, kind: str | None) -> str:
+    """The kind a model file decodes: ``kind`` when the file is that kind's part, else the
+    first kind of that part (by the part its header records)."""
+    from brdfkit.embeddings.parts import file_part
+
+    part = file_part(path)
+    if kind is not None:
+        if KINDS[kind].part != part:
+            raise InputError(f"{path}: a {part} file, not the {KINDS[kind].part} a {kind} embedding needs "
+                             f"(--kind {kind})")
+        return kind
+    found = kind_of_part(part)
+    if found is None:
+        raise InputError(f"{path}: a learnt-prior model file does not decode embeddings; pass its basis file or a "
+                         f"built-in's name")
+    return found.name
+
+
+def _bundle_kind(bundle, size: int | None, device) -> str:
+    """The first kind of :data:`KINDS` whose part ``bundle`` has and whose decoder offers
+    ``size`` (any, for ``None``)."""
+    from brdfkit.models.builtin import resolve_part
+
+    kinds = [k for k in KINDS.values() if bundle.part(k.part) is not None]
+    for k in kinds:
+        if size is None or size in load_decoder(k.name, resolve_part(bundle.name, k.part), device, bundle.name).sizes:
+            return k.name
+    if not kinds:
+        raise InputError(f"built-in model {bundle.name!r} ships no part that decodes embeddings")
+    return kinds[-1].name  # its size check then names the sizes it offers
+
+
+def choose_decoder(kind: str | None, spec, device=None, size: int | None = None) -> Decoder:
+    """The decoder ``brdfkit encode`` uses for ``--kind`` ``kind``, ``-m`` ``spec`` and
+    ``--size`` ``size``.
+
+    ``spec`` ``None`` means the default built-in. A built-in's name gives, with no
+    ``kind``, the first kind of :data:`KINDS` whose part it ships and whose decoder offers
+    ``size`` (so a size a part does not serve falls back to the next); a file gives the
+    kind its header says. A given ``kind`` takes the part of that kind.
+
+    Raises
+    ------
+    InputError
+        No model given and none installed, an unknown name or kind, a file of another kind
+        than ``kind``, a built-in without the part ``kind`` needs.
+    """
+    from brdfkit.models.builtin import default_bundle, installed_bundles, is_path_spec, resolve_part
+
+    if kind is not None:
+        kind = get_kind(kind).name
+    if spec is None:
+        entry = default_bundle()
+        if entry is None:
+            raise InputError("no model given: pass -m NAME or -m FILE, or set BRDFKIT_MODEL (no default built-in "
+                             "model is installed; `brdfkit models` lists the built-in ones)")
+        spec = entry.name
+    spec = os.fspath(spec)
+    if is_path_spec(spec):
+        return load_decoder(_file_kind(spec, kind), spec, device)
+    if kind is None:
+        entry = next((m for m in installed_bundles() if m.name == spec), None)
+        if entry is None:
+            resolve_part(spec, "network")  # the unknown-name error, listing the installed ones
+        kind = _bundle_kind(entry, size, device)
+    return load_decoder(kind, resolve_part(spec, KINDS[kind].part), device, spec)
+
+
+def decoder_for(emb, spec=None, device=None, name: str = "") -> Decoder:
+    """The decoder of embedding ``emb``: the part of its kind that ``-m`` value ``spec``
+    names, else the installed built-in part whose digest ``emb`` records.
+
+    Raises
+    ------
+    InputError
+        An unknown kind; no ``spec`` and no installed built-in with that digest.
+    ModelMismatchError
+        ``spec`` names a decoder of another digest.
+    """
+    from brdfkit.models.builtin import find_by_digest, resolve_part
+
+    what = f"embedding {name}" if name else "embedding"
+    kind = get_kind(emb.kind)
+    if spec is None:
+        path = find_by_digest(emb.decoder)
+        if path is None:
+            raise InputError(f"{what}: its {emb.kind} decoder {emb.decoder[:12]} is not among the installed built-in "
+                             f"models; pass the file that made it with -m")
+    else:
+        path = resolve_part(spec, kind.part)
+    dec = load_decoder(kind.name, path, device)
+    if dec.digest != emb.decoder:
+        raise ModelMismatchError(f"{what} was made with {emb.kind} decoder {emb.decoder[:12]}, not with "
+                                 f"{dec.label} ({dec.digest[:12]}); encode the material again with it")
+    return dec
+
+
+def open_embedding(emb, decoder: Decoder, name: str = ""):
+    """The renderable BRDF (``eval_dirs``, ``to_table``) of ``emb`` with its decoder."""
+    if decoder.kind != get_kind(emb.kind).name:
+        raise ModelMismatchError(f"embedding {name or ''}: a {emb.kind} embedding, not a {decoder.kind} one")
+    device = getattr(decoder.obj, "device", None)
+    return KINDS[decoder.kind].open(decoder.obj, decoder.digest, emb, name, device)
+
+
+def encode_with(decoder: Decoder, table: np.ndarray, *, source: str = "", size: int | None = None,
+                steps: int | None = None, max_seconds: float | None = None, refine: bool = True):
+    """A dense table as an embedding of ``decoder`` (see :func:`brdfkit.api.encode`).
+
+    Raises
+    ------
+    InputError
+        A size the decoder does not offer.
+    """
+    size = decoder.default_size if size is None else size
+    decoder.check_size(size)
+    return KINDS[decoder.kind].encode(decoder.obj, decoder.digest, table, source=source, size=size, steps=steps,
+                                      max_seconds=max_seconds, refine=refine)

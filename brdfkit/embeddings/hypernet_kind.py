@@ -1,0 +1,39 @@
+"""The ``hypernet`` embedding kind: a hypernetwork's latent (Gokbudak et al. 2024),
+refined on renders (:mod:`brdfkit.hypernet`). Called ``latent`` before; files and
+``--kind`` of that name still read."""
+
+from __future__ import annotations
+
+from brdfkit.embeddings.kind import EmbeddingKind
+
+__all__ = ["KIND"]
+
+
+def _load(path, device):
+    from brdfkit.hypernet.network_file import load_network
+
+    net = load_network(path, device=device)
+    return net, net.digest
+
+
+def _encode(net, digest, table, *, source, size, steps, refine, max_seconds=None):
+    from brdfkit.hypernet.encoding import encode_table
+
+    if not refine:
+        return encode_table(net, table, source)
+    from brdfkit.hypernet.refine_on_screen import DEFAULT_STEPS, compress_table
+    from brdfkit.render.objective import ObjectiveConfig
+
+    cfg = ObjectiveConfig(steps=DEFAULT_STEPS if steps is None else steps, max_seconds=max_seconds)
+    return compress_table(net, table, cfg, source).embedding
+
+
+def _open(net, digest, emb, name, device):
+    from brdfkit.hypernet.neural_brdf import NeuralBRDF
+
+    return NeuralBRDF.from_embedding(net, emb, name)
+
+
+KIND = EmbeddingKind("hypernet", "a hypernetwork's latent, refined on renders (Gokbudak et al. 2024)", "network",
+                     _load, lambda n: (int(n.cfg.latent_dim),), lambda n: int(n.cfg.latent_dim), _encode, _open,
+                     aliases=("latent",), start="encoder pass")

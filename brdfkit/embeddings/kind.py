@@ -1,0 +1,55 @@
+"""What an embedding kind is: :class:`EmbeddingKind`, one entry of
+:data:`brdfkit.embeddings.KINDS`."""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Callable
+
+__all__ = ["EmbeddingKind"]
+
+
+@dataclasses.dataclass(frozen=True)
+class EmbeddingKind:
+    """One kind of embedding: everything ``encode``, ``decode``, ``render``, ``metrics``,
+    ``interpolate``, ``convert`` and the bench need of it.
+
+    Attributes
+    ----------
+    name, summary
+        Registry key (``brdfkit encode --kind``, the ``kind`` of an ``.emb``) and one line
+        for help texts.
+    part
+        The part of a model that decodes it (:data:`brdfkit.models.builtin.PARTS`): a
+        built-in name resolves to that part's file, and a file is of this kind when its
+        header says it is that part (:func:`brdfkit.methods.choice.file_part`).
+    load
+        ``load(path, device) -> (obj, digest)``: the loaded decoder and the digest
+        embeddings name it by.
+    sizes
+        ``sizes(obj) -> sizes``: the numbers per material it offers (ascending).
+    default_size
+        ``default_size(obj) -> int``.
+    encode
+        ``encode(obj, digest, table, *, source, size, steps, refine, max_seconds) ->
+        Embedding``: a dense table (1/sr, NaN unmeasured) as an embedding.
+    open
+        ``open(obj, digest, emb, name, device) -> BRDF``: a renderable BRDF
+        (``eval_dirs``, ``to_table``), after checking the embedding against the decoder.
+    aliases
+        Old names of the kind, still read from files and taken by ``--kind``.
+    start
+        What an embedding of the kind is before any refinement on renders, for messages
+        (``"projection"``, ``"encoder pass"``; ``""``: not said).
+    """
+
+    name: str
+    summary: str
+    part: str
+    load: Callable = dataclasses.field(repr=False)
+    sizes: Callable = dataclasses.field(repr=False)
+    default_size: Callable = dataclasses.field(repr=False)
+    encode: Callable = dataclasses.field(repr=False)
+    open: Callable = dataclasses.field(repr=False)
+    aliases: tuple = ()
+    start: str = ""
