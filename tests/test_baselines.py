@@ -60,6 +60,7 @@ def basis(library):
 
 # --- IPCA -------------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_ipca_leading_components_are_the_smaller_fit(library):
     """A basis's leading components are the basis a smaller fit to the same tables gives
     (what the IPCA baseline takes from a built-in basis of 32 components)."""
@@ -74,6 +75,7 @@ def test_ipca_leading_components_are_the_smaller_fit(library):
         small.leading(6)
 
 
+@pytest.mark.slow
 def test_ipca_basis_shapes_and_orthonormality(basis):
     assert basis.n_components == 4
     assert basis.materials == [f"m{i}" for i in range(12)]
@@ -109,6 +111,7 @@ def test_ipca_held_out_material_beats_the_mean(basis, library):
     assert err < 0.6 * mean_only, (err, mean_only)
 
 
+@pytest.mark.slow
 def test_ipca_arbitrary_angles_and_tiny_sample_sets(basis, lobes, library):
     # Off-grid angles read the basis trilinearly; the fit must still match the material.
     rng = np.random.default_rng(0)
@@ -179,6 +182,7 @@ def _analytic_samples(material, n, seed=0):
     return SampleSet(th[keep], td[keep], pd[keep], synthetic.evaluate(material, wi[keep], wo[keep]))
 
 
+@pytest.mark.slow
 def test_nbrdf_fits_a_smooth_material(library):
     from brdfkit.methods.nbrdf import fit_nbrdf
 
@@ -212,6 +216,7 @@ def test_nbrdf_is_deterministic_by_seed():
     assert a.loss == b.loss
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", ["one-sample", "stiff-mirror", "stiff-black"])
 def test_nbrdf_stays_finite_on_stiff_input(case):
     from brdfkit.methods.nbrdf import fit_nbrdf
@@ -246,6 +251,7 @@ def test_nbrdf_refuses_bad_parameters():
 
 # --- registry ---------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_registry_names_and_uniform_interface(basis, library, tmp_path):
     assert set(METHODS) == {"hypernet", "ipca", "nbrdf", "prior"}
     with pytest.raises(InputError, match="unknown method 'pca'.*ipca"):
@@ -291,6 +297,7 @@ def cli_files(tmp_path_factory, library):
     return d
 
 
+@pytest.mark.slow
 def test_cli_fit_basis_then_sparse(cli_files, capsys, monkeypatch):
     from brdfkit.io.merl import read_merl
     from brdfkit.io.samples import read_samples
@@ -333,6 +340,7 @@ def test_cli_fit_basis_then_sparse(cli_files, capsys, monkeypatch):
     assert not (d / "x.binary").exists() and not (d / "y.safetensors").exists()
 
 
+@pytest.mark.slow
 def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library):
     from brdfkit.io.merl import read_merl
 
@@ -350,6 +358,7 @@ def test_cli_sparse_nbrdf_needs_no_model(cli_files, capsys, monkeypatch, library
     assert code == 2 and "takes no model" in one_error_line(err)
 
 
+@pytest.mark.slow
 def test_registry_hypernet_is_api_sparse(library, tmp_path):
     """The registry's ``hypernet`` entry is exactly ``brdfkit.api.sparse`` with that
     method, refined or not, and refined it is :func:`brdfkit.hypernet.refine_on_samples.refine` (an
@@ -409,6 +418,7 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
         get_fitter("nbrdf")
 
 
+@pytest.mark.slow
 def test_ipca_weight_floor(library, tmp_path):
     """A basis whose mapping weight is bounded below (``w_floor``, issue 22's grazing
     angles): the weight it maps with, its file, and a held-out material's grazing cells

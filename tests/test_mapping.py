@@ -122,6 +122,7 @@ def _constant(value, nan_cells=()):
     return t
 
 
+@pytest.mark.slow
 def test_median_reference_known_tables(tmp_path):
     a = _constant(1.0, [(0, 0, 0), (5, 5, 5)])
     b = _constant(2.0, [(0, 0, 0)])

@@ -16,7 +16,7 @@ from brdfkit.io.embedding import read_embedding
 from brdfkit.residual import ResidualConfig, load_residual, save_residual
 from brdfkit.residual.network import ResidualNet, evaluate, hyponet_weights, net_input
 
-from conftest import run_brdfkit, quiet_env
+from conftest import run_brdfkit, run_cli_uncaptured, quiet_env
 from helpers_training import tiny_library
 
 TINY = ["-O", "sizes=6,12", "-O", "width=8", "-O", "hidden=16", "-O", "batch=4", "-O", "cells=256",
@@ -25,16 +25,17 @@ TINY = ["-O", "sizes=6,12", "-O", "width=8", "-O", "hidden=16", "-O", "batch=4",
 
 @pytest.fixture(scope="module")
 def trained(tmp_path_factory):
-    """A tiny basis of the synthetic library and a residual of it, 6 steps."""
+    """A tiny basis of the synthetic library and a residual of it, 6 steps (``brdfkit fit``
+    in this process: the tests that need a process of its own start theirs)."""
     lib = tiny_library(tmp_path_factory)
     out = tmp_path_factory.mktemp("residual")
     basis = out / "basis.safetensors"
-    r = run_brdfkit(["fit", "--method", "basis", lib, "--components", "4", "-o", basis], env=quiet_env())
-    assert r.returncode == 0, r.stderr
+    code, err = run_cli_uncaptured(["fit", "--method", "basis", lib, "--components", "4", "-o", basis])
+    assert code == 0, err
     res = out / "res.safetensors"
-    r = run_brdfkit(["fit", "--method", "residual", lib, "-O", f"basis={basis}", "--steps", "6", *TINY, "-o", res],
-                    env=quiet_env(), timeout=300)
-    assert r.returncode == 0, r.stderr
+    code, err = run_cli_uncaptured(["fit", "--method", "residual", lib, "-O", f"basis={basis}", "--steps", "6",
+                                    *TINY, "-o", res])
+    assert code == 0, err
     return lib, basis, res
 
 
@@ -73,6 +74,7 @@ def test_an_untrained_residual_is_its_basis(tmp_path):
     np.testing.assert_allclose(res.decode(c, 0.0), load_basis(bpath).leading(2).decode(c), rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_fit_writes_one_network_a_size_and_resumes_to_the_bit(trained, tmp_path):
     """A network for each size, in one file that names its basis; a run stopped by Ctrl-C
     (after its first checkpoint) and resumed gives the same bytes as a run never stopped;
@@ -118,6 +120,7 @@ def test_a_basis_fitted_twice_is_the_same_bytes(trained, tmp_path):
     assert (tmp_path / "b.safetensors").read_bytes() == basis.read_bytes()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("opt", ["-O", "--minutes"])
 def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt):
     lib, basis, _ = trained
@@ -127,6 +130,7 @@ def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt):
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
 
 
+@pytest.mark.slow
 def test_encode_decode_blend_through_the_residual_kind(trained, tmp_path):
     """``encode`` with a residual file makes a ``residual`` embedding that records both
     parts' digests, the same bytes every time; ``decode`` reads it back without torch's
@@ -233,3 +237,26 @@ def test_int8_storage_decodes_as_the_float32_network_to_its_rounding(trained, tm
     a, b = r.correction(c), q.correction(c)
     assert np.abs(a - b).max() <= 5e-3 * max(np.abs(a).max(), 1e-3)
     assert os.path.getsize(tmp_path / "q.safetensors") < 0.45 * os.path.getsize(res)
+
+
+@pytest.mark.slow
+def test_two_process_fit_gives_one_residual_with_identical_ranks(trained, tmp_path):
+    """``torchrun --nproc_per_node 2`` (gloo, CPU): one file, written by rank 0 alone,
+    whose weights both ranks agree on."""
+    import subprocess
+
+    pytest.importorskip("torch.distributed")
+    from conftest import brdfkit_command
+    from test_ddp import torchrun
+
+    lib, basis, _ = trained
+    out = tmp_path / "r.safetensors"
+    env = quiet_env()
+    env.pop("WORLD_SIZE", None)
+    cmd = torchrun() + ["--nproc_per_node", "2", "--no-python", *brdfkit_command(), "fit", "--method", "residual",
+                        str(lib), "-O", f"basis={basis}", *TINY, "--steps", "4", "--device", "cpu", "-o", str(out)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env, cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert sorted(os.listdir(tmp_path)) == ["r.safetensors", "r.safetensors.ckpt"]
+    r = load_residual(out)
+    assert r.meta["world_size"] == 2 and len(set(r.meta["rank_digests"])) == 1

@@ -123,6 +123,7 @@ def trained(stiff, tmp_path_factory):
     return api.load_model(out, "cpu"), folder
 
 
+@pytest.mark.slow
 def test_fit_on_mirror_black_and_white_stays_finite(trained):
     model, _ = trained
     assert model.meta["materials"] == ["black", "mirror", "white"]
@@ -134,6 +135,7 @@ def test_fit_on_mirror_black_and_white_stays_finite(trained):
     assert math.isfinite(model.meta["final_loss"]) and model.meta["final_mapped_mse"] < 1.0
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["mirror", "black"])
 def test_encode_decode_sparse_metrics_on_stiff(trained, stiff, name):
     model, folder = trained
@@ -147,6 +149,7 @@ def test_encode_decode_sparse_metrics_on_stiff(trained, stiff, name):
     assert math.isfinite(brdf_log_rmse(rec, stiff[name]))
 
 
+@pytest.mark.slow
 def test_interpolation_and_extrapolation_stay_finite(trained, stiff):
     model, _ = trained
     a = api.encode(draw_samples(stiff["mirror"], 400, seed=4), model, source="mirror")
@@ -166,6 +169,7 @@ def test_interpolation_and_extrapolation_stay_finite(trained, stiff):
     assert max(peak[-1000.0], peak[1000.0]) > 88.8, peak
 
 
+@pytest.mark.slow
 def test_extrapolation_through_the_cli(trained, tmp_path, capsys):
     from brdfkit.cli import main
     from brdfkit.io.embedding import write_embedding
@@ -189,6 +193,7 @@ def _unit(v):
     return v / v.norm(dim=-1, keepdim=True)
 
 
+@pytest.mark.slow
 def test_eval_dirs_at_extreme_directions(trained, stiff):
     model, _ = trained
     nb = NeuralBRDF.from_embedding(model, api.encode(draw_samples(stiff["mirror"], 500), model))
@@ -286,6 +291,7 @@ def _image_ok(img):
     return bool(np.isfinite(img).all() and (img >= 0).all() and img.max() > 0)
 
 
+@pytest.mark.slow
 def test_render_and_image_metrics_on_stiff(trained, stiff, small_scene):
     from brdfkit.evaluation.metrics import image_metrics
     from brdfkit.render.renderable import TableBRDF
@@ -321,6 +327,7 @@ def test_mitsuba_render_of_the_mirror(stiff, small_scene):
 
 # --- real data (proxy MERL tables from ../shared) -----------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.proxy
 @pytest.mark.parametrize("name", ["chrome", "black-fabric"])
 def test_proxy_mirror_and_black(trained, tmp_path_factory, small_scene, name):

@@ -38,6 +38,8 @@ _BASIS = ("brdfkit fit --method basis {data} --components 30 -O half=true -O phi
           "-o {basis}")
 _PRIOR = ("brdfkit fit --method prior {data} -O basis={basis} -O weight=energy -O s2=0.03 "
           "--steps 3000 --seed 0 -o {name}.safetensors")
+_RESIDUAL = ("brdfkit fit --method residual {data} -O basis={basis} --steps 8000 --seed 0 "
+             "-o {name}.safetensors")
 _MERL80 = "PROXIES/merl --exclude-list merl-test.txt"
 _ALL = "PROXIES/merl PROXIES/rgl"
 # The tuning's stages (brdfkit tune, docs/training.md): each a --resume of the last with
@@ -54,17 +56,19 @@ def _tuned(name, ends):
 
 MODELS = [  # name, {part: file} (the network first), materials list, fit commands
     ("merl-rgl-l40", {"network": "merl-rgl-l40.safetensors", "basis": "merl-rgl-basis.safetensors",
-                      "prior": "merl-rgl-prior.safetensors"},
+                      "prior": "merl-rgl-prior.safetensors", "residual": "merl-rgl-residual.safetensors"},
      "MERL + RGL (151)",
      _PAPER.format(name="merl-rgl-l40", latent="") + "; " + _tuned("merl-rgl-l40", (8965, 13633, 19735, 27242))
      + "; " + _BASIS.format(data=_ALL, basis="merl-rgl-basis.safetensors")
-     + "; " + _PRIOR.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-prior")),
+     + "; " + _PRIOR.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-prior")
+     + "; " + _RESIDUAL.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-residual")),
     ("merl80-l40", {"network": "merl80-l40.safetensors", "basis": "merl80-basis.safetensors",
-                    "prior": "merl80-prior.safetensors"},
+                    "prior": "merl80-prior.safetensors", "residual": "merl80-residual.safetensors"},
      "MERL less merl-test.txt (80)",
      "brdfkit fit PROXIES/merl --exclude-list merl-test.txt --minutes 14 --seed 0 -o merl80-l40.safetensors; "
      + _BASIS.format(data=_MERL80, basis="merl80-basis.safetensors") + "; "
-     + _PRIOR.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-prior")),
+     + _PRIOR.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-prior") + "; "
+     + _RESIDUAL.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-residual")),
     ("merl-rgl-l7", {"network": "merl-rgl-l7.safetensors"}, "MERL + RGL (151)",
      _PAPER.format(name="merl-rgl-l7", latent="--latent-dim 7 ") + "; " + _tuned("merl-rgl-l7", (9710, 14495, 20283))),
 ]
@@ -96,7 +100,27 @@ def _pack_prior(src, dst, parts):
     return digest
 
 
-PACKERS = {"network": _pack_network, "basis": _pack_basis, "prior": _pack_prior}
+OFFERED: dict = {}
+"""``{bundle: sizes}`` a residual is offered at (``--offered NAME=9,21,39``): where it won
+on held-out materials; none given: every size it serves."""
+
+
+def _pack_residual(src, dst, parts):
+    """A residual re-saved for shipping: its heads in int8, its basis named as the bundle's
+    (the same file, by digest), the sizes it is offered at (:data:`OFFERED`)."""
+    from brdfkit.basis.basis_file import load_basis
+    from brdfkit.io.digest import file_digest
+    from brdfkit.residual.residual_file import load_residual, save_residual
+
+    bpath = os.path.join(os.path.dirname(os.path.abspath(dst)), parts["basis"])
+    res = load_residual(src, basis=(load_basis(bpath), file_digest(bpath)))
+    bundle = next(m[0] for m in MODELS if m[1].get("residual") == os.path.basename(dst))
+    save_residual(dst, res.nets, basis_digest=res.basis_digest, basis_file=parts["basis"],
+                  offered=OFFERED.get(bundle, ()), meta=res.meta, storage="int8")
+    return file_digest(dst)
+
+
+PACKERS = {"network": _pack_network, "basis": _pack_basis, "prior": _pack_prior, "residual": _pack_residual}
 """How each part is packed: ``packer(src, dst, parts) -> digest`` (``parts``: the bundle's
 ``{part: file}``), in this order (a prior names the basis packed before it). A new part
 (``residual``) is one more entry."""
@@ -178,12 +202,20 @@ def main():
                     help="only set the manifest's validation figures; no model file is touched")
     ap.add_argument("--priors-only", action="store_true",
                     help="only the bases and learnt priors of --src, the shipped hypernetworks kept as they are")
+    ap.add_argument("--residuals-only", action="store_true",
+                    help="only the residuals of --src, every other part kept as it is")
+    ap.add_argument("--offered", nargs="*", default=[], metavar="NAME=SIZES",
+                    help="the sizes a bundle's residual is offered at (where it won), e.g. merl80-l40=9,21,39")
     args = ap.parse_args()
     if not args.validation_only and not args.src:
         ap.error("--src is required (unless --validation-only)")
 
     from brdfkit.models.builtin import write_manifest
     from brdfkit.hypernet.packing import manifest_entry
+
+    for item in args.offered:
+        name, _, sizes = item.partition("=")
+        OFFERED[name] = tuple(int(x) for x in sizes.split(",") if x)
 
     validation, renders = {}, {}
     for item in args.validation:
@@ -220,8 +252,8 @@ def main():
         write_manifest(args.dst, entries, default=doc["default"])
         print(f"set the validation of {', '.join(sorted(validation)) or 'no model'} in {args.dst}/manifest.json")
         return
-    if args.priors_only:
-        return _priors_only(args, write_manifest)
+    if args.priors_only or args.residuals_only:
+        return _some_parts(args, write_manifest, ("basis", "prior") if args.priors_only else ("residual",), renders)
     os.makedirs(args.dst, exist_ok=True)
     for stale in (REFERENCE, *BASES):
         if os.path.exists(os.path.join(args.dst, stale)):
@@ -251,9 +283,11 @@ def main():
     print(f"built-in folder {args.dst}: {total / 1e6:.1f} MB of model files")
 
 
-def _priors_only(args, write_manifest) -> None:
-    """Replace the bases and learnt priors of ``args.dst`` by those of ``args.src``; the
-    other parts stay, the entries' commands updated for the new basis and prior."""
+def _some_parts(args, write_manifest, only: tuple, renders: dict) -> None:
+    """Replace the parts ``only`` of ``args.dst``'s bundles by those of ``args.src``; the
+    other parts stay, the entries' commands updated. New bases and priors clear the
+    bundle's figures (measured with the old basis); a residual takes its own
+    (``renders``, from a compression bench of it)."""
     with open(os.path.join(args.dst, "manifest.json")) as f:
         doc = json.load(f)
     entries = _entries(doc)
@@ -261,11 +295,15 @@ def _priors_only(args, write_manifest) -> None:
     for entry in entries:
         _, parts, _, command = by_name[entry["name"]]
         entry["command"] = command
-        packed = _pack_parts(args, parts, only=("basis", "prior"))
-        if packed:
+        packed = _pack_parts(args, parts, only=only)
+        if packed and "residual" not in only:
             entry["parts"].update(packed)
             entry.pop("renders", None)  # measured with the old basis
             entry["validation"] = {}
+        elif packed:
+            entry["parts"].update(packed)
+            if entry["name"] in renders:
+                entry["parts"]["residual"]["renders"] = renders[entry["name"]]
     write_manifest(args.dst, entries, default=doc["default"])
     total = sum(os.path.getsize(os.path.join(args.dst, f)) for f in os.listdir(args.dst) if f.endswith(".safetensors"))
     print(f"built-in folder {args.dst}: {total / 1e6:.1f} MB of model files")

@@ -62,7 +62,7 @@ def encode_coefficients(basis, table, *, digest: str, size: int | None = None, s
     Parameters
     ----------
     basis
-        :class:`~brdfkit.basis.model.PcaBasis`.
+        :class:`~brdfkit.basis.model.PcaBasis`; its leading ``K`` components encode.
     table
         ``(90, 90, 180, 3)`` BRDF in 1/sr, NaN where unmeasured.
     digest

@@ -113,10 +113,27 @@ class PcaBasis:
     materials: list = dataclasses.field(default_factory=list)
     w_floor: float = 0.0
     _dense: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
+    _rows: object = dataclasses.field(default=None, repr=False, compare=False)
+
+    @classmethod
+    def deferred(cls, cells, reference, mean, rows, sigma, materials=(), w_floor: float = 0.0) -> "PcaBasis":
+        """A basis whose components are restored from compact storage when first used:
+        ``rows(k)`` gives the ``k`` leading ones, float32 ``(k, P)`` (:meth:`leading`
+        restores only those; :attr:`components` all of them)."""
+        basis = cls(cells, reference, mean, None, sigma, list(materials), w_floor, _rows=rows)
+        del basis.__dict__["components"]  # restored by __getattr__ on first use
+        return basis
+
+    def __getattr__(self, name):
+        d = self.__dict__
+        if name == "components" and d.get("_rows") is not None:
+            d["components"] = d["_rows"](int(d["sigma"].shape[0]))
+            return d["components"]
+        raise AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}")
 
     @property
     def n_components(self) -> int:
-        return int(self.components.shape[0])
+        return int(self.sigma.shape[0])
 
     def leading(self, k: int) -> "PcaBasis":
         """The basis of the ``k`` strongest components. PCA bases are nested: this is the
@@ -124,7 +141,10 @@ class PcaBasis:
         reference and components, to float precision)."""
         if not 1 <= k <= self.n_components:
             raise InputError(f"a basis of {self.n_components} components has no {k} leading ones")
-        return dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None)
+        if "components" not in self.__dict__ and self._rows is not None:
+            return PcaBasis(self.cells, self.reference, self.mean, self._rows(k), self.sigma[:k], self.materials,
+                            self.w_floor)
+        return dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None, _rows=None)
 
     def baseline(self) -> "PcaBasis":
         """The basis of the IPCA baseline: Nielsen et al.'s :data:`DEFAULT_COMPONENTS`

@@ -30,7 +30,8 @@ import numpy as np
 from brdfkit.basis.mapping import from_mapped
 from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, fractional_indices
 
-__all__ = ["DEFAULT_LR", "DEFAULT_TRUST", "refine_coefficients", "heldout_error", "trilinear_corners"]
+__all__ = ["DEFAULT_LR", "DEFAULT_TRUST", "Screens", "prepare_screens", "refine_coefficients", "heldout_error",
+           "trilinear_corners"]
 
 DEFAULT_LR = 0.06
 """Adam's learning rate, in units of each component's training standard deviation."""
@@ -101,6 +102,7 @@ class _Cells:
     comp: object
     weight: object
     reference: object
+    ids: object = None
     extra: object = None
 
     def rho(self, c):
@@ -185,10 +187,9 @@ def _sparse_product():
     return SparseProduct
 
 
-def _prepare(basis, screen, measured, idx, factor, extra=None) -> _Pairs:
+def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
     """:class:`_Pairs` of a screen's pairs ``idx`` (int64 torch ``(m,)``, repeats allowed),
-    each weighted by ``factor`` (``(m,)``, or ``None``: 1); ``extra(cells) -> (c ->
-    mapped (U, 3))`` adds a correction at the cells used (:class:`_Cells`)."""
+    each weighted by ``factor`` (``(m,)``, or ``None``: 1)."""
     import torch
 
     i = idx.cpu().numpy()
@@ -203,8 +204,7 @@ def _prepare(basis, screen, measured, idx, factor, extra=None) -> _Pairs:
     # float32 (the basis's own precision): half the time of float64 a step.
     f32 = {"dtype": torch.float32}
     cells = _Cells(torch.tensor(basis.mean[row], **f32), torch.tensor(basis.components[:, row].T, **f32),
-                   torch.tensor(weight, **f32), torch.tensor(basis.reference[row], **f32),
-                   extra(used) if extra is not None else None)
+                   torch.tensor(weight, **f32), torch.tensor(basis.reference[row], **f32), used)
     rw = screen.rw.double().cpu().numpy()[i]
     if factor is not None:
         rw = rw * factor.double().cpu().numpy()[:, None]
@@ -219,8 +219,49 @@ def _prepare(basis, screen, measured, idx, factor, extra=None) -> _Pairs:
     return _Pairs(cells, matrix, transposed, n)
 
 
-def refine_coefficients(basis, table, coefficients, config=None, trust: float = DEFAULT_TRUST, extra=None
-                        ) -> tuple[np.ndarray, dict]:
+@dataclasses.dataclass
+class Screens:
+    """A table's objective views and, for one basis, the linear maps of their fitted and
+    held-out pairs (:func:`prepare_screens`): what a refinement and a choice between
+    candidates share, made once."""
+
+    views: list
+    fits: list
+    helds: list
+    targets: list
+
+    def with_extra(self, extra) -> "Screens":
+        """The same maps, the basis's mapped values at each map's cells corrected by
+        ``extra(cells) -> (c -> mapped (U, 3))`` (:func:`refine_coefficients`)."""
+        if extra is None:
+            return self
+
+        def attach(p):
+            return _Pairs(dataclasses.replace(p.cells, extra=extra(p.cells.ids)), p.matrix, p.transposed, p.pixels)
+
+        return Screens(self.views, [attach(p) for p in self.fits], [attach(p) for p in self.helds], self.targets)
+
+
+def prepare_screens(basis, table, config=None) -> Screens:
+    """:class:`Screens` of ``table`` for ``basis`` (its objective views, on
+    :data:`~brdfkit.render.objective.THREADS` thread(s))."""
+    import torch
+
+    from brdfkit.render.objective import THREADS, ObjectiveConfig, objective_views
+    from brdfkit.runtime import torch_threads
+
+    cfg = config or ObjectiveConfig()
+    measured = np.zeros(N_CELLS, bool)
+    measured[basis.cells] = True
+    with torch_threads(THREADS):
+        views = objective_views(table, cfg, torch.device("cpu"))
+        fits = [_prepare(basis, v.screen, measured, v.idx, v.weight) for v in views]
+        helds = [_prepare(basis, v.screen, measured, v.held_pairs, None) for v in views]
+    return Screens(views, fits, helds, [v.target.float().cpu() for v in views])
+
+
+def refine_coefficients(basis, table, coefficients, config=None, trust: float = DEFAULT_TRUST, extra=None,
+                        screens: Screens | None = None) -> tuple[np.ndarray, dict]:
     """Refine a table's basis coefficients on renders of the objective scenes (module docstring).
 
     Parameters
@@ -241,6 +282,8 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
         ``extra(cells) -> (c -> mapped (U, 3))``: a correction added to the basis's mapped
         values at the cells a render reaches, differentiable in the coefficients (a
         residual's, :mod:`brdfkit.residual.encoding`); ``None``: the basis alone.
+    screens
+        :func:`prepare_screens` of the same table, basis and config, when made already.
 
     Returns
     -------
@@ -249,67 +292,58 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
     record : dict
         ``{"steps", "best_step", "stopped", "heldout": [start, kept]}``.
     """
-    import torch
-
-    from brdfkit.render.objective import THREADS, ObjectiveConfig, objective_views
+    from brdfkit.render.objective import THREADS, ObjectiveConfig
     from brdfkit.runtime import torch_threads
 
     cfg = config or ObjectiveConfig()
     c0 = np.asarray(coefficients, np.float64)
     if cfg.steps == 0:
         return c0, {"steps": 0, "best_step": 0, "stopped": "steps", "heldout": []}
+    screens = (screens or prepare_screens(basis, table, cfg)).with_extra(extra)
     with torch_threads(THREADS):
-        return _descend(basis, table, c0, cfg, objective_views(table, cfg, torch.device("cpu")), trust, extra)
+        return _descend(basis, c0, cfg, screens, trust)
 
 
-def heldout_error(basis, table, coefficients, config=None, extra=None) -> float:
+def heldout_error(basis, table, coefficients, config=None, extra=None, screens: Screens | None = None) -> float:
     """The render error on the objective scenes' held-out pixels of coefficients ``(K, 3)``
-    (with ``extra`` as :func:`refine_coefficients` takes it): what a refinement keeps its
-    result by, and what an encoder may choose between candidates by."""
+    (with ``extra`` and ``screens`` as :func:`refine_coefficients` takes them): what a
+    refinement keeps its result by, and what an encoder may choose between candidates by."""
     import torch
 
-    from brdfkit.render.objective import THREADS, ObjectiveConfig, objective_views
+    from brdfkit.render.objective import THREADS
     from brdfkit.runtime import torch_threads
 
-    cfg = config or ObjectiveConfig()
+    screens = (screens or prepare_screens(basis, table, config)).with_extra(extra)
     with torch_threads(THREADS):
-        views = objective_views(table, cfg, torch.device("cpu"))
-        return _held_error(basis, views, extra)(torch.tensor(np.asarray(coefficients, np.float64)))
+        return _held_error(screens)(torch.tensor(np.asarray(coefficients, np.float64)))
 
 
-def _held_error(basis, views, extra):
+def _held_error(screens: Screens):
     """``c -> error`` on the views' held-out pixels (full pairs)."""
     import torch
 
     from brdfkit.render.screen import screen_error
 
-    measured = np.zeros(N_CELLS, bool)
-    measured[basis.cells] = True
-    helds = [_prepare(basis, v.screen, measured, v.held_pairs, None, extra) for v in views]
-    targets = [v.target.float().cpu() for v in views]
-
     def held_error(c):
         with torch.no_grad():
             return float(np.mean([float(screen_error(h.render(c), t, v.held_pixels.cpu()))
-                                  for v, h, t in zip(views, helds, targets)]))
+                                  for v, h, t in zip(screens.views, screens.helds, screens.targets)]))
 
     return held_error
 
 
-def _descend(basis, table, c0, cfg, views, trust=0.0, extra=None):
-    """The Adam steps of :func:`refine_coefficients` over ``views`` (one scene a step)."""
+def _descend(basis, c0, cfg, screens: Screens, trust=0.0):
+    """The Adam steps of :func:`refine_coefficients` over the screens' views (one scene a
+    step)."""
     import torch
 
     from brdfkit.render.objective import Adam
     from brdfkit.render.screen import screen_error
 
-    measured = np.zeros(N_CELLS, bool)
-    measured[basis.cells] = True
-    fits = [_prepare(basis, v.screen, measured, v.idx, v.weight, extra) for v in views]
-    targets = [v.target.float().cpu() for v in views]
+    views, fits, targets = screens.views, screens.fits, screens.targets
     sigma = torch.tensor(basis.sigma, dtype=torch.float64)[:, None]
     start = torch.tensor(c0)
-    held_error = _held_error(basis, views, extra)
+    held_error = _held_error(screens)
 
     z = torch.zeros_like(start, requires_grad=True)
     opt = Adam([z], lr=cfg.learning_rate(DEFAULT_LR))

@@ -55,21 +55,21 @@ def compact(cells: np.ndarray, arrays: list, stride: int) -> tuple[np.ndarray, l
     return cells[keep], [np.asarray(a)[..., keep] for a in arrays]
 
 
-def expand(cells: np.ndarray, arrays: list) -> tuple[np.ndarray, list]:
-    """Inverse of :func:`compact` with ``stride = 2``: the stored cells as stored, each
-    other odd cell the mean of its two even neighbours (wrapping at pi), or the one of them
-    that is stored (cells where the cosine weight ``cos_i cos_o`` is 0 are left out, as
-    :func:`~brdfkit.basis.fit.fit_basis` leaves them out); float32 arrays over the returned
-    sorted cells."""
+def expansion(cells: np.ndarray) -> tuple:
+    """How :func:`expand` restores the cells of a half-``phi_d`` storage: ``(out_cells,
+    ia, ib, wa, wb)``, each restored cell ``wa * stored[ia] + wb * stored[ib]`` (a stored
+    cell itself, or the mean of its two stored even neighbours, or the one of them that is
+    stored: the weights 1 and 0, or 0.5 and 0.5, so the values are exactly those of the
+    mean)."""
     cells = np.asarray(cells, np.int64)
     odd = (cells % N_PHI_D) % 2 == 1
-    even_cells = cells[~odd]
     rows = N_THETA_H * N_THETA_D
     half = N_PHI_D // 2
-    slot = (even_cells // N_PHI_D) * half + (even_cells % N_PHI_D) // 2  # index on the coarse grid
-    present = np.zeros(rows * half, dtype=bool)
-    present[slot] = True
-    present = present.reshape(rows, half)
+    even_pos = np.flatnonzero(~odd)
+    slot = (cells[~odd] // N_PHI_D) * half + (cells[~odd] % N_PHI_D) // 2  # index on the coarse grid
+    where = np.full(rows * half, -1, np.int64)  # coarse slot -> position among the stored cells
+    where[slot] = even_pos
+    present = (where >= 0).reshape(rows, half)
     after = np.roll(present, -1, axis=1)  # odd cell 2j + 1 lies between 2j and 2j + 2
     full = np.zeros((rows, N_PHI_D), dtype=bool)
     full[:, 0::2] = present
@@ -77,23 +77,35 @@ def expand(cells: np.ndarray, arrays: list) -> tuple[np.ndarray, list]:
     full = full.reshape(-1)
     full[cells[odd]] = True
     full &= grid_cosine_weight() > 0
-    n_odd = (present.astype(np.float32) + after).reshape(-1)
     out_cells = np.flatnonzero(full).astype(np.int64)
+    r, p = out_cells // N_PHI_D, out_cells % N_PHI_D
+    left = where[r * half + p // 2]  # the even cell at or before (its own slot for even cells)
+    right = where[r * half + ((p // 2 + 1) % half)]
+    is_odd = p % 2 == 1
+    ia = np.where(left >= 0, left, right)
+    ib = np.where(is_odd & (left >= 0) & (right >= 0), right, ia)
+    both = is_odd & (left >= 0) & (right >= 0)
+    wa = np.where(both, 0.5, 1.0).astype(np.float32)
+    wb = np.where(both, 0.5, 0.0).astype(np.float32)
+    stored_odd = np.searchsorted(cells, out_cells)
+    own = (stored_odd < cells.size) & (cells[np.minimum(stored_odd, cells.size - 1)] == out_cells) & is_odd
+    ia = np.where(own, stored_odd, ia)  # the grazing odd cells, as stored
+    ib = np.where(own, stored_odd, ib)
+    wa, wb = np.where(own, 1.0, wa).astype(np.float32), np.where(own, 0.0, wb).astype(np.float32)
+    return out_cells, ia, ib, wa, wb
+
+
+def expand(cells: np.ndarray, arrays: list, how: tuple | None = None) -> tuple[np.ndarray, list]:
+    """Inverse of :func:`compact` with ``stride = 2``: the stored cells as stored, each
+    other odd cell the mean of its two even neighbours (wrapping at pi), or the one of them
+    that is stored (cells where the cosine weight ``cos_i cos_o`` is 0 are left out, as
+    :func:`~brdfkit.basis.fit.fit_basis` leaves them out); float32 arrays over the returned
+    sorted cells. ``how``: :func:`expansion` of ``cells``, when made already."""
+    out_cells, ia, ib, wa, wb = expansion(cells) if how is None else how
     out = []
     for a in arrays:
         a = np.asarray(a, np.float32)
-        lead = a.shape[:-1]
-        coarse = np.zeros(lead + (rows * half,), np.float32)
-        coarse[..., slot] = a[..., ~odd]
-        coarse = coarse.reshape(lead + (rows, half))
-        dense = np.empty(lead + (rows, N_PHI_D), np.float32)
-        dense[..., 0::2] = coarse
-        # Absent cells hold 0, so the sum over the stored neighbours divided by their count.
-        mid = (coarse + np.roll(coarse, -1, axis=-1)).reshape(lead + (-1,)) / np.maximum(n_odd, 1)
-        dense[..., 1::2] = mid.reshape(lead + (rows, half))
-        dense = dense.reshape(lead + (rows * N_PHI_D,))
-        dense[..., cells[odd]] = a[..., odd]  # the grazing odd cells, as stored
-        out.append(np.ascontiguousarray(dense[..., out_cells]))
+        out.append(np.ascontiguousarray(a[..., ia] * wa + a[..., ib] * wb))
     return out_cells, out
 
 
@@ -125,5 +137,10 @@ def quantize(components: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def dequantize(q: np.ndarray, scale: np.ndarray) -> np.ndarray:
     """Inverse of :func:`quantize`: float32 ``(K, P)``."""
     k, p = q.shape
-    idx = np.arange(p) // INT8_BLOCK
-    return q.astype(np.float32) * np.asarray(scale, np.float32)[:, idx]
+    scale = np.asarray(scale, np.float32)
+    out = q.astype(np.float32)
+    full = (p // INT8_BLOCK) * INT8_BLOCK  # whole blocks scaled in place, the tail apart
+    out[:, :full].reshape(k, -1, INT8_BLOCK)[...] *= scale[:, :full // INT8_BLOCK, None]
+    if full < p:
+        out[:, full:] *= scale[:, full // INT8_BLOCK, None]
+    return out

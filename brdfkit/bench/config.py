@@ -288,7 +288,7 @@ def _resolve_compressor(spec, device=None) -> str:
     from brdfkit.embeddings import choose_decoder
 
     model, kind, size = compression_entry(spec)
-    dec = choose_decoder(kind, model, "cpu")
+    dec = choose_decoder(kind, model, "cpu", size)
     size = size or dec.default_size
     dec.check_size(size)
     return f"{dec.path}:{dec.kind}-{size}"

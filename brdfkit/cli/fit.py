@@ -75,7 +75,7 @@ def command(data, output, method, latent_dim, exclude_list, exclude_names, steps
         ("latent_dim", latent_dim), ("steps", steps), ("minutes", minutes), ("seed", seed), ("device", device),
         ("resume", resume), ("batch_materials", batch_materials), ("checkpoint_minutes", checkpoint_minutes),
         ("components", components)) if source(key) is not ParameterSource.DEFAULT)
-    if components is not None and chosen.name != "basis" and chosen.options is not None and \
-            "components" not in (chosen.options() if callable(chosen.options) else chosen.options):
+    takes = chosen.options() if callable(chosen.options) else (chosen.options or ())
+    if components is not None and chosen.name != "basis" and "components" not in takes:
         raise InputError("--components applies to --method basis or prior only")
     chosen.fit(list(data), output, exclude=exclude, progress=not quiet, **given)

@@ -86,12 +86,12 @@ def compress_table(model, table, config: ObjectiveConfig | None = None, source: 
     Parameters
     ----------
     model
-        :class:`~brdfkit.hypernet.loaded.LoadedNetwork`.
+        :class:`~brdfkit.hypernet.loaded.LoadedNetwork`, whose encoder gives the start.
     table
         ``(90, 90, 180, 3)`` BRDF in 1/sr, NaN where unmeasured.
     config
-        config: :class:`~brdfkit.render.objective.ObjectiveConfig` (its defaults when ``None``; ``steps = 0`` skips the
-        refinement).
+        :class:`~brdfkit.render.objective.ObjectiveConfig` (its defaults when ``None``;
+        ``steps = 0`` skips the refinement).
     source
         Provenance recorded in the embedding.
     encoder_embedding
