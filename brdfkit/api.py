@@ -323,10 +323,11 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
     Examples
     --------
     >>> import numpy as np
-    >>> a = Embedding(np.zeros(6, np.float32), "basis", "f" * 64, "a")
-    >>> b = Embedding(np.ones(6, np.float32), "basis", "f" * 64, "b")
-    >>> interpolate(a, b, 0.25).values.tolist()
-    [0.25, 0.25, 0.25, 0.25, 0.25, 0.25]
+    >>> dark = Embedding(np.zeros(3, np.float32), "basis", "f" * 64, "dark")
+    >>> light = Embedding(np.full(3, 2.0, np.float32), "basis", "f" * 64, "light")
+    >>> mid = interpolate(dark, light, 0.5)
+    >>> mid.kind, mid.decoder == dark.decoder, mid.values.tolist()
+    ('basis', True, [1.0, 1.0, 1.0])
     """
     from brdfkit.embeddings.blend import interpolate as blend
 

@@ -48,6 +48,7 @@ def _no_model_env(monkeypatch):
     monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
 
 
+@pytest.mark.slow
 def test_encode_continues_past_bad_files(files, tmp_path):
     junk = tmp_path / "junk.binary"
     junk.write_bytes(b"not a MERL table")
@@ -85,6 +86,7 @@ def test_encode_kind_hypernet_and_its_old_name_latent(files, tmp_path, capsys):
     assert code == 2 and "a network file, not the basis a basis embedding needs" in one_error_line(err)
 
 
+@pytest.mark.slow
 def test_encode_beside_input_and_env_model(files, tmp_path, capsys, monkeypatch):
     src = tmp_path / "copy.binary"
     src.write_bytes((files / "mat.binary").read_bytes())
@@ -94,6 +96,7 @@ def test_encode_beside_input_and_env_model(files, tmp_path, capsys, monkeypatch)
     assert read_embedding(tmp_path / "copy.emb").sample_count == int(np.isfinite(material_table(1)).all(-1).sum())
 
 
+@pytest.mark.slow
 def test_encode_same_stem_twice_is_refused(files, tmp_path, capsys):
     (tmp_path / "a").mkdir()
     (tmp_path / "a" / "mat.binary").write_bytes((files / "mat.binary").read_bytes())
@@ -108,6 +111,7 @@ def test_encode_without_model(files, capsys):
     assert code == 2 and "no model given" in one_error_line(err)
 
 
+@pytest.mark.slow
 def test_decode_writes_a_merl_file(files, tmp_path, capsys):
     m = api.load_model(files / "model.safetensors", "cpu")
     emb = api.encode(files / "samples.csv", m)
@@ -127,6 +131,7 @@ def test_decode_writes_a_merl_file(files, tmp_path, capsys):
     assert code == 0 and (tmp_path / "x.binary").exists()
 
 
+@pytest.mark.slow
 def test_decode_other_models_embedding_refused(files, tmp_path):
     m = api.load_model(files / "model.safetensors", "cpu")
     write_embedding(tmp_path / "x.emb", api.encode(files / "samples.csv", m))
@@ -164,6 +169,7 @@ def test_decode_bad_inputs(files, tmp_path, capsys, case):
     assert not (tmp_path / "y.binary").exists()
 
 
+@pytest.mark.slow
 def test_sparse(files, tmp_path, capsys):
     out, emb = tmp_path / "s.binary", tmp_path / "s.emb"
     code, _, err = run_cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
@@ -202,6 +208,7 @@ def two_embs(files, tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_interpolate_t_not_a_number(two_embs, tmp_path):
     r = _run(["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "abc", "-o", tmp_path / "c.emb"])
     assert r.returncode == 2
@@ -250,6 +257,7 @@ def test_interpolate_extrapolation_and_mismatch(two_embs, tmp_path, capsys):
     assert not (tmp_path / "d.emb").exists()
 
 
+@pytest.mark.slow
 def test_encode_folder_among_inputs_is_one_failure(files, tmp_path, capsys):
     code, _, err = run_cli(capsys, ["encode", tmp_path, files / "mat.binary", "-m", files / "model.safetensors",
                                     "-o", tmp_path / "out"])
@@ -269,6 +277,7 @@ def _tile_at(png, want) -> bool:
     return False
 
 
+@pytest.mark.slow
 def test_interpolate_strip(files, two_embs, tmp_path, capsys):
     from PIL import Image
 
@@ -281,7 +290,7 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
 
     sheet = tmp_path / "strip.png"
     code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--steps", "3",
-                                    "--sheet", sheet, "--size", "16", "-m", files / "model.safetensors"])
+                                    "--sheet", sheet, "--tile", "16", "-m", files / "model.safetensors"])
     assert code == 0, err
     assert "3 materials, t = 0, 0.5, 1" in err
     png = np.asarray(Image.open(sheet).convert("RGB"))
@@ -310,8 +319,9 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
     (["--sheet", "{tmp}/s.png", "--t", "0.5"], "--t: --sheet draws the strip from t = 0 to 1"),
     (["--sheet", "{tmp}/s.png", "-o", "{tmp}/c.emb"], "-o: --sheet draws the strip"),
     (["--sheet", "{tmp}/s.png", "--steps", "1"], "'--steps': 1 is not in the range 2<=x<=100"),
-    (["--sheet", "{tmp}/s.png", "--size", "4"], "'--size': 4 is not in the range 8<=x<=1024"),
-    (["--sheet", "{tmp}/s.png", "--size", "1024", "--steps", "17"], "17,408 px wide, more than 16,384"),
+    (["--sheet", "{tmp}/s.png", "--tile", "4"], "'--tile': 4 is not in the range 8<=x<=1024"),
+    (["--sheet", "{tmp}/s.png", "--tile", "1024", "--steps", "17"], "17,408 px wide, more than 16,384"),
+    (["--tile", "16"], "--tile: options of the strip; add --sheet"),
     (["--sheet", "{embs}/a.emb"], "refusing to overwrite"),
     (["--sheet", "{tmp}/s.jpg"], "written as PNG; name it .png"),
     (["--sheet", "/nonexistent/s.png"], "does not exist"),
@@ -327,6 +337,30 @@ def test_interpolate_strip_refusals(two_embs, tmp_path, capsys, args, message):
 
 def test_interpolate_strip_of_two_models_refused(files, two_embs, tmp_path, capsys):
     code, _, err = run_cli(capsys, ["interpolate", two_embs / "a.emb", two_embs / "o.emb", "--sheet",
-                                    tmp_path / "s.png", "-m", files / "model.safetensors", "--size", "16"])
+                                    tmp_path / "s.png", "-m", files / "model.safetensors", "--tile", "16"])
     assert code == 2 and "different decoders" in one_error_line(err)
     assert not (tmp_path / "s.png").exists()
+
+
+def test_interpolate_size_is_the_old_spelling_of_tile(two_embs, tmp_path, capsys, monkeypatch):
+    """``--size`` is the numbers per material in ``encode``; the strip's pixels per tile are
+    ``--tile``. The old ``interpolate --size`` still works, with one note on stderr."""
+    import brdfkit.cli.interpolate as cli_interpolate
+
+    drawn = []
+    monkeypatch.setattr(cli_interpolate, "_strip", lambda a, b, sheet, steps, tile, model: drawn.append(tile))
+    a, b, sheet = two_embs / "a.emb", two_embs / "b.emb", tmp_path / "s.png"
+    for args in (["--size", "16"], ["--tile", "16"], ["--tile", "16", "--size", "16"]):
+        code, _, err = run_cli(capsys, ["interpolate", a, b, "--sheet", sheet, *args])
+        assert code == 0, err
+        assert err.splitlines() == (["note: interpolate --size is now --tile"] if "--size" in args else [])
+    assert drawn == [16, 16, 16]
+    code, _, err = run_cli(capsys, ["interpolate", a, b, "--sheet", sheet, "--tile", "16", "--size", "32"])
+    lines = err.splitlines()
+    assert code == 2 and lines[0] == "note: interpolate --size is now --tile" and len(lines) == 2
+    assert "--size is the old spelling of --tile; give --tile only" in lines[1]
+    code, _, err = run_cli(capsys, ["interpolate", a, b, "--size", "16"])  # a strip option without --sheet
+    assert code == 2 and "--tile: options of the strip; add --sheet" in err.splitlines()[-1]
+    from brdfkit.cli.interpolate import command
+
+    assert next(p for p in command.params if p.name == "old_tile").hidden

@@ -35,6 +35,7 @@ def test_render_psnr_through_the_reference_renderer():
     assert 0 < score(white * 0.5, white) < 30
 
 
+@pytest.mark.slow
 def test_demo_runs_end_to_end(tmp_path):
     out = tmp_path / "demo"
     tiny = tiny_cli_options(latent=False)
@@ -73,6 +74,7 @@ def test_demo_runs_end_to_end(tmp_path):
     assert len(paths) == 4 and os.path.getmtime(out / "materials" / f"{name}.binary") == mtime
 
 
+@pytest.mark.slow
 def test_demo_keep_tables_writes_library_and_decoded(tmp_path):
     from brdfkit.demos.synthetic_training import run_demo
 

@@ -136,6 +136,7 @@ def test_decode_is_physical_and_below_the_horizon_nan():
     assert 0.05 < table[0, 0, 0].min() and table[0, 0, 0].max() < 1.0
 
 
+@pytest.mark.slow
 @pytest.mark.proxy
 @pytest.mark.skipif(not (os.path.exists(TOOL) and os.path.exists(os.path.join(SHARED, "data", "nbrdf", "merl.npz"))),
                     reason="../shared/tools/nbrdf_to_merl.py and its data are not present")
@@ -168,6 +169,7 @@ def test_demo_weights_file_is_package_data():
 
 # --- brdfkit demo ---------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_real_demo_end_to_end(shelf, tmp_path):
     out = tmp_path / "demo"
     proc = _run(["--out", out, "--only", "violet-rubber,teflon", "--resolution", "12", "--keep-tables"], shelf)
@@ -235,6 +237,7 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert not [n for n in os.listdir(out) if n.startswith(".brdfkit-tmp-")]
 
 
+@pytest.mark.slow
 def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
     import brdfkit.api
     from brdfkit.demos.real_materials import run_real_demo
@@ -302,6 +305,7 @@ def _interrupted_sheet(monkeypatch, seen):
     monkeypatch.setattr(brdfkit.figures.comparison_sheet, "comparison_sheet", sheet)
 
 
+@pytest.mark.slow
 def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, capsys, tmp_path):
     """The sheet's six inputs are named by their tiles' labels (the sheet labels its tiles
     with the file stems): the reference, the default method from both sample counts and
@@ -337,12 +341,29 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
 
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(quick))
     monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_STEPS", 3)
-    out = tmp_path / "e"
-    code, stdout, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "teflon", "--resolution", "8"])
+    out, gallery = tmp_path / "e", tmp_path / "images"
+    gallery.mkdir()
+    code, stdout, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "teflon", "--resolution", "8",
+                                            "--gallery", gallery])
     assert code == 0, stderr[-3000:]
     assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples",
                                        "sheet-teflon-backlight.png", "sheet-teflon.png"]
     assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", stdout)
+    assert "(8 tables, 0.28 GB); brdfkit material teflon -o teflon.binary writes" in re.sub(r"\s+", " ", stdout)
+    # The sheets' scores in errors.json (what the gallery quotes), and its copies for the docs.
+    doc = json.loads((out / "errors.json").read_text())
+    assert list(doc["sheets"]) == ["reference", "backlight"]
+    assert list(doc["sheets"]["reference"]) == ["prior, 40 samples", "prior, 400 samples", *TILES]
+    assert list(doc["sheets"]["backlight"]) == TILES
+    for row in (*doc["sheets"]["reference"].values(), *doc["sheets"]["backlight"].values()):
+        assert set(row) == {"psnr", "delta_e", "ssim", "brdf_log_rmse", "delta_e_max"}
+        assert row["delta_e_max"] >= row["delta_e"] >= 0
+    assert sorted(os.listdir(gallery)) == ["demo-errors.json", "demo-plot.png", "demo-sheet-backlight.png",
+                                           "demo-sheet.png"]
+    for src, dst in (("errors.json", "demo-errors.json"), ("sheet-teflon.png", "demo-sheet.png"),
+                     ("sheet-teflon-backlight.png", "demo-sheet-backlight.png"), ("plot-teflon.png", "demo-plot.png")):
+        assert (gallery / dst).read_bytes() == (out / src).read_bytes()
+    assert "Copied into" in stdout
     assert "dense tables stay in memory" in re.sub(r"\s+", " ", stderr)
     assert "rendering teflon and 5 reconstructions in the reference scene" in re.sub(r"\s+", " ", stderr)
     assert "rendering teflon and 3 reconstructions in the backlight scene" in re.sub(r"\s+", " ", stderr)
@@ -375,7 +396,10 @@ def test_bad_options_are_one_line(shelf, monkeypatch, capsys, tmp_path):
     monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
     for args, words in ((["--only", "pink-felt"], "unknown demo material"),
                         (["--train", "--resolution", "32"], "--resolution"),
-                        (["--steps", "3", "--only", "teflon"], "--only")):
+                        (["--steps", "3", "--only", "teflon"], "--only"),
+                        (["--gallery", str(tmp_path / "nowhere")], "--gallery"),
+                        (["--gallery", str(tmp_path), "--no-render"], "--no-render does not draw"),
+                        (["--train", "--gallery", str(tmp_path)], "--gallery")):
         with pytest.raises(SystemExit) as e:
             main(["demo", "--out", str(tmp_path / "d"), *args])
         err = capsys.readouterr().err

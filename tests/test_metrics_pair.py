@@ -10,6 +10,7 @@ from __future__ import annotations
 import shutil
 
 import numpy as np
+import pytest
 
 from brdfkit.evaluation.comparison import FileLoader, compare_files
 from brdfkit.io.merl import write_merl
@@ -53,11 +54,18 @@ def test_one_pass_equals_separate_renders_table_and_neural(tmp_path):
     assert not np.array_equal(together[0][0], together[1][0])
 
 
+def _reference_and_two(folder, names):
+    """MERL files ``folder/NAME.binary`` of the reference (material 0), a prediction
+    (material 1) and that prediction at half its value."""
+    paths = [folder / f"{n}.binary" for n in names]
+    for path, table in zip(paths, (material_table(0), material_table(1), np.asarray(material_table(1)) * 0.5)):
+        write_merl(path, table)
+    return paths
+
+
+@pytest.mark.slow
 def test_metrics_of_two_tables_one_pass_and_the_reference_cached(tmp_path):
-    ref, pred, pred2 = tmp_path / "ref.binary", tmp_path / "pred.binary", tmp_path / "pred2.binary"
-    write_merl(ref, material_table(0))
-    write_merl(pred, material_table(1))
-    write_merl(pred2, np.asarray(material_table(1)) * 0.5)
+    ref, pred, pred2 = _reference_and_two(tmp_path, ("ref", "pred", "pred2"))
     loader = FileLoader(resolution=RES, progress=False)
     got = compare_files(loader, str(pred), str(ref))
     assert (loader.counts.passes, loader.counts.renders, loader.counts.cached) == (1, 2, 0)
@@ -102,14 +110,12 @@ def test_the_same_file_twice_is_rendered_once(tmp_path):
     assert (loader.counts.passes, loader.counts.renders, loader.counts.cached) == (1, 1, 1)
 
 
+@pytest.mark.slow
 def test_sheet_renders_all_brdfs_in_one_pass_with_the_same_scores(tmp_path):
     """``brdfkit compare`` of a table against two tables: the scores of ``metrics``."""
     from brdfkit.figures.comparison_sheet import comparison_sheet
 
-    ref, a, b = tmp_path / "ref.binary", tmp_path / "a.binary", tmp_path / "b.binary"
-    write_merl(ref, material_table(0))
-    write_merl(a, material_table(1))
-    write_merl(b, np.asarray(material_table(1)) * 0.5)
+    ref, a, b = _reference_and_two(tmp_path, ("ref", "a", "b"))
     rows = comparison_sheet(ref, [a, b], tmp_path / "sheet.png", resolution=RES, progress=False)
     loader = FileLoader(resolution=RES, progress=False)
     assert rows["a"] == compare_files(loader, str(a), str(ref))

@@ -70,6 +70,7 @@ def test_mirror_lobe_peaks_in_the_mirror_direction(theta_i):
     assert np.nanmax(v) > 100 * np.nanmedian(v)
 
 
+@pytest.mark.slow
 def test_plot_of_tables_writes_a_png_and_imports_no_torch(tables, tmp_path):
     """Tables only: matplotlib and NumPy, no torch (checked in a fresh process)."""
     out = tmp_path / "p.png"
@@ -89,6 +90,7 @@ def test_plot_of_tables_writes_a_png_and_imports_no_torch(tables, tmp_path):
     _png_ok(out)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n, options", [
     (1, {}), (4, {}), (3, {"view": "slices"}), (1, {"theta_i": (0.0, 45.0)}),
     (2, {"view": "slices", "phi_d": (0.0, 90.0)}), (5, {"theta_i": (20.0,), "phi_d": (0.0, 45.0, 90.0)}),
@@ -125,6 +127,7 @@ def test_layout_cuts_and_overlaps_nothing(n, options):
         plt.close(fig)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("view", ["lobes", "slices"])
 def test_each_view_alone(tables, tmp_path, view):
     r = run_brdfkit(["plot", tables / "mirror.binary", "-o", tmp_path / "p.png", "--view", view,
@@ -136,6 +139,7 @@ def test_each_view_alone(tables, tmp_path, view):
         assert im.format == "PNG" and im.size[1] > 150
 
 
+@pytest.mark.slow
 def test_table_and_embedding_side_by_side(tables, tmp_path):
     pytest.importorskip("torch")
     from brdfkit import api
@@ -173,3 +177,27 @@ def test_bad_options_fail_before_reading_inputs(tmp_path):
     assert r.returncode == 2 and "--theta-i" in r.stderr, r.stderr
     r = run_brdfkit(["plot", tmp_path / "missing.binary", "-o", tmp_path / "p.jpg"])
     assert r.returncode == 2 and ".png" in r.stderr, r.stderr
+
+
+def _slices_title(tables, phi_d):
+    import matplotlib.pyplot as plt
+
+    fig = plot_figure(tables, view="slices", phi_d=phi_d)
+    try:
+        return " ".join(sf.get_suptitle() for sf in fig.subfigs).replace("\n", " ")
+    finally:
+        plt.close(fig)
+
+
+def test_slice_legend_says_what_the_images_show():
+    """The slices' title names black (the scale's bottom and below, a decoder's 0 included)
+    and grey (not measured) only where the images hold them: at phi_d = 90 degrees every
+    cell is measured, so the demo's plot has no grey."""
+    lam = _lambert()
+    assert _slices_title({"lambert": lam}, (90.0,)).endswith("log colour scale shared by all; darker: smaller)")
+    holed = lam.copy()
+    holed[60:, :, :, :] = 0.0  # a band decoded to zero at grazing theta_h
+    title = _slices_title({"lambert": lam, "holed": holed}, (90.0,))
+    assert "black: $10^{-6}$ or less, 0 included" in title and "grey" not in title
+    title = _slices_title({"lambert": lam}, (0.0,))
+    assert "grey: not measured" in title and "black" not in title

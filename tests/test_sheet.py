@@ -39,8 +39,9 @@ def test_delta_e_map_is_what_the_mean_delta_e_averages():
     assert m.mean() == pytest.approx(delta_e_2000(a, b), rel=1e-12)
 
 
+@pytest.mark.slow
 def test_sheet_scores_are_those_of_brdfkit_metrics(materials, tmp_path):
-    """The same numbers as ``brdfkit metrics PRED REF`` (the same render and score
+    """The same numbers as ``brdfkit metrics --ref REF PRED`` (the same render and score
     functions), and a PNG with one column per input."""
     pytest.importorskip("torch")
     from PIL import Image
@@ -64,6 +65,7 @@ def test_sheet_scores_are_those_of_brdfkit_metrics(materials, tmp_path):
         assert np.asarray(im.convert("L"), dtype=float).std() > 10
 
 
+@pytest.mark.slow
 def test_compare_command_json_and_sheet(materials, tmp_path):
     ref, a, b = materials
     r = run_brdfkit(["compare", ref, a, b, "--sheet", tmp_path / "s.png", "--resolution", "16", "--json"])
@@ -87,3 +89,44 @@ def test_bad_compare_input_is_one_line_before_any_render(materials, tmp_path, ar
     r = run_brdfkit(["compare", *argv, "--resolution", "16"])
     assert r.returncode == 2 and message in r.stderr, r.stderr
     assert r.stderr.count("\n") == 1
+
+
+def _disc(size=128, value=0.8):
+    y, x = np.mgrid[:size, :size]
+    img = np.zeros((size, size, 3), np.float32)
+    img[(x - size / 2) ** 2 + (y - size / 2) ** 2 < (0.4 * size) ** 2] = value
+    return img
+
+
+def test_renders_are_resampled_smoothly_and_the_same_every_time(tmp_path):
+    """A 128 px render in a sheet's tile (about 237 px: 1.85 times) drawn nearest-pixel has
+    jagged edges, some pixels drawn twice and some once; the sheets resample it by Lanczos
+    (``canvas.SMOOTH``), which puts intermediate shades along the edge, and give the same
+    PNG for the same image. The interpolation strip, one PNG pixel per render pixel, keeps
+    ``nearest``."""
+    from PIL import Image
+
+    from brdfkit.figures.canvas import SMOOTH, pyplot, save_png, show_render
+
+    def draw(name, interpolation):
+        fig, ax = pyplot().subplots(1, 1, figsize=(2.6, 2.6), dpi=110)
+        show_render(ax, _disc(), interpolation=interpolation)
+        save_png(fig, tmp_path / name)
+        return np.asarray(Image.open(tmp_path / name).convert("L"))
+
+    smooth, nearest = draw("s.png", SMOOTH), draw("n.png", "nearest")
+    edge = lambda a: int(((a > 20) & (a < 200)).sum())  # noqa: E731 - shades between black and the disc's
+    assert SMOOTH == "lanczos" and edge(nearest) == 0 and edge(smooth) > 300
+    draw("s2.png", SMOOTH)
+    assert (tmp_path / "s.png").read_bytes() == (tmp_path / "s2.png").read_bytes()
+
+
+def test_comparison_sheet_is_the_same_png_for_the_same_inputs(tmp_path):
+    from brdfkit.figures.comparison_sheet import comparison_sheet
+    from brdfkit.render.image import write_exr
+
+    write_exr(tmp_path / "ref.exr", _disc())
+    write_exr(tmp_path / "pred.exr", _disc(value=0.7))
+    for out in ("a.png", "b.png"):
+        comparison_sheet(tmp_path / "ref.exr", [tmp_path / "pred.exr"], tmp_path / out, progress=False)
+    assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()

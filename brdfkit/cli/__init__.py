@@ -24,6 +24,7 @@ from brdfkit.errors import BrdfkitError
 COMMANDS = {
     "demo": "Try the built-in models on real materials (--train: synthetic).",
     "synth": "Write a library of synthetic (GGX) materials as MERL tables.",
+    "material": "Write a real material that brdfkit ships as a MERL table.",
     "sample": "Measure a BRDF table into a CSV sample set (N random, or --at).",
     "plan": "Choose N measurement directions for a reconstruction.",
     "fit": "Train a hypernetwork (or a baseline) on MERL tables.",
@@ -68,9 +69,10 @@ class LazyGroup(click.Group):
 def cli():
     """brdfkit: measured BRDFs and hypernetwork neural BRDFs.
 
-    Reads and writes MERL .binary tables; turns any set of BRDF samples into a tiny
-    neural BRDF (Gokbudak et al., ECCV 2024); renders and scores the result.
-    Start with `brdfkit demo`.
+    Reads and writes MERL .binary tables; reconstructs a dense table from a few BRDF
+    samples (by default with a learnt prior over a PCA basis; with the hypernetwork of
+    Gokbudak et al., ECCV 2024, by sparse --method hypernet); compresses tables into a
+    few numbers; renders and scores the result. Start with `brdfkit demo`.
     """
 
 

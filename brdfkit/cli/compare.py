@@ -11,8 +11,9 @@ from brdfkit.cli.render import threads_option
 
 
 @click.command("compare")
-@click.argument("ref", type=click.Path(dir_okay=False))
-@click.argument("preds", nargs=-1, required=True, type=click.Path(dir_okay=False), metavar="PRED...")
+@click.argument("paths", nargs=-1, required=True, type=click.Path(dir_okay=False), metavar="[REF] PRED...")
+@click.option("--ref", "ref", type=click.Path(dir_okay=False), default=None, metavar="REF",
+              help="The reference, named (then every argument is a prediction), as brdfkit metrics --ref takes it.")
 @model_option
 @click.option("--sheet", "-o", "sheet", required=True, type=click.Path(dir_okay=False),
               help="Output PNG: renders in a row with their errors, error images below.")
@@ -24,10 +25,11 @@ from brdfkit.cli.render import threads_option
 @click.option("--json", "as_json", is_flag=True, help="Print the scores as JSON on stdout.")
 @threads_option
 @click.option("--quiet", is_flag=True, help="No progress bars.")
-def command(ref, preds, model_path, sheet, resolution, scene, as_json, threads, quiet):
+def command(paths, ref, model_path, sheet, resolution, scene, as_json, threads, quiet):
     """Compare predictions PRED... with the reference REF on one sheet.
 
-    REF comes first (unlike `brdfkit metrics PRED REF`). Inputs are MERL .binary tables,
+    The reference comes first (compare REF PRED...) or is named (compare --ref REF
+    PRED...), as brdfkit metrics --ref REF PRED takes it. Inputs are MERL .binary tables,
     RGL .bsdf files, .emb embeddings (with -m MODEL) or .exr images of the same size; BRDFs are rendered
     in the reference scene (--scene: another of the suite). The sheet shows the renders in a row, each prediction
     labelled with PSNR, Delta E 2000, SSIM and the BRDF log RMSE against REF (the
@@ -39,6 +41,9 @@ def command(ref, preds, model_path, sheet, resolution, scene, as_json, threads, 
     from brdfkit.figures.comparison_sheet import comparison_sheet
     from brdfkit.runtime import set_torch_threads
 
+    ref, preds = (ref, list(paths)) if ref is not None else (paths[0], list(paths[1:]))
+    if not preds:
+        raise InputError(f"compare {ref}: no prediction; give the reference and at least one PRED")
     refuse_overwrite_of_inputs(sheet, [ref, *preds, model_path])
     if not sheet.lower().endswith(".png"):
         raise InputError(f"{sheet}: the sheet is written as PNG; name it .png")

@@ -15,7 +15,7 @@ from brdfkit.cli.common import parse_option
 # Options of one mode only (parameter name: flag): a training one selects --train.
 _TRAIN_ONLY = {"minutes": "--minutes", "steps": "--steps", "n_materials": "--materials",
                "holdout": "--holdout", "options": "-O"}
-_REAL_ONLY = {"resolution": "--resolution", "only": "--only"}
+_REAL_ONLY = {"resolution": "--resolution", "only": "--only", "gallery": "--gallery"}
 
 
 def _fmt_bytes(n: int) -> str:
@@ -81,7 +81,7 @@ def _mean(values):
 @click.command("demo")
 @click.option("--train", is_flag=True,
               help="The synthetic training demo instead: write a synthetic library, train a small model "
-                   "(about 3 minutes), try it.")
+                   "for --minutes (3), try it; about 5 minutes in all.")
 @click.option("--out", "out_dir", type=click.Path(file_okay=False), default="brdfkit-demo",
               show_default=True, help="Folder for everything the demo writes.")
 @click.option("--seed", type=int, default=0, show_default=True, help="Sampling seed (--train: library and training too).")
@@ -91,11 +91,14 @@ def _mean(values):
 @click.option("--resolution", type=click.IntRange(min=8, max=1024), default=SHEET_RESOLUTION,
               show_default=True, help="Render size of the comparison sheet, pixels.")
 @click.option("--keep-tables/--no-keep-tables", default=False, show_default=True,
-              help="Also write the dense MERL tables (35 MB each: 33 of them, 1.2 GB; --train: the 700 MB "
+              help="Also write the dense MERL tables (33 tables of 35 MB, 1.15 GB; --train: the 700 MB "
                    "library and the decoded tables); without it they stay in memory or in a temporary "
-                   "folder in OUT that is removed at the end.")
+                   "folder in OUT that is removed at the end. One material's table alone: brdfkit material.")
 @click.option("--only", default=None, hidden=True, metavar="NAME,...",
               help="Run these of the shipped materials only (tests).")
+@click.option("--gallery", "gallery", type=click.Path(file_okay=False), default=None, hidden=True, metavar="DIR",
+              help="Also copy the sheets, the plot and errors.json into DIR under the gallery's names "
+                   "(docs/images: docs/gallery.md).")
 @click.option("--minutes", type=float, default=3.0, show_default=True,
               help="Implies --train: training budget (wall clock, reading the data included).")
 @click.option("--steps", type=click.IntRange(min=1), default=None,
@@ -106,8 +109,8 @@ def _mean(values):
               help="Implies --train: materials held out of training and reconstructed.")
 @click.option("-O", "--option", "options", multiple=True, metavar="KEY=VALUE",
               help="Implies --train: advanced training option (see docs/training.md).")
-def command(train, out_dir, seed, device, do_render, resolution, keep_tables, only, minutes, steps, n_materials,
-            holdout, options):
+def command(train, out_dir, seed, device, do_render, resolution, keep_tables, only, gallery, minutes, steps,
+            n_materials, holdout, options):
     """Try brdfkit on real materials with the built-in models (no download).
 
     Four MERL materials the benchmark model never saw (shipped as their published NBRDF
@@ -118,9 +121,11 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     20 steps, and blended; prints the errors and times, and writes the samples,
     embeddings, errors, comparison sheets (reference scene, and the compressions under
     backlight; 128 px renders) and a plot into OUT (--keep-tables: the dense tables too,
-    1.2 GB).
-    About a minute and a half on 2 idle CPU cores. With --train: trains a small model on
-    synthetic materials instead (about 5 minutes). See docs/demo.md.
+    33 of 35 MB, 1.15 GB; one material's table alone: brdfkit material NAME).
+    About a minute and a half on 2 idle CPU cores (88 s: the 128 px run at load 1.4 in
+    docs/notes/demo.md). With --train: trains a small model on synthetic materials
+    instead, for --minutes (3): about 5 minutes in all (286 s: the training demo's run
+    recorded there). See docs/demo.md.
     """
     if _mode(train):
         _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options, keep_tables)
@@ -128,7 +133,9 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     from rich.console import Console
 
     from brdfkit.demos.real_materials import COMPRESSION_SETS, INTERPOLATION_MODEL, SPARSE_MODEL, run_real_demo
+    from brdfkit.demos.real_outputs import check_gallery, copy_to_gallery
 
+    check_gallery(gallery, do_render)  # before the run
     res = run_real_demo(out_dir, only=[s.strip() for s in only.split(",") if s.strip()] if only else None,
                         seed=seed, device=device, render=do_render, resolution=resolution, keep_tables=keep_tables)
     report = Console()
@@ -156,6 +163,9 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
                  + ". PSNR and Delta E as brdfkit metrics takes them (docs/render.md); errors.json also "
                    "holds brdf_log_rmse.")
     report.print(_times_table(res.times))
+    if gallery is not None:
+        copied = copy_to_gallery(res.out_dir, res.sheet_material, gallery)
+        report.print(f"Copied into {gallery}: {', '.join(os.path.basename(p) for p in copied)}", soft_wrap=True)
     report.print(f"Files in {res.out_dir}:")
     folders = {}
     for p in res.files:
@@ -174,8 +184,13 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
                      f"brdfkit compare {os.path.relpath(os.path.join(res.out_dir, 'materials', name + '.binary'))} "
                      f"r.binary --sheet r.png", soft_wrap=True)
         return
+    from brdfkit.io.merl import MERL_FILE_SIZE
+
+    n_tables = len(res.materials) * (len(res.columns) + 1) + (len(res.materials) > 1)  # + the blend
     report.print("The dense MERL tables (materials, reconstructions, compressions: 35 MB each) were not "
-                 "kept; --keep-tables writes them into materials/, reconstructed/ and decoded/.", soft_wrap=True)
+                 "kept; --keep-tables writes them into materials/, reconstructed/ and decoded/ "
+                 f"({n_tables} tables, {n_tables * MERL_FILE_SIZE / 1e9:.2f} GB); brdfkit material {name} -o "
+                 f"{name}.binary writes the material's alone.", soft_wrap=True)
     emb = os.path.relpath(os.path.join(res.out_dir, "embeddings", f"{name}-{INTERPOLATION_MODEL}.emb"))
     report.print(f"Next: brdfkit sparse {samples} -m {SPARSE_MODEL} -o r.binary && "
                  f"brdfkit plot r.binary {emb} -m {INTERPOLATION_MODEL} -o r.png", soft_wrap=True)

@@ -53,8 +53,46 @@ def _print_table(rows: dict, mean: dict | None, scenes=None):
         out.print(_table("scene" if mean is None else "scene (mean of the materials)", per, log_rmse=False))
 
 
+SAMPLE_SUFFIXES = (".csv", ".brdf")
+"""Suffixes of sample files (CSV, pbrt-v2 / Cornell ``.brdf``): a reference only."""
+
+
+def _is_samples(path: str) -> bool:
+    return os.path.splitext(path)[1].lower() in SAMPLE_SUFFIXES and not os.path.isdir(path)
+
+
+def roles(paths, ref) -> tuple[str, str]:
+    """``(pred, ref)`` of the command line: ``--ref REF PRED``; or two paths whose kinds
+    tell their roles, in either order: a sample file is the reference, an ``.emb`` the
+    prediction. Two paths of one kind are refused in one line: before, ``metrics`` took
+    ``PRED REF`` and ``compare`` ``REF PRED``, and a silent swap would change the scores'
+    meaning (peak/grazing, the row's name)."""
+    from brdfkit.errors import InputError
+
+    if ref is not None:
+        if len(paths) != 1:
+            raise InputError(f"metrics --ref {ref}: give one PRED (a BRDF file, an image or a folder), "
+                             f"got {len(paths)} path(s)")
+        return paths[0], ref
+    if len(paths) != 2:
+        raise InputError(f"metrics: expected --ref REF PRED, got {len(paths)} path(s)")
+    samples = [_is_samples(p) for p in paths]
+    if all(samples):
+        raise InputError(f"{paths[0]}, {paths[1]}: two sample files; PRED must be a BRDF file")
+    if any(samples):  # measurements are only ever the reference
+        return (paths[1], paths[0]) if samples[0] else tuple(paths)
+    embs = [p.lower().endswith(".emb") and not os.path.isdir(p) for p in paths]
+    if sum(embs) == 1:  # an embedding is a reconstruction: the prediction
+        return tuple(paths) if embs[0] else (paths[1], paths[0])
+    raise InputError(f"metrics {paths[0]} {paths[1]}: which one is the reference? name it: brdfkit metrics "
+                     f"--ref REF PRED (as brdfkit compare takes REF first; metrics used to take PRED REF)")
+
+
 @click.command("metrics")
-@click.argument("paths", nargs=-1, metavar="PRED REF")
+@click.argument("paths", nargs=-1, metavar="PRED")
+@click.option("--ref", "ref", type=click.Path(), default=None, metavar="REF",
+              help="The reference: a BRDF file, an EXR image, a sample file (.csv, .brdf), or a folder "
+                   "(with PRED a folder).")
 @model_option
 @click.option("--json", "as_json", is_flag=True, help="Print JSON on stdout (see below).")
 @click.option("--resolution", type=click.IntRange(min=16, max=4096), default=None,
@@ -65,8 +103,14 @@ def _print_table(rows: dict, mean: dict | None, scenes=None):
 @threads_option
 @click.option("--quiet", is_flag=True, help="No progress bars.")
 @click.pass_context
-def command(ctx, paths, model_path, as_json, resolution, scenes, threads, quiet):
-    """Compare PRED with REF: PSNR, Delta E 2000, SSIM and the BRDF log RMSE.
+def command(ctx, paths, ref, model_path, as_json, resolution, scenes, threads, quiet):
+    """Score PRED against the reference REF (--ref): PSNR, Delta E 2000, SSIM, BRDF log RMSE.
+
+    brdfkit metrics --ref REF PRED names the reference, as brdfkit compare takes it first
+    (compare REF PRED..., or compare --ref REF PRED...). Two files whose kinds tell their
+    roles may come without --ref, in either order: a sample file is the reference, an
+    .emb the prediction (metrics ref.binary pred.emb); two of one kind (two tables, two
+    images, two folders) need --ref (docs/render.md says why).
 
     PRED and REF are BRDF files (MERL .binary, RGL .bsdf, or .emb with -m MODEL), which are first
     rendered in the reference scene by the quadrature renderer (an RGL .bsdf straight
@@ -93,13 +137,11 @@ def command(ctx, paths, model_path, as_json, resolution, scenes, threads, quiet)
     """
     from brdfkit.errors import InputError
 
-    if not paths:
+    if not paths and ref is None:
         click.echo(ctx.get_help(), err=True)
         sys.exit(2)
-    if len(paths) != 2:
-        raise InputError(f"metrics: expected PRED REF, got {len(paths)} path(s)")
-    pred, ref = paths
-    if os.path.splitext(ref)[1].lower() in (".csv", ".brdf") and not os.path.isdir(ref):
+    pred, ref = roles(paths, ref)
+    if _is_samples(ref):
         from brdfkit.evaluation.holdout import score_at_samples
 
         result = score_at_samples(pred, ref, model_path)
@@ -116,7 +158,7 @@ def command(ctx, paths, model_path, as_json, resolution, scenes, threads, quiet)
     loader = FileLoader(model_path, resolution, progress=not quiet and not as_json,
                         before_torch=lambda: set_torch_threads(threads))
     names = None if scenes is None else scene_names(scenes)
-    dirs = [os.path.isdir(p) for p in paths]
+    dirs = [os.path.isdir(p) for p in (pred, ref)]
     if any(dirs) and not all(dirs):
         raise InputError(f"{pred if not dirs[0] else ref}: is a file but the other input is a folder; "
                          "give two files or two folders")

@@ -28,7 +28,7 @@ the built-in models (``docs/models.md``), none of which needs training here:
 
 :func:`run_real_demo` returns what it measured and wrote; ``brdfkit demo`` prints it.
 It writes what one looks at: the sheet, the plot, the samples, the embeddings and the
-errors (``errors.json``). The 33 dense tables (35 MB each, 1.2 GB) stay in memory, the
+errors (``errors.json``). The 33 dense tables (35 MB each, 1.15 GB) stay in memory, the
 six the sheet renders in a temporary folder removed at the end
 (:func:`brdfkit.demos.synthetic_training.scratch_folder`), unless ``keep_tables``.
 ``brdfkit demo --train`` is the synthetic training demo (:mod:`brdfkit.demos.synthetic_training`).
@@ -299,7 +299,7 @@ def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_
     plot_path, sheet_path = write_figures(files, err, clock, name, shown, sheet_inputs, tiles, resolution,
                                           compressions=COMPRESSION_MODELS)
     times = _times(clock, models, names, files, refine_steps, len(tiles), resolution)
-    files.written.append(_write_errors(out_dir, models, columns, rows, refine_steps, seed, scored))
+    files.written.append(_write_errors(out_dir, models, columns, rows, refine_steps, seed, scored, files.sheets))
     times.append(("whole demo", time.monotonic() - t_all))
     return RealDemoResult(out_dir, names, method, columns, rows, times, sorted(files.written), sheet_path,
                           plot_path, name, resolution, keep_tables, models.comps, refine_steps, scored)
@@ -323,6 +323,7 @@ class _Models:
 def _load_models(device) -> _Models:
     """Load the sparse reconstructions' methods (:data:`SPARSE_MODEL`'s default, and IPCA
     on its basis) and the compression hypernetworks on ``device``."""
+    from brdfkit.embeddings import choose_decoder
     from brdfkit.methods import get_method
     from brdfkit.methods.choice import AUTO, choose
 
@@ -331,10 +332,9 @@ def _load_models(device) -> _Models:
     sparse_model = sparse_method.load(choice.path, device)
     ipca = get_method("ipca")
     ipca_model = ipca.load(SPARSE_MODEL)
-    from brdfkit.embeddings import choose_decoder
-
     hyper = {m: choose_decoder(None, m, device) for m in COMPRESSION_MODELS}
-    comps = compression_labels({m: f"{d.kind}-{d.default_size}" for m, d in hyper.items()})
+    comps = compression_labels({m: d.default_size if d.kind == "hypernet" else f"{d.kind}-{d.default_size}"
+                                for m, d in hyper.items()})
     methods = [(choice.method, sparse_method, sparse_model), ("ipca", ipca, ipca_model)]
     return _Models(choice, methods, hyper, comps)
 
@@ -438,7 +438,7 @@ def _times(clock, models: _Models, names, files, refine_steps, renders, resoluti
     return times
 
 
-def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, scored) -> str:
+def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, scored, sheets) -> str:
     """``OUT/errors.json`` (:func:`brdfkit.demos.real_outputs.write_errors`) with what
     made its figures; returns its path."""
     from brdfkit.demos.real_outputs import write_errors
@@ -447,4 +447,4 @@ def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, s
             list(COMPRESSION_MODELS), "compressions": [{"column": label, "model": m, "kind": kind, "embedding":
             models.hyper[m].kind, "size": models.hyper[m].default_size} for m, kind, label, _ in models.comps],
             "compression_steps": refine_steps, "interpolation_model": INTERPOLATION_MODEL, "seed": seed}
-    return write_errors(out_dir, made, columns, rows, scored)
+    return write_errors(out_dir, made, columns, rows, scored, sheets)

@@ -1,7 +1,8 @@
 """What the real-materials demo (:mod:`brdfkit.demos.real_materials`) writes, and the clock
 of its steps: its output folders and the files it keeps, its dense tables (kept in the
-output folder, or the comparison sheet's inputs in a temporary folder), the plot and the
-comparison sheet.
+output folder, or the comparison sheet's inputs in a temporary folder), the plot, the
+comparison sheets, ``errors.json``, and their copies into the docs' gallery
+(``brdfkit demo --gallery docs/images``).
 """
 
 from __future__ import annotations
@@ -10,7 +11,7 @@ import os
 import shutil
 import time
 
-__all__ = ["StepClock", "DemoFiles", "write_figures"]
+__all__ = ["StepClock", "DemoFiles", "write_figures", "write_errors", "GALLERY", "check_gallery", "copy_to_gallery"]
 
 
 class StepClock:
@@ -62,6 +63,8 @@ class DemoFiles:
         Every file written and kept, in order.
     n_tables
         Dense tables written, kept or for the sheet (not the sheet's links to kept ones).
+    sheets
+        ``{scene: {tile label: scores}}`` of the comparison sheets (:func:`write_figures`).
     """
 
     def __init__(self, out_dir: str, scratch: str | None, keep_tables: bool, clock: StepClock):
@@ -72,6 +75,7 @@ class DemoFiles:
             os.makedirs(d, exist_ok=True)
         self.written: list[str] = []
         self.n_tables = 0
+        self.sheets: dict = {}
 
     def table(self, folder: str, stem: str, table, tile: str | None = None) -> str | None:
         """Write ``OUT/folder/stem.binary`` when tables are kept, and the sheet's input
@@ -121,7 +125,7 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
     sheet's ``inputs`` (``{result key: path}``) in the order of ``tiles`` (``{result key:
     label}``, the reference first), rendered at ``resolution`` pixels, of the material
     ``name``; the backlit sheet shows the keys of ``compressions`` only; progress on the
-    console ``err``.
+    console ``err``. Each sheet's scores go to ``files.sheets`` (:func:`sheet_scores`).
 
     Returns
     -------
@@ -150,9 +154,24 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
         shown = preds if scene == "reference" else [inputs[k] for k in tiles if k in compressions]
         err.print(f"rendering {name} and {len(shown)} reconstructions in the {scene} scene ({resolution} px): {path}")
         with clock("sheet"):
-            comparison_sheet(inputs["reference"], shown, path, resolution=resolution, scene=scene, loader=loader)
+            rows = comparison_sheet(inputs["reference"], shown, path, resolution=resolution, scene=scene,
+                                    loader=loader)
+            files.sheets[scene] = sheet_scores(loader, inputs["reference"], shown, rows, scene)
         files.written.append(path)
     return plot_path, sheet_path
+
+
+def sheet_scores(loader, ref: str, preds: list, rows: dict, scene: str) -> dict:
+    """The scores a comparison sheet prints under its tiles: ``rows`` (its ``{label:
+    scores}``, :func:`brdfkit.figures.comparison_sheet.comparison_sheet`), each with
+    ``delta_e_max``, the largest per-pixel Delta E 2000 of its error image (the sheet's
+    ``max``), from the renders ``loader`` keeps."""
+    from brdfkit.evaluation.metrics import delta_e_2000_map
+
+    ref_img, *images = loader.renders([ref, *preds], None, scene)  # cached: no render
+    return {label: {**{k: (None if v is None else float(v)) for k, v in scores.items()},
+                    "delta_e_max": float(delta_e_2000_map(img, ref_img).max())}
+            for (label, scores), img in zip(rows.items(), images)}
 
 
 def render_scores(ref, tables: list, resolution: int) -> list:
@@ -171,10 +190,13 @@ def render_scores(ref, tables: list, resolution: int) -> list:
     return [(min(psnr(img, images[0]), 100.0), delta_e_2000(img, images[0])) for img in images[1:]]
 
 
-def write_errors(out_dir, made: dict, columns, rows, scored) -> str:
+def write_errors(out_dir, made: dict, columns, rows, scored, sheets=None) -> str:
     """Write ``OUT/errors.json`` (atomically): the BRDF log RMSE of each material and
     column (``rows``: ``[(material, values)]``), the renders' PSNR and Delta E 2000
-    (``scored``, when rendered), and ``made``, what made them; returns its path."""
+    (``scored``, when rendered), the comparison sheets' scores (``sheets``: ``{scene:
+    {tile label: {"psnr", "delta_e", "ssim", "brdf_log_rmse", "delta_e_max"}}}``, when
+    drawn), and ``made``, what made them; returns its path. The gallery quotes its figures
+    from this file (``docs/images/demo-errors.json``, ``tests/test_gallery.py``)."""
     import json
     import os
 
@@ -186,7 +208,44 @@ def write_errors(out_dir, made: dict, columns, rows, scored) -> str:
     if scored:
         doc["psnr"] = {n: {c: float(v[0]) for c, v in zip(columns, row)} for n, row in scored}
         doc["delta_e"] = {n: {c: float(v[1]) for c, v in zip(columns, row)} for n, row in scored}
+    if sheets:
+        doc["sheets"] = sheets
     with atomic_open(path, "w", encoding="utf-8") as f:
         json.dump(doc, f, indent=1)
     return path
 
+
+
+GALLERY = {"sheet-{name}.png": "demo-sheet.png", "sheet-{name}-backlight.png": "demo-sheet-backlight.png",
+           "plot-{name}.png": "demo-plot.png", "errors.json": "demo-errors.json"}
+"""What ``brdfkit demo --gallery DIR`` copies (``{file in OUT: name in DIR}``, ``{name}``
+the sheets' material): the pictures and figures ``docs/gallery.md`` shows from
+``docs/images``."""
+
+
+def check_gallery(folder, render: bool) -> None:
+    """Refuse ``--gallery`` before the demo runs: a folder that does not exist, or a run
+    that draws no sheets (``--no-render``)."""
+    from brdfkit.errors import InputError
+
+    if folder is None:
+        return
+    if not os.path.isdir(folder):
+        raise InputError(f"--gallery {folder}: no such folder")
+    if not render:
+        raise InputError(f"--gallery {folder}: the gallery shows the sheets, which --no-render does not draw")
+
+
+def copy_to_gallery(out_dir: str, name: str, folder: str) -> list[str]:
+    """Copy the demo's sheets and plot of the material ``name`` and its ``errors.json``
+    from ``out_dir`` into ``folder`` under the names of :data:`GALLERY`, each atomically;
+    returns the paths written."""
+    from brdfkit.atomic import atomic_path
+
+    done = []
+    for src, dst in GALLERY.items():
+        target = os.path.join(folder, dst)
+        with atomic_path(target) as tmp:
+            shutil.copyfile(os.path.join(out_dir, src.format(name=name)), tmp)
+        done.append(target)
+    return done

@@ -5,7 +5,7 @@ against; what a user can check is the measurements themselves. :func:`holdout` h
 out a fraction of a file's samples (at random, by a seed), reconstructs the material
 from ``N`` of the others with each method, and scores each reconstruction at the held-out
 directions (:func:`sample_errors`). ``brdfkit validate`` runs it; ``brdfkit metrics
-TABLE SAMPLES`` scores any BRDF file at a sample file's directions the same way.
+SAMPLES TABLE`` scores any BRDF file at a sample file's directions the same way.
 
 The scores of a prediction ``p`` against measurements ``m`` (linear sRGB, 1/sr), at the
 samples where the prediction has a value:
@@ -305,9 +305,9 @@ def validate_files(paths, methods=("auto",), *, fraction: float = 0.3, counts=(N
 
 
 def score_at_samples(pred, ref, model_path=None) -> dict:
-    """``brdfkit metrics PRED SAMPLES``: the BRDF file ``pred`` (``.binary``, ``.bsdf`` as
-    its reciprocal table, ``.emb`` decoded with ``model_path`` or the built-in it names)
-    scored at every sample of the sample file ``ref`` (:func:`sample_errors`). The
+    """``brdfkit metrics --ref SAMPLES PRED`` (or ``SAMPLES PRED`` in either order): the BRDF
+    file ``pred`` (``.binary``, ``.bsdf`` as its reciprocal table, ``.emb`` decoded with
+    ``model_path`` or the built-in it names) scored at every sample of the sample file ``ref`` (:func:`sample_errors`). The
     samples are read first: a bad reference costs no decoding."""
     from brdfkit.files.brdf_file import EmbeddingDecoders, read_table
     from brdfkit.io.sample_files import read_sample_file

@@ -12,7 +12,9 @@ reconstructions, say), written as one PNG with matplotlib's Agg backend:
 * **Slices** (images): the table at a fixed ``phi_d`` over ``theta_d`` (x) and
   ``theta_h`` (y), in the MERL grid's own coordinates (``theta_h`` cell ``i`` at
   ``(i / 90)^2 * 90`` degrees, so the specular peak at small ``theta_h`` is spread out),
-  ``log10`` colours on one scale shared by every image; grey where not measured.
+  ``log10`` colours on one scale shared by every image: black at the scale's bottom and
+  below (zero included: a value a decoder gives as 0 shows black), grey where not measured;
+  the title says which of the two the images hold.
 
 Values are one channel (``red``, ``green``, ``blue``) or the luminance
 ``Y = 0.2126 R + 0.7152 G + 0.0722 B`` (Rec. 709 primaries, linear), in 1/sr.
@@ -374,4 +376,17 @@ def _draw_slices(sub, tables: dict[str, np.ndarray], phi_d: list[float], channel
     cb.set_ticklabels([_decade_label(x) for x in ticks])
     cb.set_label(f"{unit.replace(' x cos(theta_o)', '')}, {channel}", fontsize=8)
     sub.suptitle(_wrap(f"Slices at fixed phi_d ({channel}, log colour scale shared by all; "
-                       "grey: not measured)", width - 0.4, 10), fontsize=10)
+                       f"{_slice_legend(images.values(), lo_s)})", width - 0.4, 10), fontsize=10)
+
+
+def _slice_legend(images, lo: float) -> str:
+    """What the slices' dark colours mean, of what ``images`` hold: black, values at the
+    scale's bottom ``10^lo`` or below (a zero included), where any; grey, cells not
+    measured (NaN), where any (at ``phi_d`` = 90 degrees every cell is above the horizon)."""
+    parts = []
+    with np.errstate(invalid="ignore"):
+        if any(np.any(np.isfinite(v) & (v <= 10.0 ** lo)) for v in images):
+            parts.append(f"black: {_decade_label(lo)} or less, 0 included")
+    if any(np.isnan(v).any() for v in images):
+        parts.append("grey: not measured")
+    return "; ".join(parts) or "darker: smaller"

@@ -1,11 +1,18 @@
 """What every PNG sheet shares: the pyplot import (Agg backend), bare axes, a render shown
-as displayed, the PNG written atomically."""
+as displayed (resampled smoothly to its tile), the PNG written atomically."""
 
 from __future__ import annotations
 
 import os
 
-__all__ = ["pyplot", "bare_axes", "show_render", "save_png"]
+__all__ = ["SMOOTH", "pyplot", "bare_axes", "show_render", "show_image", "save_png"]
+
+SMOOTH = "lanczos"
+"""How a sheet resamples an image to its tile's pixels (matplotlib's ``interpolation``, on
+the displayed colours): Lanczos, so that a render enlarged by a factor that is not whole
+(a 128 px render in a tile of about 237 px) has smooth edges, not rows and columns of
+pixels drawn twice. Deterministic: the same image gives the same PNG. A drawing that puts
+one render pixel on one PNG pixel (the interpolation strip) passes ``"nearest"``."""
 
 
 def pyplot():
@@ -27,13 +34,22 @@ def bare_axes(ax) -> None:
         spine.set_visible(False)
 
 
-def show_render(ax, image, title: str | None = None, fontsize: float = 10) -> None:
+def show_image(ax, image, interpolation: str = SMOOTH, **kwargs):
+    """``ax.imshow(image, **kwargs)`` resampled by ``interpolation`` (default
+    :data:`SMOOTH`) on the displayed colours (``interpolation_stage="rgba"``: a colour
+    map's colours are blended, never a value outside the data's range); returns the
+    image artist."""
+    return ax.imshow(image, interpolation=interpolation, interpolation_stage="rgba", **kwargs)
+
+
+def show_render(ax, image, title: str | None = None, fontsize: float = 10, interpolation: str = SMOOTH) -> None:
     """Draw a linear RGB render ``(H, W, 3)`` as displayed
-    (:func:`brdfkit.render.display.display_encode`: exposure 1, clipped, sRGB), nearest-pixel,
-    on bare axes, with ``title`` above it."""
+    (:func:`brdfkit.render.display.display_encode`: exposure 1, clipped, sRGB), resampled
+    to the axes by ``interpolation`` (:func:`show_image`), on bare axes, with ``title``
+    above it."""
     from brdfkit.render.display import display_encode
 
-    ax.imshow(display_encode(image), interpolation="nearest")
+    show_image(ax, display_encode(image), interpolation)
     if title is not None:
         ax.set_title(title, fontsize=fontsize)
     bare_axes(ax)

@@ -4,7 +4,8 @@ scene of the suite.
 
 One PNG: the first column is the reference, then one column per prediction. The top row
 holds the renders as displayed (:func:`brdfkit.render.display.display_encode`: exposure 1,
-clipped, sRGB), each prediction captioned with the errors ``brdfkit metrics`` reports
+clipped, sRGB; resampled to their tiles by Lanczos, :data:`brdfkit.figures.canvas.SMOOTH`,
+so a render enlarged by a factor that is not whole keeps smooth edges), each prediction captioned with the errors ``brdfkit metrics`` reports
 (:func:`brdfkit.evaluation.metrics.score`: PSNR, mean CIEDE2000, SSIM, and the BRDF log RMSE when
 both are BRDF files). The bottom row holds the per-pixel CIEDE2000 against the reference
 (:func:`brdfkit.evaluation.metrics.delta_e_2000_map`) on one colour scale for all predictions.
@@ -22,7 +23,7 @@ from typing import Sequence
 import numpy as np
 
 from brdfkit.errors import InputError
-from brdfkit.figures.canvas import bare_axes, pyplot, save_png, show_render
+from brdfkit.figures.canvas import bare_axes, pyplot, save_png, show_image, show_render
 
 __all__ = ["comparison_sheet", "DELTA_E_SCALE"]
 
@@ -124,7 +125,7 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     for j, (label, img, de) in enumerate(zip(labels[1:], images, maps), start=1):
         show_render(axes[0, j], img, label)
         axes[0, j].set_xlabel(_caption(rows[label]), fontsize=8.5, loc="left")
-        im = axes[1, j].imshow(de, cmap="inferno", vmin=0.0, vmax=top, interpolation="nearest")
+        im = show_image(axes[1, j], de, cmap="inferno", vmin=0.0, vmax=top)
         axes[1, j].set_xlabel(f"mean {rows[label]['delta_e']:.2f}, max {float(de.max()):.1f}", fontsize=8.5)
     for ax in axes.ravel():
         bare_axes(ax)

@@ -53,8 +53,8 @@ def check_strip(steps, size) -> None:
     if isinstance(size, bool) or not isinstance(size, int) or not MIN_SIZE <= size <= MAX_SIZE:
         raise InputError(f"size = {size!r}: a tile is a whole number of pixels from {MIN_SIZE} to {MAX_SIZE}")
     if steps * size > MAX_WIDTH:
-        raise InputError(f"steps = {steps} tiles of size = {size} px make a strip {steps * size:,} px wide, more "
-                         f"than {MAX_WIDTH:,}: take fewer steps or a smaller size")
+        raise InputError(f"{steps} tiles of {size} px (steps, tile) make a strip {steps * size:,} px wide, more "
+                         f"than {MAX_WIDTH:,}: take fewer steps or smaller tiles")
 
 
 def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int = STEPS, size: int = SIZE,
@@ -127,7 +127,8 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     left = (width - steps * col) // 2
     for i, (label, img) in enumerate(zip(labels, images)):
         x = left + i * col + (col - size) // 2
-        show_render(fig.add_axes((x / width, (MARGIN_PX + line) / height, size / width, size / height)), img)
+        show_render(fig.add_axes((x / width, (MARGIN_PX + line) / height, size / width, size / height)), img,
+                    interpolation="nearest")  # one PNG pixel per render pixel: nothing to resample
         label.set_position(((x + size / 2) / width, (MARGIN_PX + line + size + 2) / height))
     caption.set_position((0.5, MARGIN_PX / height))
     save_png(fig, output)

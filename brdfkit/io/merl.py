@@ -74,7 +74,7 @@ def read_merl(path: str | os.PathLike) -> np.ndarray:
     Parameters
     ----------
     path
-        The file.
+        The ``.binary`` file (``DEVELOPERS.md``: the format).
 
     Returns
     -------

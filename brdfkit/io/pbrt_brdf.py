@@ -64,7 +64,7 @@ def read_pbrt_brdf(path) -> SampleSet:
     Parameters
     ----------
     path
-        The file.
+        The ``.brdf`` text file.
 
     Returns
     -------

@@ -132,7 +132,7 @@ def open_safetensors(path: str | os.PathLike, *, framework: str = "numpy", diagn
     Parameters
     ----------
     path
-        The file.
+        The safetensors file.
     framework
         ``"numpy"`` or ``"pt"`` (tensors come back as NumPy arrays or torch tensors, on
         the CPU).

@@ -25,10 +25,19 @@ import numpy as np
 
 from brdfkit.errors import FormatError, InputError
 
-__all__ = ["DEMO_WEIGHTS", "LAYERS", "load_nbrdf_weights", "nbrdf_table"]
+__all__ = ["DEMO_WEIGHTS", "LAYERS", "MATERIAL_NOTES", "load_nbrdf_weights", "nbrdf_table", "material_names",
+           "material_table", "write_material"]
 
 DEMO_WEIGHTS = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "data", "nbrdf-merl-demo.npz")
 """The shipped networks: blue-metallic-paint, teflon, chrome-steel, violet-rubber."""
+
+MATERIAL_NOTES = {
+    "blue-metallic-paint": "coloured metallic flakes: a blue glossy lobe over a dark base",
+    "teflon": "a bright, nearly white diffuser",
+    "chrome-steel": "mirror-like: a very narrow, very high specular peak, black elsewhere",
+    "violet-rubber": "a coloured rough dielectric with a faint broad sheen",
+}
+"""What each shipped material looks like (``brdfkit material --list``; ``brdfkit/data/README.md``)."""
 
 LAYERS = {"w1": (6, 21), "b1": (21,), "w2": (21, 21), "b2": (21,), "w3": (21, 3), "b3": (3,)}
 """Each array of a network and its shape (the published NBRDF architecture)."""
@@ -113,3 +122,81 @@ def nbrdf_table(net: dict[str, np.ndarray], device=None) -> np.ndarray:
     table = np.full((N_CELLS, 3), np.nan)
     table[cells] = rgb.cpu().numpy()
     return table.reshape(TABLE_SHAPE)
+
+
+def material_names(path: str | os.PathLike = DEMO_WEIGHTS) -> list[str]:
+    """The materials of an NBRDF ``.npz`` (default the shipped four), in the file's order."""
+    return list(load_nbrdf_weights(path))
+
+
+def material_table(name: str, device="cpu", path: str | os.PathLike = DEMO_WEIGHTS) -> np.ndarray:
+    """The dense MERL table of the shipped material ``name`` (:func:`nbrdf_table` of its
+    network; ``brdfkit demo``'s ``materials/NAME.binary``).
+
+    Parameters
+    ----------
+    name
+        One of :func:`material_names`.
+    device
+        Torch device of the decode (default the CPU: 0.2 s, no GPU to start).
+    path
+        The NBRDF ``.npz`` (default :data:`DEMO_WEIGHTS`).
+
+    Returns
+    -------
+    numpy.ndarray
+        float64 ``(90, 90, 180, 3)``, 1/sr, NaN below the horizon.
+
+    Raises
+    ------
+    InputError
+        An unknown name; the message lists the known ones.
+    """
+    nets = load_nbrdf_weights(path)
+    if name not in nets:
+        raise InputError(f"unknown material {name!r}; the shipped ones are {', '.join(nets)} "
+                         f"(brdfkit material --list)")
+    return nbrdf_table(nets[name], device=device)
+
+
+def write_material(name: str, output: str | os.PathLike | None = None, device="cpu") -> str:
+    """Write the shipped material ``name`` as a MERL ``.binary`` table (34,992,012 bytes,
+    atomically: :func:`brdfkit.io.merl.write_merl`): the work of ``brdfkit material``.
+
+    Parameters
+    ----------
+    name
+        One of :func:`material_names`.
+    output
+        The file (its name must end in ``.binary``), or an existing folder to write
+        ``NAME.binary`` into; ``None``: ``NAME.binary`` in the working folder.
+    device
+        Torch device of the decode (:func:`material_table`).
+
+    Returns
+    -------
+    str
+        The path written.
+
+    Raises
+    ------
+    InputError
+        An unknown name, or an output that cannot be written (its folder missing, not
+        writable, or a name not ending in ``.binary``); both before any work.
+    """
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.io.merl import write_merl
+
+    names = material_names()
+    if name not in names:
+        raise InputError(f"unknown material {name!r}; the shipped ones are {', '.join(names)} "
+                         f"(brdfkit material --list)")
+    output = os.fspath(output) if output is not None else f"{name}.binary"
+    if os.path.isdir(output):
+        output = os.path.join(output, f"{name}.binary")
+    if not output.lower().endswith(".binary"):
+        raise InputError(f"{output}: brdfkit material writes a MERL table; name it .binary "
+                         f"(brdfkit convert then makes an RGL .bsdf of it)")
+    refuse_overwrite_of_inputs(output, [DEMO_WEIGHTS])
+    write_merl(output, material_table(name, device))
+    return output
