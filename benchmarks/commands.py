@@ -86,13 +86,13 @@ def main(argv=None):
             ("sample 400", ["sample", j("a.binary"), "-n", "400", "-o", j("s2.csv")]),
             ("interpolate (.emb)", ["interpolate", j("a.emb"), j("b.emb"), "--t", "0.3", "-o", j("c.emb")]),
             ("plot a table", ["plot", j("a.binary"), "-o", j("p.png")]),
-            ("metrics a.exr b.exr", ["metrics", j("a.exr"), j("b.exr")]),
+            ("metrics a.exr b.exr", ["metrics", "--ref", j("b.exr"), j("a.exr")]),  # the records' name
             ("sparse 400", ["sparse", j("s.csv"), "-m", model, "-o", j("sp.binary")]),
             ("encode a table", ["encode", j("a.binary"), "-m", model, "-o", j("enc")]),
             ("decode", ["decode", j("a.emb"), "-m", model, "-o", j("d.binary")]),
             ("render a table (256 px)", ["render", j("a.binary"), "-o", j("r.exr")]),
             ("render an .emb (256 px)", ["render", j("a.emb"), "-m", model, "-o", j("e.exr")]),
-            ("metrics a.binary b.binary", ["metrics", j("a.binary"), j("b.binary")]),
+            ("metrics a.binary b.binary", ["metrics", "--ref", j("b.binary"), j("a.binary")]),  # likewise
         ]
         os.makedirs(j("enc"))
         for name, a in commands:

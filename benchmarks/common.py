@@ -213,9 +213,16 @@ def timing_parser(doc: str, repeat: int) -> argparse.ArgumentParser:
     description, and the options they share, ``--threads`` (torch threads, default 1),
     ``--repeat`` (rounds, default ``repeat``) and ``--json`` (also write the report's
     JSON there); the benchmark adds its own."""
-    ap = argparse.ArgumentParser(description=doc.split("\n\n")[0])
-    ap.add_argument("--threads", type=int, default=1, help="torch threads")
+    ap = record_options(argparse.ArgumentParser(description=doc.split("\n\n")[0]))
     ap.add_argument("--repeat", type=int, default=repeat, help="rounds (best of)")
+    return ap
+
+
+def record_options(ap: argparse.ArgumentParser) -> argparse.ArgumentParser:
+    """``ap`` with the two options of every script that writes a record: ``--threads``
+    (torch threads, default 1; :func:`set_threads`) and ``--json`` (also write the JSON
+    there; :func:`write_record`)."""
+    ap.add_argument("--threads", type=int, default=1, help="torch threads")
     ap.add_argument("--json", default=None, help="also write the JSON here")
     return ap
 

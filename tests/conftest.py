@@ -1,7 +1,8 @@
 """What the test modules share: the one-torch-thread and no-``$BRDFKIT_MODEL`` fixtures,
 the tiny model configurations, the good and bad files of the bad-input tests,
 ``installed`` (a module's ``shelf`` of built-in models in use), the ``brdfkit`` runners
-(a subprocess, or in-process with ``run_cli``), the checks of one-line errors
+(a subprocess, or in-process with ``run_cli``, or ``run_cli_uncaptured`` in a module
+fixture), the checks of one-line errors
 (``one_error_line``, ``format_error``) and the leftover-file check.
 
 Fixtures apply by name (the two autouse ones to every test); the constants and functions are imported
@@ -17,6 +18,12 @@ import sys
 from pathlib import Path
 
 import pytest
+
+# NumPy's OpenBLAS: one thread in the test processes and the commands they start, set before
+# NumPy loads (it reads the variable once). The suite's two workers share 2 cores; with a
+# thread pool each, a float32 product of a few rows by a million cells (the Gram matrix of
+# ``fit_basis``) spins for tens of seconds instead of taking milliseconds.
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
 # A hypernetwork small enough that a dense encode or decode takes a fraction of a second
 # (a ``HyperConfig``; the model tests save it untrained).
@@ -163,6 +170,23 @@ def run_cli(capsys, args) -> tuple[int, str, str]:
         main([str(a) for a in args])
     out = capsys.readouterr()
     return e.value.code, out.out, out.err
+
+
+def run_cli_uncaptured(args) -> tuple[int, str]:
+    """Run ``brdfkit ARGS`` in-process where no ``capsys`` is at hand (a module fixture
+    building its inputs with the commands): ``(exit code, stderr)``."""
+    import contextlib
+    import io
+
+    from brdfkit.cli import main
+
+    err = io.StringIO()
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(err):
+        try:
+            main([str(a) for a in args])
+        except SystemExit as e:
+            return e.code, err.getvalue()
+    return 0, err.getvalue()
 
 
 def one_error_line(err: str) -> str:

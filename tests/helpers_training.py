@@ -12,16 +12,34 @@ import numpy as np
 from brdfkit.io.merl import is_merl_file
 
 
-def tiny_library(tmp_path_factory, n: int = 3) -> Path:
-    """A folder of ``n`` synthetic MERL tables (random GGX materials, seed 1), written once
-    per test session and shared by the test modules."""
+def synthetic_library(tmp_path_factory, n: int = 3, seed: int = 1) -> Path:
+    """A folder of ``n`` synthetic MERL tables (random GGX materials ``synth-000`` ... of
+    :func:`brdfkit.materials.synthetic.library` with ``seed``), written once per test run
+    and shared, read-only, by the test modules of both pytest-xdist workers (a table takes
+    about a second to compute)."""
+    import os
+    import shutil
+    import tempfile
+
     from brdfkit.materials.synthetic import write_library
 
-    folder = tmp_path_factory.getbasetemp() / f"training-lib-{n}"
-    names = [f"synth-{i:03d}.binary" for i in range(n)]
-    if not all(is_merl_file(folder / f) for f in names):
-        write_library(folder, n, seed=1, stiff=False)
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent  # this run's folder, above each worker's own
+    folder = base / f"synthetic-lib-{n}-seed-{seed}"
+    if not all(is_merl_file(folder / f"synth-{i:03d}.binary") for i in range(n)):
+        part = Path(tempfile.mkdtemp(prefix=f".{folder.name}-", dir=base))
+        write_library(part, n, seed=seed, stiff=False)
+        try:
+            os.rename(part, folder)
+        except OSError:  # the other worker wrote it first: the same tables
+            shutil.rmtree(part, ignore_errors=True)
     return folder
+
+
+def tiny_library(tmp_path_factory, n: int = 3) -> Path:
+    """The training tests' library: :func:`synthetic_library` of ``n`` tables, seed 1."""
+    return synthetic_library(tmp_path_factory, n, seed=1)
 
 
 def mapped_mse_and_log_rmse(net, rho_ref, table, n_samples=200, n_cells=100_000, seed=5):

@@ -153,6 +153,7 @@ def test_reference_fallback_where_unmeasured(tmp_path):
     np.testing.assert_allclose(got[1], [0.1, 0.1, 0.1])   # its own cell
 
 
+@pytest.mark.slow
 def test_decode_shape_nan_pattern_non_negative(models, table):
     for name in ("tiny", "default"):
         m = models[name]

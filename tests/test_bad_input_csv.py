@@ -126,6 +126,7 @@ def test_bad_csv_through_sparse(good, bad_csv, tmp_path, capsys, small_limit, na
     nothing_written(tmp_path, out, emb)
 
 
+@pytest.mark.slow
 def test_bad_csv_through_encode(good, bad_csv, tmp_path, capsys, small_limit):
     names = sorted(bad_csv)
     code, _, err = run_cli(capsys, ["encode", *[bad_csv[n] for n in names], good / "mat.binary",

@@ -44,7 +44,7 @@ def bad_exr(tmp_path_factory):
 @pytest.mark.parametrize("position", ["pred", "ref"])
 def test_bad_exr_through_metrics(bad_exr, capsys, name, message, position):
     bad, good_img = bad_exr / f"{name}.exr", bad_exr / "good.exr"
-    args = [bad, good_img] if position == "pred" else [good_img, bad]
+    args = ["--ref", good_img, bad] if position == "pred" else ["--ref", bad, good_img]
     code, _, err = run_cli(capsys, ["metrics", *args, "--json"])
     assert code == 2
     line = one_error_line(err)
@@ -68,7 +68,7 @@ def test_damaged_exr_gives_one_line_and_a_clean_stdout(tmp_path):
     table = next(i for i in range(len(raw) - 8) if int.from_bytes(raw[i:i + 8], "little") == i + 8)
     raw[table + 8:table + 16] = b"\xff" * 8  # the chunk's scanline number
     (tmp_path / "bad.exr").write_bytes(bytes(raw))
-    r = run_brdfkit(["metrics", tmp_path / "bad.exr", tmp_path / "good.exr", "--json"])
+    r = run_brdfkit(["metrics", "--ref", tmp_path / "good.exr", tmp_path / "bad.exr", "--json"])
     assert r.returncode == 2 and r.stdout == ""
     assert r.stderr.splitlines() == [
         f"brdfkit: error: {tmp_path / 'bad.exr'}: cannot read OpenEXR image (EXR_ERR_BAD_CHUNK_LEADER: "
@@ -76,7 +76,7 @@ def test_damaged_exr_gives_one_line_and_a_clean_stdout(tmp_path):
 
 
 def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, monkeypatch):
-    # Regression: `brdfkit metrics GOOD.binary BAD.binary` rendered GOOD (256 px: 2.5 min
+    # Regression: `brdfkit metrics --ref BAD.binary GOOD.binary` rendered GOOD (256 px: 2.5 min
     # on the busy 2-core machine) before it read BAD and refused it.
     import brdfkit.files.render_file as cli_render
 
@@ -84,7 +84,7 @@ def test_metrics_checks_both_inputs_before_rendering(good, bad_merl, capsys, mon
         raise AssertionError("rendered before checking the inputs")
 
     monkeypatch.setattr(cli_render, "render_brdf_file", no_render)
-    for args, bad in (([good / "mat.binary", bad_merl["nan"]], bad_merl["nan"]),
+    for args, bad in ((["--ref", bad_merl["nan"], good / "mat.binary"], bad_merl["nan"]),
                       ([good / "a.emb", bad_merl["red_half"], "-m", good / "model.safetensors"], bad_merl["red_half"]),
                       ([good / "mat.binary", good / "other.emb", "-m", good / "model.safetensors"], None)):
         code, _, err = run_cli(capsys, ["metrics", *args, "--json"])

@@ -39,7 +39,7 @@ def test_bad_measurements_through_every_command(bad, good, tmp_path, capsys, nam
                    tmp_path / "x.binary"),
         "validate": (["validate", path, "--method", f"hypernet={good / 'model.safetensors'}", "-o",
                       tmp_path / "v.json"], tmp_path / "v.json"),
-        "metrics": (["metrics", good / "mat.binary", path], None),
+        "metrics": (["metrics", "--ref", path, good / "mat.binary"], None),
         "plan": (["plan", "-n", "3", "--design", "uniform", "--within", path, "-o", tmp_path / "p.csv"],
                  tmp_path / "p.csv"),
     }

@@ -17,6 +17,7 @@ from conftest import one_error_line, run_cli
 from helpers_bad_input import MERL_MESSAGES, check_line, error_lines, nothing_written
 
 
+@pytest.mark.slow
 def test_bad_merl_tables_through_encode(good, bad_merl, tmp_path, capsys):
     # One run over all of them: each reported in its own line, the good one still encoded.
     # (`brdfkit sample` gets every malformed table in test_merl.py::test_cli_sample_on_bad_file.)

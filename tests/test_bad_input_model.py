@@ -21,6 +21,7 @@ from helpers_bad_input import check_line, rewrite_header
 from helpers_model import material_table
 
 
+@pytest.mark.slow
 def test_model_whose_header_length_starts_with_0x80_loads(tmp_path):
     # Regression: a safetensors header length with low byte 0x80 (one file in 32) was
     # refused as a pickle; brdfkit.hypernet.training.loop had to pad its metadata to avoid it.
@@ -127,6 +128,7 @@ def test_ipca_basis_with_materials_not_a_list(tmp_path):
             load_basis(path)
 
 
+@pytest.mark.slow
 def test_messages_stay_one_line_whatever_the_file_holds(good, tmp_path):
     # Found by benchmarks/fuzz_parsers.py: a "fingerprint" (the digest key) "\n" in a network file's metadata,
     # and a safetensors header key with a line break (quoted by the parser's error), gave

@@ -42,14 +42,15 @@ def test_bad_bsdf_through_convert(bad_rgl, tmp_path, capsys, name, output):
     nothing_written(tmp_path, tmp_path / output)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", ["data_cut", "version", "shape", "nan", "spectral", "anisotropic"])
 def test_bad_bsdf_through_the_other_commands(bad_rgl, good, tmp_path, capsys, name):
     path, message = bad_rgl[name]
     good_table = good / "mat.binary"
     runs = {
         "render": (["render", path, "-o", tmp_path / "x.exr", "--resolution", "8", "--quiet"], [tmp_path / "x.exr"]),
-        "metrics": (["metrics", path, good_table, "--resolution", "16", "--quiet"], []),
-        "metrics_ref": (["metrics", good_table, path, "--resolution", "16", "--quiet"], []),
+        "metrics": (["metrics", "--ref", good_table, path, "--resolution", "16", "--quiet"], []),
+        "metrics_ref": (["metrics", "--ref", path, good_table, "--resolution", "16", "--quiet"], []),
         "plot": (["plot", good_table, path, "-o", tmp_path / "x.png"], [tmp_path / "x.png"]),
         "compare": (["compare", path, good_table, "-o", tmp_path / "s.png", "--resolution", "16", "--quiet"],
                     [tmp_path / "s.png"]),

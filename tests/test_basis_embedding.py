@@ -51,6 +51,7 @@ def test_trilinear_corners_give_the_lookup():
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
 
 
+@pytest.mark.slow
 def test_the_refinement_renders_what_the_renderer_renders(basis_and_table):
     """The refinement's sparse render of coefficients is the objective scene's render of the
     decoded table (float32 lookups in the latter)."""
@@ -166,6 +167,7 @@ def test_basis_files_encode_and_decode_through_the_library_and_the_registry(basi
         get_kind("pca")
 
 
+@pytest.mark.slow
 def test_a_model_without_a_basis_makes_latents_and_refuses_basis(tmp_path):
     from brdfkit.api import decode, encode, load_model
     from brdfkit.testing.examples import lambertian_table, tiny_model

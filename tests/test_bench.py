@@ -14,29 +14,39 @@ from brdfkit.bench import BenchConfig, run_bench, sample_seed, summarise
 from brdfkit.io.merl import read_merl
 
 from conftest import TINY, brdfkit_command, quiet_env
+from helpers_training import tiny_library
 
 RES = 16
 
 
 @pytest.fixture(scope="module")
-def setup(tmp_path_factory):
+def library(tmp_path_factory):
+    """The three synthetic tables of the training tests, a 2-component PCA basis of them and a
+    test list of two."""
     from brdfkit.basis import fit_basis, save_basis
-    from brdfkit.materials.synthetic import write_library
-    from brdfkit.hypernet.training.loop import fit
 
     root = tmp_path_factory.mktemp("bench")
-    lib = root / "lib"
-    write_library(lib, 3, seed=3, stiff=False)
+    lib = tiny_library(tmp_path_factory)
     names = sorted(p.stem for p in lib.glob("*.binary"))
-    model = root / "tiny.safetensors"
-    fit(lib, model, latent_dim=6, steps=30, seed=0, progress=False, **TINY)
     basis = root / "basis.safetensors"
     save_basis(basis, fit_basis(sorted(lib.glob("*.binary")), n_components=2))
     test_list = root / "test.txt"
     test_list.write_text(f"# two of the three\n{names[0]}\n{names[2]}\n")
-    return {"root": root, "lib": lib, "names": names, "model": model, "basis": basis, "test_list": test_list}
+    return {"root": root, "lib": lib, "names": names, "basis": basis, "test_list": test_list}
 
 
+@pytest.fixture(scope="module")
+def setup(library):
+    """``library`` and a tiny hypernetwork trained on its tables (30 steps): only the
+    end-to-end run needs it."""
+    from brdfkit.hypernet.training.loop import fit
+
+    model = library["root"] / "tiny.safetensors"
+    fit(library["lib"], model, latent_dim=6, steps=30, seed=0, progress=False, **TINY)
+    return {**library, "model": model}
+
+
+@pytest.mark.slow
 def test_bench_cli_end_to_end(setup, tmp_path):
     out = tmp_path / "out"
     comp = tmp_path / "comp"
@@ -127,13 +137,14 @@ def test_bench_cli_end_to_end(setup, tmp_path):
     assert not list(out.glob(".brdfkit-tmp-*"))
 
 
-def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
+@pytest.mark.slow
+def test_a_broken_material_is_recorded_not_fatal(library, tmp_path):
     data = tmp_path / "data"
     data.mkdir()
-    good = setup["names"][0]
-    shutil.copy(setup["lib"] / f"{good}.binary", data)
-    (data / "broken.binary").write_bytes((setup["lib"] / f"{good}.binary").read_bytes()[:1000])
-    cfg = BenchConfig(output=str(tmp_path / "out"), data=str(data), ipca=str(setup["basis"]), n=(40,),
+    good = library["names"][0]
+    shutil.copy(library["lib"] / f"{good}.binary", data)
+    (data / "broken.binary").write_bytes((library["lib"] / f"{good}.binary").read_bytes()[:1000])
+    cfg = BenchConfig(output=str(tmp_path / "out"), data=str(data), ipca=str(library["basis"]), n=(40,),
                       seeds=2, methods=("ipca",), resolution=RES)
     result = run_bench(cfg, progress=False)
     bad = [r for r in result["records"] if r["material"] == "broken"]
@@ -152,7 +163,7 @@ def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
 
     before = sorted((tmp_path / "out" / "cache").iterdir())
     assert len(before) == 1
-    run_bench(BenchConfig(output=str(tmp_path / "more"), data=str(data), ipca=str(setup["basis"]), n=(40,),
+    run_bench(BenchConfig(output=str(tmp_path / "more"), data=str(data), ipca=str(library["basis"]), n=(40,),
                           seeds=1, first_seed=2, methods=("ipca",), resolution=RES,
                           cache=str(tmp_path / "out" / "cache")), progress=False)
     assert sorted((tmp_path / "out" / "cache").iterdir()) == before  # the reference came from the cache
@@ -186,14 +197,14 @@ def test_a_broken_material_is_recorded_not_fatal(setup, tmp_path):
     assert "materials dropped because not every merged run covered them: broken" in (tmp_path / "p" / "bench.md").read_text()
 
 
-def test_usage_errors_are_one_line(setup, tmp_path, capsys):
+def test_usage_errors_are_one_line(library, tmp_path, capsys):
     from brdfkit.cli import main
 
-    base = ["bench", "--data", str(setup["lib"]), "-o", str(tmp_path / "o"), "-q"]
-    cases = [(base + ["--ipca", str(setup["basis"])], "method 'hypernet' needs --model"),
-             (base + ["--methods", "ipca,pca", "--ipca", str(setup["basis"])], "unknown method 'pca'"),
+    base = ["bench", "--data", str(library["lib"]), "-o", str(tmp_path / "o"), "-q"]
+    cases = [(base + ["--ipca", str(library["basis"])], "method 'hypernet' needs --model"),
+             (base + ["--methods", "ipca,pca", "--ipca", str(library["basis"])], "unknown method 'pca'"),
              (base + ["--methods", "nbrdf", "--n", "40,x"], "--n: '40,x' is not a comma-separated"),
-             (base + ["--methods", "nbrdf", "--test-list", str(setup["test_list"]), "--data", str(tmp_path)],
+             (base + ["--methods", "nbrdf", "--test-list", str(library["test_list"]), "--data", str(tmp_path)],
               "holds no .binary files"),
              (["bench", "-o", str(tmp_path / "o")], "nothing to run")]
     missing = tmp_path / "missing.txt"
@@ -270,19 +281,19 @@ def test_basis_k_entries_and_their_old_spelling(capsys):
         BenchConfig(output="o", compression_models=("pca-2",), compression_data="d").validate()
 
 
-def test_methods_model_files_and_options_by_name(setup, tmp_path):
+def test_methods_model_files_and_options_by_name(library, tmp_path):
     """A method's model file and options come by method name (``--model-file``, ``-O``),
     so a new method of brdfkit.methods needs no new bench field."""
     from brdfkit.errors import InputError
     from brdfkit.methods.nbrdf import DEFAULT_STEPS
 
-    base = dict(output=str(tmp_path / "o"), data=str(setup["lib"]), n=(40,), seeds=1)
-    cfg = BenchConfig(**base, methods=("ipca", "nbrdf"), models={"ipca": str(setup["basis"])},
+    base = dict(output=str(tmp_path / "o"), data=str(library["lib"]), n=(40,), seeds=1)
+    cfg = BenchConfig(**base, methods=("ipca", "nbrdf"), models={"ipca": str(library["basis"])},
                       options={"nbrdf": {"lr": 0.005}})
     cfg.validate()
-    assert cfg.model_file("ipca") == str(setup["basis"]) and cfg.model_file("nbrdf") is None
+    assert cfg.model_file("ipca") == str(library["basis"]) and cfg.model_file("nbrdf") is None
     assert cfg.method_options("nbrdf").lr == 0.005 and cfg.method_options("nbrdf").steps == DEFAULT_STEPS
-    for kwargs, message in ((dict(methods=("nbrdf",), models={"nbrdf": str(setup["basis"])}), "takes no model file"),
+    for kwargs, message in ((dict(methods=("nbrdf",), models={"nbrdf": str(library["basis"])}), "takes no model file"),
                             (dict(methods=("ipca",)), "method 'ipca' needs --ipca FILE"),
                             (dict(methods=("nbrdf",), options={"nbrdf": {"lam": 1.0}}), "takes the option"),
                             (dict(methods=("nbrdf",), options={"nbrdf": {"steps": 0}}), "steps must be")):
@@ -314,10 +325,11 @@ def test_renderer_digest_covers_every_module_a_reference_render_reads():
             "nodes.py", "pairs.py"} <= set(read)
 
 
-def test_resume_keeps_finished_materials_and_runs_the_rest(setup, tmp_path):
+@pytest.mark.slow
+def test_resume_keeps_finished_materials_and_runs_the_rest(library, tmp_path):
     from brdfkit.errors import InputError
 
-    cfg = BenchConfig(output=str(tmp_path / "out"), data=str(setup["lib"]), ipca=str(setup["basis"]), n=(40,),
+    cfg = BenchConfig(output=str(tmp_path / "out"), data=str(library["lib"]), ipca=str(library["basis"]), n=(40,),
                       seeds=1, methods=("ipca",), resolution=RES)
     full = run_bench(cfg, progress=False)
     assert len(full["records"]) == 3
@@ -337,7 +349,7 @@ def test_resume_keeps_finished_materials_and_runs_the_rest(setup, tmp_path):
     assert [(r["material"], r["log_rmse"]) for r in again] == [(r["material"], r["log_rmse"]) for r in want]
     # Resuming a finished run runs nothing; another configuration is refused.
     assert len(run_bench(cfg, progress=False, resume=True)["records"]) == 3
-    other = BenchConfig(output=str(tmp_path / "out"), data=str(setup["lib"]), ipca=str(setup["basis"]), n=(160,),
+    other = BenchConfig(output=str(tmp_path / "out"), data=str(library["lib"]), ipca=str(library["basis"]), n=(160,),
                         seeds=1, methods=("ipca",), resolution=RES)
     with pytest.raises(InputError, match="these differ: n"):
         run_bench(other, progress=False, resume=True)

@@ -209,6 +209,7 @@ def test_no_builtin_no_model_error(capsys, tmp_path):
     assert code == 2 and "no built-in models are installed" in one_error_line(err)
 
 
+@pytest.mark.slow
 def test_default_and_env_resolution(installed, capsys, monkeypatch, tmp_path):
     folder, inputs = installed
     fps = {m.name: m.part("network").digest for m in builtin.installed_bundles()}
@@ -234,6 +235,7 @@ def test_other_methods_get_no_builtin(installed, capsys, tmp_path):
     assert not (tmp_path / "x.binary").exists()
 
 
+@pytest.mark.slow
 def test_embedding_picks_its_builtin(installed, capsys, tmp_path):
     folder, inputs = installed
     b = api.load_model(folder / "tiny-b.safetensors", "cpu")
@@ -311,6 +313,7 @@ def _as_version_1(doc: dict) -> dict:
     return {"format": doc["format"], "version": 1, "default": doc["default"], "models": models}
 
 
+@pytest.mark.slow
 def test_version_1_manifest_still_reads(shelf, monkeypatch, capsys, tmp_path):
     """A manifest written before bundles (version 1: ``models``, ``file``, ``fingerprint``)
     reads as the same bundles, and every job takes its models as before."""

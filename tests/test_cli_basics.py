@@ -95,6 +95,7 @@ def test_unknown_command():
 
 # --- synth -----------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_synth_writes_valid_files(tmp_path):
     out = tmp_path / "lib"
     res = run_brdfkit(["synth", out, "-n", "5"])
@@ -128,6 +129,7 @@ def test_synth_refuses_a_file_as_folder(tmp_path):
 
 # --- sample ----------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_sample_happy_path(merl_file, tmp_path):
     out = tmp_path / "s.csv"
     res = run_brdfkit(["sample", merl_file, "-n", "200", "--seed", "9", "-o", out])
@@ -214,6 +216,7 @@ def test_atomic_refusals(tmp_path):
     refuse_overwrite_of_inputs(tmp_path / "other.csv", [src, None])
 
 
+@pytest.mark.slow
 def test_ctrl_c_during_write_leaves_no_temp_file(tmp_path):
     # A real SIGINT to a real `brdfkit synth`, sent as soon as its first temporary output
     # file appears (while the 35 MB table is being written).

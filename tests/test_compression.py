@@ -18,7 +18,7 @@ from brdfkit.render.objective import ObjectiveConfig
 from brdfkit.errors import InputError
 from brdfkit.render import screen as screen_mod
 
-from conftest import run_brdfkit, tmp_leftovers
+from conftest import one_error_line, run_cli, tmp_leftovers
 from helpers_model import make_model, material_table
 
 
@@ -74,6 +74,7 @@ def test_rotated_environment_turns_the_lights():
         assert (b[0] - a[0]) % 1.0 == pytest.approx(0.5) and b[2:] == a[2:]
 
 
+@pytest.mark.slow
 def test_refinement_is_never_worse_than_the_encoder_pass(tiny):
     _, m = tiny
     table = material_table(1)
@@ -108,27 +109,28 @@ def test_bad_compress_settings_are_input_errors(kw):
         ObjectiveConfig(**kw)
 
 
-def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tmp_path):
+def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tmp_path, capsys):
     from brdfkit.io.embedding import read_embedding
     from brdfkit.io.merl import write_merl
 
     d, m = tiny
     write_merl(tmp_path / "mat.binary", material_table(1))
-    r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--no-refine",
-                     "-o", tmp_path / "plain"])
-    assert r.returncode == 0 and "encoder pass" in r.stdout + r.stderr
+    code, out, err = run_cli(capsys, ["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors",
+                                      "--no-refine", "-o", tmp_path / "plain"])
+    assert code == 0 and "encoder pass" in out + err
     plain = read_embedding(tmp_path / "plain" / "mat.emb")
     np.testing.assert_allclose(plain.values, api.encode(material_table(1), m, refine=False).values, atol=1e-6)
-    r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--steps", "10",
-                     "-o", tmp_path / "refined"])
-    assert r.returncode == 0 and "refined on screen" in r.stdout + r.stderr
+    code, out, err = run_cli(capsys, ["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors",
+                                      "--steps", "10", "-o", tmp_path / "refined"])
+    assert code == 0 and "refined on screen" in out + err
     assert read_embedding(tmp_path / "refined" / "mat.emb").values.shape == plain.values.shape
-    r = run_brdfkit(["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors", "--steps", "-2",
-                     "-o", tmp_path / "bad"])
-    assert r.returncode == 2 and "Traceback" not in r.stderr and "--steps" in r.stderr
+    code, out, err = run_cli(capsys, ["encode", tmp_path / "mat.binary", "-m", d / "model.safetensors",
+                                      "--steps", "-2", "-o", tmp_path / "bad"])
+    assert code == 2 and "Traceback" not in err and "--steps" in err
     assert not (tmp_path / "bad" / "mat.emb").exists()
 
 
+@pytest.mark.slow
 def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     from brdfkit.io.merl import write_merl
     from brdfkit.hypernet.tuning import TuneOptions, tune
@@ -166,13 +168,13 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     (["-O", "nope=1"], "unknown tune option"),
     ([], "--steps or --minutes"),
 ])
-def test_tune_cli_bad_options(tiny, tmp_path, args, message):
+def test_tune_cli_bad_options(tiny, tmp_path, capsys, args, message):
     d, _ = tiny
     from brdfkit.io.merl import write_merl
 
     write_merl(tmp_path / "a.binary", material_table(1))
     extra = [] if not args or args[0] != "-O" else ["--steps", "1"]
-    r = run_brdfkit(["tune", tmp_path / "a.binary", "-m", d / "model.safetensors", "-o", tmp_path / "o.safetensors",
-                     *extra, *args])
-    assert r.returncode == 2 and "Traceback" not in r.stderr and message in r.stderr
+    code, _, err = run_cli(capsys, ["tune", tmp_path / "a.binary", "-m", d / "model.safetensors",
+                                    "-o", tmp_path / "o.safetensors", *extra, *args])
+    assert code == 2 and "Traceback" not in err and message in one_error_line(err)
     assert not (tmp_path / "o.safetensors").exists()

@@ -25,6 +25,7 @@ def torchrun() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "torch.distributed.run"]
 
 
+@pytest.mark.slow
 def test_two_process_fit_gives_one_model_with_identical_ranks(tmp_path_factory, tmp_path):
     lib = tiny_library(tmp_path_factory)
     out = tmp_path / "m.safetensors"

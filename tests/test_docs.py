@@ -50,3 +50,16 @@ def test_readme_links_the_sites_entry_page_and_how_to_build_it():
     assert "sphinx-build -W --keep-going -b html docs docs/_build/html" in readme
     ci = (REPO / ".ci" / "run").read_text(encoding="utf-8")
     assert '".[docs]"' in ci and "sphinx-build -W" in ci
+
+
+def test_readme_shows_every_command_of_the_help():
+    """The README's first commands (the install line and the "Use" block) name every
+    command that ``brdfkit --help`` lists."""
+    import re
+
+    from brdfkit.cli import COMMANDS
+
+    readme = (REPO / "README.md").read_text(encoding="utf-8")
+    blocks = re.findall(r"```bash\n(.*?)```", readme.split("## Your data")[0], re.S)
+    shown = set(re.findall(r"\bbrdfkit (\w+)", "".join(blocks)))
+    assert sorted(set(COMMANDS) - shown) == []

@@ -43,7 +43,13 @@ def test_the_public_api_shows_examples():
             assert ">>>" in (getattr(mod, name).__doc__ or ""), f"{module}.{name} has no example"
 
 
-@pytest.mark.parametrize("name", _modules_with_examples())
+# The modules whose examples take seconds (``api``: encodes refined on renders; ``metrics``:
+# colour-science's import and Delta E): run with the slow tests.
+SLOW_EXAMPLES = {"brdfkit.api", "brdfkit.evaluation.metrics"}
+
+
+@pytest.mark.parametrize("name", [pytest.param(n, marks=pytest.mark.slow) if n in SLOW_EXAMPLES else n
+                                  for n in _modules_with_examples()])
 def test_docstring_examples_run(name, tmp_path, monkeypatch):
     monkeypatch.chdir(tmp_path)  # examples write their files here
     mod = importlib.import_module(name)

@@ -20,6 +20,7 @@ from brdfkit.testing.fuzzing import PARSERS, check_parser, draw_input
 EXAMPLES = int(os.environ.get("BRDFKIT_FUZZ_EXAMPLES", "60"))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(PARSERS))
 def test_fuzz_parser(name, tmp_path):
     parser = PARSERS[name]

@@ -146,6 +146,7 @@ def _run(code: str, tmp_path) -> list:
     return eval(out.stdout.strip().splitlines()[-1])
 
 
+@pytest.mark.slow
 def test_importing_either_loads_nothing_of_the_other(tmp_path):
     loaded = _run("import brdfkit.basis, brdfkit.basis.coefficients, brdfkit.basis.refine_on_screen", tmp_path)
     assert loaded and not [m for m in loaded if m.startswith("brdfkit.hypernet")]
@@ -153,6 +154,7 @@ def test_importing_either_loads_nothing_of_the_other(tmp_path):
     assert loaded and not [m for m in loaded if m.startswith("brdfkit.basis")]
 
 
+@pytest.mark.slow
 def test_a_basis_embedding_is_encoded_and_decoded_without_the_hypernetwork(tmp_path):
     """``encode`` and ``decode`` of a basis embedding, through the library as the command
     line calls it, load no module of the hypernetwork (and so none of its weights)."""

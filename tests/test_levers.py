@@ -89,6 +89,7 @@ def test_old_configs_and_checkpoints_read_as_before():
         HyperConfig(pooling="max")
 
 
+@pytest.mark.slow
 def test_weight_decay_shrinks_the_weights(tmp_path_factory, tmp_path):
     lib = tiny_library(tmp_path_factory)
     kw = {**TINY, "latent_dim": TINY_LATENT, "progress": False, "steps": 10}

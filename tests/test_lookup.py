@@ -231,6 +231,7 @@ def test_neural_brdf_reference_through_the_prepared_table(tmp_path):
     assert model.reference_trilinear() is model.reference_trilinear()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("block", [1, 977, 1 << 14])
 def test_prepared_table_blocks_and_edges(block):
     """Points split over blocks (a ragged last one, one point a block), no points, NaN
@@ -267,6 +268,7 @@ def test_prepared_table_with_infinite_values():
         _same(lookup_trilinear(lut, th, td, pd, fill=fill), reference_lookup(table, th, td, pd, fill=fill))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("block", [977, 1 << 14])
 def test_tables_looked_up_together_are_each_alone(block):
     """``trilinear.lookup_prepared_many`` (a pass rendering two tables): each table's

@@ -97,6 +97,7 @@ def test_split_and_sample_errors():
     assert e["log_rmse"] == pytest.approx(want, rel=1e-6)
 
 
+@pytest.mark.slow
 def test_sparse_validate_metrics_and_plan_take_measurement_files(good, tmp_path, capsys):
     brdf = write_brdf(tmp_path / "m.brdf", 80)
     csv = write_csv(tmp_path / "m.csv", 80, degrees=True)
@@ -117,10 +118,14 @@ def test_sparse_validate_metrics_and_plan_take_measurement_files(good, tmp_path,
     assert [(r["n"], r["seeds"]) for r in report["summary"]] == [(20, [0, 1])]
     code, _, err = run_cli(capsys, ["validate", brdf, "-n", "57", "--method", f"hypernet={model}"])
     assert code == 2 and "-n 57: 56 samples are left after holding out 24 (0.3 of 80)" in err
-    code, out, err = run_cli(capsys, ["metrics", tmp_path / "r.binary", brdf, "--json"])
+    code, out, err = run_cli(capsys, ["metrics", "--ref", brdf, tmp_path / "r.binary", "--json"])
     assert code == 0, err
     scores = json.loads(out)
     assert scores["samples"] == 80 and scores["covered"] == 80 and scores["log_rmse"] >= 0
+    # a sample file is only ever the reference: without --ref, in either order, the same scores
+    for args in ([tmp_path / "r.binary", brdf], [brdf, tmp_path / "r.binary"]):
+        code, out, err = run_cli(capsys, ["metrics", *args, "--json"])
+        assert code == 0 and json.loads(out) == scores, err
     code, out, err = run_cli(capsys, ["plan", "-n", "12", "--design", "uniform", "--within", brdf, "-o",
                                       tmp_path / "p.csv"])
     assert code == 0, err

@@ -249,6 +249,7 @@ def test_cli_sample_on_bad_file_subprocess(bad_files, name, tmp_path):
 
 # --- real data (proxy) -----------------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.proxy
 def test_proxy_round_trip_and_sample(tmp_path_factory, tmp_path):
     src = proxy_material(tmp_path_factory, "teflon")

@@ -27,6 +27,7 @@ def test_brdf_log_rmse_identical_is_zero():
     assert metrics.brdf_log_rmse(t, t.copy()) == 0.0
 
 
+@pytest.mark.slow
 def test_brdf_log_rmse_matches_hand_computation():
     a, b = _lambert([0.2, 0.5, 0.8]), _lambert([0.3, 0.1, 0.8])
     th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")

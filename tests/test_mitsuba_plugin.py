@@ -107,6 +107,7 @@ def test_plugin_from_dict_with_registered_source(mi):
     np.testing.assert_allclose(_centre(a).mean(0), _centre(b).mean(0), rtol=0.02)
 
 
+@pytest.mark.slow
 def test_quadrature_agrees_with_mitsuba(mi):
     """The reference scene by both renderers, a glossy copper table: the quadrature image
     lies within Monte Carlo noise of the path-traced one."""
@@ -149,6 +150,7 @@ def test_near_mirror_renders_finite(mi):
     assert np.isfinite(img).all() and (img >= 0).all() and img.max() > 0.1
 
 
+@pytest.mark.slow
 def test_neural_brdf_in_mitsuba(mi, tmp_path):
     from helpers_model import make_model, material_table
 
@@ -164,6 +166,7 @@ def test_neural_brdf_in_mitsuba(mi, tmp_path):
     assert np.isfinite(img).all() and img.max() > 0
 
 
+@pytest.mark.slow
 def test_cli_mitsuba_and_user_scene(mi, lambert_file, tmp_path):
     from brdfkit.render.image import read_exr
 

@@ -95,6 +95,7 @@ def test_reference_tables_are_0644_under_umask_022(tmp_path, umask_022):
     assert _mode(tmp_path / "ref.safetensors") == 0o644
 
 
+@pytest.mark.slow
 def test_fit_writes_its_model_file_0644_under_umask_022(tmp_path, library, umask_022):
     """``brdfkit fit --method basis`` (seconds; the hypernet's network file goes through the
     same writer, ``safetensors`` into :func:`brdfkit.atomic.atomic_path`)."""
@@ -107,6 +108,7 @@ def test_fit_writes_its_model_file_0644_under_umask_022(tmp_path, library, umask
 
 # --- 1, 2. no libLLVM 19: Mitsuba tests skip; the advice names what works ----------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("env", [{"DRJIT_LIBLLVM_PATH": "/nonexistent/libLLVM.so.19.1"},
                                  {"BRDFKIT_LIBLLVM_SEARCH": ""}], ids=["bad-path", "none-found"])
 def test_mitsuba_tests_skip_with_the_reason_without_libllvm(env):
@@ -162,6 +164,7 @@ def test_interpolate_outside_0_1_names_the_cli_flag(tmp_path):
     assert "--allow-extrapolation" in r.stderr and "allow_extrapolation=" not in r.stderr, r.stderr
 
 
+@pytest.mark.slow
 def test_fuzz_seeds_leave_nothing_in_the_temporary_folder(tmp_path):
     """The fuzz tests' valid seed files (a model, a reference table, ...) are built in the
     temporary folder and removed once read."""
@@ -177,10 +180,11 @@ def test_fuzz_seeds_leave_nothing_in_the_temporary_folder(tmp_path):
     assert os.listdir(tmp) == []
 
 
+@pytest.mark.slow
 def test_piped_metrics_output_starts_with_the_table(library):
     """stdout and stderr into one pipe: no blank lines where progress bars were."""
     a, b = sorted(library.glob("*.binary"))
-    r = subprocess.run(brdfkit_command() + ["metrics", str(a), str(b), "--resolution", "16"],
+    r = subprocess.run(brdfkit_command() + ["metrics", "--ref", str(b), str(a), "--resolution", "16"],
                        env=quiet_env(), stdout=subprocess.PIPE,
                        stderr=subprocess.STDOUT, text=True, timeout=300)
     assert r.returncode == 0, r.stdout
@@ -227,6 +231,7 @@ def test_help_and_docs_do_not_send_users_to_a_folder_beside_the_checkout():
 
 # --- 3. the library's thread pool ---------------------------------------------------------
 
+@pytest.mark.slow
 def test_library_offers_the_clis_thread_choice_and_the_example_uses_it():
     """``brdfkit.set_torch_threads()``: the idle cores, as the command line chooses;
     available without importing torch until called."""

@@ -33,11 +33,11 @@ SHIPPED_BASIS = os.path.join(os.path.dirname(brdfkit.__file__), "models", "merl8
 def small(tmp_path_factory):
     """Four synthetic GGX tables and a 5-component basis fitted to them."""
     from brdfkit.basis import fit_basis, save_basis
-    from brdfkit.materials.synthetic import write_library
+
+    from helpers_training import synthetic_library
 
     root = tmp_path_factory.mktemp("planning")
-    write_library(root / "lib", 4, seed=5, stiff=False)
-    tables = sorted((root / "lib").glob("*.binary"))
+    tables = sorted(synthetic_library(tmp_path_factory, 4, seed=5).glob("*.binary"))
     save_basis(root / "basis.safetensors", fit_basis(tables, n_components=5))
     return {"root": root, "tables": tables, "basis": root / "basis.safetensors"}
 
@@ -58,6 +58,7 @@ def test_registry_names():
     assert DESIGNS["nielsen"].needs_basis and DESIGNS["render"].needs_basis and not DESIGNS["uniform"].needs_basis
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("n", [3, 12])  # fewer and more directions than the 5 components
 def test_nielsen_plan_is_deterministic_distinct_and_measurable(small, n):
     a = plan_directions(small["basis"], n, design="nielsen", seed=0)
@@ -78,6 +79,7 @@ def test_nielsen_plan_is_deterministic_distinct_and_measurable(small, n):
                                                                a.directions))
 
 
+@pytest.mark.slow
 def test_refinement_only_lowers_the_condition_number(small):
     for n in (4, 10, 30):
         greedy = plan_directions(small["basis"], n, design="nielsen", seed=2, refine=False)
@@ -85,6 +87,7 @@ def test_refinement_only_lowers_the_condition_number(small):
         assert refined.condition_number <= greedy.condition_number * (1 + 1e-9)
 
 
+@pytest.mark.slow
 def test_nielsen_beats_uniform_draws_on_the_small_basis(small):
     for n in (10, 20, 40):
         planned = plan_directions(small["basis"], n, design="nielsen", seed=0).condition_number
@@ -92,6 +95,7 @@ def test_nielsen_beats_uniform_draws_on_the_small_basis(small):
             assert planned < plan_directions(small["basis"], n, design="uniform", seed=seed).condition_number
 
 
+@pytest.mark.slow
 def test_nielsen_beats_uniform_draws_on_the_shipped_basis(shipped):
     """The claim of docs/planning.md, on the basis of merl80-l40 (and of merl-rgl-l40)."""
     for n in (10, 20, 40):
@@ -153,6 +157,7 @@ def test_no_basis_and_no_default_built_in():
 
 # --- the command ----------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_plan_sample_sparse_round_trip(small, tmp_path, capsys):
     """What a lab does: plan, measure there, reconstruct (docs/planning.md)."""
     plan, samples, out = tmp_path / "plan.csv", tmp_path / "s.csv", tmp_path / "r.binary"
@@ -238,6 +243,7 @@ def test_plan_output_is_atomic(small, tmp_path, capsys):
     assert len(read_directions(out)) == 6 and not tmp_leftovers(tmp_path)
 
 
+@pytest.mark.slow
 def test_plan_with_a_built_in_name(shipped, tmp_path, monkeypatch, capsys):
     from brdfkit.models.builtin import models_folder, read_manifest
 

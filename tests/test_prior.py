@@ -107,6 +107,7 @@ def _on_basis(table, basis):
 
 # --- the closed-form fit ----------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_an_untrained_model_is_the_plain_basis_fit(fresh, tables):
     samples = draw_samples(tables[8], 300, seed=1)
     with_prior = fresh.coefficients(samples, use_prior=True)
@@ -256,6 +257,7 @@ def test_shared_basis_file(basis, tables, tmp_path):
         load_prior(tmp_path / "a.safetensors")
 
 
+@pytest.mark.slow
 def test_shared_compact_basis_file(basis, tables, tmp_path):
     """A basis shared in compact storage: the file holds it rounded, and the same basis
     given again (as fitted, or as read back) is still the same basis."""
@@ -297,6 +299,7 @@ def test_a_changed_weight_is_refused_by_the_digest(noisy, tmp_path):
     load_prior(path)
 
 
+@pytest.mark.slow
 def test_the_digest_covers_the_likelihood_in_the_config(noisy, tmp_path):
     """The config's likelihood changes what the model reconstructs: an edited config is a
     damaged file. A file from before the likelihood options (no ``weight`` in its config,
@@ -426,6 +429,7 @@ def _extreme_sets(tables):
     return sets
 
 
+@pytest.mark.slow
 @pytest.mark.filterwarnings("ignore:overflow encountered in cast:RuntimeWarning")  # the infinite values
 def test_extreme_input_gives_a_table_or_one_line(fresh, noisy, tables):
     refused = {}
@@ -489,6 +493,7 @@ def data(make_table, tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_fit_prior_smoke(data, tables):
     from brdfkit.prior.fit import fit_prior
 
@@ -506,6 +511,7 @@ def test_fit_prior_smoke(data, tables):
     assert not [p for p in data.iterdir() if p.name.startswith(".brdfkit-tmp-")]
 
 
+@pytest.mark.slow
 def test_fit_prior_minutes_choose_steps_that_replay(data):
     """``minutes`` chooses the step count once (issue 28): the model records it, and a run
     of that many ``steps`` gives the same weights."""
@@ -534,6 +540,7 @@ def _tiny_args(data, out, **change):
     return args
 
 
+@pytest.mark.slow
 def test_cli_fit_prior_with_a_compact_basis(data, capsys):
     """``-O basis=FILE``: the model keeps that basis as the file stores it (float16,
     half phi_d), bit for bit."""
@@ -560,6 +567,7 @@ def _one_line(err):
     return lines[0]
 
 
+@pytest.mark.slow
 def test_cli_fit_prior_with_a_learnt_spread_and_a_context_range(data, capsys, tmp_path):
     """``-O spread=true -O context_min=5 -O context_max=20`` train (the spread through the
     closed form), and the file records both."""

@@ -72,6 +72,7 @@ def _check_table(out, method: str, model, samples) -> None:
 
 # --- brdfkit sparse ---------------------------------------------------------------------------
 
+@pytest.mark.slow
 @pytest.mark.parametrize("argv, library", [
     ([], {}),                                                # the default: the default built-in's learnt prior
     (["--method", "ipca"], {"method": "ipca"}),              # no -m: the default built-in's basis
@@ -91,6 +92,7 @@ def test_library_and_command_line_sparse_write_the_same_bytes(installed, capsys,
     assert (tmp_path / "cli.binary").read_bytes() == (tmp_path / "lib.binary").read_bytes()
 
 
+@pytest.mark.slow
 def test_library_and_command_line_encode_and_decode_write_the_same_bytes(installed, capsys, tmp_path):
     from brdfkit.io.embedding import write_embedding
     from brdfkit.io.merl import write_merl
@@ -142,6 +144,7 @@ def test_sparse_default_without_a_prior_is_the_hypernetwork(installed, capsys, m
     assert read_embedding(tmp_path / "h.emb").decoder == builtin.installed_bundles()[1].part("network").digest
 
 
+@pytest.mark.slow
 def test_sparse_builtin_name_for_every_method(installed, capsys, tmp_path):
     folder, inputs = installed
     s = inputs / "s.csv"
@@ -163,6 +166,7 @@ def test_sparse_builtin_name_for_every_method(installed, capsys, tmp_path):
     assert read_embedding(tmp_path / "e.emb").decoder == fps["tiny-p"]  # the hypernetwork's
 
 
+@pytest.mark.slow
 def test_sparse_file_by_its_format(installed, capsys, tmp_path):
     folder, inputs = installed
     s = inputs / "s.csv"
@@ -279,6 +283,7 @@ def test_load_model_takes_a_builtin_name(installed):
 
 # --- brdfkit bench ------------------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_bench_default_methods_lead_with_a_builtins_prior(installed, capsys, tmp_path):
     """With no --methods, a built-in -m that has a learnt prior adds the method 'prior'
     (its prior, as `sparse --method auto` picks it) before hypernet, ipca, nbrdf."""
@@ -310,6 +315,7 @@ def test_bench_default_methods_lead_with_a_builtins_prior(installed, capsys, tmp
     assert all("error" not in r for r in result["records"]), result["records"]
 
 
+@pytest.mark.slow
 def test_bench_takes_builtin_names(installed, capsys, tmp_path):
     from brdfkit.bench import BenchConfig
     from brdfkit.errors import InputError

@@ -20,6 +20,7 @@ from brdfkit.acquisition.protocol import SamplingProtocol, draw_seed
 from brdfkit.acquisition.sampling import draw_samples, measure_samples
 
 from conftest import quiet_env
+from helpers_training import tiny_library
 
 REPO = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 EVAL_SPARSE = os.path.join(REPO, "benchmarks", "eval_sparse.py")
@@ -27,17 +28,16 @@ EVAL_SPARSE = os.path.join(REPO, "benchmarks", "eval_sparse.py")
 
 @pytest.fixture(scope="module")
 def lib(tmp_path_factory):
-    """Three synthetic tables, a 4-component basis fitted to them, a test list of two."""
+    """The three synthetic tables of the training tests, a 4-component basis fitted to them,
+    a test list of two."""
     from brdfkit.basis import fit_basis, save_basis
-    from brdfkit.materials.synthetic import write_library
 
     root = tmp_path_factory.mktemp("protocol")
-    write_library(root / "lib", 3, seed=7, stiff=False)
-    names = sorted(p.stem for p in (root / "lib").glob("*.binary"))
-    save_basis(root / "basis.safetensors", fit_basis(sorted((root / "lib").glob("*.binary")), n_components=4))
+    lib = tiny_library(tmp_path_factory)
+    names = sorted(p.stem for p in lib.glob("*.binary"))
+    save_basis(root / "basis.safetensors", fit_basis(sorted(lib.glob("*.binary")), n_components=4))
     (root / "test.txt").write_text(f"{names[0]}\n{names[2]}\n")
-    return {"root": root, "lib": root / "lib", "names": names, "basis": root / "basis.safetensors",
-            "test": root / "test.txt"}
+    return {"root": root, "lib": lib, "names": names, "basis": root / "basis.safetensors", "test": root / "test.txt"}
 
 
 def test_uniform_is_the_bench_draw(lib):
@@ -79,6 +79,7 @@ def test_protocol_refuses(lib, args, message):
     assert str(e.value) == message
 
 
+@pytest.mark.slow
 def test_bench_and_eval_sparse_reconstruct_the_same_samples(lib, tmp_path):
     """Both scripts, as their users run them, on the same materials, N and draws: the
     same samples (digests) and so the same IPCA reconstruction (log RMSE)."""
@@ -111,6 +112,7 @@ def test_bench_and_eval_sparse_reconstruct_the_same_samples(lib, tmp_path):
             assert r["sample_seed"] == e["sample_seed"] == draw_seed(r["seed"], r["n"], r["material"])
 
 
+@pytest.mark.slow
 def test_bench_cli_planned_and_uniform_rows(lib, tmp_path, capsys):
     from conftest import brdfkit_command, run_cli
 

@@ -39,6 +39,7 @@ def _sample_mse(model, brdf, samples):
     return float(np.mean((np.log1p(rho * c) - np.log1p(samples.rgb * c)) ** 2))
 
 
+@pytest.mark.slow
 def test_latent_refinement_fits_the_samples_and_the_material(setup):
     _, model, samples = setup
     emb = api.encode(samples, model)
@@ -58,6 +59,7 @@ def test_latent_refinement_fits_the_samples_and_the_material(setup):
     assert r.embedding.sample_count == 400 and r.embedding.decoder == model.digest
 
 
+@pytest.mark.slow
 def test_weights_stage_and_model_untouched(setup):
     _, model, samples = setup
     params = [p.detach().clone() for p in model.net.parameters()]
@@ -118,6 +120,7 @@ def _cli(capsys, args):
     return e.value.code, capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_cli_refine(setup, tmp_path, capsys):
     d, model, samples = setup
     args = ["sparse", d / "samples.csv", "-m", d / "model.safetensors", "--method", "hypernet"]

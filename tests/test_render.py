@@ -6,6 +6,7 @@ from __future__ import annotations
 import json
 import math
 import os
+import re
 import subprocess
 import sys
 
@@ -217,6 +218,7 @@ def lambert_file(tmp_path_factory):
     return folder / "lambert.binary"
 
 
+@pytest.mark.slow
 def test_cli_render_and_metrics(lambert_file, tmp_path):
     from brdfkit.render.image import read_exr
 
@@ -228,16 +230,17 @@ def test_cli_render_and_metrics(lambert_file, tmp_path):
     centre = img[7:9, 7:9].mean((0, 1))
     assert (centre > 0.05).all() and centre[0] > centre[2]  # albedo 0.6, 0.5, 0.4
 
-    r = run_brdfkit(["metrics", exr, exr, "--json"])
+    r = run_brdfkit(["metrics", "--ref", exr, exr, "--json"])
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout) == {"psnr": 100.0, "delta_e": 0.0, "ssim": 1.0, "brdf_log_rmse": None}
 
     # a BRDF file against its own render: rendered at the image's size, identical
-    r = run_brdfkit(["metrics", lambert_file, exr, "--json"])
+    r = run_brdfkit(["metrics", "--ref", exr, lambert_file, "--json"])
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["psnr"] == 100.0
 
 
+@pytest.mark.slow
 def test_cli_metrics_folders(lambert_file, tmp_path):
     from brdfkit.render.image import write_exr
 
@@ -253,7 +256,7 @@ def test_cli_metrics_folders(lambert_file, tmp_path):
     write_exr(a / "only-here.exr", ref2)
     (b / "lambert.binary").symlink_to(lambert_file)
     (a / "lambert.binary").symlink_to(lambert_file)
-    r = run_brdfkit(["metrics", a, b, "--json", "--resolution", 16])
+    r = run_brdfkit(["metrics", "--ref", b, a, "--json", "--resolution", 16])
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert set(out["materials"]) == {"m1", "m2", "lambert"}
@@ -265,10 +268,11 @@ def test_cli_metrics_folders(lambert_file, tmp_path):
     assert out["mean"]["psnr"] == pytest.approx(sum(psnrs) / 3)
     assert out["mean"]["brdf_log_rmse"] == 0.0
     assert "only-here" in r.stderr
-    r = run_brdfkit(["metrics", a, b, "--resolution", 16])  # the table
+    r = run_brdfkit(["metrics", "--ref", b, a, "--resolution", 16])  # the table
     assert r.returncode == 0 and "mean" in r.stdout and "m2" in r.stdout
 
 
+@pytest.mark.slow
 def test_cli_bad_inputs(lambert_file, tmp_path):
     (tmp_path / "fake.exr").write_text("hello")
     (tmp_path / "x.txt").write_text("hello")
@@ -278,10 +282,10 @@ def test_cli_bad_inputs(lambert_file, tmp_path):
         (["render", lambert_file, "-o", tmp_path / "o.png"], ".exr"),
         (["render", lambert_file, "-o", lambert_file], "refusing to overwrite"),
         (["render", lambert_file, "-o", tmp_path / "o.exr", "--scene", tmp_path / "x.txt"], "--bsdf-id"),
-        (["metrics", tmp_path / "fake.exr", tmp_path / "fake.exr"], "not an OpenEXR"),
-        (["metrics", tmp_path / "missing.exr", tmp_path / "fake.exr"], "no such file"),
-        (["metrics", tmp_path / "x.txt", tmp_path / "x.txt"], "not a BRDF"),
-        (["metrics", tmp_path, tmp_path / "fake.exr"], "folder"),
+        (["metrics", "--ref", tmp_path / "fake.exr", tmp_path / "fake.exr"], "not an OpenEXR"),
+        (["metrics", "--ref", tmp_path / "fake.exr", tmp_path / "missing.exr"], "no such file"),
+        (["metrics", "--ref", tmp_path / "x.txt", tmp_path / "x.txt"], "not a BRDF"),
+        (["metrics", "--ref", tmp_path / "fake.exr", tmp_path], "folder"),
     ]
     for args, needle in cases:
         r = run_brdfkit(args)
@@ -290,9 +294,67 @@ def test_cli_bad_inputs(lambert_file, tmp_path):
         assert len(lines) == 1 and needle in lines[0], (args, r.stderr)
         assert "Traceback" not in r.stderr
     r = run_brdfkit(["metrics"])
-    assert r.returncode == 2 and "PRED REF" in r.stderr and "--json" in r.stderr
+    assert r.returncode == 2 and "--ref REF PRED" in r.stderr and "--json" in r.stderr
 
 
+@pytest.mark.parametrize("paths, ref, pred", [
+    (["x.emb", "r.binary"], "r.binary", "x.emb"),  # an embedding is the prediction, in either order
+    (["r.bsdf", "x.emb"], "r.bsdf", "x.emb"),
+    (["p.binary", "s.csv"], "s.csv", "p.binary"),  # a sample file is the reference, in either order
+    (["m.BRDF", "p.emb"], "m.BRDF", "p.emb"),
+])
+def test_metrics_roles_told_by_the_kinds(paths, ref, pred):
+    from brdfkit.cli.metrics import roles
+
+    assert roles(paths, None) == (pred, ref)
+    assert roles(list(reversed(paths)), None) == (pred, ref)
+    assert roles([pred], ref) == (pred, ref)
+
+
+@pytest.mark.parametrize("paths, ref, message", [
+    (["a.binary", "b.binary"], None, "which one is the reference? name it: brdfkit metrics --ref REF PRED"),
+    (["a.exr", "b.binary"], None, "which one is the reference?"),
+    (["a.emb", "b.emb"], None, "which one is the reference?"),
+    (["a.csv", "b.brdf"], None, "two sample files; PRED must be a BRDF file"),
+    (["a.binary", "b.binary"], "r.binary", "metrics --ref r.binary: give one PRED"),
+    (["a.binary"], None, "expected --ref REF PRED, got 1 path(s)"),
+])
+def test_metrics_roles_of_one_kind_need_ref(paths, ref, message):
+    """Two inputs of one kind could be either way round: ``metrics`` took ``PRED REF`` and
+    ``compare`` takes ``REF PRED``, so the old order is refused, not read the other way."""
+    from brdfkit.cli.metrics import roles
+
+    with pytest.raises(InputError, match=re.escape(message)):
+        roles(paths, ref)
+
+
+def test_metrics_ref_and_compare_ref_in_process(tmp_path, capsys):
+    """``metrics --ref REF PRED`` and ``compare --ref REF PRED...`` (= ``compare REF
+    PRED...``) score the same; two images without ``--ref`` are one line, exit 2."""
+    from brdfkit.render.image import write_exr
+    from conftest import one_error_line, run_cli
+
+    rng = np.random.default_rng(5)
+    ref, pred = tmp_path / "ref.exr", tmp_path / "pred.exr"
+    write_exr(ref, rng.uniform(0, 1, (16, 16, 3)).astype(np.float32))
+    write_exr(pred, rng.uniform(0, 1, (16, 16, 3)).astype(np.float32))
+    code, out, err = run_cli(capsys, ["metrics", "--ref", ref, pred, "--json"])
+    assert code == 0, err
+    scores = json.loads(out)
+    sheets = []
+    for args in (["--ref", ref, pred], [ref, pred]):
+        code, out, err = run_cli(capsys, ["compare", *args, "-o", tmp_path / "s.png", "--json"])
+        assert code == 0, err
+        sheets.append(json.loads(out))
+    assert sheets[0] == sheets[1] and sheets[0]["reference"] == str(ref)
+    assert sheets[0]["predictions"]["pred"] == scores  # the same score function
+    code, _, err = run_cli(capsys, ["metrics", pred, ref, "--json"])
+    assert code == 2 and "which one is the reference" in one_error_line(err)
+    code, _, err = run_cli(capsys, ["compare", ref, "-o", tmp_path / "t.png"])
+    assert code == 2 and "no prediction" in one_error_line(err) and not (tmp_path / "t.png").exists()
+
+
+@pytest.mark.slow
 def test_cli_render_embedding(tmp_path):
     """An .emb with its model renders through NeuralBRDF.eval_dirs (no dense table)."""
     from helpers_model import make_model, material_table

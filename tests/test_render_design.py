@@ -42,6 +42,7 @@ def test_greedy_refuses_more_directions_than_candidates():
         greedy_render(np.ones((4, 2)), np.ones(4), np.eye(2), 5)
 
 
+@pytest.mark.slow
 def test_metric_is_the_jacobian_of_the_displayed_screen(small):
     """M = J^T J of the screen's displayed image: checked against finite differences of
     the real render of the decoded table, for the mean material (no prior draws)."""
@@ -79,6 +80,7 @@ def test_precision_is_the_ridge_alone_for_ipca_and_grows_with_the_metric_term(sm
     assert (energy > ridge).all() and np.isfinite(energy).all()
 
 
+@pytest.mark.slow
 def test_render_plan_is_deterministic_distinct_and_lowers_the_expected_error(small):
     from brdfkit.acquisition.designs import CandidatePool as _Pool
 
@@ -105,6 +107,7 @@ def test_render_design_options_are_checked(small):
         plan_directions(small["basis"], 3, design="render", evaluations=5)
 
 
+@pytest.mark.slow
 def test_plan_render_command(small, tmp_path, capsys):
     from brdfkit.io.directions import read_directions
 

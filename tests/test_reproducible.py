@@ -56,6 +56,7 @@ def _run_twice(commands, outputs):
     return got
 
 
+@pytest.mark.slow
 def test_encode_and_sparse_give_the_same_bytes_idle_and_beside_busy_processes(inputs, tmp_path):
     emb, out, s_emb = tmp_path / "mat.emb", tmp_path / "s.binary", tmp_path / "s.emb"
     model = inputs / "model.safetensors"

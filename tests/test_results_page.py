@@ -86,6 +86,7 @@ def _script(*args, cwd=REPO):
                           env=quiet_env(), timeout=300)
 
 
+@pytest.mark.slow
 def test_page_from_bench_results(runs, tmp_path):
     proxies, rdir = runs
     out = tmp_path / "docs" / "results.md"
@@ -122,6 +123,7 @@ def test_page_from_bench_results(runs, tmp_path):
         assert f"images/{name}" in page
 
 
+@pytest.mark.slow
 def test_compression_records_of_earlier_runs(runs):
     """A compression bench.json from before the renames (the size as ``latent``, the labels
     ``latent-K`` and ``pca-K``) still gives its rows and the paper's figures."""
@@ -190,6 +192,7 @@ def test_links_folder(tmp_path):
         results.link_all(str(tmp_path), str(folder))
 
 
+@pytest.mark.slow
 def test_run_order(runs, tmp_path, monkeypatch, capsys):
     """Without ``--skip-run``: the fits (their outputs missing), the benches and the links
     folder in order, then the page from what the benches wrote (commands not run here)."""

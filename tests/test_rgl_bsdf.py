@@ -137,6 +137,7 @@ def test_marginal_warp_inverts():
     np.testing.assert_allclose(m.eval(pos, (t,)), pdf, rtol=1e-6)
 
 
+@pytest.mark.slow
 def test_reader_gives_the_material_at_the_grid_nodes(written, tmp_path):
     """At a sample-space node of a stored incident elevation the reader returns the
     material's own value (the writer stores it with the readers' interpolants)."""
@@ -165,6 +166,7 @@ def test_reader_gives_the_material_at_the_grid_nodes(written, tmp_path):
 
 # --- checked by Mitsuba 3 --------------------------------------------------------------------
 
+@pytest.mark.slow
 @needs_mitsuba
 def test_mitsuba_eval_agrees_with_the_reader(written):
     """The done-when: 10,000 random direction pairs on five written files, 1e-3 relative."""
@@ -237,6 +239,7 @@ def test_spectral_file_agrees_with_mitsuba_spectral(tmp_path):
     assert bad == 0, f"{bad} values differ (worst {worst:.2e})"
 
 
+@pytest.mark.slow
 @needs_mitsuba
 def test_mitsuba_render_of_a_written_file_matches_the_quadrature(written):
     """A small path-traced render by Mitsuba's plugin against brdfkit's render of the
@@ -257,6 +260,7 @@ def test_mitsuba_render_of_a_written_file_matches_the_quadrature(written):
 
 # --- round trip and the commands -------------------------------------------------------------
 
+@pytest.mark.slow
 def test_round_trip_renders_as_the_source(written):
     import dataclasses
 
@@ -282,6 +286,7 @@ def test_convert_defaults_are_the_writers():
     assert (convert.RESOLUTION, convert.THETA_I) == (FitSettings().resolution, FitSettings().theta_i)
 
 
+@pytest.mark.slow
 def test_convert_and_every_command_take_bsdf(written, good, tmp_path, capsys):
     src_table = tmp_path / "m.binary"
     from brdfkit.io.merl import read_merl, write_merl
@@ -297,7 +302,7 @@ def test_convert_and_every_command_take_bsdf(written, good, tmp_path, capsys):
     back = read_merl(tmp_path / "back.binary")
     assert np.array_equal(np.isnan(back), np.isnan(read_merl(src_table)))
     runs = [["render", bsdf, "-o", tmp_path / "r.exr", "--resolution", "8", "--quiet"],
-            ["metrics", bsdf, src_table, "--resolution", "16", "--quiet", "--json"],
+            ["metrics", "--ref", src_table, bsdf, "--resolution", "16", "--quiet", "--json"],
             ["plot", bsdf, src_table, "-o", tmp_path / "p.png", "--view", "lobes"],
             ["sample", bsdf, "-n", "50", "-o", tmp_path / "s.csv"],
             ["encode", bsdf, "-m", good / "model.safetensors", "-o", tmp_path / "e", "--no-refine"]]
@@ -324,13 +329,14 @@ def test_spectral_option_writes_spectra(tmp_path, capsys):
     np.testing.assert_allclose(s, s.mean(), rtol=1e-4)
 
 
+@pytest.mark.slow
 @pytest.mark.proxy
 def test_proxy_round_trip(tmp_path_factory, tmp_path, capsys):
     teflon = proxy_material(tmp_path_factory, "teflon")
     code, _, err = run_cli(capsys, ["convert", teflon, "-o", tmp_path / "t.bsdf"])
     assert code == 0, err
-    code, out, err = run_cli(capsys, ["metrics", tmp_path / "t.bsdf", teflon, "--resolution", "32", "--json",
-                                      "--quiet"])
+    code, out, err = run_cli(capsys, ["metrics", "--ref", teflon, tmp_path / "t.bsdf", "--resolution", "32",
+                                      "--json", "--quiet"])
     assert code == 0, err
     import json
 

@@ -117,12 +117,14 @@ def skewed_grazing(files):
     return read_bsdf(files["skewed"]).reciprocal_table("grazing")
 
 
+@pytest.mark.slow
 def test_non_reciprocity_of_the_skewed_file(skewed_grazing):
     # brdfkit's own small file, fitted per incident elevation, is 0.03 from reciprocal
     # (8 x 8 x 4 grid); the skewed one more.
     assert skewed_grazing[1] > 0.05
 
 
+@pytest.mark.slow
 def test_convert_prints_the_non_reciprocity_and_applies_the_rule(files, skewed_grazing, tmp_path, capsys):
     from brdfkit.cli import convert
     from brdfkit.io.merl import read_merl
@@ -139,6 +141,7 @@ def test_convert_prints_the_non_reciprocity_and_applies_the_rule(files, skewed_g
     assert code == 2 and "Invalid value for '--reciprocity'" in one_error_line(err)
 
 
+@pytest.mark.slow
 @needs_mitsuba
 def test_render_of_a_non_reciprocal_file_is_mitsubas(files):
     """brdfkit's render of the skewed file agrees with Mitsuba's render of it better than

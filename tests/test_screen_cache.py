@@ -6,6 +6,7 @@ import gc
 import types
 
 import numpy as np
+import pytest
 import torch
 
 from brdfkit.render.screen import Screen
@@ -37,6 +38,7 @@ def test_a_freed_screens_reference_is_not_served_to_a_new_screen_with_its_id():
     assert b.reference(model).shape == (7, 3) and model.calls == 2
 
 
+@pytest.mark.slow
 def test_screens_made_and_freed_in_turn_each_get_their_own_pairs():
     model = _Model()
     for i in range(40):  # freed screens' ids come back within a few rounds in CPython

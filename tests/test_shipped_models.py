@@ -37,6 +37,7 @@ def _run(*args, cwd):
                           capture_output=True, text=True, timeout=300)
 
 
+@pytest.mark.slow
 def test_the_three_models_are_listed_installed_and_intact(shipped, tmp_path):
     assert [m.name for m in shipped.installed()] == list(NAMES)
     assert shipped.default == "merl-rgl-l40"
@@ -63,6 +64,7 @@ def test_the_package_is_within_its_size_budget(shipped):
     assert total <= 60e6, f"built-in models take {total / 1e6:.1f} MB, over the 60 MB budget (issue 21)"
 
 
+@pytest.mark.slow
 def test_sparse_encode_decode_without_m(shipped, tmp_path):
     from brdfkit.io.merl import write_merl
     from brdfkit.io.samples import write_samples
@@ -93,6 +95,7 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path):
     assert brdf_log_rmse(out, ref) < 0.5
 
 
+@pytest.mark.slow
 def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped):
     """Each learnt prior fits a 30-component basis of its model's training materials with
     the mapping's floor at grazing angles (issue 22); `--method ipca` with a built-in's
@@ -114,6 +117,7 @@ def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped
     assert next(m for m in read_manifest().bundles if m.name == "merl80-l40").materials == 80
 
 
+@pytest.mark.slow
 def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_count(shipped, tmp_path):
     """Issue 29: a built-in with a basis encodes a table into its basis's coefficients
     (39 numbers for 40-D), the same bytes on two torch threads and on one (the command

@@ -24,7 +24,7 @@ from brdfkit.hypernet.training.loop import TrainingError, fit
 from brdfkit.hypernet.mapping import median_reference
 from brdfkit.io.folders import collect_materials, read_exclude_list
 
-from conftest import TINY, TINY_LATENT, popen_brdfkit, tiny_cli_options, tmp_leftovers
+from conftest import TINY, TINY_LATENT, popen_brdfkit, run_cli, tiny_cli_options, tmp_leftovers
 from helpers_training import mapped_mse_and_log_rmse, tiny_library
 
 
@@ -45,6 +45,7 @@ def untrained(cfg, seed=0):
 
 # --- the model learns ---------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_trained_model_reconstructs_far_better_than_untrained(lib, tmp_path):
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, steps=200)
@@ -61,6 +62,7 @@ def test_trained_model_reconstructs_far_better_than_untrained(lib, tmp_path):
         assert log_t * 3 < log_u, (name, log_t, log_u)
 
 
+@pytest.mark.slow
 def test_reference_is_median_of_training_materials(lib, tmp_path):
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, steps=2, exclude=["synth-002"])
@@ -72,6 +74,7 @@ def test_reference_is_median_of_training_materials(lib, tmp_path):
     np.testing.assert_array_equal(model.rho_ref, median_reference(tables))
 
 
+@pytest.mark.slow
 def test_fast_median_equals_nanmedian(lib):
     tables = [read_merl(lib / f"synth-00{i}.binary") for i in range(3)]
     holey = tables[0].copy()
@@ -125,6 +128,7 @@ def test_training_goes_on_after_a_nan_step(lib, tmp_path, monkeypatch):
     assert all(torch.isfinite(p).all() for p in model.net.parameters())
 
 
+@pytest.mark.slow
 def test_persistent_nan_stops_with_clear_error(lib, tmp_path, monkeypatch):
     _nan_loss_on(monkeypatch, calls=set(range(1, 100)))
     out = tmp_path / "m.safetensors"
@@ -135,6 +139,7 @@ def test_persistent_nan_stops_with_clear_error(lib, tmp_path, monkeypatch):
 
 # --- checkpoints and resume ----------------------------------------------------------------
 
+@pytest.mark.slow
 def test_resume_continues_exactly(lib, tmp_path):
     """5 steps + resume to 10 gives bit-identical weights to 10 steps in one go: the
     checkpoint holds the optimiser state and the sampler re-seeds from the step."""
@@ -149,6 +154,7 @@ def test_resume_continues_exactly(lib, tmp_path):
     assert b.meta["resumed_from_steps"] == [5] and b.meta["steps"] == 10
 
 
+@pytest.mark.slow
 def test_resume_refuses_other_data_or_options(lib, tmp_path):
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out, steps=2)
@@ -179,6 +185,7 @@ def _wait_for(path, proc, timeout=60.0):
         time.sleep(0.1)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL], ids=["sigint", "sigkill"])
 def test_interrupted_fit_resumes_from_checkpoint(lib, tmp_path, sig):
     out = tmp_path / "m.safetensors"
@@ -207,6 +214,7 @@ def test_interrupted_fit_resumes_from_checkpoint(lib, tmp_path, sig):
     assert meta["steps"] == done + 15 and meta["resumed_from_steps"] == [done]
 
 
+@pytest.mark.slow
 def test_minutes_budget_stops_training(lib, tmp_path):
     out = tmp_path / "m.safetensors"
     t0 = time.monotonic()
@@ -290,11 +298,9 @@ def test_options_and_the_schedule():
             parse_options(7, bad)
 
 
-def test_cli_reports_bad_input_in_one_line(lib, tmp_path):
-    proc = popen_brdfkit(["fit", tmp_path / "nothing", "-o", tmp_path / "m.safetensors"])
-    out, err = proc.communicate(timeout=60)
-    assert proc.returncode == 2
+def test_cli_reports_bad_input_in_one_line(lib, tmp_path, capsys):
+    code, _, err = run_cli(capsys, ["fit", tmp_path / "nothing", "-o", tmp_path / "m.safetensors"])
+    assert code == 2
     assert err.strip().splitlines() == [f"brdfkit: error: {tmp_path / 'nothing'}: no such file or folder"]
-    proc = popen_brdfkit(["fit", lib, "-o", tmp_path / "m.safetensors", "-O", "lr"])
-    _, err = proc.communicate(timeout=60)
-    assert proc.returncode == 2 and "KEY=VALUE" in err
+    code, _, err = run_cli(capsys, ["fit", lib, "-o", tmp_path / "m.safetensors", "-O", "lr"])
+    assert code == 2 and "KEY=VALUE" in err

@@ -60,6 +60,7 @@ def _cli(capsys, args):
     return e.value.code, capsys.readouterr().err
 
 
+@pytest.mark.slow
 def test_given_reference_replaces_the_median(lib, tables, source, tmp_path, monkeypatch):
     loaded = []
     real = TrainingSet.load
@@ -94,6 +95,7 @@ def test_default_records_no_reference_source(lib, tmp_path):
     assert load_network(out, "cpu").meta["reference_from"] is None
 
 
+@pytest.mark.slow
 def test_models_on_other_materials_share_one_reference_file(lib, tmp_path, monkeypatch):
     """The use: a model on 2 materials, one on 3 with the first's reference (named as a
     built-in), packed beside each other with one shared reference file."""
@@ -156,6 +158,7 @@ def test_bad_reference_is_one_line_exit_2(lib, source, tmp_path, capsys):
         tiny_fit(lib, out, reference=str(negative))
 
 
+@pytest.mark.slow
 def test_resume_with_another_reference_is_refused(lib, source, tmp_path):
     out = tmp_path / "m.safetensors"
     tiny_fit(lib, out)

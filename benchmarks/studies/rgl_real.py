@@ -47,7 +47,7 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # benchmarks/common.py
-from common import load_average, set_threads, write_record  # noqa: E402
+from common import load_average, record_options, set_threads, write_record  # noqa: E402
 
 SUPERSAMPLE = 4
 
@@ -181,9 +181,7 @@ def main(argv=None):
     ap.add_argument("--control", default=None, metavar="TABLE", help="a MERL table written as .bsdf: the control")
     ap.add_argument("--px", type=int, default=64)
     ap.add_argument("--spp", type=int, default=16384)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--json", default=None)
-    args = ap.parse_args(argv)
+    args = record_options(ap).parse_args(argv)
     set_threads(args.threads)
     files = _files()
     missing = [n for n in args.mitsuba or [] if n not in files]

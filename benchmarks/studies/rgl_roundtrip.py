@@ -47,7 +47,7 @@ import tempfile
 import time
 
 sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))  # benchmarks/common.py
-from common import load_average, set_threads, write_record  # noqa: E402
+from common import load_average, record_options, set_threads, write_record  # noqa: E402
 
 
 def _tables(folders, names):
@@ -225,9 +225,7 @@ def main(argv=None):
     ap.add_argument("--pairs", type=int, default=10_000)
     ap.add_argument("--mitsuba-px", type=int, default=64)
     ap.add_argument("--spp", type=int, default=4096)
-    ap.add_argument("--threads", type=int, default=1)
-    ap.add_argument("--json", default=None)
-    args = ap.parse_args(argv)
+    args = record_options(ap).parse_args(argv)
     set_threads(args.threads)
     load0, t0 = load_average(), time.time()
     record = {"command": " ".join(["benchmarks/studies/rgl_roundtrip.py", *sys.argv[1:]])}

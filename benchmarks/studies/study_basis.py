@@ -99,11 +99,12 @@ def joint_fit(basis, samples, s2: float, lam: float, moments):
     """The energy likelihood's closed form with a joint Gaussian prior over each component's
     three channel coefficients, covariance ``moments (K, 3, 3)`` (module docstring)."""
     from brdfkit.basis import EPS
+    from brdfkit.basis.mapping import to_mapped
     from brdfkit.prior.model import sample_rows
 
     ok, tab, w, cos, rho, _ = sample_rows(basis, samples)
     k = basis.n_components
-    b = np.log((rho * w[:, None] + EPS) / (tab[:, :1] + EPS)) - tab[:, 1:2]
+    b = to_mapped(rho, w[:, None], tab[:, :1]) - tab[:, 1:2]
     q = cos[:, None] * (rho + EPS / w[:, None]) / (1 + rho * cos[:, None]) / s2 + 1.0 / lam
     a = tab[:, 2:]
     lhs, rhs = np.zeros((3 * k, 3 * k)), np.zeros(3 * k)

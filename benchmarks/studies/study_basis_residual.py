@@ -123,24 +123,22 @@ def net_input(c_norm, k_max):
 
 def mapped(part, table):
     """Mapped table at the basis's cells, ``(P, 3)`` float64, minus the mean."""
-    from brdfkit.basis.model import EPS
+    from brdfkit.basis.mapping import to_mapped
     from brdfkit.geometry import N_CELLS
 
     flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[part.cells]
-    w = part.cell_weight()
     ref = part.reference[:, None].astype(np.float64)
-    return np.log((np.clip(np.nan_to_num(flat), 0, None) * w[:, None] + EPS) / (ref + EPS)) - part.mean[:, None]
+    return to_mapped(np.nan_to_num(flat), part.cell_weight()[:, None], ref) - part.mean[:, None]
 
 
 def unmap(part, x_mapped):
     """Dense table from a mapped ``(P, 3)`` (mean included), as :meth:`PcaBasis.decode`."""
-    from brdfkit.basis.model import EPS
+    from brdfkit.basis.mapping import from_mapped
     from brdfkit.geometry import GRID_SHAPE, N_CELLS
 
     ref = part.reference[:, None].astype(np.float64)
-    x = np.expm1(x_mapped.astype(np.float64)) * (ref + EPS) + ref
     out = np.full((N_CELLS, 3), np.nan)
-    out[part.cells] = np.clip(x / part.cell_weight()[:, None], 0.0, None)
+    out[part.cells] = from_mapped(x_mapped, part.cell_weight()[:, None], ref, floor=0)
     return out.reshape(GRID_SHAPE + (3,))
 
 
@@ -337,13 +335,14 @@ def main(argv=None):
                     help="one network of every size: each row of a step draws K in 1 .. K_MAX")
     ap.add_argument("--score-k", type=int, nargs="*", default=None, help="with --k-max: the sizes scored")
     ap.add_argument("--steps", type=int, default=6000)
-    ap.add_argument("--batch", type=int, default=24)
-    ap.add_argument("--cells", type=int, default=4096)
-    ap.add_argument("--width", type=int, default=32)
+    ap.add_argument("--batch", type=int, default=24, help="(coefficients, residual) rows per step")
+    ap.add_argument("--cells", type=int, default=4096, help="cells drawn per row and step")
+    ap.add_argument("--width", type=int, default=32, help="the hyponet's hidden width H")
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--mixup", type=float, default=0.5)
-    ap.add_argument("--fit-steps", type=int, default=60)
-    ap.add_argument("--eval-every", type=int, default=2000)
+    ap.add_argument("--fit-steps", type=int, default=60,
+                    help="steps of the coefficients' fit through the correction (0: the projection alone)")
+    ap.add_argument("--eval-every", type=int, default=2000, help="steps between checkpoints and scores")
     ap.add_argument("--resolution", type=int, default=64)
     ap.add_argument("--no-full", action="store_true")
     ap.add_argument("--render", action="store_true", help="score renders (PSNR, Delta E) as the bench does, not screens")

@@ -90,10 +90,10 @@ def weights(h, rho, w, cos, kappa):
 
 def solve(tab, rho, w, cos, sigma, cfg, mu=None):
     """Coefficients ``(K, 3)`` of the closed form with ``q = 1 / lam + h / s2``."""
-    from brdfkit.basis import EPS
+    from brdfkit.basis.mapping import to_mapped
 
     ref, mean, comp = tab[:, 0:1], tab[:, 1:2], tab[:, 2:]
-    b = np.log((rho * w[:, None] + EPS) / (ref + EPS)) - mean
+    b = to_mapped(rho, w[:, None], ref) - mean
     q = 1.0 / cfg["lam"] + weights(cfg["h"], rho, w, cos, cfg["kappa"]) / cfg["s2"]
     k = comp.shape[1]
     c = np.empty((k, 3))
@@ -110,7 +110,7 @@ def gated(tab, rho, w, cos, hd, sigma, cfg, prior_mu, folds=5, seed=0):
     """The fit around the network's prior mean or around zero, whichever predicts held-out
     samples better in the metric's space (``folds``-fold cross-validation on the samples;
     the prior mean of each fold computed from its training part only)."""
-    from brdfkit.basis import EPS
+    from brdfkit.basis.mapping import from_mapped
 
     s = len(rho)
     if s < 2 * folds:
@@ -124,8 +124,7 @@ def gated(tab, rho, w, cos, hd, sigma, cfg, prior_mu, folds=5, seed=0):
         for j, m in enumerate((None, mu)):
             c = solve(tab[tr], rho[tr], w[tr], cos[tr], sigma, cfg, m)
             mapped = tab[part, 1:2] + tab[part, 2:] @ c
-            ref = tab[part, 0:1]
-            hat = np.clip((np.expm1(mapped) * (ref + EPS) + ref) / w[part, None], 0, None)
+            hat = from_mapped(mapped, w[part, None], tab[part, 0:1], floor=0)
             err[j] += np.sum((np.log1p(hat * cos[part, None]) - np.log1p(rho[part] * cos[part, None])) ** 2)
     return solve(tab, rho, w, cos, sigma, cfg, prior_mu(np.ones(s, bool)) if err[1] < err[0] else None)
 

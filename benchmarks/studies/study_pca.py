@@ -21,6 +21,7 @@ import numpy as np
 import torch
 
 from brdfkit.basis import EPS, cosine_weight, fit_basis
+from brdfkit.basis.mapping import from_mapped, to_mapped
 from brdfkit.geometry import N_CELLS, cell_index, cos_theta_i
 from brdfkit.acquisition.sampling import draw_samples
 
@@ -60,15 +61,14 @@ def refine(model, samples, c0, s2=1e-3, steps=60, density=False, ipca_term=False
     wt = T(np.clip(samples.theta_h[ok], 1e-3, None) ** -0.5) if density else torch.ones(len(w), dtype=torch.float64)
     wt = wt / wt.mean()
     sigma = T(model.sigma)
-    b = torch.log((T(rho) * w[:, None] + EPS) / (ref[:, None] + EPS))
+    b = to_mapped(T(rho), w[:, None], ref[:, None])
     c = T(c0).clone().requires_grad_(True)
     opt = torch.optim.LBFGS([c], lr=1, max_iter=steps, line_search_fn="strong_wolfe")
 
     def closure():
         opt.zero_grad()
         mapped = mean[:, None] + comp @ c
-        x = torch.expm1(mapped.clamp(max=30)) * (ref[:, None] + EPS) + ref[:, None]
-        pred = torch.log1p((x / w[:, None]).clamp(min=0) * cos[:, None])
+        pred = torch.log1p(from_mapped(mapped.clamp(max=30), w[:, None], ref[:, None], floor=0) * cos[:, None])
         loss = (wt[:, None] * (pred - target) ** 2).sum() / s2 + ((c / sigma[:, None]) ** 2).sum()
         if ipca_term:  # the IPCA likelihood too (its ridge: noise variance lam, unit prior)
             loss = loss + ((mapped - b) ** 2).sum() / lam
@@ -89,7 +89,7 @@ def gauss_newton(model, samples, s2=1e-2, density=False, ipca_term=True, lam=0.1
     ``s2``, plus ``1 / lam`` for IPCA's own likelihood."""
     ok, at, w, cos, rho = sample_rows(model, samples)
     ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
-    b = np.log((rho * w[:, None] + EPS) / (ref[:, None] + EPS)) - mean[:, None]
+    b = to_mapped(rho, w[:, None], ref[:, None]) - mean[:, None]
     g = cos[:, None] * (rho + EPS / w[:, None]) / (1 + rho * cos[:, None])
     wt = np.clip(samples.theta_h[ok], 1e-3, None) ** -0.5 if density else np.ones(len(w))
     wt = wt / wt.mean()

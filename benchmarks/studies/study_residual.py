@@ -38,6 +38,7 @@ import torch
 
 from brdfkit.geometry import N_THETA_D, N_PHI_D, N_CELLS, grid_cosine_weight, grid_hd
 from brdfkit.basis import EPS, fit_basis
+from brdfkit.basis.mapping import from_mapped, to_mapped
 from brdfkit.hypernet.network import HyperBRDF, HyperConfig, hyponet_forward
 from brdfkit.acquisition.sampling import draw_samples
 
@@ -54,7 +55,7 @@ def gn_batch(tab, rho, w, cos, sigma, s2, lam, mu=None):
     """Batched :func:`study_pca.gauss_newton` on cells: ``tab (B, C, K + 2)``, ``rho (B, C, 3)``,
     ``w``, ``cos`` ``(B, C)``, ``sigma (B, K)``; coefficients ``(B, 3, K)`` (float64 solve)."""
     ref, mean, comp = tab[..., 0:1], tab[..., 1:2], tab[..., 2:].double()
-    b = torch.log((rho * w[..., None] + EPS) / (ref + EPS)) - mean  # (B, C, 3)
+    b = to_mapped(rho, w[..., None], ref) - mean  # (B, C, 3)
     g = cos[..., None] * (rho + EPS / w[..., None]) / (1 + rho * cos[..., None])
     q = (g ** 2 / s2 + 1.0 / lam).double()  # (B, C, 3)
     lhs = torch.einsum("bck,bcj,bcl->blkj", comp, comp, q)  # (B, 3, K, K)
@@ -65,12 +66,13 @@ def gn_batch(tab, rho, w, cos, sigma, s2, lam, mu=None):
     return torch.linalg.solve(lhs, rhs).float(), b
 
 
-def predict(tab, c, resid):
-    """Values in 1/sr from the basis rows ``tab (B, Q, K + 2)``, coefficients ``(B, 3, K)``
-    and a residual ``(B, Q, 3)`` in IPCA's mapped space; divided by ``w`` by the caller."""
+def predict(tab, c, resid, w):
+    """Values in 1/sr (clamped at 0) from the basis rows ``tab (B, Q, K + 2)``, coefficients
+    ``(B, 3, K)``, a residual ``(B, Q, 3)`` in IPCA's mapped space and the mapping's weight
+    ``w`` (broadcastable to ``(B, Q, 1)``)."""
     ref, mean, comp = tab[..., 0:1], tab[..., 1:2], tab[..., 2:]
     mapped = mean + torch.einsum("bqk,blk->bql", comp, c) + resid
-    return torch.expm1(mapped.clamp(max=30)) * (ref + EPS) + ref
+    return from_mapped(mapped.clamp(max=30), w, ref, floor=0)
 
 
 class Residual(torch.nn.Module):
@@ -237,7 +239,7 @@ def main():
                     c0 = full.coefficients(s)
                     c = gauss_newton(full, s, s2=args.s2, density=False, ipca_term=True, lam=args.lam)
                     ok, at, wts, cos_s, rho = sample_rows(full, s)
-                    b = np.log((rho * wts[:, None] + EPS) / (at[:, 0:1] + EPS)) - at[:, 1:2]
+                    b = to_mapped(rho, wts[:, None], at[:, 0:1]) - at[:, 1:2]
                     cm = np.zeros_like(c) if args.no_basis else c
                     r = b - at[:, 2:] @ cm
                     ctx_hd = torch.from_numpy(s.hd()[ok].astype(np.float32))[None]
@@ -265,8 +267,8 @@ def main():
                                              for i in range(0, qhd.shape[0], 262144)], 1)
                         for key, cc, rr in (("basis", c, torch.zeros_like(res)), ("residual", cm, res)):
                             ct = torch.from_numpy(cc.T.astype(np.float32))[None]
-                            x = predict(tab, ct, rr)[0] / wq[:, None]
-                            out[key][n].append(_log_rmse(x.clamp(min=0).numpy(), truth, lib.cos_i[sub] if sub is not None else lib.cos_i))
+                            x = predict(tab, ct, rr, wq[:, None])[0]
+                            out[key][n].append(_log_rmse(x.numpy(), truth, lib.cos_i[sub] if sub is not None else lib.cos_i))
                     x0 = full.decode(c0).reshape(N_CELLS, 3)[pc]
                     out["ipca"][n].append(_log_rmse(x0, truth, lib.cos_i[sub] if sub is not None else lib.cos_i))
         model.train()
@@ -293,7 +295,7 @@ def main():
         if args.mixup > 0:
             # A partner from the same fold (so the fold's basis has seen neither), mixed
             # linearly in IPCA's mapped space: (x + eps) = (x1 + eps)^t (x2 + eps)^(1 - t)
-            # with x = rho w, whatever the reference.
+            # with x = rho w, whatever the reference (0 here).
             partner = torch.stack([fold_members[int(f)][int(torch.randint(0, len(fold_members[int(f)]), (), generator=g))]
                                    for f in folds])
             t = torch.rand(args.batch, generator=g)
@@ -301,8 +303,8 @@ def main():
             for rho, pos in ((crho, c_pos), (qrho, q_pos)):
                 w = w_all[pos][..., None]
                 other = values[partner[:, None], pos].clamp(min=0)
-                mixed = (torch.exp(t * torch.log(rho * w + EPS) + (1 - t) * torch.log(other * w + EPS)) - EPS) / w
-                rho.copy_(mixed.clamp(min=0))
+                mixed = t * to_mapped(rho, w, 0.0) + (1 - t) * to_mapped(other, w, 0.0)
+                rho.copy_(from_mapped(mixed, w, 0.0, floor=0))
         c, b = gn_batch(ctab, crho, w_all[c_pos], cos_all[c_pos], fold_sig[folds], args.s2, args.lam)
         if args.no_basis:  # the control: the hypernetwork alone, relative to the mean material
             c = torch.zeros_like(c)
@@ -323,9 +325,9 @@ def main():
             resid, weights, z = model(hd_all[c_pos], ctx_r, hd_all[q_pos])
             reg = args.lambda_w * sum((w ** 2).mean() + (bb ** 2).mean() for w, bb in weights) / len(weights) \
                 + args.lambda_z * (z ** 2).mean()
-        x = predict(qtab, c, resid) / w_all[q_pos][..., None]
+        x = predict(qtab, c, resid, w_all[q_pos][..., None])
         qc = cos_all[q_pos][..., None]
-        loss = ((torch.log1p(x.clamp(min=0) * qc) - torch.log1p(qrho * qc)) ** 2).mean()
+        loss = ((torch.log1p(x * qc) - torch.log1p(qrho * qc)) ** 2).mean()
         opt.zero_grad()
         (loss + reg).backward()
         torch.nn.utils.clip_grad_norm_(model.parameters(), 1.0)

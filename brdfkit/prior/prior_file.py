@@ -131,17 +131,11 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
     """
     import torch
 
-    from brdfkit.io.tensorfile import open_safetensors
+    from brdfkit.io.tensorfile import check_format, open_safetensors
 
     path = check_input_file(path)
     with open_safetensors(path, diagnose="brdfkit learnt-prior model file") as f:
-        meta = f.metadata() or {}
-        if meta.get("format") != PRIOR_FORMAT:
-            raise FormatError(path, f"not a brdfkit learnt-prior model (format {meta.get('format')!r}, "
-                                    f"expected {PRIOR_FORMAT!r})")
-        if meta.get("version") != PRIOR_VERSION:
-            raise FormatError(path, f"learnt-prior model version {meta.get('version')!r} is not supported "
-                                    f"(this brdfkit reads version {PRIOR_VERSION})")
+        meta = check_format(path, f, PRIOR_FORMAT, PRIOR_VERSION, "brdfkit learnt-prior model", "learnt-prior model")
         try:
             cfg = PriorConfig(**json.loads(meta.get("config", "")))
         except (TypeError, ValueError):

@@ -14,6 +14,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
+import importlib
 import json
 import os
 import shutil
@@ -159,70 +160,30 @@ def measurement_csv_seed() -> bytes:
     return ("# a comment\n" + head + "\n" + "\n".join(rows) + "\n").encode()
 
 
-def _read_pbrt_brdf(path):
-    from brdfkit.io.pbrt_brdf import read_pbrt_brdf
+def _reader(module: str, name: str, *args) -> Callable:
+    """``module.name(path, *args)`` as a parser's ``read``, its module imported on the first
+    call (importing this module imports no parser)."""
 
-    return read_pbrt_brdf(path)
+    def read(path):
+        return getattr(importlib.import_module(module), name)(path, *args)
 
-
-def _read_measurement_csv(path):
-    from brdfkit.io.sample_files import read_measurement_csv
-
-    return read_measurement_csv(path)
-
-
-def _read_model(path):
-    from brdfkit.hypernet.network_file import load_network
-
-    return load_network(path, "cpu")
-
-
-def _read_embedding(path):
-    from brdfkit.io.embedding import read_embedding
-
-    return read_embedding(path)
-
-
-def _read_reference(path):
-    from brdfkit.hypernet.mapping import load_reference
-
-    return load_reference(path)
-
-
-def _read_basis(path):
-    from brdfkit.basis import load_basis
-
-    return load_basis(path)
-
-
-def _read_samples(path):
-    from brdfkit.io.samples import read_samples
-
-    return read_samples(path)
-
-
-def _read_merl(path):
-    from brdfkit.io.merl import read_merl
-
-    return read_merl(path)
-
-
-def _read_bsdf(path):
-    from brdfkit.io.rgl_bsdf import read_bsdf
-
-    return read_bsdf(path)
+    read.__name__ = name
+    return read
 
 
 PARSERS = {p.name: p for p in (
-    Parser("read_merl", _read_merl, ".binary", merl_seed),
-    Parser("read_bsdf", _read_bsdf, ".bsdf", bsdf_seed),
-    Parser("read_samples", _read_samples, ".csv", csv_seed),
-    Parser("read_pbrt_brdf", _read_pbrt_brdf, ".brdf", brdf_seed),
-    Parser("read_measurement_csv", _read_measurement_csv, ".csv", measurement_csv_seed),
-    Parser("read_embedding", _read_embedding, ".emb", embedding_seed),
-    Parser("load_network", _read_model, ".safetensors", model_seed, safetensors=True),
-    Parser("load_reference", _read_reference, ".safetensors", reference_seed, safetensors=True),
-    Parser("load_basis", _read_basis, ".safetensors", ipca_seed, safetensors=True),
+    Parser("read_merl", _reader("brdfkit.io.merl", "read_merl"), ".binary", merl_seed),
+    Parser("read_bsdf", _reader("brdfkit.io.rgl_bsdf", "read_bsdf"), ".bsdf", bsdf_seed),
+    Parser("read_samples", _reader("brdfkit.io.samples", "read_samples"), ".csv", csv_seed),
+    Parser("read_pbrt_brdf", _reader("brdfkit.io.pbrt_brdf", "read_pbrt_brdf"), ".brdf", brdf_seed),
+    Parser("read_measurement_csv", _reader("brdfkit.io.sample_files", "read_measurement_csv"), ".csv",
+           measurement_csv_seed),
+    Parser("read_embedding", _reader("brdfkit.io.embedding", "read_embedding"), ".emb", embedding_seed),
+    Parser("load_network", _reader("brdfkit.hypernet.network_file", "load_network", "cpu"), ".safetensors",
+           model_seed, safetensors=True),
+    Parser("load_reference", _reader("brdfkit.hypernet.mapping", "load_reference"), ".safetensors",
+           reference_seed, safetensors=True),
+    Parser("load_basis", _reader("brdfkit.basis", "load_basis"), ".safetensors", ipca_seed, safetensors=True),
 )}
 
 
@@ -244,12 +205,7 @@ else:
         write_exr(path, np.linspace(0, 2, 4 * 5 * 3, dtype=np.float32).reshape(4, 5, 3))
         return _take(path)
 
-    def _read_exr(path):
-        from brdfkit.render.image import read_exr
-
-        return read_exr(path)
-
-    add_parser(Parser("read_exr", _read_exr, ".exr", exr_seed))
+    add_parser(Parser("read_exr", _reader("brdfkit.render.image", "read_exr"), ".exr", exr_seed))
 
 
 # --- mutations -----------------------------------------------------------------------------
