@@ -316,7 +316,9 @@ def test_grid_caches_are_the_per_cell_definitions():
     np.testing.assert_array_equal(wi.reshape(-1, 3)[cells], ewi)
     np.testing.assert_array_equal(wo.reshape(-1, 3)[cells], ewo)
     want = np.clip(ewi[:, 2], 0, None) * np.clip(ewo[:, 2], 0, None)
-    np.testing.assert_array_equal(g.grid_cosine_weight()[cells], want)
+    # In closed form: equal to the definition to rounding, and zero exactly where it is.
+    np.testing.assert_allclose(g.grid_cosine_weight()[cells], want, rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(g.grid_cosine_weight()[cells] == 0, want == 0)
     np.testing.assert_array_equal(g.valid_cells(), np.flatnonzero(g.valid_mask().reshape(-1)))
     # one copy per process, which nobody may change
     for arr in (wi, wo, g.grid_cosine_weight(), g.valid_cells(), g.grid_hd()):

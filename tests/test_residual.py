@@ -11,6 +11,7 @@ import os
 import numpy as np
 import pytest
 
+from brdfkit.basis import load_basis
 from brdfkit.errors import ModelMismatchError
 from brdfkit.io.embedding import read_embedding
 from brdfkit.residual import ResidualConfig, load_residual, save_residual
@@ -258,5 +259,7 @@ def test_two_process_fit_gives_one_residual_with_identical_ranks(trained, tmp_pa
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300, env=env, cwd=tmp_path)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert sorted(os.listdir(tmp_path)) == ["r.safetensors", "r.safetensors.ckpt"]
-    r = load_residual(out)
+    from brdfkit.io.digest import file_digest
+
+    r = load_residual(out, basis=(load_basis(basis), file_digest(basis)))
     assert r.meta["world_size"] == 2 and len(set(r.meta["rank_digests"])) == 1

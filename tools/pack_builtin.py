@@ -137,6 +137,9 @@ def _pack_parts(args, parts: dict, only=None) -> dict:
     for part in PACKERS:
         if part in parts and (only is None or part in only):
             file = parts[part]
+            if only is not None and not os.path.exists(os.path.join(args.src, file)):
+                print(f"{file}: not in {args.src}, the bundle's part kept as it is")
+                continue
             out[part] = {"file": file, "digest": PACKERS[part](os.path.join(args.src, file),
                                                                os.path.join(args.dst, file), parts)}
     return out
