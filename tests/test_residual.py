@@ -17,7 +17,7 @@ from brdfkit.io.embedding import read_embedding
 from brdfkit.residual import ResidualConfig, load_residual, save_residual
 from brdfkit.residual.network import ResidualNet, evaluate, hyponet_weights, net_input
 
-from conftest import run_brdfkit, run_cli_uncaptured, quiet_env
+from conftest import run_brdfkit, run_cli, run_cli_uncaptured, quiet_env
 from helpers_training import tiny_library
 
 TINY = ["-O", "sizes=6,12", "-O", "width=8", "-O", "hidden=16", "-O", "batch=4", "-O", "cells=256",
@@ -105,9 +105,9 @@ def test_fit_writes_one_network_a_size_and_resumes_to_the_bit(trained, tmp_path)
     r2 = run_brdfkit(run + ["--resume"], env=quiet_env(), timeout=300)
     assert r2.returncode == 0, r2.stderr
     assert part.read_bytes() == res.read_bytes()
-    again = tmp_path / "again.safetensors"
-    r3 = run_brdfkit(run[:-4] + ["-o", again, "--steps", "6"], env=quiet_env(), timeout=300)
-    assert r3.returncode == 0, r3.stderr
+    again = tmp_path / "again.safetensors"  # in this process, as the fixture's
+    code, err = run_cli_uncaptured(run[:-4] + ["-o", again, "--steps", "6"])
+    assert code == 0, err
     assert again.read_bytes() == res.read_bytes()
 
 
@@ -121,39 +121,41 @@ def test_a_basis_fitted_twice_is_the_same_bytes(trained, tmp_path):
     assert (tmp_path / "b.safetensors").read_bytes() == basis.read_bytes()
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("opt", ["-O", "--minutes"])
-def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt):
+def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt, capsys):
     lib, basis, _ = trained
     extra = ["-O", "sizes=99"] if opt == "-O" else ["--minutes", "1"]
-    r = run_brdfkit(["fit", "--method", "residual", lib, "-O", f"basis={basis}", *extra, "-o", tmp_path / "x"],
-                    env=quiet_env())
-    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
+    code, _, err = run_cli(capsys, ["fit", "--method", "residual", lib, "-O", f"basis={basis}", *extra,
+                                    "-o", tmp_path / "x"])
+    assert code == 2 and len(err.strip().splitlines()) == 1 and not (tmp_path / "x").exists()
 
 
 @pytest.mark.slow
-def test_encode_decode_blend_through_the_residual_kind(trained, tmp_path):
+def test_encode_decode_blend_through_the_residual_kind(trained, tmp_path, capsys):
     """``encode`` with a residual file makes a ``residual`` embedding that records both
-    parts' digests, the same bytes every time; ``decode`` reads it back without torch's
-    help; a blend of two stays a valid, positive material."""
+    parts' digests, the same bytes every time (a process of its own and this one);
+    ``decode`` reads it back without torch's help; a blend of two stays a valid, positive
+    material."""
     from brdfkit.io.digest import file_digest
 
     lib, basis, res = trained
-    for name in ("synth-000", "synth-001"):
-        for out in ("a", "b"):
-            r = run_brdfkit(["encode", lib / f"{name}.binary", "-m", res, "--size", "12", "--steps", "4",
-                             "-o", tmp_path / out], env=quiet_env(), timeout=300)
-            assert r.returncode == 0, r.stderr
-        assert (tmp_path / "a" / f"{name}.emb").read_bytes() == (tmp_path / "b" / f"{name}.emb").read_bytes()
+    opts = ["-m", res, "--size", "12", "--steps", "4"]
+    # both tables in a process of their own (the blend's two ends), the first again here
+    r = run_brdfkit(["encode", lib / "synth-000.binary", lib / "synth-001.binary", *opts, "-o", tmp_path / "a"],
+                    env=quiet_env(), timeout=300)
+    assert r.returncode == 0, r.stderr
+    code, _, err = run_cli(capsys, ["encode", lib / "synth-000.binary", *opts, "-o", tmp_path / "b"])
+    assert code == 0, err
+    assert (tmp_path / "a" / "synth-000.emb").read_bytes() == (tmp_path / "b" / "synth-000.emb").read_bytes()
     emb = read_embedding(tmp_path / "a" / "synth-000.emb")
     assert emb.kind == "residual" and emb.size == 12
     assert emb.parts == {"basis": file_digest(basis), "residual": file_digest(res)}
     assert emb.options["correction"] in (0.0, 1.0)
-    r = run_brdfkit(["interpolate", tmp_path / "a" / "synth-000.emb", tmp_path / "a" / "synth-001.emb", "--t", "0.3",
-                     "-o", tmp_path / "mix.emb"], env=quiet_env())
-    assert r.returncode == 0, r.stderr
-    r = run_brdfkit(["decode", tmp_path / "mix.emb", "-m", res, "-o", tmp_path / "mix.binary"], env=quiet_env())
-    assert r.returncode == 0, r.stderr
+    code, _, err = run_cli(capsys, ["interpolate", tmp_path / "a" / "synth-000.emb", tmp_path / "a" / "synth-001.emb",
+                                    "--t", "0.3", "-o", tmp_path / "mix.emb"])
+    assert code == 0, err
+    code, _, err = run_cli(capsys, ["decode", tmp_path / "mix.emb", "-m", res, "-o", tmp_path / "mix.binary"])
+    assert code == 0, err
     from brdfkit.io.merl import read_merl
 
     table = read_merl(tmp_path / "mix.binary")
