@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import json
 import shutil
-import subprocess
 
 import numpy as np
 import pytest
@@ -13,7 +12,7 @@ import pytest
 from brdfkit.bench import BenchConfig, run_bench, sample_seed, summarise
 from brdfkit.io.merl import read_merl
 
-from conftest import TINY, brdfkit_command, quiet_env
+from conftest import TINY, run_cli
 from helpers_training import tiny_library
 
 RES = 16
@@ -46,22 +45,33 @@ def setup(library):
     return {**library, "model": model}
 
 
+def no_plots(monkeypatch) -> list:
+    """``run_bench`` and ``merge_results`` from now on without their matplotlib figures (about
+    3 s a run; the end-to-end test checks them): the folders they would have gone to."""
+    import brdfkit.bench.runner
+
+    folders = []
+    monkeypatch.setattr(brdfkit.bench.runner, "write_plots", lambda folder, result: folders.append(folder) or [])
+    return folders
+
+
 @pytest.mark.slow
-def test_bench_cli_end_to_end(setup, tmp_path):
+def test_bench_cli_end_to_end(setup, tmp_path, capsys):
     out = tmp_path / "out"
     comp = tmp_path / "comp"
     comp.mkdir()
     shutil.copy(setup["lib"] / f"{setup['names'][1]}.binary", comp)
     shutil.copy(setup["lib"] / f"{setup['names'][0]}.binary", comp / "alias.binary")
-    cmd = [*brdfkit_command(), "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
-           "-m", setup["model"], "--ipca", setup["basis"], "--n", "40,160", "--seeds", "1",
-           "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", f"{setup['model']},pca-1",
-           "--compression-data", comp, "--threads", "1", "-o", out]
-    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=300, env=quiet_env())
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    assert proc.stdout == ""  # progress and messages go to stderr
+    # in this process (the command line's entry point): a process of its own adds only its start-up
+    code, stdout, stderr = run_cli(capsys, [
+        "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
+        "-m", setup["model"], "--ipca", setup["basis"], "--n", "40,160", "--seeds", "1",
+        "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", f"{setup['model']},pca-1",
+        "--compression-data", comp, "--threads", "1", "-o", out])
+    assert code == 0, stderr[-3000:]
+    assert stdout == ""  # progress and messages go to stderr
     # pca-K, the old spelling of basis-K, still runs, with a note
-    assert "note: pca-1 is now basis-1" in proc.stderr
+    assert "note: pca-1 is now basis-1" in stderr
     result = json.loads((out / "bench.json").read_text())
     assert result["complete"] and result["format"] == "brdfkit-bench"
     assert set(result["environment"]["method_defaults"]) == {"hypernet", "ipca", "nbrdf", "prior"}
@@ -138,14 +148,14 @@ def test_bench_cli_end_to_end(setup, tmp_path):
 
 
 @pytest.mark.slow
-def test_a_broken_material_is_recorded_not_fatal(library, tmp_path):
+def test_a_broken_material_is_recorded_not_fatal(library, tmp_path, monkeypatch):
     data = tmp_path / "data"
     data.mkdir()
     good = library["names"][0]
     shutil.copy(library["lib"] / f"{good}.binary", data)
     (data / "broken.binary").write_bytes((library["lib"] / f"{good}.binary").read_bytes()[:1000])
     cfg = BenchConfig(output=str(tmp_path / "out"), data=str(data), ipca=str(library["basis"]), n=(40,),
-                      seeds=2, methods=("ipca",), resolution=RES)
+                      seeds=2, methods=("ipca",), resolution=8)
     result = run_bench(cfg, progress=False)
     bad = [r for r in result["records"] if r["material"] == "broken"]
     ok = [r for r in result["records"] if r["material"] == good]
@@ -156,6 +166,8 @@ def test_a_broken_material_is_recorded_not_fatal(library, tmp_path):
     assert (row["count"], row["failures"], row["materials"]) == (2, 2, 1)
     md = (tmp_path / "out" / "bench.md").read_text()
     assert "## Failures (2)" in md and "broken, ipca:" in md
+    assert (tmp_path / "out" / "error_vs_n.png").is_file()  # the plots of a run with failures
+    plotted = no_plots(monkeypatch)  # the runs and merges below: their records, not their plots
 
     # One more draw later, merged with the first run.
     from brdfkit.cli import main
@@ -164,7 +176,7 @@ def test_a_broken_material_is_recorded_not_fatal(library, tmp_path):
     before = sorted((tmp_path / "out" / "cache").iterdir())
     assert len(before) == 1
     run_bench(BenchConfig(output=str(tmp_path / "more"), data=str(data), ipca=str(library["basis"]), n=(40,),
-                          seeds=1, first_seed=2, methods=("ipca",), resolution=RES,
+                          seeds=1, first_seed=2, methods=("ipca",), resolution=8,
                           cache=str(tmp_path / "out" / "cache")), progress=False)
     assert sorted((tmp_path / "out" / "cache").iterdir()) == before  # the reference came from the cache
     with pytest.raises(SystemExit) as e:
@@ -195,6 +207,7 @@ def test_a_broken_material_is_recorded_not_fatal(library, tmp_path):
     assert not got["complete"] and got["dropped_materials"] == ["broken"]
     assert {r["material"] for r in got["records"]} == {good} and len(got["records"]) == 3
     assert "materials dropped because not every merged run covered them: broken" in (tmp_path / "p" / "bench.md").read_text()
+    assert plotted == [str(tmp_path / n) for n in ("more", "merged", "again", "p")]  # each run and merge that wrote
 
 
 def test_usage_errors_are_one_line(library, tmp_path, capsys):
@@ -326,11 +339,13 @@ def test_renderer_digest_covers_every_module_a_reference_render_reads():
 
 
 @pytest.mark.slow
-def test_resume_keeps_finished_materials_and_runs_the_rest(library, tmp_path):
+def test_resume_keeps_finished_materials_and_runs_the_rest(library, tmp_path, monkeypatch):
     from brdfkit.errors import InputError
 
+    no_plots(monkeypatch)
+
     cfg = BenchConfig(output=str(tmp_path / "out"), data=str(library["lib"]), ipca=str(library["basis"]), n=(40,),
-                      seeds=1, methods=("ipca",), resolution=RES)
+                      seeds=1, methods=("ipca",), resolution=8)
     full = run_bench(cfg, progress=False)
     assert len(full["records"]) == 3
     # An interruption after the first material: its records are kept as written, with a
@@ -350,6 +365,6 @@ def test_resume_keeps_finished_materials_and_runs_the_rest(library, tmp_path):
     # Resuming a finished run runs nothing; another configuration is refused.
     assert len(run_bench(cfg, progress=False, resume=True)["records"]) == 3
     other = BenchConfig(output=str(tmp_path / "out"), data=str(library["lib"]), ipca=str(library["basis"]), n=(160,),
-                        seeds=1, methods=("ipca",), resolution=RES)
+                        seeds=1, methods=("ipca",), resolution=8)
     with pytest.raises(InputError, match="these differ: n"):
         run_bench(other, progress=False, resume=True)
