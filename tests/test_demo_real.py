@@ -170,11 +170,17 @@ def test_demo_weights_file_is_package_data():
 # --- brdfkit demo ---------------------------------------------------------------------------
 
 @pytest.mark.slow
-def test_real_demo_end_to_end(shelf, tmp_path):
+def test_real_demo_end_to_end(shelf, monkeypatch, capsys, tmp_path):
+    import brdfkit.demos.real_materials
+
+    # in this process, the demo's refinement of 20 steps a table cut to 3 (as `quick`)
+    assert brdfkit.demos.real_materials.COMPRESSION_STEPS == 20
+    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
+    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_STEPS", 3)
     out = tmp_path / "demo"
-    proc = _run(["--out", out, "--only", "violet-rubber,teflon", "--resolution", "12", "--keep-tables"], shelf)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    report = proc.stdout
+    code, report, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "violet-rubber,teflon", "--resolution", "12",
+                                            "--keep-tables"])
+    assert code == 0, stderr[-3000:]
     flat = re.sub(r"\s+", " ", report)
     assert "Times" in report and "whole demo" in report
     for what in ("sparse", "compressed"):  # ranked by renders (issue 28)
@@ -187,7 +193,7 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     # The compressions' headers whole (wrapped at the model's name, not cut).
     assert "…" not in report and all(w in report for t in LABELS for w in t.split(" ("))
     # Each compression labelled by kind, in the explanation and the times; the budget said.
-    assert "refined on screen, at most 20 steps" in flat and "brdfkit encode takes at most 40 by default" in flat
+    assert "refined on screen, at most 3 steps" in flat and "brdfkit encode takes at most 40 by default" in flat
     # What each kind of column holds: the basis's coefficients (80 steps in encode), or a latent.
     assert ("basis-K: the full table compressed, as brdfkit encode does by default, into K numbers, the "
             "coefficients of the PCA basis the model ships") in flat
@@ -197,10 +203,10 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert "in-sample (merl-rgl-l40, merl-rgl-l7): trained on all 151 MERL + RGL materials, these included" in flat
     assert "unseen (merl80-l40): trained without the 20 MERL test materials" in flat
     for label in LABELS:
-        assert re.search(rf"encode \+ refine \(20 steps\), {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
+        assert re.search(rf"encode \+ refine \(3 steps\), {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
         assert re.search(rf"decode, {re.escape(label)} \(mean\)\s*[│|]\s*[\d.]+", report), report
-    assert f"writing into {out}" in proc.stderr.replace("\n", "")
-    assert "compressing (refined on screen, at most 20 steps)" in re.sub(r"\s+", " ", proc.stderr)
+    assert f"writing into {out}" in stderr.replace("\n", "")
+    assert "compressing (refined on screen, at most 3 steps)" in re.sub(r"\s+", " ", stderr)
     assert "materials/  (2 files, 70.0 MB)" in report and "not kept" not in report
 
     # The tables: the material, the four sparse reconstructions, three compressions, a blend.
@@ -229,7 +235,7 @@ def test_real_demo_end_to_end(shelf, tmp_path):
     assert [(c["column"], c["kind"], c["embedding"], c["size"]) for c in doc["compressions"]] == [
         (LABELS[0], "in-sample", "hypernet", 40), (LABELS[1], "in-sample", "hypernet", 7),
         (LABELS[2], "unseen", "basis", 9)]
-    assert doc["compression_steps"] == 20 and doc["interpolation_model"] == "merl80-l40"
+    assert doc["compression_steps"] == 3 and doc["interpolation_model"] == "merl80-l40"
     assert doc["psnr"]["teflon"].keys() == doc["errors"]["teflon"].keys()  # the renders the tables rank by
     # The sheet and the plot, of the first material.
     for png in ("sheet-violet-rubber.png", "sheet-violet-rubber-backlight.png", "plot-violet-rubber.png"):
