@@ -14,7 +14,16 @@ import numpy as np
 import pytest
 
 from brdfkit.errors import FormatError, InputError
-from conftest import run_brdfkit
+from conftest import run_cli
+
+
+def run_here(capsys, args):
+    """``brdfkit ARGS`` in this process (``conftest.run_cli``), as the fields of a finished
+    process: ``returncode``, ``stdout``, ``stderr``."""
+    import types
+
+    code, out, err = run_cli(capsys, args)
+    return types.SimpleNamespace(returncode=code, stdout=out, stderr=err)
 from helpers_foundation import lambert_table
 
 torch = pytest.importorskip("torch")
@@ -219,29 +228,28 @@ def lambert_file(tmp_path_factory):
 
 
 @pytest.mark.slow
-def test_cli_render_and_metrics(lambert_file, tmp_path):
+def test_cli_render_and_metrics(lambert_file, tmp_path, capsys):
     from brdfkit.render.image import read_exr
 
     exr, png = tmp_path / "a.exr", tmp_path / "a.png"
-    r = run_brdfkit(["render", lambert_file, "-o", exr, "--png", png, "--resolution", 16, "--quiet"])
+    r = run_here(capsys, ["render", lambert_file, "-o", exr, "--png", png, "--resolution", 16, "--quiet"])
     assert r.returncode == 0, r.stderr
     img = read_exr(exr)
     assert img.shape == (16, 16, 3) and png.stat().st_size > 0
     centre = img[7:9, 7:9].mean((0, 1))
     assert (centre > 0.05).all() and centre[0] > centre[2]  # albedo 0.6, 0.5, 0.4
 
-    r = run_brdfkit(["metrics", "--ref", exr, exr, "--json"])
+    r = run_here(capsys, ["metrics", "--ref", exr, exr, "--json"])
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout) == {"psnr": 100.0, "delta_e": 0.0, "ssim": 1.0, "brdf_log_rmse": None}
 
     # a BRDF file against its own render: rendered at the image's size, identical
-    r = run_brdfkit(["metrics", "--ref", exr, lambert_file, "--json"])
+    r = run_here(capsys, ["metrics", "--ref", exr, lambert_file, "--json"])
     assert r.returncode == 0, r.stderr
     assert json.loads(r.stdout)["psnr"] == 100.0
 
 
-@pytest.mark.slow
-def test_cli_metrics_folders(lambert_file, tmp_path):
+def test_cli_metrics_folders(lambert_file, tmp_path, capsys):
     from brdfkit.render.image import write_exr
 
     a, b = tmp_path / "pred", tmp_path / "ref"
@@ -256,7 +264,7 @@ def test_cli_metrics_folders(lambert_file, tmp_path):
     write_exr(a / "only-here.exr", ref2)
     (b / "lambert.binary").symlink_to(lambert_file)
     (a / "lambert.binary").symlink_to(lambert_file)
-    r = run_brdfkit(["metrics", "--ref", b, a, "--json", "--resolution", 16])
+    r = run_here(capsys, ["metrics", "--ref", b, a, "--json", "--resolution", 16])
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert set(out["materials"]) == {"m1", "m2", "lambert"}
@@ -268,12 +276,11 @@ def test_cli_metrics_folders(lambert_file, tmp_path):
     assert out["mean"]["psnr"] == pytest.approx(sum(psnrs) / 3)
     assert out["mean"]["brdf_log_rmse"] == 0.0
     assert "only-here" in r.stderr
-    r = run_brdfkit(["metrics", "--ref", b, a, "--resolution", 16])  # the table
+    r = run_here(capsys, ["metrics", "--ref", b, a, "--resolution", 16])  # the table
     assert r.returncode == 0 and "mean" in r.stdout and "m2" in r.stdout
 
 
-@pytest.mark.slow
-def test_cli_bad_inputs(lambert_file, tmp_path):
+def test_cli_bad_inputs(lambert_file, tmp_path, capsys):
     (tmp_path / "fake.exr").write_text("hello")
     (tmp_path / "x.txt").write_text("hello")
     cases = [
@@ -288,12 +295,12 @@ def test_cli_bad_inputs(lambert_file, tmp_path):
         (["metrics", "--ref", tmp_path / "fake.exr", tmp_path], "folder"),
     ]
     for args, needle in cases:
-        r = run_brdfkit(args)
+        r = run_here(capsys, args)
         assert r.returncode == 2, (args, r.stderr)
         lines = r.stderr.strip().splitlines()
         assert len(lines) == 1 and needle in lines[0], (args, r.stderr)
         assert "Traceback" not in r.stderr
-    r = run_brdfkit(["metrics"])
+    r = run_here(capsys, ["metrics"])
     assert r.returncode == 2 and "--ref REF PRED" in r.stderr and "--json" in r.stderr
 
 
@@ -355,7 +362,7 @@ def test_metrics_ref_and_compare_ref_in_process(tmp_path, capsys):
 
 
 @pytest.mark.slow
-def test_cli_render_embedding(tmp_path):
+def test_cli_render_embedding(tmp_path, capsys):
     """An .emb with its model renders through NeuralBRDF.eval_dirs (no dense table)."""
     from helpers_model import make_model, material_table
 
@@ -370,15 +377,14 @@ def test_cli_render_embedding(tmp_path):
     model = load_model(tmp_path / "m.safetensors", device="cpu")
     emb = encode(material_table(0), model)
     write_embedding(tmp_path / "w.emb", emb)
-    r = run_brdfkit(["render", tmp_path / "w.emb", "-m", tmp_path / "m.safetensors", "-o", tmp_path / "w.exr",
+    r = run_here(capsys, ["render", tmp_path / "w.emb", "-m", tmp_path / "m.safetensors", "-o", tmp_path / "w.exr",
                      "--resolution", 12, "--quiet"])
     assert r.returncode == 0, r.stderr
     img = read_exr(tmp_path / "w.exr")
     expected, _ = quadrature.render(NeuralBRDF.from_embedding(model, emb), Scene(resolution=12))
     np.testing.assert_allclose(img, expected, rtol=1e-4, atol=1e-6)
     assert np.isfinite(img).all() and img.max() > 0
-    r = run_brdfkit(["render", tmp_path / "w.emb", "-o", tmp_path / "x.exr"],
-                    env={k: v for k, v in os.environ.items() if k != "BRDFKIT_MODEL"})
+    r = run_here(capsys, ["render", tmp_path / "w.emb", "-o", tmp_path / "x.exr"])  # no $BRDFKIT_MODEL (conftest)
     assert r.returncode == 2 and "model" in r.stderr
 
 
