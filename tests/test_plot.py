@@ -15,15 +15,19 @@ from brdfkit.geometry import GRID_SHAPE, valid_mask
 from brdfkit.io.merl import write_merl
 from brdfkit.figures.brdf_plot import inplane_lobe, plot_figure
 
-from conftest import quiet_env
-from conftest import run_brdfkit as _run_brdfkit
+from conftest import run_cli
 
 MIRROR = synthetic.Material("mirror-0.01", "conductor", 0.01, ior=synthetic.METALS["silver"][0],
                             k=synthetic.METALS["silver"][1])
 
 
-def run_brdfkit(args, timeout=300):
-    return _run_brdfkit(args, timeout=timeout, env=quiet_env())
+def run_here(capsys, args):
+    """``brdfkit ARGS`` in this process (``conftest.run_cli``), as the fields of a finished
+    process: ``returncode``, ``stdout``, ``stderr``."""
+    import types
+
+    code, out, err = run_cli(capsys, args)
+    return types.SimpleNamespace(returncode=code, stdout=out, stderr=err)
 
 
 def _lambert(albedo=(0.6, 0.5, 0.4)):
@@ -127,10 +131,9 @@ def test_layout_cuts_and_overlaps_nothing(n, options):
         plt.close(fig)
 
 
-@pytest.mark.slow
 @pytest.mark.parametrize("view", ["lobes", "slices"])
-def test_each_view_alone(tables, tmp_path, view):
-    r = run_brdfkit(["plot", tables / "mirror.binary", "-o", tmp_path / "p.png", "--view", view,
+def test_each_view_alone(tables, tmp_path, view, capsys):
+    r = run_here(capsys, ["plot", tables / "mirror.binary", "-o", tmp_path / "p.png", "--view", view,
                      "--channel", "green", "--linear"])
     assert r.returncode == 0, r.stderr
     from PIL import Image
@@ -140,7 +143,7 @@ def test_each_view_alone(tables, tmp_path, view):
 
 
 @pytest.mark.slow
-def test_table_and_embedding_side_by_side(tables, tmp_path):
+def test_table_and_embedding_side_by_side(tables, tmp_path, capsys):
     pytest.importorskip("torch")
     from brdfkit import api
     from brdfkit.io.embedding import write_embedding
@@ -151,7 +154,7 @@ def test_table_and_embedding_side_by_side(tables, tmp_path):
     make_model(model_path)
     emb = api.encode(tables / "lambert.binary", api.load_model(model_path))
     write_embedding(tmp_path / "lambert.emb", emb)
-    r = run_brdfkit(["plot", tables / "lambert.binary", tmp_path / "lambert.emb", "-m", model_path,
+    r = run_here(capsys, ["plot", tables / "lambert.binary", tmp_path / "lambert.emb", "-m", model_path,
                      "-o", tmp_path / "p.png"])
     assert r.returncode == 0, r.stderr
     assert "lambert.binary, lambert.emb" in r.stderr  # same stem: named with the extension
@@ -165,17 +168,17 @@ def test_table_and_embedding_side_by_side(tables, tmp_path):
     (["{t}/lambert.binary", "--decades", "0"], "--decades"),
     (["{t}/lambert.csv"], "not a MERL table"),
 ])
-def test_bad_plot_input_is_one_line(tables, tmp_path, args, message):
-    r = run_brdfkit(["plot", *[a.format(t=tables) for a in args], "-o", tmp_path / "p.png"])
+def test_bad_plot_input_is_one_line(tables, tmp_path, args, message, capsys):
+    r = run_here(capsys, ["plot", *[a.format(t=tables) for a in args], "-o", tmp_path / "p.png"])
     assert r.returncode == 2 and message in r.stderr, r.stderr
     assert r.stderr.count("\n") == 1
     assert not (tmp_path / "p.png").exists()
 
 
-def test_bad_options_fail_before_reading_inputs(tmp_path):
-    r = run_brdfkit(["plot", tmp_path / "missing.binary", "--theta-i", "95", "-o", tmp_path / "p.png"])
+def test_bad_options_fail_before_reading_inputs(tmp_path, capsys):
+    r = run_here(capsys, ["plot", tmp_path / "missing.binary", "--theta-i", "95", "-o", tmp_path / "p.png"])
     assert r.returncode == 2 and "--theta-i" in r.stderr, r.stderr
-    r = run_brdfkit(["plot", tmp_path / "missing.binary", "-o", tmp_path / "p.jpg"])
+    r = run_here(capsys, ["plot", tmp_path / "missing.binary", "-o", tmp_path / "p.jpg"])
     assert r.returncode == 2 and ".png" in r.stderr, r.stderr
 
 
