@@ -189,6 +189,17 @@ def run_cli_uncaptured(args) -> tuple[int, str]:
     return 0, err.getvalue()
 
 
+def no_bench_plots(monkeypatch) -> list:
+    """``brdfkit bench`` (``run_bench``, ``merge_results``) in this process from now on
+    without its matplotlib figures (about 3 s a run; tests/test_bench.py's end-to-end test
+    checks them): the folders they would have gone to, in turn."""
+    import brdfkit.bench.runner
+
+    folders = []
+    monkeypatch.setattr(brdfkit.bench.runner, "write_plots", lambda folder, result: folders.append(folder) or [])
+    return folders
+
+
 def one_error_line(err: str) -> str:
     """The one line of ``err``, a ``brdfkit: error: ...`` (bad input is one line, never
     a traceback)."""

@@ -12,7 +12,7 @@ import pytest
 from brdfkit.bench import BenchConfig, run_bench, sample_seed, summarise
 from brdfkit.io.merl import read_merl
 
-from conftest import TINY, run_cli
+from conftest import TINY, no_bench_plots, run_cli
 from helpers_training import tiny_library
 
 RES = 16
@@ -43,16 +43,6 @@ def setup(library):
     model = library["root"] / "tiny.safetensors"
     fit(library["lib"], model, latent_dim=6, steps=30, seed=0, progress=False, **TINY)
     return {**library, "model": model}
-
-
-def no_plots(monkeypatch) -> list:
-    """``run_bench`` and ``merge_results`` from now on without their matplotlib figures (about
-    3 s a run; the end-to-end test checks them): the folders they would have gone to."""
-    import brdfkit.bench.runner
-
-    folders = []
-    monkeypatch.setattr(brdfkit.bench.runner, "write_plots", lambda folder, result: folders.append(folder) or [])
-    return folders
 
 
 @pytest.mark.slow
@@ -167,7 +157,7 @@ def test_a_broken_material_is_recorded_not_fatal(library, tmp_path, monkeypatch)
     md = (tmp_path / "out" / "bench.md").read_text()
     assert "## Failures (2)" in md and "broken, ipca:" in md
     assert (tmp_path / "out" / "error_vs_n.png").is_file()  # the plots of a run with failures
-    plotted = no_plots(monkeypatch)  # the runs and merges below: their records, not their plots
+    plotted = no_bench_plots(monkeypatch)  # the runs and merges below: their records, not their plots
 
     # One more draw later, merged with the first run.
     from brdfkit.cli import main
@@ -342,7 +332,7 @@ def test_renderer_digest_covers_every_module_a_reference_render_reads():
 def test_resume_keeps_finished_materials_and_runs_the_rest(library, tmp_path, monkeypatch):
     from brdfkit.errors import InputError
 
-    no_plots(monkeypatch)
+    no_bench_plots(monkeypatch)
 
     cfg = BenchConfig(output=str(tmp_path / "out"), data=str(library["lib"]), ipca=str(library["basis"]), n=(40,),
                       seeds=1, methods=("ipca",), resolution=8)
