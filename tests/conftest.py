@@ -172,6 +172,16 @@ def run_cli(capsys, args) -> tuple[int, str, str]:
     return e.value.code, out.out, out.err
 
 
+def run_here(capsys, args):
+    """``run_cli`` as the fields of a finished process (``returncode``, ``stdout``,
+    ``stderr``), for tests written against ``run_brdfkit`` whose process is not what they
+    check."""
+    import types
+
+    code, out, err = run_cli(capsys, args)
+    return types.SimpleNamespace(returncode=code, stdout=out, stderr=err)
+
+
 def run_cli_uncaptured(args) -> tuple[int, str]:
     """Run ``brdfkit ARGS`` in-process where no ``capsys`` is at hand (a module fixture
     building its inputs with the commands): ``(exit code, stderr)``."""

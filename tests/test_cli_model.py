@@ -17,21 +17,10 @@ from brdfkit import api
 from brdfkit.io.embedding import read_embedding, write_embedding
 from brdfkit.io.merl import MERL_FILE_SIZE, read_merl
 
-from conftest import one_error_line, run_brdfkit, run_cli
+from conftest import one_error_line, run_cli, run_here
 from helpers_model import make_model, material_table, write_inputs
 
 
-def _env():
-    env = dict(os.environ)
-    env.pop("BRDFKIT_MODEL", None)
-    # One thread: the test machine's 2 cores are shared, and oversubscribed OpenMP
-    # threads slow small matrix products down many times.
-    env.update(OMP_NUM_THREADS="1", MKL_NUM_THREADS="1")
-    return env
-
-
-def _run(args):
-    return run_brdfkit([str(a) for a in args], env=_env(), timeout=300)
 
 
 @pytest.fixture(scope="module")
@@ -48,12 +37,11 @@ def _no_model_env(monkeypatch):
     monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
 
 
-@pytest.mark.slow
-def test_encode_continues_past_bad_files(files, tmp_path):
+def test_encode_continues_past_bad_files(files, tmp_path, capsys):
     junk = tmp_path / "junk.binary"
     junk.write_bytes(b"not a MERL table")
     out = tmp_path / "embs"
-    r = _run(["encode", files / "mat.binary", junk, tmp_path / "missing.binary", files / "samples.csv",
+    r = run_here(capsys, ["encode", files / "mat.binary", junk, tmp_path / "missing.binary", files / "samples.csv",
               "-m", files / "model.safetensors", "-o", out, "--no-refine"])
     assert r.returncode == 2, r.stderr
     assert sorted(os.listdir(out)) == ["mat.emb", "samples.emb"]
@@ -111,13 +99,12 @@ def test_encode_without_model(files, capsys):
     assert code == 2 and "no model given" in one_error_line(err)
 
 
-@pytest.mark.slow
 def test_decode_writes_a_merl_file(files, tmp_path, capsys):
     m = api.load_model(files / "model.safetensors", "cpu")
     emb = api.encode(files / "samples.csv", m)
     write_embedding(tmp_path / "x.emb", emb)
     out = tmp_path / "x.binary"
-    r = _run(["decode", tmp_path / "x.emb", "-m", files / "model.safetensors", "-o", out])
+    r = run_here(capsys, ["decode", tmp_path / "x.emb", "-m", files / "model.safetensors", "-o", out])
     assert r.returncode == 0, r.stderr
     assert os.path.getsize(out) == MERL_FILE_SIZE == 34_992_012
     table = read_merl(out)
@@ -131,11 +118,10 @@ def test_decode_writes_a_merl_file(files, tmp_path, capsys):
     assert code == 0 and (tmp_path / "x.binary").exists()
 
 
-@pytest.mark.slow
-def test_decode_other_models_embedding_refused(files, tmp_path):
+def test_decode_other_models_embedding_refused(files, tmp_path, capsys):
     m = api.load_model(files / "model.safetensors", "cpu")
     write_embedding(tmp_path / "x.emb", api.encode(files / "samples.csv", m))
-    r = _run(["decode", tmp_path / "x.emb", "-m", files / "other.safetensors", "-o", tmp_path / "y.binary"])
+    r = run_here(capsys, ["decode", tmp_path / "x.emb", "-m", files / "other.safetensors", "-o", tmp_path / "y.binary"])
     assert r.returncode == 2
     line = one_error_line(r.stderr)
     assert "x.emb" in line and m.digest[:12] in line and "other.safetensors" in line
@@ -208,9 +194,8 @@ def two_embs(files, tmp_path_factory):
     return d
 
 
-@pytest.mark.slow
-def test_interpolate_t_not_a_number(two_embs, tmp_path):
-    r = _run(["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "abc", "-o", tmp_path / "c.emb"])
+def test_interpolate_t_not_a_number(two_embs, tmp_path, capsys):
+    r = run_here(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "abc", "-o", tmp_path / "c.emb"])
     assert r.returncode == 2
     assert "--t: 'abc' is not a number" in one_error_line(r.stderr)
     assert not (tmp_path / "c.emb").exists()

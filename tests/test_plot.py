@@ -15,19 +15,10 @@ from brdfkit.geometry import GRID_SHAPE, valid_mask
 from brdfkit.io.merl import write_merl
 from brdfkit.figures.brdf_plot import inplane_lobe, plot_figure
 
-from conftest import run_cli
+from conftest import run_here
 
 MIRROR = synthetic.Material("mirror-0.01", "conductor", 0.01, ior=synthetic.METALS["silver"][0],
                             k=synthetic.METALS["silver"][1])
-
-
-def run_here(capsys, args):
-    """``brdfkit ARGS`` in this process (``conftest.run_cli``), as the fields of a finished
-    process: ``returncode``, ``stdout``, ``stderr``."""
-    import types
-
-    code, out, err = run_cli(capsys, args)
-    return types.SimpleNamespace(returncode=code, stdout=out, stderr=err)
 
 
 def _lambert(albedo=(0.6, 0.5, 0.4)):

@@ -14,16 +14,7 @@ import numpy as np
 import pytest
 
 from brdfkit.errors import FormatError, InputError
-from conftest import run_cli
-
-
-def run_here(capsys, args):
-    """``brdfkit ARGS`` in this process (``conftest.run_cli``), as the fields of a finished
-    process: ``returncode``, ``stdout``, ``stderr``."""
-    import types
-
-    code, out, err = run_cli(capsys, args)
-    return types.SimpleNamespace(returncode=code, stdout=out, stderr=err)
+from conftest import run_here
 from helpers_foundation import lambert_table
 
 torch = pytest.importorskip("torch")
