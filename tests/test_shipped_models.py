@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import json
 import os
-import subprocess
 
 import numpy as np
 import pytest
@@ -28,20 +27,20 @@ def shipped(monkeypatch):
     return man
 
 
-def _run(*args, cwd):
-    env = {k: v for k, v in os.environ.items() if k not in ("BRDFKIT_BUILTIN_MODELS", "BRDFKIT_MODEL")}
-    env["OMP_NUM_THREADS"] = "1"
-    from conftest import brdfkit_command
+def _run(capsys, monkeypatch, *args, cwd):
+    """``brdfkit ARGS`` in this process, in ``cwd``, with neither ``$BRDFKIT_BUILTIN_MODELS``
+    (``shipped``) nor ``$BRDFKIT_MODEL`` (conftest): the package's own built-in models."""
+    from conftest import run_here
 
-    return subprocess.run([*brdfkit_command(), *args], cwd=cwd, env=env,
-                          capture_output=True, text=True, timeout=300)
+    monkeypatch.chdir(cwd)
+    return run_here(capsys, args)
 
 
 @pytest.mark.slow
-def test_the_three_models_are_listed_installed_and_intact(shipped, tmp_path):
+def test_the_three_models_are_listed_installed_and_intact(shipped, tmp_path, capsys, monkeypatch):
     assert [m.name for m in shipped.installed()] == list(NAMES)
     assert shipped.default == "merl-rgl-l40"
-    r = _run("models", "--json", "--check", cwd=tmp_path)
+    r = _run(capsys, monkeypatch, "models", "--json", "--check", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     by_name = {e["name"]: e for e in doc["bundles"]}
@@ -65,7 +64,7 @@ def test_the_package_is_within_its_size_budget(shipped):
 
 
 @pytest.mark.slow
-def test_sparse_encode_decode_without_m(shipped, tmp_path):
+def test_sparse_encode_decode_without_m(shipped, tmp_path, capsys, monkeypatch):
     from brdfkit.io.merl import write_merl
     from brdfkit.io.samples import write_samples
     from brdfkit.acquisition.sampling import draw_samples
@@ -74,18 +73,18 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path):
     ref = table(library(6, seed=3, stiff=False)[5])
     write_merl(tmp_path / "ref.binary", ref)
     write_samples(tmp_path / "s.csv", draw_samples(ref, 400, seed=0))
-    r = _run("sparse", "s.csv", "-o", "out.binary", cwd=tmp_path)
+    r = _run(capsys, monkeypatch, "sparse", "s.csv", "-o", "out.binary", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "prior" in r.stderr and "merl-rgl-l40" in r.stderr
-    r = _run("sparse", "s.csv", "-m", "merl80-l40", "--method", "ipca", "-o", "ipca.binary", cwd=tmp_path)
+    r = _run(capsys, monkeypatch, "sparse", "s.csv", "-m", "merl80-l40", "--method", "ipca", "-o", "ipca.binary", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     # The projection alone: the refinement of a basis embedding is the next test's
-    r = _run("encode", "ref.binary", "-o", "emb", "--steps", "0", cwd=tmp_path)
+    r = _run(capsys, monkeypatch, "encode", "ref.binary", "-o", "emb", "--steps", "0", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     embs = [f for f in os.listdir(tmp_path / "emb") if f.endswith(".emb")]
     assert len(embs) == 1
     assert json.loads((tmp_path / "emb" / embs[0]).read_text())["kind"] == "basis"  # the default
-    r = _run("decode", os.path.join("emb", embs[0]), "-o", "dec.binary", cwd=tmp_path)
+    r = _run(capsys, monkeypatch, "decode", os.path.join("emb", embs[0]), "-o", "dec.binary", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     from brdfkit.io.merl import read_merl
     from brdfkit.evaluation.metrics import brdf_log_rmse
