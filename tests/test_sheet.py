@@ -11,13 +11,7 @@ import pytest
 from brdfkit.materials import synthetic
 from brdfkit.io.merl import write_merl
 
-from conftest import quiet_env
-from conftest import run_brdfkit as _run_brdfkit
-
-
-
-def run_brdfkit(args, timeout=300):
-    return _run_brdfkit(args, timeout=timeout, env=quiet_env())
+from conftest import run_here
 
 
 @pytest.fixture(scope="module")
@@ -65,10 +59,9 @@ def test_sheet_scores_are_those_of_brdfkit_metrics(materials, tmp_path):
         assert np.asarray(im.convert("L"), dtype=float).std() > 10
 
 
-@pytest.mark.slow
-def test_compare_command_json_and_sheet(materials, tmp_path):
+def test_compare_command_json_and_sheet(materials, tmp_path, capsys):
     ref, a, b = materials
-    r = run_brdfkit(["compare", ref, a, b, "--sheet", tmp_path / "s.png", "--resolution", "16", "--json"])
+    r = run_here(capsys, ["compare", ref, a, b, "--sheet", tmp_path / "s.png", "--resolution", "16", "--json"])
     assert r.returncode == 0, r.stderr
     out = json.loads(r.stdout)
     assert set(out["predictions"]) == {a.stem, b.stem}
@@ -83,10 +76,10 @@ def test_compare_command_json_and_sheet(materials, tmp_path):
     (["{ref}", "{tmp}/x.emb", "--sheet", "{tmp}/s.png"], "x.emb"),
     (["{ref}", "{a}", "--sheet", "{ref}"], "also an input"),
 ])
-def test_bad_compare_input_is_one_line_before_any_render(materials, tmp_path, args, message):
+def test_bad_compare_input_is_one_line_before_any_render(materials, tmp_path, args, message, capsys):
     ref, a, _ = materials
     argv = [x.format(ref=ref, a=a, tmp=tmp_path) for x in args]
-    r = run_brdfkit(["compare", *argv, "--resolution", "16"])
+    r = run_here(capsys, ["compare", *argv, "--resolution", "16"])
     assert r.returncode == 2 and message in r.stderr, r.stderr
     assert r.stderr.count("\n") == 1
 
