@@ -213,11 +213,12 @@ def test_no_builtin_no_model_error(capsys, tmp_path):
 def test_default_and_env_resolution(installed, capsys, monkeypatch, tmp_path):
     folder, inputs = installed
     fps = {m.name: m.part("network").digest for m in builtin.installed_bundles()}
-    code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "d"])
+    # which model encodes is the question, not the refinement (--no-refine: the encoder's pass)
+    code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "d", "--no-refine"])
     assert code == 0, err
     assert read_embedding(tmp_path / "d" / "mat.emb").decoder == fps["tiny-a"]
     monkeypatch.setenv("BRDFKIT_MODEL", "tiny-b")
-    code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "e"])
+    code, _, err = run_cli(capsys, ["encode", inputs / "mat.binary", "-o", tmp_path / "e", "--no-refine"])
     assert code == 0, err
     assert read_embedding(tmp_path / "e" / "mat.emb").decoder == fps["tiny-b"]
     monkeypatch.delenv("BRDFKIT_MODEL")
