@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from brdfkit.errors import BrdfkitError
-from conftest import run_brdfkit
+from conftest import run_here
 from helpers_foundation import lambert_table
 
 torch = pytest.importorskip("torch")
@@ -166,11 +166,10 @@ def test_neural_brdf_in_mitsuba(mi, tmp_path):
     assert np.isfinite(img).all() and img.max() > 0
 
 
-@pytest.mark.slow
-def test_cli_mitsuba_and_user_scene(mi, lambert_file, tmp_path):
+def test_cli_mitsuba_and_user_scene(mi, lambert_file, tmp_path, capsys):
     from brdfkit.render.image import read_exr
 
-    r = run_brdfkit(["render", lambert_file, "--mitsuba", "--spp", 8, "--resolution", 16,
+    r = run_here(capsys, ["render", lambert_file, "--mitsuba", "--spp", 8, "--resolution", 16,
                      "-o", tmp_path / "a.exr", "--quiet"])
     assert r.returncode == 0, r.stderr
     assert read_exr(tmp_path / "a.exr").shape == (16, 16, 3)
@@ -178,17 +177,17 @@ def test_cli_mitsuba_and_user_scene(mi, lambert_file, tmp_path):
     scene = tmp_path / "scene.xml"
     scene.write_text(_furnace_xml('<bsdf type="diffuse" id="mat"><rgb name="reflectance" value="0.1"/></bsdf>',
                                   res=32, spp=4))
-    r = run_brdfkit(["render", lambert_file, "--scene", scene, "--bsdf-id", "mat", "--spp", 32,
+    r = run_here(capsys, ["render", lambert_file, "--scene", scene, "--bsdf-id", "mat", "--spp", 32,
                      "--resolution", 16, "-o", tmp_path / "b.exr", "--quiet"])
     assert r.returncode == 0, r.stderr
     img = read_exr(tmp_path / "b.exr")
     assert img.shape == (16, 16, 3)
     np.testing.assert_allclose(_centre(img).mean(0), [0.6, 0.5, 0.4], rtol=0.05)  # ours, not 0.1
 
-    r = run_brdfkit(["render", lambert_file, "--scene", scene, "--bsdf-id", "nope", "-o", tmp_path / "c.exr"])
+    r = run_here(capsys, ["render", lambert_file, "--scene", scene, "--bsdf-id", "nope", "-o", tmp_path / "c.exr"])
     assert r.returncode == 2 and "no <bsdf id=\"nope\">" in r.stderr and "mat" in r.stderr
     (tmp_path / "bad.xml").write_text("<scene><oops></scene>")
-    r = run_brdfkit(["render", lambert_file, "--scene", tmp_path / "bad.xml", "--bsdf-id", "mat",
+    r = run_here(capsys, ["render", lambert_file, "--scene", tmp_path / "bad.xml", "--bsdf-id", "mat",
                      "-o", tmp_path / "c.exr"])
     assert r.returncode == 2 and "not a Mitsuba XML scene" in r.stderr
     assert len(r.stderr.strip().splitlines()) == 1
