@@ -3,8 +3,9 @@ compression ``bench.json`` of ``brdfkit bench``, in the six judged scenes.
 
 Each bench is one set of materials (``NAME=FOLDER``: the folder holding its ``bench.json``);
 every row is taken over the materials that every row scored.
-Rows are grouped by what ran, read from the record's label: the default ``encode``
-(``basis-N (B)``, a basis embedding of ``N`` numbers), full-precision PCA of equal size
+Rows are grouped by what ran, read from the record's label: the basis plus its
+hypernetwork residual (``residual-N (R)``, the default ``encode`` at the sizes a built-in
+offers it at), the basis embedding (``basis-N (B)``, a basis embedding of ``N`` numbers), full-precision PCA of equal size
 (``basis-K (3K numbers)``, the projection onto ``K`` components; ``pca-K`` in earlier
 runs), the hypernetwork's latent (``hypernet-N``; ``latent-N`` in earlier runs). For each set and size it prints the suite mean and
 every scene's mean, the default's margin over the PCA of equal size in the mean and in its
@@ -25,7 +26,7 @@ import sys
 
 import numpy as np
 
-_KIND = re.compile(r"^(basis|hypernet|latent|pca)-(\d+)")
+_KIND = re.compile(r"^(residual|basis|hypernet|latent|pca)-(\d+)")
 
 
 def rows_of(folder: str) -> tuple[dict, list]:
@@ -69,7 +70,7 @@ def table(sets: dict) -> list[str]:
                   + " | darkest ratio |", "| ---: | --- | ---: | ---: | ---: | " + " | ".join("---:" for _ in scenes)
                   + " | ---: |"]
         for numbers in sorted({n for _, n in rows}):
-            for kind in ("basis", "pca", "pca (model's basis)", "hypernet"):
+            for kind in ("residual", "basis", "pca", "pca (model's basis)", "hypernet"):
                 if (kind, numbers) not in rows:
                     continue
                 s = summary(rows[(kind, numbers)], scenes)
@@ -81,17 +82,21 @@ def table(sets: dict) -> list[str]:
 
 
 def margins(rows: dict, scenes: list) -> list[str]:
-    """The default's margin over the PCA of equal size on the materials both scored: mean,
-    worst scene, Delta E."""
+    """The residual's and the basis embedding's margins over the PCA of equal size on the
+    materials both scored (mean, worst scene, Delta E), and the residual's over PCA of
+    about twice its numbers (9 against 18, 21 against 39: half the numbers)."""
     out = []
-    for numbers in sorted({n for k, n in rows if k == "basis"}):
-        if ("pca", numbers) not in rows:
+    pairs = [(k, n, n) for k in ("residual", "basis") for n in sorted({n for kk, n in rows if kk == k})]
+    pairs += [("residual", n, m) for n, m in ((9, 18), (21, 39)) if ("residual", n) in rows]
+    for kind, numbers, against in pairs:
+        if ("pca", against) not in rows:
             continue
-        both = {r["material"] for r in rows[("basis", numbers)]} & {r["material"] for r in rows[("pca", numbers)]}
-        a, b = (summary([r for r in rows[(k, numbers)] if r["material"] in both], scenes) for k in ("basis", "pca"))
+        both = {r["material"] for r in rows[(kind, numbers)]} & {r["material"] for r in rows[("pca", against)]}
+        a = summary([r for r in rows[(kind, numbers)] if r["material"] in both], scenes)
+        b = summary([r for r in rows[("pca", against)] if r["material"] in both], scenes)
         worst = min(scenes, key=lambda sc: a["scenes"][sc] - b["scenes"][sc])
-        out.append(f"* {numbers} numbers ({len(both)} materials with both): default {a['psnr'] - b['psnr']:+.2f} dB over "
-                   f"PCA-{numbers // 3} in the mean, "
+        out.append(f"* {kind} at {numbers} numbers ({len(both)} materials with both): {a['psnr'] - b['psnr']:+.2f} dB "
+                   f"over PCA-{against // 3} ({against} numbers) in the mean, "
                    f"{a['scenes'][worst] - b['scenes'][worst]:+.2f} in its worst scene ({worst}); Delta E "
                    f"{a['delta_e']:.3f} against {b['delta_e']:.3f}")
     return out
@@ -103,7 +108,7 @@ def plot(sets: dict, path: str) -> None:
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
     for name, (rows, scenes) in sets.items():
-        for kind, style in (("basis", "-o"), ("pca", "--s"), ("hypernet", ":^")):
+        for kind, style in (("residual", "-D"), ("basis", "-o"), ("pca", "--s"), ("hypernet", ":^")):
             pts = sorted((n, summary(r, scenes)) for (k, n), r in rows.items() if k == kind)
             if pts:
                 x = [n for n, _ in pts]

@@ -77,6 +77,7 @@ def _centre(img):
 
 
 def test_plugin_from_xml_string(mi, lambert_file):
+    import brdfkit.files.brdf_file  # noqa: F401  registers the plugin's file opener (docs/render.md)
     from brdfkit.render.mitsuba3.scenes import render_scene
 
     xml = _furnace_xml(f'<bsdf type="brdfkit"><string name="filename" value="{lambert_file}"/></bsdf>')

@@ -170,6 +170,13 @@ def _tune_record(path):
     return load_model(path, "cpu").meta.get("tune")
 
 
+def _labels(name) -> tuple:
+    """What a bench calls bundle ``name``'s default compressions: its name (a latent, as
+    ``hypernet-40 (NAME)``), its basis file's stem (``basis-39 (merl80-basis)``)."""
+    parts = next((m[1] for m in MODELS if m[0] == name), {})
+    return (name, *(os.path.splitext(parts[p])[0] for p in ("basis",) if p in parts))
+
+
 def _renders(name, doc) -> dict:
     """The renders' figures of model ``name`` in a ``bench.json``: the learnt prior's mean
     PSNR and Delta E per N (uniform samples), and ``encode`` from the compression records
@@ -181,18 +188,43 @@ def _renders(name, doc) -> dict:
         if r["kind"] == "sparse" and r["method"] == "prior" and r.get("sampling", "uniform") == "uniform":
             groups.setdefault(str(r["n"]), []).append(r)
         elif r["kind"] == "compression" and r["method"].endswith(f"({name})"):
-            groups.setdefault("encode", []).append(r)
+            groups.setdefault("encode", []).append(r)  # the latent: one size
+        elif r["kind"] == "compression" and r["method"].endswith(tuple(f"({stem})" for stem in _labels(name)[1:])):
+            groups.setdefault(f"encode-{r['size']}", []).append(r)
     if not groups:
         return {}
     n_mats = len({r["material"] for g in groups.values() for r in g})
-    trained = sum(1 for r in groups.get("encode", []) if r.get("trained_on"))
-    held = "in its training set" if trained and trained == len(groups.get("encode", [])) else \
-        "held out" if not trained else f"{trained} of {len(groups['encode'])} compressions in its training set"
+    encodes = [r for k, g in groups.items() if k.startswith("encode") for r in g]
+    trained = sum(1 for r in encodes if r.get("trained_on"))
+    held = "in its training set" if trained and trained == len(encodes) else \
+        "held out" if not trained else f"{trained} of {len(encodes)} compressions in its training set"
     return {"psnr": {k: round(sum(r["psnr"] for r in g) / len(g), 2) for k, g in groups.items()},
             "delta_e": {k: round(sum(r["delta_e"] for r in g) / len(g), 3) for k, g in groups.items()},
             "scenes": list(cfg.get("scenes") or ["reference"]), "resolution": cfg.get("resolution"),
             "materials": f"{n_mats} materials of "
                          f"{os.path.basename(str(cfg.get('data') or cfg.get('compression_data')))} ({held})"}
+
+
+def _residual_renders(name, doc) -> dict:
+    """The renders' figures of bundle ``name``'s residual in a compression ``bench.json``:
+    mean PSNR and Delta E per size (``encode-SIZE``) of the records ``residual-SIZE
+    (STEM)``, ``STEM`` its file's (the bench labels a file by its stem)."""
+    stem = os.path.splitext(next(m[1]["residual"] for m in MODELS if m[0] == name))[0]
+    cfg = doc.get("config", {})
+    groups = {}
+    for r in doc.get("records", []):
+        if r.get("kind") == "compression" and "error" not in r and r.get("psnr") is not None \
+                and r["method"].startswith("residual-") and r["method"].endswith(f"({stem})"):
+            groups.setdefault(f"encode-{r['size']}", []).append(r)
+    if not groups:
+        return {}
+    n_mats = len({r["material"] for g in groups.values() for r in g})
+    trained = any(r.get("trained_on") for g in groups.values() for r in g)
+    return {"psnr": {k: round(sum(r["psnr"] for r in g) / len(g), 2) for k, g in sorted(groups.items())},
+            "delta_e": {k: round(sum(r["delta_e"] for r in g) / len(g), 3) for k, g in sorted(groups.items())},
+            "scenes": list(cfg.get("scenes") or ["reference"]), "resolution": cfg.get("resolution"),
+            "materials": f"{n_mats} materials of {os.path.basename(str(cfg.get('compression_data')))} "
+                         f"({'in its training set' if trained else 'held out'})"}
 
 
 def main():
@@ -234,7 +266,7 @@ def main():
             validation[name] = {str(n): round(sum(r["log_rmse"] for r in recs if r["n"] == n)
                                               / sum(1 for r in recs if r["n"] == n), 4)
                                 for n in sorted({r["n"] for r in recs})}
-        found = _renders(name, doc)
+        found = _residual_renders(name, doc) if args.residuals_only else _renders(name, doc)
         if found:
             renders.setdefault(name, {"psnr": {}, "delta_e": {}}).update(
                 {k: v for k, v in found.items() if k not in ("psnr", "delta_e")})
