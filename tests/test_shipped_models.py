@@ -128,7 +128,7 @@ def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_c
     from brdfkit.materials.synthetic import library, table
 
     ref = table(library(6, seed=3, stiff=False)[2])
-    model = load_model("merl80-l40", device="cpu")
+    model = load_model("merl-rgl-l40", device="cpu")  # ships no residual (yet): basis at every size
     before, got = torch.get_num_threads(), []
     try:
         for threads in (2, 1):
@@ -141,3 +141,18 @@ def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_c
     doc = json.loads(got[0])
     assert doc["size"] == 39 and doc["kind"] == "basis" and len(doc["decoder"]) == 64
     assert doc["refinement"]["steps"] <= 10
+
+
+def test_merl80_l40_encodes_a_residual_embedding_at_the_sizes_offered(shipped):
+    """Issue 40: a built-in that ships a basis residual encodes residual embeddings by
+    default at the sizes its file offers (where it won on held-out materials), and basis
+    embeddings at the others; the residual corrects the bundle's own basis."""
+    from brdfkit.embeddings import choose_decoder
+    from brdfkit.models.builtin import resolve_part
+
+    dec = choose_decoder(None, "merl80-l40", "cpu")
+    assert (dec.kind, dec.sizes, dec.default_size) == ("residual", (9, 21, 39), 39)
+    assert dec.obj.basis_digest == next(m for m in shipped.bundles if m.name == "merl80-l40").part("basis").digest
+    assert choose_decoder(None, "merl80-l40", "cpu", 12).kind == "basis"
+    assert choose_decoder(None, "merl-rgl-l40", "cpu").kind == "basis"
+    assert resolve_part("merl80-l40", "residual").endswith("merl80-residual.safetensors")

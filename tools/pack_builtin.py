@@ -262,11 +262,11 @@ def main():
                     and r.get("sampling", "uniform") == "uniform" and r.get("log_rmse") is not None]
         except (OSError, ValueError, KeyError, TypeError) as e:
             ap.error(f"--validation {item}: not a readable bench.json or eval_sparse.py --json record ({e})")
-        if recs:
+        found = _residual_renders(name, doc) if args.residuals_only else _renders(name, doc)
+        if recs and "in its training set" not in found.get("materials", ""):  # held-out log RMSE only
             validation[name] = {str(n): round(sum(r["log_rmse"] for r in recs if r["n"] == n)
                                               / sum(1 for r in recs if r["n"] == n), 4)
                                 for n in sorted({r["n"] for r in recs})}
-        found = _residual_renders(name, doc) if args.residuals_only else _renders(name, doc)
         if found:
             renders.setdefault(name, {"psnr": {}, "delta_e": {}}).update(
                 {k: v for k, v in found.items() if k not in ("psnr", "delta_e")})

@@ -198,14 +198,22 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
 
 def _compression_caption(res) -> str:
     """What the compression columns hold, by the kinds of embedding the demo made (a basis
-    embedding's label reads ``basis-K``, a latent's ``K-D``), and how far each was refined."""
+    embedding's label reads ``basis-K``, a residual embedding's ``residual-K``, a latent's ``K-D``), and how far
+    each was refined."""
     from brdfkit.hypernet.refine_on_screen import DEFAULT_STEPS as LATENT_STEPS
     from brdfkit.basis.coefficients import DEFAULT_STEPS as BASIS_STEPS
 
     steps = res.compression_steps
-    basis = any(" basis-" in label for _, _, label, _ in res.compressions)
-    latent = any(" basis-" not in label for _, _, label, _ in res.compressions)
+    labels = [label for _, _, label, _ in res.compressions]
+    basis = any(" basis-" in label for label in labels)
+    residual = any(" residual-" in label for label in labels)
+    latent = any(" basis-" not in label and " residual-" not in label for label in labels)
     parts = []
+    if residual:
+        parts.append("residual-K: the full table compressed into K coefficients of the PCA basis the model ships "
+                     "and the correction of its hypernetwork residual (kept only where the objective scenes' held-out "
+                     "pixels render better with it), the default of a model that ships one, "
+                     + (f"refined on screen, at most {steps} steps" if steps > 0 else "not refined"))
     if basis:
         parts.append("basis-K: the full table compressed, as brdfkit encode does by default, into K numbers, the "
                      "coefficients of the PCA basis the model ships (K / 3 components a colour channel), "
