@@ -88,6 +88,7 @@ def test_ipca_basis_shapes_and_orthonormality(basis):
     assert np.all(np.diff(basis.sigma) <= 0) and basis.sigma[-1] > 0
 
 
+@pytest.mark.slow
 def test_ipca_reconstructs_a_training_material_from_2000_samples(basis, library):
     train, _ = library
     table = train[4]
@@ -202,6 +203,7 @@ def test_nbrdf_fits_a_smooth_material(library):
                                                                     samples.phi_d)], rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_nbrdf_is_deterministic_by_seed():
     from brdfkit.methods.nbrdf import fit_nbrdf
 

@@ -53,6 +53,7 @@ def shelf(tmp_path_factory):
 
 # --- compact model files ---------------------------------------------------------------------
 
+@pytest.mark.slow
 def test_compact_and_half_round_trip(tmp_path):
     net, ref = _tiny_net(0), material_table(0).astype(np.float32)
     fp_dense = save_network(tmp_path / "dense.safetensors", net, ref)

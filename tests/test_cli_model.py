@@ -194,6 +194,7 @@ def two_embs(files, tmp_path_factory):
     return d
 
 
+@pytest.mark.slow
 def test_interpolate_t_not_a_number(two_embs, tmp_path, capsys):
     r = run_here(capsys, ["interpolate", two_embs / "a.emb", two_embs / "b.emb", "--t", "abc", "-o", tmp_path / "c.emb"])
     assert r.returncode == 2

@@ -109,6 +109,7 @@ def test_bad_compress_settings_are_input_errors(kw):
         ObjectiveConfig(**kw)
 
 
+@pytest.mark.slow
 def test_encode_cli_refines_by_default_and_no_refine_is_the_papers_pass(tiny, tmp_path, capsys):
     from brdfkit.io.embedding import read_embedding
     from brdfkit.io.merl import write_merl

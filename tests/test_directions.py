@@ -187,6 +187,7 @@ def test_sample_at_reproduces_sample_n(tmp_path, capsys):
     assert not tmp_leftovers(tmp_path)
 
 
+@pytest.mark.slow
 @pytest.mark.proxy
 def test_sample_at_a_cell_centre_of_a_proxy(tmp_path_factory, tmp_path, capsys):
     path = proxy_material(tmp_path_factory, "teflon")

@@ -182,6 +182,7 @@ def test_valid_mask():
     assert mask.sum() == 1_111_432  # measured cells of a MERL table
 
 
+@pytest.mark.slow
 @pytest.mark.proxy
 def test_valid_mask_matches_proxy_files(tmp_path_factory):
     table = read_merl(proxy_material(tmp_path_factory, "teflon"))

@@ -122,6 +122,7 @@ def test_condition_number_of_fewer_rows_than_components():
     assert condition_number(np.zeros((0, 4))) == float("inf")
 
 
+@pytest.mark.slow
 def test_design_rows_leave_out_what_the_fit_leaves_out(small):
     from brdfkit.io.directions import DirectionSet
     from brdfkit.basis import load_basis

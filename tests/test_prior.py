@@ -138,6 +138,7 @@ def _numpy_solve(tab, rho, w, cos, sigma, s2, lam, mu=None):
     return out
 
 
+@pytest.mark.slow
 def test_solve_is_the_weighted_ridge_of_the_docstring(basis, tables):
     import torch
 

@@ -124,6 +124,7 @@ def test_sparse_default_is_the_default_builtins_prior(installed, capsys, tmp_pat
     assert (tmp_path / "b.binary").read_bytes() == (tmp_path / "a.binary").read_bytes()
 
 
+@pytest.mark.slow
 def test_sparse_default_without_a_prior_is_the_hypernetwork(installed, capsys, monkeypatch, tmp_path):
     """A default built-in without a learnt prior: its hypernetwork, as before."""
     folder, inputs = installed

@@ -40,6 +40,7 @@ def lib(tmp_path_factory):
     return {"root": root, "lib": lib, "names": names, "basis": root / "basis.safetensors", "test": root / "test.txt"}
 
 
+@pytest.mark.slow
 def test_uniform_is_the_bench_draw(lib):
     name = lib["names"][0]
     table = read_merl(lib["lib"] / f"{name}.binary")
@@ -53,6 +54,7 @@ def test_uniform_is_the_bench_draw(lib):
     assert other.digest() != samples.digest()  # another material, another draw
 
 
+@pytest.mark.slow
 def test_planned_is_the_table_at_the_plan(lib):
     protocol = SamplingProtocol("planned", lib["basis"], "nielsen")
     tables = [read_merl(lib["lib"] / f"{n}.binary") for n in lib["names"][:2]]

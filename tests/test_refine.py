@@ -79,6 +79,7 @@ def test_weights_stage_and_model_untouched(setup):
         assert torch.equal(p, q) and p.requires_grad == f
 
 
+@pytest.mark.slow
 def test_declined_when_too_few_samples_or_no_gain(setup):
     _, model, samples = setup
     few = draw_samples(material_table(1), 5, seed=1)

@@ -240,6 +240,7 @@ def test_cli_render_and_metrics(lambert_file, tmp_path, capsys):
     assert json.loads(r.stdout)["psnr"] == 100.0
 
 
+@pytest.mark.slow
 def test_cli_metrics_folders(lambert_file, tmp_path, capsys):
     from brdfkit.render.image import write_exr
 
@@ -326,6 +327,7 @@ def test_metrics_roles_of_one_kind_need_ref(paths, ref, message):
         roles(paths, ref)
 
 
+@pytest.mark.slow
 def test_metrics_ref_and_compare_ref_in_process(tmp_path, capsys):
     """``metrics --ref REF PRED`` and ``compare --ref REF PRED...`` (= ``compare REF
     PRED...``) score the same; two images without ``--ref`` are one line, exit 2."""

@@ -59,6 +59,7 @@ def test_numpy_decode_is_the_torch_module(tmp_path):
     np.testing.assert_allclose(got, want, rtol=1e-5, atol=1e-6)
 
 
+@pytest.mark.slow
 def test_an_untrained_residual_is_its_basis(tmp_path):
     """The last layer starts at zero: before training the model decodes as the basis."""
     from brdfkit.basis import load_basis
@@ -111,6 +112,7 @@ def test_fit_writes_one_network_a_size_and_resumes_to_the_bit(trained, tmp_path)
     assert again.read_bytes() == res.read_bytes()
 
 
+@pytest.mark.slow
 def test_a_basis_fitted_twice_is_the_same_bytes(trained, tmp_path):
     """safetensors' own writer orders the header as a hash map does, differently in each
     process: brdfkit writes its own, sorted (a basis's SHA-256 names it in embeddings)."""
@@ -121,6 +123,7 @@ def test_a_basis_fitted_twice_is_the_same_bytes(trained, tmp_path):
     assert (tmp_path / "b.safetensors").read_bytes() == basis.read_bytes()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("opt", ["-O", "--minutes"])
 def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt, capsys):
     lib, basis, _ = trained

@@ -59,6 +59,7 @@ def test_sheet_scores_are_those_of_brdfkit_metrics(materials, tmp_path):
         assert np.asarray(im.convert("L"), dtype=float).std() > 10
 
 
+@pytest.mark.slow
 def test_compare_command_json_and_sheet(materials, tmp_path, capsys):
     ref, a, b = materials
     r = run_here(capsys, ["compare", ref, a, b, "--sheet", tmp_path / "s.png", "--resolution", "16", "--json"])
