@@ -122,7 +122,7 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     embeddings, errors, comparison sheets (reference scene, and the compressions under
     backlight; 128 px renders) and a plot into OUT (--keep-tables: the dense tables too,
     33 of 35 MB, 1.15 GB; one material's table alone: brdfkit material NAME).
-    About a minute and a half on 2 idle CPU cores (88 s: the 128 px run at load 1.4 in
+    About two and a half minutes on 2 idle CPU cores (160 s: the run of 2026-11-28 in
     docs/notes/demo.md). With --train: trains a small model on synthetic materials
     instead, for --minutes (3): about 5 minutes in all (286 s: the training demo's run
     recorded there). See docs/demo.md.

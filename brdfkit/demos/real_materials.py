@@ -61,7 +61,7 @@ COMPRESSION_SETS = {"in-sample": "trained on all 151 MERL + RGL materials, these
 """What each kind of :data:`COMPRESSIONS` means, for the output."""
 COMPRESSION_STEPS = 20
 """Most refinement steps of each compression (``brdfkit encode``: 80 for a basis embedding,
-40 for a latent): 12 refinements (four materials, three models) in the demo's minute and a half."""
+40 for a latent): 12 refinements (four materials, three models) in the demo's two and a half minutes."""
 INTERPOLATION_MODEL = "merl80-l40"
 """The compression model whose embeddings are blended (one of :data:`COMPRESSION_MODELS`).
 The unseen one, not ``merl-rgl-l40``: its basis is the one the sparse reconstructions'
