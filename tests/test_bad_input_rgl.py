@@ -86,3 +86,23 @@ def test_convert_output_refusals(bad_rgl, good, tmp_path, capsys):
     code, _, err = run_cli(capsys, ["convert", good_bsdf_path, "-o", good_bsdf_path])
     assert code == 2 and "brdfkit: error: " in one_error_line(err)
     assert os.listdir(tmp_path) == []
+
+
+def test_an_empty_field_of_a_vast_shape_is_one_line(tmp_path):
+    """Found by the fuzzer: a field with a zero dimension and others beyond any file
+    (count 0, so no byte is missing) was reshaped and raised NumPy's ValueError."""
+    import struct
+
+    import numpy as np
+
+    from brdfkit.errors import FormatError
+    from brdfkit.io.rgl.container import read_tensor_file, write_tensor_file
+
+    path = tmp_path / "vast.bsdf"
+    write_tensor_file(path, {"a": np.zeros((2, 3), np.float32)})
+    raw = bytearray(path.read_bytes())
+    at = raw.index(b"a") + 1 + 11  # after the name: rank (2), dtype (1), offset (8), then the shape
+    struct.pack_into("<2Q", raw, at, 2 ** 62, 0)
+    path.write_bytes(bytes(raw))
+    with pytest.raises(FormatError, match="larger than the file"):
+        read_tensor_file(path)

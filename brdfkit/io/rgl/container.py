@@ -105,6 +105,9 @@ def read_tensor_file(path, kind: str = "a tensor file") -> dict:
             raise FormatError(path, f"field {shown!r}: unknown dtype code {code}")
         if name in fields:
             raise FormatError(path, f"field {shown!r} is given twice")
+        if any(int(n) > len(raw) for n in shape):  # an empty field may not claim any shape
+            raise FormatError(path, f"field {shown!r}: shape {tuple(int(n) for n in shape)} is larger than "
+                                    f"the file ({len(raw)} bytes)")
         dtype = np.dtype(DTYPES[code]).newbyteorder("<")
         count = 1
         for n in shape:
