@@ -25,6 +25,16 @@ import pytest
 # ``fit_basis``) spins for tens of seconds instead of taking milliseconds.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+# Hypothesis draws the same examples on every run (the property tests and the fuzzer):
+# a result depends on the code, not on the draw; BRDFKIT_FUZZ_RANDOM=1 explores.
+try:
+    from hypothesis import settings as _hypothesis_settings
+
+    _hypothesis_settings.register_profile("brdfkit", derandomize=not os.environ.get("BRDFKIT_FUZZ_RANDOM"))
+    _hypothesis_settings.load_profile("brdfkit")
+except ImportError:  # the tests that need it skip without it
+    pass
+
 # A hypernetwork small enough that a dense encode or decode takes a fraction of a second
 # (a ``HyperConfig``; the model tests save it untrained).
 TINY_CONFIG = dict(latent_dim=7, encoder_hidden=(16, 16), hypo_hidden=8, hypo_layers=2,
