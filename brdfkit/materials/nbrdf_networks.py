@@ -152,11 +152,16 @@ def material_table(name: str, device="cpu", path: str | os.PathLike = DEMO_WEIGH
     InputError
         An unknown name; the message lists the known ones.
     """
+    return nbrdf_table(_network(name, path), device=device)
+
+
+def _network(name: str, path=DEMO_WEIGHTS) -> dict:
+    """The arrays of material ``name``'s network; :class:`InputError` listing the known ones."""
     nets = load_nbrdf_weights(path)
     if name not in nets:
         raise InputError(f"unknown material {name!r}; the shipped ones are {', '.join(nets)} "
                          f"(brdfkit material --list)")
-    return nbrdf_table(nets[name], device=device)
+    return nets[name]
 
 
 def write_material(name: str, output: str | os.PathLike | None = None, device="cpu") -> str:
@@ -187,10 +192,7 @@ def write_material(name: str, output: str | os.PathLike | None = None, device="c
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.io.merl import write_merl
 
-    names = material_names()
-    if name not in names:
-        raise InputError(f"unknown material {name!r}; the shipped ones are {', '.join(names)} "
-                         f"(brdfkit material --list)")
+    net = _network(name)  # an unknown name before any work
     output = os.fspath(output) if output is not None else f"{name}.binary"
     if os.path.isdir(output):
         output = os.path.join(output, f"{name}.binary")
@@ -198,5 +200,5 @@ def write_material(name: str, output: str | os.PathLike | None = None, device="c
         raise InputError(f"{output}: brdfkit material writes a MERL table; name it .binary "
                          f"(brdfkit convert then makes an RGL .bsdf of it)")
     refuse_overwrite_of_inputs(output, [DEMO_WEIGHTS])
-    write_merl(output, material_table(name, device))
+    write_merl(output, nbrdf_table(net, device=device))
     return output
