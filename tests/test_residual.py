@@ -268,3 +268,49 @@ def test_two_process_fit_gives_one_residual_with_identical_ranks(trained, tmp_pa
 
     r = load_residual(out, basis=(load_basis(basis), file_digest(basis)))
     assert r.meta["world_size"] == 2 and len(set(r.meta["rank_digests"])) == 1
+
+
+def test_unmeasured_cells_are_left_out_of_the_loss():
+    """A table's holes (NaN in the training pairs) give no target: the loss and its gradient
+    are those of the measured cells alone, not of the basis cancelled there."""
+    import torch
+
+    from brdfkit.residual.training import TRAIN_DEFAULTS, _loss, _step_batch
+
+    rng = np.random.default_rng(0)
+    mapped = rng.standard_normal((6, 50)).astype(np.float16)
+    mapped[0, :25] = np.nan  # a table with holes
+    z = torch.as_tensor(rng.standard_normal((6, 3)).astype(np.float32))
+    comp, sigma = torch.as_tensor(rng.standard_normal((3, 50)).astype(np.float32)), torch.ones(3)
+    opts = dict(TRAIN_DEFAULTS, batch=64, cells=16, mixup=0.5)
+    zb, cells, tb, measured = _step_batch(torch.Generator().manual_seed(0), z, mapped, comp, sigma, opts, torch, 3, 3)
+    assert measured is not None and not bool(measured.all()) and bool(torch.isfinite(tb).all())
+    pred = torch.zeros_like(tb, requires_grad=True)
+    loss = _loss(pred, tb, measured)
+    loss.backward()
+    assert bool((pred.grad[~measured] == 0).all()) and bool((pred.grad[measured] != 0).any())
+    want = float(((tb[measured]) ** 2).mean())
+    assert abs(float(loss) - want) < 1e-5 * max(1.0, want)
+    full = np.nan_to_num(mapped) + 1.0  # no holes: the plain mean, as before masking existed
+    _, _, tb2, m2 = _step_batch(torch.Generator().manual_seed(0), z, full.astype(np.float16), comp, sigma, opts,
+                                torch, 3, 3)
+    assert m2 is None and float(_loss(torch.zeros_like(tb2), tb2, None)) == float((tb2 ** 2).mean())
+
+
+@pytest.mark.slow
+def test_codes_and_a_cosine_rate_train_to_the_same_bytes_twice(trained, tmp_path):
+    """The auto-decoder codes and the cosine learning rate (``-O codes_lr``, ``-O lr_end``):
+    seeded, so the same run twice gives the same bytes, and they change what is learnt."""
+    lib, basis, res = trained
+    run = ["fit", "--method", "residual", lib, "-O", f"basis={basis}", *TINY, "-O", "codes_lr=0.01",
+           "-O", "lr_end=0.1", "--steps", "6"]
+    outs = []
+    for name in ("a", "b"):
+        code, err = run_cli_uncaptured(run + ["-o", tmp_path / f"{name}.safetensors"])
+        assert code == 0, err
+        outs.append((tmp_path / f"{name}.safetensors").read_bytes())
+    assert outs[0] == outs[1] and outs[0] != res.read_bytes()
+    from brdfkit.residual.residual_file import read_header
+
+    meta = json.loads(read_header(tmp_path / "a.safetensors")["meta"])
+    assert meta["options"]["codes_lr"] == 0.01 and meta["options"]["lr_end"] == 0.1

@@ -32,15 +32,17 @@ from brdfkit.errors import InputError
 
 __all__ = ["TRAIN_DEFAULTS", "fit_residual", "training_pairs"]
 
-TRAIN_DEFAULTS = {"steps": 8000, "batch": 24, "cells": 4096, "lr": 1e-3, "mixup": 0.5, "sizes": "9,21,39",
-                  "shared": False, "k_min": 1, "k_max": 13, "width": 32, "hidden": 64, "seed": 0,
-                  "checkpoint_every": 1000, "storage": "float32"}
+TRAIN_DEFAULTS = {"steps": 8000, "batch": 24, "cells": 4096, "lr": 1e-3, "lr_end": 1.0, "mixup": 0.5,
+                  "sizes": "9,21,39", "shared": False, "k_min": 1, "k_max": 13, "width": 32, "hidden": 64,
+                  "codes_lr": 0.0, "seed": 0, "checkpoint_every": 1000, "storage": "float32"}
 """The options of :func:`fit_residual` and their defaults (``-O KEY=VALUE``)."""
 
 
 def training_pairs(basis, paths, k_max: int, say=lambda m: None):
     """``(z, mapped)``: coefficients in training standard deviations ``(3 M, k_max)``
-    float32 and mapped tables less the mean ``(3 M, P)`` float16, a row per channel."""
+    float32 and mapped tables less the mean ``(3 M, P)`` float16, a row per channel, NaN
+    where the table is unmeasured (such cells are left out of the loss: the network learns
+    what was measured, not to cancel the basis at a table's holes)."""
     from brdfkit.io.merl import read_merl
 
     part = basis.leading(k_max)
@@ -48,7 +50,7 @@ def training_pairs(basis, paths, k_max: int, say=lambda m: None):
     zs, rows = [], []
     for i, p in enumerate(paths):
         table = read_merl(p)
-        mapped = np.nan_to_num(part.mapped_table(table) - part.mean[:, None])  # unmeasured: the mean
+        mapped = part.mapped_table(table) - part.mean[:, None]
         zs.append((part.project(table) / sigma[:, None]).T)
         rows.append(mapped.T.astype(np.float16))
         if (i + 1) % 20 == 0:
@@ -56,8 +58,14 @@ def training_pairs(basis, paths, k_max: int, say=lambda m: None):
     return np.concatenate(zs).astype(np.float32), np.concatenate(rows)
 
 
+_NEUTRAL = ("lr_end", "codes_lr")
+"""Options that, at their defaults, train exactly as before they existed: left out of a
+checkpoint's identity there, so that a checkpoint written before them still resumes."""
+
+
 def _identity(names, basis_digest, opts) -> str:
-    keep = {k: v for k, v in opts.items() if k not in ("checkpoint_every", "storage")}
+    keep = {k: v for k, v in opts.items() if k not in ("checkpoint_every", "storage")
+            and not (k in _NEUTRAL and v == TRAIN_DEFAULTS[k])}
     return json.dumps({"materials": names, "basis": basis_digest, "options": keep}, sort_keys=True)
 
 
@@ -78,24 +86,46 @@ def _sizes(text) -> list:
     return sizes
 
 
-def _step_batch(g, z, mapped, comp, sigma, opts, torch, k_min, k_max):
-    """One step's rows: inputs ``(B, 2 k_max)``, cell indices ``(B, C)`` and targets."""
-    n, p, b = z.shape[0], mapped.shape[1], opts["batch"]
+def _step_batch(g, zt, mapped, comp, sigma, opts, torch, k_min, k_max):
+    """One step's rows: inputs ``(B, 2 k_max)`` (differentiable in ``zt``, the coefficients
+    ``(3 M, >= k_max)`` in standard deviations), cell indices ``(B, C)``, targets ``(B, C)``
+    and whether each target was measured (``None``: all were)."""
+    n, p, b = zt.shape[0], mapped.shape[1], opts["batch"]
     rows = torch.randint(n, (b,), generator=g)
     cells = torch.randint(p, (b, opts["cells"]), generator=g)
-    z = z[:, :k_max]
-    zb = torch.as_tensor(z)[rows]
+    zt = zt[:, :k_max]
+    zb = zt[rows]
     tb = torch.as_tensor(mapped[rows.numpy()[:, None], cells.numpy()], dtype=torch.float32)
     other = torch.randint(n, (b,), generator=g)
     t = torch.rand(b, generator=g) * (torch.rand(b, generator=g) < opts["mixup"])
-    zb = (1 - t[:, None]) * zb + t[:, None] * torch.as_tensor(z)[other]
+    zb = (1 - t[:, None]) * zb + t[:, None] * zt[other]
     to = torch.as_tensor(mapped[other.numpy()[:, None], cells.numpy()], dtype=torch.float32)
-    tb = (1 - t[:, None]) * tb + t[:, None] * to
+    tb = torch.where(t[:, None] > 0, (1 - t[:, None]) * tb + t[:, None] * to, tb)
     ks = torch.randint(k_min, k_max + 1, (b,), generator=g)
     mask = (torch.arange(k_max)[None, :] < ks[:, None]).float()
     zb = zb * mask
+    measured = torch.isfinite(tb)
+    measured = None if bool(measured.all()) else measured
+    if measured is not None:
+        tb = torch.nan_to_num(tb)
     tb = tb - torch.einsum("bk,kbc->bc", zb * sigma[:k_max], comp[:k_max][:, cells])
-    return torch.cat([zb, mask], dim=1), cells, tb
+    return torch.cat([zb, mask], dim=1), cells, tb, measured
+
+
+def _loss(pred, target, measured):
+    """Mean square over the measured targets (all of them when ``measured`` is ``None``)."""
+    err = (pred - target) ** 2
+    if measured is None:
+        return err.mean()
+    return (err * measured).sum() / measured.sum().clamp_min(1)
+
+
+def _lr_factor(step: int, steps: int, end: float) -> float:
+    """The learning rate's factor at ``step``: a cosine from 1 to ``end`` over ``steps``
+    (``end`` 1: constant)."""
+    import math
+
+    return end + (1.0 - end) * 0.5 * (1.0 + math.cos(math.pi * min(step, steps) / steps))
 
 
 def fit_residual(data, output, *, basis=None, exclude=(), progress: bool = True, resume: bool = False,
@@ -229,14 +259,17 @@ class _Run:
         self.say(f"resumed at network {state['index'] + 1}, step {state['step']}")
         return list(state["done"])
 
-    def save(self, index, net, opt, step, done) -> None:
+    def save(self, index, net, opt, step, done, codes=None) -> None:
         import torch
 
         from brdfkit.atomic import atomic_path
 
+        state = {"identity": self.identity, "index": index, "done": done, "net": net.state_dict(),
+                 "opt": opt.state_dict(), "step": step}
+        if codes is not None:
+            state["codes"], state["codes_opt"] = codes.detach().clone(), codes.opt.state_dict()
         with atomic_path(self.ckpt) as tmp:
-            torch.save({"identity": self.identity, "index": index, "done": done, "net": net.state_dict(),
-                        "opt": opt.state_dict(), "step": step}, tmp)
+            torch.save(state, tmp)
 
     def train(self, index, cfg, data_t, stop, done):
         """Network ``index`` trained to ``steps``; its state, or ``None`` when stopped."""
@@ -248,41 +281,70 @@ class _Run:
         torch.manual_seed(opts["seed"] * 1_009 + index)
         net = ResidualNet(cfg).to(group.device)
         opt = torch.optim.Adam(net.parameters(), lr=opts["lr"])
+        codes = _codes(data_t[0].shape[0], cfg.k_max, opts["codes_lr"]) if opts["codes_lr"] > 0 else None
         step = 0
         if self.saved is not None and self.saved["index"] == index:
             net.load_state_dict(self.saved["net"])
             opt.load_state_dict(self.saved["opt"])
+            if codes is not None:
+                with torch.no_grad():
+                    codes.copy_(self.saved["codes"])
+                codes.opt.load_state_dict(self.saved["codes_opt"])
             step, self.saved = int(self.saved["step"]), None
         model = torch.nn.parallel.DistributedDataParallel(net) if group.active else net
-        step = self._loop(index, cfg, model, net, opt, data_t, step, stop, done)
+        step = self._loop(index, cfg, (model, net, opt, codes), data_t, step, stop, done)
         if step < opts["steps"]:
             return None
         return {k: v.detach().cpu().clone() for k, v in net.state_dict().items()}
 
-    def _loop(self, index, cfg, model, net, opt, data_t, step, stop, done) -> int:
+    def _loop(self, index, cfg, nets, data_t, step, stop, done) -> int:
         import torch
 
-        opts, group = self.opts, self.group
+        (model, net, opt, codes), (opts, group) = nets, (self.opts, self.group)
         z, mapped, comp, sigma, hd = data_t
+        zt = torch.as_tensor(z)
         shown, seen = 0.0, 0.0
         while step < opts["steps"] and not stop.requested:
+            for o, lr in ((opt, opts["lr"]), *(((codes.opt, opts["codes_lr"]),) if codes is not None else ())):
+                for pg in o.param_groups:
+                    pg["lr"] = lr * _lr_factor(step, opts["steps"], opts["lr_end"])
             # Each (seed, network, rank, step) draws its own rows: a resumed run draws what
             # it would have.
             g = torch.Generator().manual_seed(((opts["seed"] * 101 + index) * 7_919 + group.rank) * 1_000_003 + step)
-            zb, cells, tb = _step_batch(g, z, mapped, comp, sigma, opts, torch, cfg.k_min, cfg.k_max)
-            loss = ((model(zb.to(group.device), hd[cells].to(group.device)) - tb.to(group.device)) ** 2).mean()
+            zb, cells, tb, measured = _step_batch(g, zt if codes is None else zt[:, :cfg.k_max] + codes, mapped,
+                                                  comp, sigma, opts, torch, cfg.k_min, cfg.k_max)
+            dev = group.device
+            loss = _loss(model(zb.to(dev), hd[cells].to(dev)), tb.to(dev), None if measured is None else measured.to(dev))
             opt.zero_grad(set_to_none=True)
+            if codes is not None:
+                codes.opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
+            if codes is not None:
+                if group.active:  # every rank moves every code alike: the gradients averaged
+                    group.sum_(codes.grad).div_(group.world)
+                codes.opt.step()
             step += 1
-            shown, seen = shown + float(loss.detach()), seen + float((tb ** 2).mean())
+            shown, seen = shown + float(loss.detach()), seen + float(_loss(tb.detach(), 0.0, measured))
             if step % 500 == 0:
                 self.say(f"network {index + 1} (K {cfg.k_min}-{cfg.k_max}) step {step} of {opts['steps']}: mapped "
                          f"MSE {shown / 500:.5f} (the basis alone {seen / 500:.5f})")
                 shown, seen = 0.0, 0.0
             if group.rank == 0 and (step % opts["checkpoint_every"] == 0 or stop.requested):
-                self.save(index, net, opt, step, done)
+                self.save(index, net, opt, step, done, codes)
         return step
+
+
+def _codes(rows: int, k: int, lr: float):
+    """Learnt offsets of the training channels' coefficients (standard deviations) ``(rows, k)``,
+    zero at the start, with their own Adam (``.opt``): the coefficients become a code the
+    network and the basis decode together, as ``encode``'s fit through the correction makes
+    them (an auto-decoder; Park et al. 2019, DeepSDF)."""
+    import torch
+
+    codes = torch.zeros(rows, k, requires_grad=True)
+    codes.opt = torch.optim.Adam([codes], lr=lr)
+    return codes
 
 
 def _states_digest(states: list) -> str:
