@@ -182,6 +182,42 @@ def test_many_samples_outweigh_the_prior_mean(basis, tables):
     assert moved[-1] < 0.05 * moved[0], moved
 
 
+@pytest.mark.parametrize("spread", [False, True])
+def test_the_numpy_network_and_solve_are_the_torch_ones(basis, tables, spread):
+    """A reconstruction evaluates the network and the closed form in NumPy
+    (:class:`PriorWeights`); the training in torch: the same numbers, to float32 rounding."""
+    import torch
+
+    from brdfkit.prior.model import PriorWeights
+
+    cfg = dataclasses.replace(CFG, spread=spread)
+    torch.manual_seed(3)
+    net = prior_net(cfg).eval()
+    with torch.no_grad():
+        for p in net.parameters():
+            p.copy_(torch.randn_like(p) * 0.5)
+    arrays = PriorWeights.of(net, cfg)
+    ok, tab, w, cos, rho, hd = sample_rows(basis, draw_samples(tables[8], 300, seed=4))
+    rows = [np.ascontiguousarray(a, np.float32)[None] for a in (tab, rho, w, cos)]
+    sig = basis.sigma.astype(np.float32)[None]
+    c, b = solve(*rows, sig, CFG.s2, CFG.lam, weight="energy")
+    ct, bt = solve(*map(torch.from_numpy, rows), torch.from_numpy(sig), CFG.s2, CFG.lam, weight="energy")
+    assert c.dtype == np.float32 and b.dtype == np.float32
+    np.testing.assert_allclose(b, bt.numpy(), rtol=1e-6, atol=1e-6)
+    np.testing.assert_allclose(c, ct.numpy(), rtol=1e-5, atol=1e-5 * np.abs(c).max())
+    resid = b - np.einsum("bck,blk->bcl", rows[0][..., 2:], c)
+    got = arrays(np.float32(hd)[None], resid, c, sig, int(ok.sum()))
+    with torch.no_grad():
+        want = net(torch.from_numpy(np.float32(hd)[None]), torch.from_numpy(resid), torch.from_numpy(c),
+                   torch.from_numpy(sig), int(ok.sum()))
+    assert not np.allclose(got[0], 0)  # a prior mean that is not zero
+    for x, y in zip(got, want):
+        assert x.dtype == np.float32 and x.shape == tuple(y.shape)
+        np.testing.assert_allclose(x, y.numpy(), rtol=1e-5, atol=1e-5 * float(y.abs().max()))
+    with pytest.raises(ValueError, match="head.4.weight"):
+        PriorWeights(dataclasses.replace(cfg, spread=not spread), arrays.state_dict())
+
+
 # --- the model file ---------------------------------------------------------------------------
 
 def _same_model(a, b, samples):
@@ -190,7 +226,7 @@ def _same_model(a, b, samples):
     sa, sb = a.net.state_dict(), b.net.state_dict()
     assert sorted(sa) == sorted(sb)
     for k in sa:
-        np.testing.assert_array_equal(sa[k].numpy(), sb[k].numpy())
+        np.testing.assert_array_equal(np.asarray(sa[k]), np.asarray(sb[k]))
     assert a.cfg == b.cfg
     np.testing.assert_array_equal(a.coefficients(samples), b.coefficients(samples))
 
@@ -334,7 +370,7 @@ def test_the_digest_covers_the_likelihood_in_the_config(noisy, tmp_path):
         cfg = json.loads(meta["config"])
         del cfg["weight"]
         meta["config"] = json.dumps(cfg, sort_keys=True)
-        net = {k: load_prior(path).net.state_dict()[k[4:]].numpy() for k in h if k.startswith("net.")}
+        net = {k: np.asarray(load_prior(path).net.state_dict()[k[4:]]) for k in h if k.startswith("net.")}
         basis = {k: v for k, v in _tensors(path).items() if k.startswith("basis.")}
         meta["fingerprint"] = hashlib.sha256((_digest(net) + _digest(basis)).encode()).hexdigest()
 
@@ -516,8 +552,6 @@ def test_fit_prior_smoke(data, tables):
 def test_fit_prior_minutes_choose_steps_that_replay(data):
     """``minutes`` chooses the step count once (issue 28): the model records it, and a run
     of that many ``steps`` gives the same weights."""
-    import torch
-
     from brdfkit.prior.fit import fit_prior
 
     tiny = {**TINY_FIT, "steps": None}
@@ -528,7 +562,7 @@ def test_fit_prior_minutes_choose_steps_that_replay(data):
     a, b = load_prior(data / "m.safetensors"), load_prior(data / "s.safetensors")
     assert "budget" not in b.meta
     for x, y in zip(a.net.state_dict().values(), b.net.state_dict().values()):
-        assert torch.equal(x, y)
+        np.testing.assert_array_equal(x, y)
 
 
 def _tiny_args(data, out, **change):
@@ -577,7 +611,7 @@ def test_cli_fit_prior_with_a_learnt_spread_and_a_context_range(data, capsys, tm
     assert code == 0, err
     model = load_prior(out)
     assert model.cfg.spread is True and model.meta["training"]["context"] == [5, 20]
-    assert model.net.head[-1].out_features == 6 * model.cfg.n_components
+    assert model.net.state_dict()["head.4.weight"].shape[0] == 6 * model.cfg.n_components
 
 
 @pytest.mark.parametrize("change,extra,message", [
@@ -709,3 +743,38 @@ def test_a_model_with_a_learnt_spread_round_trips_and_starts_as_the_plain_fit(ba
         assert "spread" not in json.loads(f.metadata()["config"])
     with pytest.raises(ValueError):
         PriorConfig(spread="yes")
+
+
+@pytest.mark.slow
+def test_sparse_with_the_default_learnt_prior_imports_no_torch(tmp_path, monkeypatch):
+    """``brdfkit sparse samples.csv -o out.binary`` with the shipped default model (its
+    learnt prior) runs in a fresh interpreter without importing torch, and writes the
+    table the library's reconstruction gives."""
+    import os
+    import subprocess
+    import sys
+
+    from brdfkit.io.merl import read_merl
+    from brdfkit.io.samples import write_samples
+    from brdfkit.models.builtin import models_folder, read_manifest
+    from brdfkit.testing.examples import lambertian_table
+
+    monkeypatch.delenv("BRDFKIT_BUILTIN_MODELS", raising=False)
+    monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
+    default = next((m for m in read_manifest(models_folder()).installed() if m.default), None)
+    if default is None or default.part("prior") is None:
+        pytest.skip("no shipped default model with a learnt prior in this checkout")
+    samples = draw_samples(lambertian_table(), 40, seed=0)
+    write_samples(tmp_path / "s.csv", samples)
+    code = ("import sys\nfrom brdfkit.cli import main\n"
+            "try:\n    main(['sparse', 's.csv', '-o', 'out.binary'])\nexcept SystemExit as e:\n"
+            "    assert not e.code, e.code\n"
+            "print('TORCH', 'torch' in sys.modules)")
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, capture_output=True, text=True, timeout=300,
+                       env={**os.environ, "OMP_NUM_THREADS": "1"})
+    assert r.returncode == 0 and "method prior" in r.stderr, r.stderr[-2000:]
+    assert r.stdout.split()[-2:] == ["TORCH", "False"]
+    want = get_method("prior").reconstruct(samples, default.name)
+    got = read_merl(tmp_path / "out.binary")
+    np.testing.assert_array_equal(np.isnan(got), np.isnan(want))
+    np.testing.assert_allclose(got[np.isfinite(got)], want[np.isfinite(want)], rtol=1e-5)

@@ -5,7 +5,9 @@ mean of the basis's coefficients, around which they are fitted in closed form. I
 not the paper's decoder).
 
 * :mod:`~brdfkit.prior.model`: the network and the closed-form fit
-  (:class:`~brdfkit.prior.model.PriorModel`, :func:`~brdfkit.prior.model.solve`);
+  (:class:`~brdfkit.prior.model.PriorModel`, :func:`~brdfkit.prior.model.solve`); a
+  reconstruction evaluates both in NumPy (:class:`~brdfkit.prior.model.PriorWeights`,
+  no torch), the training in torch;
 * :mod:`~brdfkit.prior.fit`: its training, ``brdfkit fit --method prior``;
 * :mod:`~brdfkit.prior.training_data`: what the training fits on (the basis, the cells,
   the held-out fold bases, the tensors on the device);

@@ -53,7 +53,8 @@ from brdfkit.geometry.trilinear import lookup_trilinear
 from brdfkit.basis import PcaBasis
 from brdfkit.basis.mapping import EPS, to_mapped
 
-__all__ = ["PriorConfig", "PriorModel", "prior_net", "solve", "sample_rows", "N_REF", "SPREAD_LOG_BOUND"]
+__all__ = ["PriorConfig", "PriorModel", "PriorWeights", "prior_net", "solve", "sample_rows", "N_REF",
+           "SPREAD_LOG_BOUND"]
 
 N_REF = 4000
 """The sample count the network's count feature is scaled by (``ln N / ln N_REF``)."""
@@ -150,8 +151,77 @@ def prior_net(cfg: PriorConfig):
     return PriorNet()
 
 
+def _layer_shapes(cfg: PriorConfig) -> dict:
+    """``{name: shape}`` of the network's tensors, as :func:`prior_net`'s ``state_dict``
+    names them (``encoder.0.weight`` ...: the linear layers at 0, 2 and 4, ReLUs between)."""
+    k = cfg.n_components
+    sizes = {"encoder": (9, cfg.width, cfg.width, cfg.latent_dim),
+             "head": (cfg.latent_dim + 3 * k + 1, cfg.width, cfg.width, (6 if cfg.spread else 3) * k)}
+    shapes = {}
+    for part, dims in sizes.items():
+        for i, (a, b) in enumerate(zip(dims[:-1], dims[1:])):
+            shapes[f"{part}.{2 * i}.weight"], shapes[f"{part}.{2 * i}.bias"] = (b, a), (b,)
+    return shapes
+
+
+class PriorWeights:
+    """The network of :func:`prior_net` as float32 NumPy arrays, evaluated in NumPy: what a
+    reconstruction needs of it, without torch (a loaded model file holds one; the training
+    makes the torch module).
+
+    Parameters
+    ----------
+    cfg
+        :class:`PriorConfig`.
+    state
+        ``{name: array}`` named as the torch module's ``state_dict``; checked against
+        ``cfg`` (:class:`ValueError` naming the first tensor that does not fit).
+    """
+
+    def __init__(self, cfg: PriorConfig, state: dict):
+        shapes = _layer_shapes(cfg)
+        if sorted(state) != sorted(shapes):
+            raise ValueError(f"tensors {sorted(set(state) ^ set(shapes))[:3]} do not match the configuration")
+        self.cfg = cfg
+        self._state = {k: np.ascontiguousarray(state[k], np.float32) for k in shapes}
+        bad = next((k for k, a in self._state.items() if a.shape != shapes[k]), None)
+        if bad is not None:
+            raise ValueError(f"tensor {bad} has shape {self._state[bad].shape}, the configuration {shapes[bad]}")
+
+    @classmethod
+    def of(cls, net, cfg: PriorConfig) -> "PriorWeights":
+        """``net`` as arrays: itself when it is one, else a torch module's weights now."""
+        if isinstance(net, cls):
+            return net
+        return cls(cfg, {k: v.detach().cpu().float().numpy() for k, v in net.state_dict().items()})
+
+    def state_dict(self) -> dict:
+        """``{name: float32 array}``, as the torch module names its tensors."""
+        return dict(self._state)
+
+    def _mlp(self, part: str, x: np.ndarray) -> np.ndarray:
+        for i in (0, 2, 4):
+            x = x @ self._state[f"{part}.{i}.weight"].T + self._state[f"{part}.{i}.bias"]
+            if i < 4:
+                np.maximum(x, 0, out=x)
+        return x
+
+    def __call__(self, hd, resid, c, sigma, n):
+        """The torch module's ``forward`` (:func:`prior_net`) in float32 NumPy: ``(mean,
+        standard deviations, latent, raw output)``."""
+        z = self._mlp("encoder", np.concatenate([hd, resid], -1).astype(np.float32)).mean(1)
+        b, k = c.shape[0], c.shape[-1]
+        count = np.full((b, 1), math.log(max(n, 1)) / math.log(N_REF), np.float32)
+        raw = self._mlp("head", np.concatenate([z, (c / sigma[:, None]).reshape(b, -1), count], -1)).reshape(b, -1, k)
+        sd = np.broadcast_to(sigma[:, None], (b, 3, k))
+        if self.cfg.spread:
+            sd = sd * np.exp(np.clip(raw[:, 3:], -SPREAD_LOG_BOUND, SPREAD_LOG_BOUND))
+        return raw[:, :3] * sigma[:, None], sd, z, raw
+
+
 def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str = "metric"):
-    """The closed-form fit of the module docstring, batched (torch).
+    """The closed-form fit of the module docstring, batched: on torch tensors (the
+    training) or NumPy arrays (a reconstruction), the same operations in the same dtypes.
 
     Parameters
     ----------
@@ -174,21 +244,30 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
     -------
     tuple
         Coefficients ``(B, 3, K)`` (float32, solved in float64) and the mapped values
-        ``b`` ``(B, S, 3)``.
+        ``b`` ``(B, S, 3)`` (in the inputs' dtype).
     """
-    import torch
+    if type(tab).__module__.startswith("torch"):
+        import torch as xp
 
-    ref, mean, comp = tab[..., 0:1], tab[..., 1:2], tab[..., 2:].double()
-    b = to_mapped(rho, w[..., None], ref) - mean
+        f64, f32 = (lambda a: a.double()), (lambda a: a.float())
+        b = to_mapped(rho, w[..., None], tab[..., 0:1]) - tab[..., 1:2]
+    else:
+        xp = np
+        f64, f32 = (lambda a: np.asarray(a, np.float64)), (lambda a: np.asarray(a, np.float32))
+        # in the inputs' own dtype, as the torch branch maps (to_mapped's NumPy default is float64)
+        b = to_mapped(rho, w[..., None], tab[..., 0:1], out=np.empty(np.shape(rho), np.asarray(rho).dtype))
+        b -= tab[..., 1:2]
+    comp = f64(tab[..., 2:])
     g = cos[..., None] * (rho + EPS / w[..., None]) / (1 + rho * cos[..., None])
-    q = ((g if weight == "energy" else g ** 2) / s2 + 1.0 / lam).double()
-    sig = sigma.double() if sigma.dim() == 3 else sigma.double()[:, None]  # (B, 3 or 1, K)
-    lhs = torch.einsum("bck,bcj,bcl->blkj", comp, comp, q)
-    lhs = lhs + torch.diag_embed(1.0 / sig ** 2)
-    rhs = torch.einsum("bck,bcl->blk", comp, q * b.double())
+    q = f64((g if weight == "energy" else g ** 2) / s2 + 1.0 / lam)
+    sig = f64(sigma) if sigma.ndim == 3 else f64(sigma)[:, None]  # (B, 3 or 1, K)
+    lhs = xp.einsum("bck,bcj,bcl->blkj", comp, comp, q)
+    prec = 1.0 / sig ** 2
+    lhs = lhs + prec[..., None] * xp.eye(comp.shape[-1], dtype=lhs.dtype)  # the prior's diagonal
+    rhs = xp.einsum("bck,bcl->blk", comp, q * f64(b))
     if mu is not None:
-        rhs = rhs + mu.double() / sig ** 2
-    return torch.linalg.solve(lhs, rhs).float(), b
+        rhs = rhs + f64(mu) / sig ** 2
+    return f32(xp.linalg.solve(lhs, rhs[..., None])[..., 0]), b
 
 
 def sample_rows(basis: PcaBasis, samples):
@@ -217,7 +296,8 @@ class PriorModel:
     basis
         :class:`~brdfkit.basis.PcaBasis` (``K`` components).
     net
-        The torch module of :func:`prior_net`, in eval mode on the CPU.
+        The network: :class:`PriorWeights` (a loaded file's: NumPy, no torch) or the
+        torch module of :func:`prior_net` (the training's, in eval mode on the CPU).
     cfg
         :class:`PriorConfig`.
     meta
@@ -235,9 +315,7 @@ class PriorModel:
     def coefficients(self, samples, *, use_prior: bool = True) -> np.ndarray:
         """Basis coefficients ``(K, 3)`` fitted to a sample set (BRDF in 1/sr): the plain
         closed-form fit, then (``use_prior``) the fit again around the network's prior
-        mean."""
-        import torch
-
+        mean. In NumPy (:class:`PriorWeights`), whatever :attr:`net` is."""
         if len(samples) == 0:
             raise InputError(f"{samples.source or 'samples'}: no samples to fit")
         ok, tab, w, cos, rho, hd = sample_rows(self.basis, samples)
@@ -245,18 +323,17 @@ class PriorModel:
             what = ("no sample has a measured (non-NaN) value" if not samples.measured().any()
                     else "no sample lies on a cell the basis covers above the horizon")
             raise InputError(f"{samples.source or 'samples'}: {what}")
-        T = lambda a: torch.from_numpy(np.ascontiguousarray(a, np.float32))[None]  # noqa: E731
-        sig = torch.from_numpy(self.basis.sigma.astype(np.float32))[None]
+        T = lambda a: np.ascontiguousarray(a, np.float32)[None]  # noqa: E731
+        sig = T(self.basis.sigma)
         rows = (T(tab), T(rho), T(w), T(cos))
-        with torch.no_grad():
-            c, b = solve(*rows, sig, self.cfg.s2, self.cfg.lam, weight=self.cfg.weight)
-            if use_prior:
-                resid = b - torch.einsum("bck,blk->bcl", rows[0][..., 2:], c)
-                mu, sd, _, _ = self.net(T(hd), resid, c, sig, int(ok.sum()))
-                c, _ = solve(*rows, sd, self.cfg.s2, self.cfg.lam, mu=mu, weight=self.cfg.weight)
-        if not torch.isfinite(c).all():
+        c, b = solve(*rows, sig, self.cfg.s2, self.cfg.lam, weight=self.cfg.weight)
+        if use_prior:
+            resid = b - np.einsum("bck,blk->bcl", rows[0][..., 2:], c)
+            mu, sd, _, _ = PriorWeights.of(self.net, self.cfg)(T(hd), resid, c, sig, int(ok.sum()))
+            c, _ = solve(*rows, sd, self.cfg.s2, self.cfg.lam, mu=mu, weight=self.cfg.weight)
+        if not np.isfinite(c).all():
             raise InputError(f"{samples.source or 'samples'}: the fit did not give finite coefficients")
-        return c[0].double().numpy().T
+        return c[0].astype(np.float64).T
 
     def reconstruct(self, samples, *, use_prior: bool = True) -> np.ndarray:
         """Dense table ``(90, 90, 180, 3)`` (1/sr, ``>= 0``, NaN off the basis cells)."""

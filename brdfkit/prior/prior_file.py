@@ -23,7 +23,7 @@ from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.io.digest import file_digest
 from brdfkit.errors import FormatError, InputError
 from brdfkit.basis import basis_tensors, load_basis, read_basis, save_basis, storage_of
-from brdfkit.prior.model import PriorConfig, PriorModel, prior_net
+from brdfkit.prior.model import PriorConfig, PriorModel, PriorWeights
 
 __all__ = ["PRIOR_FORMAT", "PRIOR_VERSION", "save_prior", "load_prior", "is_prior_file", "pack_prior", "basis_entry"]
 
@@ -63,7 +63,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
     from brdfkit.io.tensorfile import write_safetensors
 
     path = os.fspath(path)
-    net = {f"net.{k}": v.detach().cpu().float().numpy() for k, v in model.net.state_dict().items()}
+    net = {f"net.{k}": v for k, v in PriorWeights.of(model.net, model.cfg).state_dict().items()}
     meta = {"format": PRIOR_FORMAT, "version": PRIOR_VERSION,
             "config": json.dumps(model.cfg.record(), sort_keys=True)}
     meta.update({k: json.dumps(v) for k, v in model.meta.items()})
@@ -121,7 +121,8 @@ def basis_entry(path: str | os.PathLike) -> dict:
 
 
 def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
-    """Read a learnt-prior model file (on the CPU: its work is a few small solves).
+    """Read a learnt-prior model file: its network as :class:`~brdfkit.prior.model.PriorWeights`
+    (NumPy, no torch: its work is a few small solves; ``device`` is not used).
 
     Raises
     ------
@@ -129,8 +130,6 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
         Not such a file, a missing or changed basis file, inconsistent tensors, or
         weights that do not match the recorded digest.
     """
-    import torch
-
     from brdfkit.io.tensorfile import check_format, open_safetensors
 
     path = check_input_file(path)
@@ -161,14 +160,12 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
     if basis.n_components != cfg.n_components:
         raise FormatError(path, f"the basis has {basis.n_components} components, the network expects "
                                 f"{cfg.n_components}")
-    net = prior_net(cfg)
     try:
-        net.load_state_dict({k[4:]: torch.from_numpy(np.array(v, np.float32)) for k, v in net_t.items()})
-    except RuntimeError:
+        net = PriorWeights(cfg, {k[4:]: v for k, v in net_t.items()})
+    except ValueError:
         raise FormatError(path, "the network's tensors do not match its configuration") from None
-    if not all(torch.isfinite(p).all() for p in net.parameters()):
+    if not all(np.isfinite(a).all() for a in net.state_dict().values()):
         raise FormatError(path, "the network holds non-finite weights")
-    net.eval()
     record = {}
     for k, v in meta.items():
         if k in ("materials", "steps", "budget", "wall_time_s", "command", "seed", "training"):
