@@ -146,6 +146,7 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     done = tune(d / "model.safetensors", data, out, steps=3, options=opts)
     assert done["steps"] == 3 and done["materials"] == ["a", "b"]
     tuned = api.load_model(out, "cpu")
+    three_steps = tuned.digest
     assert tuned.meta["tune"]["from"] == m.digest and tuned.digest != m.digest
     np.testing.assert_array_equal(tuned.rho_ref, m.rho_ref)
     # Resumed to 5 steps = run to 5 in one go (the batches are seeded by the step).
@@ -160,6 +161,13 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     # The learning rates may change on resuming (a second stage at other rates).
     faster = dataclasses.replace(opts, lr_decoder=1e-3, lr_latent=1e-2)
     assert tune(d / "model.safetensors", data, out, steps=6, options=faster, resume=True)["steps"] == 6
+    # The peak region's loss changes what is learnt, and a checkpoint of another peak weight
+    # is another run's.
+    peaked = tmp_path / "peaked.safetensors"
+    tune(d / "model.safetensors", data, peaked, steps=3, options=dataclasses.replace(opts, peak_weight=1.0))
+    assert api.load_model(peaked, "cpu").digest != three_steps
+    with pytest.raises(InputError, match="another model, data or options"):
+        tune(d / "model.safetensors", data, peaked, steps=4, options=opts, resume=True)
 
 
 @pytest.mark.parametrize("args, message", [

@@ -47,6 +47,11 @@ __all__ = ["TuneOptions", "tune"]
 _COUNTS = ("batch", "pairs_per_pixel", "query", "context", "resolution")
 """The integer options of :class:`TuneOptions` (each at least 1)."""
 
+PEAK_REGION = (2.0, 60.0)
+"""``(theta_h below, theta_d above)`` in degrees: the cells of :attr:`TuneOptions.peak_weight`'s
+loss, around the 7-D latent's black corner (``theta_h < 1``, ``theta_d > 75`` degrees;
+``benchmarks/black_cells.py``)."""
+
 
 @dataclasses.dataclass(frozen=True)
 class TuneOptions:
@@ -71,6 +76,10 @@ class TuneOptions:
         Cells per material for the mapped loss and for the encoder's context.
     resolution
         Side in pixels of the renders (:data:`brdfkit.render.screen.SCREEN_RESOLUTION`).
+    peak_weight
+        Weight of the mapped loss, not cosine-weighted, on ``query`` cells of the
+        near-specular grazing region (:data:`PEAK_REGION`; 0: none): where the cosine
+        weight and the renders let a small latent decode the material black.
     """
 
     lr_decoder: float = 1e-4
@@ -84,9 +93,10 @@ class TuneOptions:
     query: int = 4096
     context: int = 4096
     resolution: int = 32
+    peak_weight: float = 0.0
 
     def __post_init__(self):
-        for name in ("lr_decoder", "lr_latent", "lr_encoder", "map_weight", "lambda_z"):
+        for name in ("lr_decoder", "lr_latent", "lr_encoder", "map_weight", "lambda_z", "peak_weight"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(f"tune option {name} must be a finite number >= 0, got {v!r}")
@@ -158,8 +168,9 @@ def _identity(model_digest, names, opts, seed) -> str:
     """What a checkpoint must have been made for to be resumed: the model, the materials,
     the options but the learning rates, the seed (JSON, sorted keys)."""
     fields = dataclasses.asdict(opts)
-    if fields["resolution"] == 32:  # added later: left out at its default, so older checkpoints resume
-        del fields["resolution"]
+    for key, default in (("resolution", 32), ("peak_weight", 0.0)):
+        if fields[key] == default:  # added later: left out at its default, so older checkpoints resume
+            del fields[key]
     for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
         del fields[key]
     return json.dumps({"model": model_digest, "materials": names, "options": fields, "seed": seed},
@@ -257,11 +268,12 @@ def _resume(run: _Tuning, state: dict, ckpt, opts):
     run.step, run.elapsed0, run.history = int(state["step"]), float(state["elapsed"]), list(state["history"])
 
 
-def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev):
+def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev, peak=None):
     """One optimiser step on a batch seeded by ``(run.seed, run.step)``.
 
     ``values``: float32 torch ``(materials, n_cells, 3)``, the mapped values at ``cells``
-    (int64 ``(n_cells,)`` flat MERL indices), on ``dev``; ``views[i][k]``: material ``i``'s
+    (int64 ``(n_cells,)`` flat MERL indices), on ``dev``; ``peak``: the positions in
+    ``cells`` of :data:`PEAK_REGION` (``None``: no peak loss); ``views[i][k]``: material ``i``'s
     target image and pair draw under ``screens[k]``. Returns the batch's sums of the log
     screen errors, of the mapped losses and of the encoder's losses (torch scalars).
     """
@@ -288,6 +300,11 @@ def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev):
         pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
         cos = cos_theta_i(th, td, pd).clamp(min=0.0)[:, None]
         loss_m = loss_m + torch.mean((cos * (pred - values[i, q[b]])) ** 2)
+        if peak is not None:
+            p = peak[torch.randint(0, peak.numel(), (opts.query,), generator=gen).to(dev)]
+            th, td, pd = (a.float() for a in cell_angles(cells[p]))
+            pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
+            loss_m = loss_m + opts.peak_weight * torch.mean((pred - values[i, p]) ** 2)
         th, td, pd = (a.float() for a in cell_angles(cells[c[b]]))
         z_enc = net.encode(hd_vectors(th, td, pd)[None], values[i, c[b]][None])
         loss_e = loss_e + torch.mean((z_enc - latents[i].detach()) ** 2)
@@ -302,6 +319,21 @@ def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev):
     return loss_s, loss_m, loss_e
 
 
+def _peak_positions(cells: np.ndarray, dev):
+    """int64 torch positions in ``cells`` (flat MERL indices) inside :data:`PEAK_REGION`."""
+    import torch
+
+    from brdfkit.geometry import N_PHI_D, N_THETA_D, N_THETA_H
+
+    ih, id_ = cells // (N_THETA_D * N_PHI_D), (cells // N_PHI_D) % N_THETA_D
+    th = np.degrees((ih / N_THETA_H) ** 2 * (np.pi / 2))
+    td = np.degrees(id_ / N_THETA_D * (np.pi / 2))
+    pos = np.flatnonzero((th < PEAK_REGION[0]) & (td > PEAK_REGION[1]))
+    if pos.size == 0:
+        raise InputError("tune -O peak_weight: the training set has no cell in the peak region")
+    return torch.from_numpy(pos).to(dev)
+
+
 def _loop(run: _Tuning, m, screens, views, tset, opts, dev, steps, minutes, checkpoint_minutes, ckpt, say):
     """The steps until ``steps`` or ``minutes`` (since ``run.t0``), a checkpoint every
     ``checkpoint_minutes`` and on Ctrl-C (then re-raised)."""
@@ -311,12 +343,13 @@ def _loop(run: _Tuning, m, screens, views, tset, opts, dev, steps, minutes, chec
 
     values = torch.from_numpy(tset.values).to(dev)
     cells = torch.from_numpy(tset.cells).to(dev)
+    peak = _peak_positions(tset.cells, dev) if opts.peak_weight > 0 else None
     gen = torch.Generator()
     last_ckpt = time.monotonic()
     say(f"tuning from step {run.step}")
     try:
         while (steps is None or run.step < steps) and (minutes is None or time.monotonic() - run.t0 < 60 * minutes):
-            loss_s, loss_m, loss_e = _step(run, m, screens, views, values, cells, gen, opts, dev)
+            loss_s, loss_m, loss_e = _step(run, m, screens, views, values, cells, gen, opts, dev, peak)
             run.step += 1
             psnr = -10 * loss_s.item() / opts.batch / math.log(10)
             run.ema = psnr if run.ema is None else 0.98 * run.ema + 0.02 * psnr
