@@ -38,12 +38,13 @@ line, as is anything malformed; density values within float32 rounding of zero
 (:data:`RULES`); a render evaluates the file itself (:mod:`brdfkit.render.measured`).
 Negative RGB values (a spectrum outside the sRGB gamut) are clipped to 0 in the tables.
 
-May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io.rgl`; numpy;
-colour-science inside :func:`rgb_to_spectra`.
+May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io.rgl`; numpy
+(colour-science inside :func:`brdfkit.io.rgl.spectral.spectral_basis`).
 """
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 
@@ -54,6 +55,7 @@ from brdfkit.geometry import TABLE_SHAPE
 from brdfkit.io.rgl.container import read_tensor_file, write_tensor_file
 from brdfkit.io.rgl.fit import FitSettings, fit_fields, phi2u, theta2u
 from brdfkit.io.rgl.marginal import Marginal2D
+from brdfkit.io.rgl.spectral import SPECTRAL_TOLERANCE, rgb_to_spectra, spectral_basis
 
 __all__ = ["RglBsdf", "read_bsdf", "read_bsdf_table", "write_bsdf", "rgb_to_spectra", "spectral_basis",
            "SPECTRAL_TOLERANCE", "FitSettings", "KIND", "ROUNDING", "RULES", "DEFAULT_RULE"]
@@ -63,6 +65,7 @@ _FLOAT_FIELDS = ("theta_i", "phi_i", "ndf", "sigma", "vndf", "luminance")
 ROUNDING = 1e-6
 """A density field's value at or above ``-ROUNDING`` times the field's largest magnitude
 is rounding of zero (float32 holds 7 digits) and read as 0; one below it is refused."""
+_CHUNK = 1 << 14  # pairs evaluated at once: their temporaries stay in the cache (a table: 1.3 s CPU, 2.0 s at 1 << 18)
 _RANKS = {"theta_i": 1, "phi_i": 1, "ndf": 2, "sigma": 2, "vndf": 4, "luminance": 4, "rgb": 5,
           "description": 1, "jacobian": 1}
 
@@ -118,10 +121,14 @@ class RglBsdf:
         wi = np.asarray(wi, np.float64).reshape(-1, 3)
         wo = np.asarray(wo, np.float64).reshape(-1, 3)
         out = np.zeros((wi.shape[0], 3))
-        up = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-        if not up.any():
-            return out
-        a, b = wi[up], wo[up]
+        up = np.flatnonzero((wi[:, 2] > 0) & (wo[:, 2] > 0))
+        for s in range(0, up.size, _CHUNK):  # chunks whose temporaries stay in the cache
+            idx = up[s:s + _CHUNK]
+            out[idx] = self._eval_up(wi[idx], wo[idx])
+        return out
+
+    def _eval_up(self, a, b):
+        """:meth:`eval` of pairs above the horizon."""
         m = a + b
         m /= np.linalg.norm(m, axis=1, keepdims=True)
         theta_i = np.arctan2(np.hypot(a[:, 0], a[:, 1]), a[:, 2])
@@ -136,8 +143,7 @@ class RglBsdf:
         spec = self._rgb.eval(sample, corners=corners)
         if self.jacobian:
             spec *= (self._ndf.eval(u_m) / (4.0 * self._sigma.eval(u_wi)))[:, None]
-        out[up] = spec
-        return out
+        return spec
 
     def conditioned(self, wi, wo):
         """``(f_wi, f_wo)``, 1/sr ``(M, 3)`` each: ``eval(wi, wo) / cos(theta_o)`` (the
@@ -192,10 +198,9 @@ class RglBsdf:
         """
         if rule not in RULES:
             raise InputError(f"unknown reciprocity rule {rule!r}; known: {', '.join(RULES)}")
-        wi, wo = _grid_pairs()
-        cells = np.flatnonzero((wi[:, 2] > 0) & (wo[:, 2] > 0))
+        wi, wo, cells = _grid_pairs()
         table = np.full((wi.shape[0], 3), np.nan)
-        square, step = 0.0, 1 << 18
+        square, step = 0.0, _CHUNK
         for s in range(0, cells.size, step):
             idx = cells[s:s + step]
             a, b = (np.maximum(f, 0.0) for f in self.conditioned(wi[idx], wo[idx]))
@@ -225,10 +230,12 @@ def _combine(a, b, cos_i, cos_o, rule):
     return np.where((cos_i > cos_o) == (rule == "grazing"), b, a)
 
 
+@functools.lru_cache(maxsize=1)
 def _grid_pairs():
-    """``(wi, wo)`` of every MERL cell (``phi_h = 0``), float64 ``(N_CELLS, 3)`` each, from
-    the grid's 1-D angles by broadcasting (as :func:`brdfkit.geometry.grid_directions`,
-    several times faster than evaluating the trigonometry per cell)."""
+    """``(wi, wo, cells)`` of every MERL cell (``phi_h = 0``), float64 ``(N_CELLS, 3)`` each
+    (read-only, computed once), from the grid's 1-D angles by broadcasting (as
+    :func:`brdfkit.geometry.grid_directions`, several times faster than evaluating the
+    trigonometry per cell), and the cells with both above the horizon."""
     from brdfkit.geometry import grid_angles
 
     th, td, pd = grid_angles()
@@ -239,7 +246,11 @@ def _grid_pairs():
     wi = np.stack(np.broadcast_arrays(ch * dx + sh * dz, dy, ch * dz - sh * dx), -1)
     # wo = 2 (wi . h) h - wi, and wi . h = cos(theta_d)
     wo = np.stack(np.broadcast_arrays(2 * dz * sh - wi[..., 0], -dy, 2 * dz * ch - wi[..., 2]), -1)
-    return wi.reshape(-1, 3), wo.reshape(-1, 3)
+    wi, wo = wi.reshape(-1, 3), wo.reshape(-1, 3)
+    cells = np.flatnonzero((wi[:, 2] > 0) & (wo[:, 2] > 0))
+    for a in (wi, wo, cells):
+        a.flags.writeable = False
+    return wi, wo, cells
 
 
 def _check_fields(fields: dict, path: str) -> None:
@@ -339,64 +350,6 @@ def read_bsdf_table(path, rule: str = DEFAULT_RULE) -> np.ndarray:
     (:meth:`RglBsdf.brdf`): float64 ``(90, 90, 180, 3)`` in 1/sr, NaN below the horizon
     (:meth:`RglBsdf.to_table`)."""
     return read_bsdf(path).to_table(rule)
-
-
-def rgb_to_spectra(rgb: np.ndarray, axis: int = 0):
-    """Spectra of linear sRGB values by Mallett and Yuksel 2019 ("Spectral Primary
-    Decomposition for Rendering with sRGB Reflectance"), colour-science's
-    ``RGB_to_sd_Mallett2019`` basis.
-
-    The decomposition is *linear*: a value's spectrum is ``r S_r + g S_g + b S_b`` with
-    non-negative basis spectra summing to 1, so it keeps a BRDF value's spectrum
-    proportional to its RGB whatever its magnitude (BRDF values exceed 1, where the
-    bounded sigmoid spectra of Jakob and Hanika 2019 cannot go), it commutes with the
-    readers' interpolation, and white stays flat.
-
-    Parameters
-    ----------
-    rgb
-        Linear sRGB values with the channels on ``axis``.
-    axis
-        The channel axis.
-
-    Returns
-    -------
-    tuple
-        ``(spectra, wavelengths)``: the spectra with ``W`` wavelengths on ``axis``, and
-        the wavelengths in nanometres ``(W,)`` (:func:`spectral_basis`).
-    """
-    values, wavelengths = spectral_basis()
-    moved = np.moveaxis(np.asarray(rgb, np.float64), axis, -1)
-    return np.moveaxis(moved @ values.T, -1, axis), wavelengths
-
-
-SPECTRAL_TOLERANCE = 0.005
-"""How far the readers' linear interpolation of the stored basis may stray from
-colour-science's 5 nm basis (whose three functions sum to 1)."""
-
-
-def spectral_basis(tolerance: float = SPECTRAL_TOLERANCE):
-    """The basis of :func:`rgb_to_spectra` at the wavelengths a file stores: ``(values (W,
-    3), wavelengths (W,) nm)``.
-
-    colour-science's basis is sampled every 5 nm from 380 to 780 nm (81 wavelengths) and
-    has sharp steps (green to red over 10 nm at 585 nm: every other sample would miss
-    them by 0.25). The readers interpolate linearly between the stored wavelengths (and
-    hold the end values outside), so the stored ones are the fewest of the 81, chosen
-    greedily (the worst-interpolated wavelength added until none strays more than
-    ``tolerance``), whose interpolant reproduces all 81 samples: 44 at the default.
-    """
-    from colour.recovery import MSDS_BASIS_FUNCTIONS_sRGB_MALLETT2019 as basis
-
-    values = np.asarray(basis.values, np.float64)
-    nm = np.asarray(basis.wavelengths, np.float64)
-    keep = [0, nm.size - 1]
-    while True:
-        k = sorted(keep)
-        error = np.abs(np.stack([np.interp(nm, nm[k], values[k, c]) for c in range(3)], -1) - values).max(1)
-        if error.max() <= tolerance:
-            return values[k], nm[k]
-        keep.append(int(error.argmax()))
 
 
 def write_bsdf(path, table, settings: FitSettings = FitSettings(), *, spectral: bool = False,

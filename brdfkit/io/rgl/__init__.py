@@ -6,6 +6,7 @@
   the fields (``Marginal2D``): interpolation, sampling warp and its inverse.
 * :mod:`~brdfkit.io.rgl.fit`: the adaptive parameterization fitted to an isotropic BRDF
   (NDF by power iteration, projected area, visible normals, sample-space values).
+* :mod:`~brdfkit.io.rgl.spectral`: spectra of RGB values for spectral files.
 
 May import: the ground floor and numpy (and :mod:`brdfkit.geometry` through
 :mod:`brdfkit.io.rgl_bsdf`).
