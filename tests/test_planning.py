@@ -259,19 +259,15 @@ def test_plan_with_a_built_in_name(shipped, tmp_path, monkeypatch, capsys):
 
 
 @pytest.mark.slow
-def test_plan_for_a_learnt_prior_file_is_the_plan_for_its_basis(tmp_path, capsys):
+def test_plan_for_a_learnt_prior_file_is_the_plan_for_its_basis(small, tmp_path, capsys):
     """-m a learnt-prior file (`brdfkit fit --method prior`): its basis, as inside it."""
-    from brdfkit.materials.synthetic import write_library
-
-    write_library(tmp_path / "lib", 4, seed=2, stiff=False)  # two folds of two: the fewest the prior's fit takes
-    basis, prior = tmp_path / "b.safetensors", tmp_path / "p.safetensors"
-    for args in (["fit", "--method", "basis", tmp_path / "lib", "--components", "3", "-o", basis],
-                 ["fit", "--method", "prior", tmp_path / "lib", "-O", f"basis={basis}", "-O", "folds=2",
-                  "--steps", "3", "-o", prior]):
-        code, _, err = run_cli(capsys, args)
-        assert code == 0, err
+    # The small basis's four tables: two folds of two, the fewest the prior's fit takes.
+    basis, prior = small["basis"], tmp_path / "p.safetensors"
+    code, _, err = run_cli(capsys, ["fit", "--method", "prior", small["tables"][0].parent, "-O", f"basis={basis}",
+                                    "-O", "folds=2", "--steps", "3", "-o", prior])
+    assert code == 0, err
     code, _, err = run_cli(capsys, ["plan", "-n", "6", "-m", prior, "--design", "nielsen", "-o", tmp_path / "p.csv"])
     assert code == 0, err
-    assert "basis of p.safetensors: 3 components" in " ".join(err.split())
+    assert "basis of p.safetensors: 5 components" in " ".join(err.split())
     np.testing.assert_array_equal(read_directions(tmp_path / "p.csv").theta_h,
                                   plan_directions(basis, 6, design="nielsen").directions.theta_h)

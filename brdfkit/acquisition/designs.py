@@ -53,12 +53,13 @@ the moves) comes from one generator seeded by ``seed``: the same seed, the same 
 from __future__ import annotations
 
 import dataclasses
+import weakref
 from typing import Callable
 
 import numpy as np
 
 from brdfkit.errors import InputError
-from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, grid_cosine_weight, valid_mask
+from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, grid_cosine_weight, valid_cells
 
 __all__ = ["Design", "DESIGNS", "CandidatePool", "DEFAULT_EVALUATIONS", "DEFAULT_CANDIDATES"]
 
@@ -103,7 +104,20 @@ class CandidatePool:
 
     @classmethod
     def of(cls, basis, likelihood=None) -> "CandidatePool":
-        allowed = valid_mask().reshape(N_CELLS) & (grid_cosine_weight() > 0)
+        """The pool of ``basis``'s candidate cells; its cells and rows are worked out once
+        per basis object (a process that plans many times for one basis: the bench's
+        planned samplings, 0.5 s each otherwise)."""
+        hit = _POOLS.get(id(basis))
+        if hit is not None and hit[0]() is basis:
+            return dataclasses.replace(hit[1], likelihood=likelihood)
+        pool = cls._of(basis, likelihood)
+        _POOLS.clear()  # one basis at a time: a pool holds its (P, K) rows
+        _POOLS[id(basis)] = (weakref.ref(basis), pool)
+        return pool
+
+    @classmethod
+    def _of(cls, basis, likelihood) -> "CandidatePool":
+        allowed = _valid_flat() & (grid_cosine_weight() > 0)
         keep = allowed[basis.cells]
         cells = np.asarray(basis.cells, np.int64)[keep]
         if cells.size == 0:
@@ -122,6 +136,16 @@ class CandidatePool:
         return CandidatePool(cells, np.ascontiguousarray(self.rows[keep]), where, self.basis, self.likelihood)
 
 
+_POOLS: dict = {}  # id(basis) -> (weak reference to it, its pool)
+
+
+def _valid_flat() -> np.ndarray:
+    """:func:`brdfkit.geometry.valid_mask` flat, from the cells computed once a process."""
+    mask = np.zeros(N_CELLS, bool)
+    mask[valid_cells()] = True
+    return mask
+
+
 def _cond2(gram_batch: np.ndarray, rank: int) -> np.ndarray:
     """Squared condition numbers ``(B,)`` of matrices whose Gram matrices ``A^T A`` are
     ``gram_batch`` (B, K, K), counting the ``rank`` largest eigenvalues (the non-zero
@@ -130,6 +154,38 @@ def _cond2(gram_batch: np.ndarray, rank: int) -> np.ndarray:
     top, low = ev[:, -1], ev[:, -rank]
     ok = low > 1e-12 * np.maximum(top, 1e-300)
     return np.where(ok, top / np.where(ok, low, 1.0), np.inf)
+
+
+def _cond2_added(a: np.ndarray, gram: np.ndarray, rows: np.ndarray, rank: int) -> np.ndarray:
+    """:func:`_cond2` of the rows ``a`` (N, K) with each of ``rows`` (B, K) added in turn
+    (``gram`` is ``a^T a``). While ``N + 1 < K`` the non-zero eigenvalues are those of the
+    ``(N + 1) x (N + 1)`` matrix ``[a; r] [a; r]^T``, a far smaller problem than the ``K x
+    K`` Gram matrix (the first directions of a 30-component basis: 10 to 80 times less
+    work); from there on the ``K x K`` one."""
+    n, k = a.shape
+    if n + 1 >= k:
+        return _cond2(gram[None] + rows[:, :, None] * rows[:, None, :], rank)
+    small = np.empty((rows.shape[0], n + 1, n + 1))
+    small[:, :n, :n] = a @ a.T
+    small[:, :n, n] = small[:, n, :n] = rows @ a.T
+    small[:, n, n] = np.einsum("ij,ij->i", rows, rows)
+    return _cond2(small, rank)
+
+
+def _cond2_replaced(a: np.ndarray, gram: np.ndarray, i: int, rows: np.ndarray, rank: int) -> np.ndarray:
+    """:func:`_cond2` of the rows ``a`` (N, K) with row ``i`` replaced by each of ``rows``
+    (B, K) in turn (``gram`` is ``a^T a``); the ``N x N`` problem while ``N < K``, as
+    :func:`_cond2_added`."""
+    n, k = a.shape
+    if n >= k:
+        old = a[i]
+        return _cond2((gram - np.outer(old, old))[None] + rows[:, :, None] * rows[:, None, :], rank)
+    small = np.empty((rows.shape[0], n, n))
+    small[:] = a @ a.T
+    cross = rows @ a.T  # (B, N): the new row against every row, its own old one at i
+    small[:, i, :] = small[:, :, i] = cross
+    small[:, i, i] = np.einsum("ij,ij->i", rows, rows)
+    return _cond2(small, rank)
 
 
 def _nielsen(pool: CandidatePool, n: int, rng: np.random.Generator, evaluations: int = DEFAULT_EVALUATIONS,
@@ -143,8 +199,8 @@ def _nielsen(pool: CandidatePool, n: int, rng: np.random.Generator, evaluations:
     chosen = [int(np.argmax(np.einsum("ij,ij->i", pool.rows, pool.rows)))]
     taken = np.zeros(p, bool)
     taken[chosen[0]] = True
-    r0 = pool.rows[chosen[0]].astype(np.float64)
-    gram = np.outer(r0, r0)
+    a = pool.rows[chosen].astype(np.float64)  # the chosen rows (N, K)
+    gram = a.T @ a
     while len(chosen) < n:
         cand = np.unique(rng.integers(0, p, size=min(evaluations, p)))
         cand = cand[~taken[cand]]
@@ -154,11 +210,12 @@ def _nielsen(pool: CandidatePool, n: int, rng: np.random.Generator, evaluations:
         # lowest index.
         cand = rng.permutation(cand)
         rows = pool.rows[cand].astype(np.float64)
-        c2 = _cond2(gram[None] + rows[:, :, None] * rows[:, None, :], min(len(chosen) + 1, k))
+        c2 = _cond2_added(a, gram, rows, min(len(chosen) + 1, k))
         best = int(cand[int(np.argmin(c2))])
         chosen.append(best)
         taken[best] = True
         r = pool.rows[best].astype(np.float64)
+        a = np.vstack([a, r])
         gram += np.outer(r, r)
     chosen = np.array(chosen, np.int64)
     if refine and n > 1:
@@ -193,9 +250,8 @@ def _refine(pool: CandidatePool, chosen: np.ndarray, rng: np.random.Generator) -
                 pos = pos[~taken[pos]]
                 if pos.size == 0:
                     continue
-                old = a[i]
                 rows = pool.rows[pos].astype(np.float64)
-                c2 = _cond2((gram - np.outer(old, old))[None] + rows[:, :, None] * rows[:, None, :], rank)
+                c2 = _cond2_replaced(a, gram, i, rows, rank)
                 j = int(np.argmin(c2))
                 if c2[j] < current * (1 - 1e-12):
                     taken[chosen[i]] = False
@@ -236,7 +292,7 @@ def _uniform_design(pool, n, seed):
 
     # The cells `brdfkit sample -n N --seed S` draws from a table measured wherever the
     # grid can be (every MERL file, every proxy): the two give the same directions.
-    return draw_cells(valid_mask().reshape(N_CELLS), n, seed, "angles")
+    return draw_cells(_valid_flat(), n, seed, "angles")
 
 
 DESIGNS: dict[str, Design] = {
