@@ -42,8 +42,9 @@ its own layer and the layers above it in this table, inside functions too
 11   ``acquisition/``                        where to measure: sampling, planning,
                                              designs, the benchmark protocol
 12   ``evaluation/``                         metrics, comparisons, held-out error
-13   ``figures/``                            plots, comparison sheets, interpolation
-                                             strips
+13   ``figures/``, ``view/``                 plots, comparison sheets, interpolation
+                                             strips; the page that renders BRDFs live
+                                             in WebGL2, GLSL for an engine
 14   ``training/``, ``bench/``, ``testing/`` what ``brdfkit fit`` trains (``FITTERS``);
                                              the benchmark; the tests' examples and fuzzer
 15   ``api``                                 the front: the library's verbs (encode,
@@ -69,7 +70,7 @@ __version__ = "0.1.0"
 
 LAYERS = (("errors", "atomic", "console", "runtime", "distributed"), ("geometry",), ("io",), ("materials", "models"), ("render",),
           ("basis", "hypernet"), ("prior", "residual"), ("embeddings",), ("methods",), ("files",), ("acquisition",),
-          ("evaluation",), ("figures",), ("training", "bench", "testing"), ("api",), ("demos",), ("cli",))
+          ("evaluation",), ("figures", "view"), ("training", "bench", "testing"), ("api",), ("demos",), ("cli",))
 """The packages and top-level modules in their layers, lowest first (the table above):
 data flows down this list, never up."""
 

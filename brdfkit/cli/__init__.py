@@ -40,6 +40,8 @@ COMMANDS = {
     "bench": "Error-against-run-time benchmark of the reconstruction methods.",
     "plot": "Plot BRDFs side by side: in-plane lobes and slices (PNG).",
     "compare": "Sheet of renders and error images against a reference.",
+    "view": "Write an HTML page that renders BRDFs live in WebGL2.",
+    "export": "Write an embedding's decoder as GLSL for an engine.",
     "models": "List the built-in pretrained models (the names -m takes).",
 }
 

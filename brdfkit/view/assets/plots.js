@@ -1,0 +1,141 @@
+// The page's 2D plots: the in-plane lobe of `brdfkit plot` (brdfkit.figures.brdf_plot),
+// the Delta E colour scale, and the sample files' points.
+'use strict';
+
+const INFERNO = [[0.0015, 0.0005, 0.0139], [0.1293, 0.0473, 0.2908], [0.3415, 0.0623, 0.4294],
+  [0.5409, 0.1347, 0.4151], [0.7357, 0.2159, 0.3302], [0.8943, 0.3534, 0.1936], [0.9784, 0.5579, 0.0349],
+  [0.9746, 0.7977, 0.2063], [0.9884, 0.9984, 0.6449]];
+
+function inferno(t) {
+  const x = Math.max(0, Math.min(1, t)) * 8, i = Math.min(7, Math.floor(x)), f = x - i;
+  const c = INFERNO[i].map((a, k) => a + f * (INFERNO[i + 1][k] - a));
+  return `rgb(${c.map((a) => Math.round(255 * a)).join(',')})`;
+}
+
+// Radius of a value on a log10 scale from lo to hi (decades), 0 below lo.
+function logRadius(value, lo, hi) {
+  return value > 0 ? Math.max(0, Math.min(1, (Math.log10(value) - lo) / (hi - lo))) : 0;
+}
+
+function drawLobe(canvas, lobes, thetaI, what, samples, settings) {
+  const ctx = canvas.getContext('2d'), w = canvas.width, h = canvas.height;
+  const cx = w / 2, cy = h - 22, radius = Math.min(w / 2 - 12, h - 40);
+  ctx.clearRect(0, 0, w, h);
+  let peak = 0;
+  for (const l of lobes) for (const v of l.values) if (v > peak && Number.isFinite(v)) peak = v;
+  const decades = settings.decades;
+  const hi = Math.ceil(Math.log10(peak > 0 ? peak : 1) - 1e-9), lo = hi - Math.ceil(decades);
+  ctx.strokeStyle = '#ccc';
+  ctx.fillStyle = '#666';
+  ctx.font = '10px sans-serif';
+  ctx.lineWidth = 1;
+  for (let k = 0; k <= Math.ceil(decades); k += 2) {
+    const r = radius * k / Math.ceil(decades);
+    ctx.beginPath();
+    ctx.arc(cx, cy, r, Math.PI, 2 * Math.PI);
+    ctx.stroke();
+    if (k > 0) ctx.fillText(`1e${lo + k}`, cx + r + 2, cy + 12);
+  }
+  ctx.beginPath();
+  ctx.moveTo(cx - radius, cy);
+  ctx.lineTo(cx + radius, cy);
+  ctx.moveTo(cx, cy);
+  ctx.lineTo(cx, cy - radius);
+  ctx.stroke();
+  // The light comes in from the left at -theta_i.
+  ctx.strokeStyle = '#e6a100';
+  ctx.lineWidth = 2;
+  ctx.beginPath();
+  ctx.moveTo(cx - Math.sin(thetaI) * radius, cy - Math.cos(thetaI) * radius);
+  ctx.lineTo(cx, cy);
+  ctx.stroke();
+  lobes.forEach((l, j) => {
+    ctx.strokeStyle = COLOURS[j % COLOURS.length];
+    ctx.lineWidth = 1.5;
+    ctx.setLineDash(j < COLOURS.length ? [] : [5, 3]);
+    ctx.beginPath();
+    let pen = false;
+    l.values.forEach((v, i) => {
+      const to = ((-89.5 + 0.5 * i) * Math.PI) / 180, r = radius * logRadius(v, lo, hi);
+      const x = cx + r * Math.sin(to), y = cy - r * Math.cos(to);
+      if (v > 0 && pen) ctx.lineTo(x, y); else if (v > 0) ctx.moveTo(x, y);
+      pen = v > 0;
+    });
+    ctx.stroke();
+  });
+  ctx.setLineDash([]);
+  drawLobeSamples(ctx, samples, thetaI, cx, cy, radius, lo, hi, settings);
+  ctx.fillStyle = '#222';
+  ctx.font = '11px sans-serif';
+  ctx.fillText(`theta_i ${(thetaI * 180 / Math.PI).toFixed(1)} deg (${what}); luminance, 1/sr, log10`, 6, 13);
+  lobes.forEach((l, j) => {
+    ctx.fillStyle = COLOURS[j % COLOURS.length];
+    ctx.fillText(l.label, 6, 28 + 13 * j);
+  });
+  document.getElementById('lobe-title').textContent = 'In-plane lobe (brdfkit plot)';
+}
+
+// Samples within settings.sample_tolerance degrees of the plane of incidence at theta_i:
+// points at their theta_o (float32 rows: theta_h, theta_d, luminance, theta_i, theta_o,
+// off-plane angle; degrees).
+function drawLobeSamples(ctx, samples, thetaI, cx, cy, radius, lo, hi, settings) {
+  const ti = thetaI * 180 / Math.PI, tol = settings.sample_tolerance;
+  (samples || []).forEach((s, j) => {
+    if (!s.rows) return;
+    ctx.fillStyle = COLOURS[(j + 4) % COLOURS.length];
+    const r = s.rows;
+    for (let i = 0; i < r.length; i += 6) {
+      if (Math.abs(r[i + 3] - ti) > tol || r[i + 5] > tol) continue;
+      const to = (r[i + 4] * Math.PI) / 180, rr = radius * logRadius(r[i + 2], lo, hi);
+      ctx.beginPath();
+      ctx.arc(cx + rr * Math.sin(to), cy - rr * Math.cos(to), 2.5, 0, 2 * Math.PI);
+      ctx.fill();
+    }
+  });
+}
+
+function drawScale(canvas, top) {
+  const ctx = canvas.getContext('2d'), w = canvas.width, h = canvas.height;
+  for (let x = 0; x < w; x++) {
+    ctx.fillStyle = inferno(x / (w - 1));
+    ctx.fillRect(x, 0, 1, h);
+  }
+  const label = canvas.parentElement.querySelector('span') || document.createElement('span');
+  label.textContent = `0 to ${top} (about 1: just noticeable)`;
+  canvas.parentElement.appendChild(label);
+}
+
+// A sample file: its samples at (theta_d, theta_h) on the MERL grid's axes (theta_h on its
+// square-root spacing), coloured by log10 luminance.
+async function drawSamplePanels(root, samples) {
+  for (const [j, s] of (samples || []).entries()) {
+    s.rows = asFloat32(await blobBytes(s.points));
+    const panel = document.createElement('div');
+    panel.className = 'panel';
+    const title = document.createElement('h2');
+    title.textContent = `${s.label}: ${s.count} samples (theta_d across, theta_h up; log10 luminance)`;
+    const canvas = document.createElement('canvas');
+    canvas.width = 240;
+    canvas.height = 240;
+    panel.append(title, canvas);
+    root.appendChild(panel);
+    const ctx = canvas.getContext('2d'), r = s.rows, m = 14, size = 240 - 2 * m;
+    let lo = Infinity, hi = -Infinity;
+    for (let i = 0; i < r.length; i += 6) {
+      if (r[i + 2] > 0) { lo = Math.min(lo, Math.log10(r[i + 2])); hi = Math.max(hi, Math.log10(r[i + 2])); }
+    }
+    ctx.strokeStyle = '#999';
+    ctx.strokeRect(m, m, size, size);
+    for (let i = 0; i < r.length; i += 6) {
+      const x = m + size * r[i + 1] / 90, y = m + size * (1 - Math.sqrt(r[i] / 90));
+      ctx.fillStyle = r[i + 2] > 0 ? inferno((Math.log10(r[i + 2]) - lo) / Math.max(hi - lo, 1e-6)) : '#888';
+      ctx.beginPath();
+      ctx.arc(x, y, 2.5, 0, 2 * Math.PI);
+      ctx.fill();
+    }
+    ctx.fillStyle = '#444';
+    ctx.font = '10px sans-serif';
+    ctx.fillText('theta_d 0-90', m, 240 - 2);
+    ctx.fillText('theta_h', 2, 10);
+  }
+}

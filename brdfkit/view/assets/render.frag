@@ -1,0 +1,36 @@
+// One tile of the reference scene: the unit sphere under the orthographic camera on +z
+// (brdfkit.render.scene), one sample at each pixel centre, linear radiance out (alpha 0:
+// background). Lit by the scene's environment (quadrature.glsl) or by one directional light.
+uniform float u_size;          // pixels across the tile
+uniform vec2 u_origin;         // the tile's lower left corner in the framebuffer
+uniform float u_view_half_width;
+uniform int u_light_mode;      // 0: environment, 1: directional
+uniform vec3 u_light;          // world direction towards the directional light
+uniform float u_irradiance;    // its irradiance at normal incidence
+out vec4 frag;
+
+void main() {
+  vec2 p = gl_FragCoord.xy - u_origin;
+  float x = (p.x / u_size * 2.0 - 1.0) * u_view_half_width;
+  float y = (p.y / u_size * 2.0 - 1.0) * u_view_half_width;
+  float r2 = x * x + y * y;
+  if (r2 >= 1.0) {
+    frag = vec4(0.0);
+    return;
+  }
+  vec3 n = vec3(x, y, sqrt(max(1.0 - r2, 0.0)));
+  vec3 radiance;
+  if (u_light_mode == 0) {
+    radiance = quadrature_shade(n);
+  } else {
+    float s = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (s + n.z);
+    float b = n.x * n.y * a;
+    vec3 t = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
+    vec3 bt = vec3(b, s + n.y * n.y * a, -n.y);
+    vec3 wi = vec3(dot(t, u_light), dot(bt, u_light), dot(n, u_light));
+    vec3 wo = vec3(t.z, bt.z, n.z);
+    radiance = wi.z > 0.0 ? u_irradiance * wi.z * brdf(wi, wo) : vec3(0.0);
+  }
+  frag = vec4(radiance, 1.0);
+}
