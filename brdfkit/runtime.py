@@ -34,7 +34,7 @@ import os
 from brdfkit.errors import InputError
 
 __all__ = ["resolve_device", "threads_for_load", "idle_cores", "running_others", "set_default_threads",
-           "set_torch_threads", "torch_threads"]
+           "set_torch_threads", "torch_threads", "cpu_threads", "set_cpu_threads", "thread_map"]
 
 def resolve_device(device=None, *, local_rank: int | None = None):
     """The ``torch.device`` for a device option.
@@ -174,3 +174,43 @@ def torch_threads(threads: int | None):
         yield
     finally:
         torch.set_num_threads(old)
+
+
+_CPU_THREADS: list = []
+
+
+def set_cpu_threads(threads: int | None = None) -> int:
+    """Set the threads of brdfkit's own NumPy work (the renderer's blocks of pixels,
+    :func:`thread_map`) to ``threads``, by default to the idle cores; returns the count.
+    For the command line (``--threads``) and programs using the library; imports no
+    torch."""
+    n = int(threads) if threads is not None else max(1, idle_cores() or _cpus())
+    _CPU_THREADS[:] = [max(1, n)]
+    return _CPU_THREADS[0]
+
+
+def cpu_threads() -> int:
+    """The threads of brdfkit's own NumPy work: :func:`set_cpu_threads`'s count, else
+    ``OMP_NUM_THREADS`` when set (the command line sets it by the machine's load before
+    anything runs), else the cores."""
+    if _CPU_THREADS:
+        return _CPU_THREADS[0]
+    try:
+        return max(1, int(os.environ["OMP_NUM_THREADS"]))
+    except (KeyError, ValueError):
+        return _cpus()
+
+
+def thread_map(fn, items, threads: int | None = None):
+    """``map(fn, items)`` on :func:`cpu_threads` threads (``threads`` if given), results in
+    the order of ``items``: for work that releases the GIL (NumPy on large arrays) and
+    whose results do not depend on which thread made them."""
+    n = cpu_threads() if threads is None else int(threads)
+    items = list(items)
+    if n <= 1 or len(items) <= 1:
+        yield from map(fn, items)
+        return
+    from concurrent.futures import ThreadPoolExecutor
+
+    with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
+        yield from pool.map(fn, items)

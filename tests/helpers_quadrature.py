@@ -1,6 +1,8 @@
 """A frozen copy of the quadrature renderer as it was before the per-kind rewrite
 (``brdfkit.render.quadrature._render_pixels`` at commit e046ae5): the float64 pass over
-the full (pixel x node) tensor. ``tests/test_quadrature_pinned.py`` pins the renderer to it.
+the full (pixel x node) tensor, in torch, with the torch helpers it used (frozen here
+since the renderer became NumPy). ``tests/test_quadrature_pinned.py`` pins the renderer
+to it.
 """
 
 from __future__ import annotations
@@ -9,9 +11,47 @@ import math
 
 import numpy as np
 
-from brdfkit.render.envmap import direction_to_uv
-from brdfkit.render.nodes import NodeSet, _frames, _half_share_table, _smoothstep, half_share
+from brdfkit.render.nodes import NodeSet
+from brdfkit.render.nodes import half_share_table as _half_share_table
 from brdfkit.render.scene import REFERENCE, Quadrature
+
+
+def direction_to_uv(d):
+    import torch
+
+    u = torch.atan2(d[..., 0], -d[..., 2]) / (2 * math.pi)
+    return u - torch.floor(u), torch.arccos(d[..., 1].clamp(-1.0, 1.0)) / math.pi
+
+
+def _smoothstep(x):
+    x = x.clamp(0.0, 1.0)
+    return x * x * (3.0 - 2.0 * x)
+
+
+def _frames(n):
+    """Orthonormal tangent frames (Duff et al. 2017), torch."""
+    import torch
+
+    s = torch.where(n[:, 2] >= 0, 1.0, -1.0).to(n.dtype)
+    a = -1.0 / (s + n[:, 2])
+    b = n[:, 0] * n[:, 1] * a
+    t = torch.stack([1 + s * n[:, 0] ** 2 * a, s * b, -s * n[:, 0]], -1)
+    bt = torch.stack([b, s + n[:, 1] ** 2 * a, -n[:, 1]], -1)
+    return t, bt
+
+
+def half_share(q, theta_h, wo_dot_h, cos_i):
+    """:func:`brdfkit.render.nodes.half_share` in torch."""
+    k, p = q.half_rings, q.half_power
+    th = theta_h.clamp_min(1e-12)
+    u = k * (th / (math.pi / 2)) ** (1.0 / p)
+    dth_du = (math.pi / 2) * p * u ** (p - 1) / k ** p
+    m = (q.half_phi * th.sin().sqrt()).clamp_min(q.half_phi_min)
+    d_b = m / (2 * math.pi * th.sin() * dth_du * 4 * wo_dot_h.clamp_min(1e-12))
+    d_c = q.cosine_grid ** 2 * cos_i.clamp_min(0.25) / math.pi
+    x = (th / q.half_extent).clamp(0.0, 1.0)
+    cut = 1.0 - x * x * (3.0 - 2.0 * x)
+    return cut / (1.0 + (d_c / d_b) ** q.share_power)
 
 BLOCK_PAIRS = 1 << 17
 
@@ -41,10 +81,7 @@ def render_pixels_v1(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadratur
     import torch
 
     q = q or REFERENCE.quadrature
-    devs = [getattr(b, "device", None) or torch.device("cpu") for b in brdfs]
-    if len({str(torch.device(d)) for d in devs}) != 1:
-        raise ValueError(f"BRDFs rendered together must share a device, got {sorted(map(str, devs))}")
-    dev = devs[0]
+    dev = torch.device("cpu")
     nd = _Nodes(NodeSet(q, env), dev)
     n_all = torch.as_tensor(np.asarray(normals, np.float64), dtype=torch.float64, device=dev)
     wo_w = torch.as_tensor(wo_world, dtype=torch.float64, device=dev)
@@ -114,10 +151,10 @@ def render_pixels_v1(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadratur
             radiance = torch.empty(pix.numel(), 3, dtype=torch.float64, device=dev)
             is_a = kind == 2
             radiance[is_a] = nd.light_rad[ai[is_a]]
-            radiance[~is_a] = env.radiance(wi_w[~is_a].float()).double()
+            radiance[~is_a] = torch.from_numpy(env.radiance(wi_w[~is_a].float().numpy().astype(np.float64)))
             evaluations += int(pix.numel())
             for brdf, out in zip(brdfs, outs):
-                f = brdf.eval_dirs(wi_f, wo_f).double()
+                f = torch.from_numpy(np.asarray(brdf.eval_dirs(wi_f.numpy(), wo_f.numpy()), np.float64))
                 out[s:s + p].index_add_(0, pix, radiance * f * weight[:, None])
             if progress is not None:
                 progress(min(total, s + p), total)

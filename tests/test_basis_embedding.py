@@ -17,11 +17,7 @@ from brdfkit.io.embedding import Embedding, read_embedding, write_embedding
 from brdfkit.materials import synthetic
 from brdfkit.basis import fit_basis
 from brdfkit.basis.coefficients import BasisBRDF, basis_sizes, check_coefficients, encode_coefficients
-from brdfkit.basis.refine_on_screen import (
-    _prepare,
-    refine_coefficients,
-    trilinear_corners,
-)
+from brdfkit.basis.refine_on_screen import cell_map, refine_coefficients
 
 FP = "ab" * 32
 
@@ -38,57 +34,36 @@ def basis_and_table():
     return fit_basis(train, n_components=4, names=[f"m{i}" for i in range(6)]), held
 
 
-def test_trilinear_corners_give_the_lookup():
-    rng = np.random.default_rng(0)
-    table = rng.uniform(0, 2, (90, 90, 180, 3))
-    table[rng.uniform(size=(90, 90, 180)) < 0.1] = np.nan
-    th, td, pd = rng.uniform(0, np.pi / 2, 500), rng.uniform(0, np.pi / 2, 500), rng.uniform(0, 2 * np.pi, 500)
-    measured = np.isfinite(table.reshape(N_CELLS, 3)).all(axis=1)
-    cells, w = trilinear_corners(th, td, pd, measured)
-    flat = np.nan_to_num(table.reshape(N_CELLS, 3))
-    got = (w[..., None] * flat[cells]).sum(axis=0)
-    want = np.nan_to_num(lookup_trilinear(table, th, td, pd, fill=0.0))
-    np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-12)
-
-
-@pytest.mark.slow
 def test_the_refinement_renders_what_the_renderer_renders(basis_and_table):
-    """The refinement's sparse render of coefficients is the objective scene's render of the
+    """The refinement's sparse render of coefficients (a cell map of all a screen's pairs,
+    its corners renormalised over the basis's cells) is the objective scene's render of the
     decoded table (float32 lookups in the latter)."""
-    import torch
-
     from brdfkit.render.scene_suite import scene_env
     from brdfkit.render.screen import screen
 
     basis, held = basis_and_table
     c = basis.project(held)
-    sc = screen("cpu", 12, env=scene_env("studio-1"))
-    measured = np.zeros(N_CELLS, bool)
-    measured[basis.cells] = True
-    pairs = _prepare(basis, sc, measured, torch.arange(sc.pix.shape[0]), None)
-    got = pairs.render(torch.tensor(c)).numpy()
-    want = sc.render_table(basis.decode(c)).numpy()
+    sc = screen(None, 12, env=scene_env("studio-1"))
+    m = cell_map(basis, sc, np.arange(sc.pix.shape[0]))
+    got = m.render(c)
+    want = sc.render_table(basis.decode(c))[m.pixels]
     assert np.abs(got - want).max() <= 1e-5 * np.abs(want).max()
+    assert m.cells.size < N_CELLS // 10  # only the cells the pairs reach
 
 
-def test_refinement_is_guarded_and_gives_the_same_bytes_on_any_thread_count(basis_and_table):
-    import torch
-
+def test_refinement_is_guarded_records_its_solver_and_gives_the_same_bytes(basis_and_table):
     basis, held = basis_and_table
     c0 = basis.project(held)
-    cfg = ObjectiveConfig(steps=10, lr=0.06, resolution=12, check_every=2)
-    before = torch.get_num_threads()
-    try:
-        torch.set_num_threads(2)
-        a, rec = refine_coefficients(basis, held, c0, cfg)
-        torch.set_num_threads(1)
-        b, _ = refine_coefficients(basis, held, c0, cfg)
-    finally:
-        torch.set_num_threads(before)
-    assert a.tobytes() == b.tobytes()
-    assert rec["steps"] == 10 and rec["heldout"][1] <= rec["heldout"][0]
-    if rec["best_step"] == 0:  # the projection is kept when no step helps the held-out pixels
+    cfg = ObjectiveConfig(steps=6, resolution=12)
+    a, rec = refine_coefficients(basis, held, c0, cfg)
+    b, again = refine_coefficients(basis, held, c0, cfg)
+    assert a.tobytes() == b.tobytes() and rec == again
+    assert rec["solver"] == "gauss-newton" and 1 <= rec["steps"] <= 6 and len(rec["heldout"]) == rec["steps"] + 1
+    assert rec["heldout"][rec["best_step"]] == min(rec["heldout"]) <= rec["heldout"][0]
+    if rec["best_step"] == 0:  # the projection is kept when no iteration helps the held-out pixels
         np.testing.assert_array_equal(a, c0)
+    else:
+        assert rec["heldout"][rec["best_step"]] < rec["heldout"][0] and not np.array_equal(a, c0)
     zero, _ = refine_coefficients(basis, held, c0, ObjectiveConfig(steps=0))
     np.testing.assert_array_equal(zero, c0)
 

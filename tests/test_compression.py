@@ -41,7 +41,7 @@ def test_screen_renders_what_the_quadrature_renders(tiny):
     sc = screen_mod.screen(resolution=12)
     table = material_table(1)
     img, mask = render(TableBRDF(table, device="cpu"), Scene(resolution=12))
-    np.testing.assert_allclose(sc.render_table(table).numpy(), img[mask], rtol=2e-5, atol=1e-7)
+    np.testing.assert_allclose(sc.render_table(table), img[mask], rtol=2e-5, atol=1e-7)
     brdf = NeuralBRDF.from_embedding(m, api.encode(table, m, refine=False))
     img, mask = render(brdf, Scene(resolution=12))
     np.testing.assert_allclose(sc.render_hyponet(m, brdf.weights).detach().numpy(), img[mask],
@@ -53,14 +53,16 @@ def test_screen_error_is_the_metrics_psnr_and_has_gradients(tiny):
 
     _, m = tiny
     sc = screen_mod.screen(resolution=12)
-    a = sc.render_table(material_table(1)).float()
-    b = sc.render_table(material_table(0)).float()
+    a = sc.render_table(material_table(1)).astype(np.float32)
+    b = sc.render_table(material_table(0)).astype(np.float32)
     img_a, img_b = np.zeros((sc.pixels, 1, 3)), np.zeros((sc.pixels, 1, 3))
-    img_a[:, 0], img_b[:, 0] = a.numpy(), b.numpy()
+    img_a[:, 0], img_b[:, 0] = a, b
     assert screen_mod.screen_psnr(a, b) == pytest.approx(psnr(img_a, img_b), abs=1e-4)
     assert screen_mod.screen_psnr(a, a) == 100.0
+    assert screen_mod.screen_psnr(torch.from_numpy(a), torch.from_numpy(b)) == pytest.approx(psnr(img_a, img_b),
+                                                                                             abs=1e-4)
     z = torch.zeros(1, m.cfg.latent_dim, requires_grad=True)
-    screen_mod.screen_error(sc.render_hyponet(m, m.net.hyponet_weights(z)), a).backward()
+    screen_mod.screen_error(sc.render_hyponet(m, m.net.hyponet_weights(z)), torch.from_numpy(a)).backward()
     assert z.grad is not None and torch.isfinite(z.grad).all() and z.grad.abs().sum() > 0
 
 

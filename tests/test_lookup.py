@@ -1,7 +1,8 @@
 """The trilinear lookup (:func:`brdfkit.geometry.trilinear.lookup_trilinear`) against an
-independent oracle, and the prepared table of the render's lookup
-(:class:`brdfkit.geometry.trilinear.TrilinearTable`) against the plain one, bit for bit,
-NaN semantics included (issue 14 item 1).
+independent oracle, and the prepared tables of the lookups (torch's
+:class:`brdfkit.geometry.trilinear.TrilinearTable`, the renderer's NumPy
+:class:`brdfkit.render.lookup.TableRows`) against the plain one, bit for bit, NaN
+semantics included (issue 14 item 1).
 
 The oracle (:func:`oracle_lookup`) computes the interpolation another way: the grid's
 continuous coordinates from their documented definitions (``DEVELOPERS.md``), each
@@ -193,25 +194,50 @@ def test_shapes_broadcast_like_the_plain_table():
     _same(lookup_trilinear(lut, th, 0.2, pd), reference_lookup(table, th, 0.2, pd))
 
 
-@pytest.mark.parametrize("prepare_after", [0, 1 << 40])
-def test_table_brdf_renders_through_the_prepared_table(prepare_after):
-    """The renderer's BRDF gives what the plain lookup gives at its directions, with the
-    prepared table (a render's many pairs) or without (a tiny render's few)."""
-    from brdfkit.render.renderable import TableBRDF
+def _dirs(n, seed):
+    rng = np.random.default_rng(seed)
+    wi, wo = rng.normal(size=(n, 3)), rng.normal(size=(n, 3))
+    return ((wi / np.linalg.norm(wi, axis=1, keepdims=True)).astype(np.float32),
+            (wo / np.linalg.norm(wo, axis=1, keepdims=True)).astype(np.float32))
 
-    table = _tables(5)["merl"]
-    brdf = TableBRDF(table, device="cpu")
-    brdf.PREPARE_AFTER = prepare_after
-    rng = np.random.default_rng(6)
-    wi = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
-    wo = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
-    wi, wo = wi / wi.norm(dim=1, keepdim=True), wo / wo.norm(dim=1, keepdim=True)
-    th, _, td, pd = g.half_diff_from_io(wi, wo)
-    want = reference_lookup(torch.as_tensor(table, dtype=torch.float32), th, td, pd, fill=0.0)
-    above = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-    want = torch.where(above[:, None], want, torch.zeros_like(want))
-    _same(brdf.eval_dirs(wi, wo).numpy(), want.numpy())
-    assert (brdf._lut is not None) == (prepare_after == 0)
+
+@pytest.mark.parametrize("kind", ["merl", "holes", "per_channel", "all_nan"])
+def test_render_rows_give_the_plain_lookup(kind):
+    """The renderer's prepared rows (:class:`brdfkit.render.lookup.TableRows`, NumPy) give
+    the plain float32 lookup's bits at the same grid coordinates, NaN semantics included
+    (0 where no corner is measured: the renderer's fill)."""
+    from brdfkit.render.lookup import TableRows
+
+    table = np.asarray(_tables(5)[kind], np.float32)
+    th, td, pd = (torch.as_tensor(a.astype(np.float32)) for a in _angles(20000, 6))
+    u = torch.stack(g.fractional_indices(th, td, pd)).numpy()
+    with np.errstate(invalid="ignore"):
+        want = reference_lookup(torch.as_tensor(table), th, td, pd, fill=0.0).numpy()
+    _same(TableRows(table).lookup(u).T, want)
+
+
+def test_table_brdf_and_stack_at_directions():
+    """A table BRDF at local directions is the plain lookup at their angles (to float32
+    rounding of the angles, computed another way), 0 below the horizon; a stack of tables
+    gives each table's own values, to the bit."""
+    from brdfkit.render.renderable import TableBRDF, TableStackBRDF, coords_of_dirs
+
+    ts = _tables(5)
+    wi, wo = _dirs(5000, 6)
+    th, _, td, pd = g.half_diff_from_io(wi.astype(np.float64), wo.astype(np.float64))
+    want = reference_lookup(ts["merl"], th, td, pd, fill=0.0)
+    want[(wi[:, 2] <= 0) | (wo[:, 2] <= 0)] = 0.0
+    got = TableBRDF(ts["merl"]).eval_dirs(wi, wo)
+    assert got.dtype == np.float32 and got.shape == (5000, 3)
+    np.testing.assert_allclose(got, want, rtol=2e-4, atol=1e-6)
+    alone = [TableBRDF(ts[k], name=k) for k in ("merl", "holes")]
+    stack = TableStackBRDF([TableBRDF(ts[k], name=k) for k in ("merl", "holes")])
+    assert stack.members == 2 and stack.name == "merl + holes"
+    coords, _ = coords_of_dirs(wi, wo)
+    block = type("Block", (), {"coords": coords})()
+    both = stack.eval_pairs(block)
+    _same(both[:3], alone[0].eval_pairs(block))
+    _same(both[3:], alone[1].eval_pairs(block))
 
 
 def test_neural_brdf_reference_through_the_prepared_table(tmp_path):
@@ -296,30 +322,6 @@ def test_tables_looked_up_together_are_each_alone(block):
     with pytest.raises(ValueError, match="share"):
         lookup_prepared_many([TrilinearTable(tables[0]), TrilinearTable(torch.as_tensor(tables[1]))],
                              *g.fractional_indices(th, td, pd), 0.0)
-
-
-@pytest.mark.parametrize("prepare_after", [0, 1 << 40])
-def test_table_stack_brdf_is_each_table_alone(prepare_after):
-    """:class:`TableStackBRDF`: the member tables' ``eval_dirs`` side by side, to the bit,
-    prepared or not."""
-    from brdfkit.render.renderable import TableBRDF, TableStackBRDF
-
-    ts = _tables(14)
-    alone = [TableBRDF(ts[k], name=k, device="cpu") for k in ("merl", "holes")]
-    together = [TableBRDF(ts[k], name=k, device="cpu") for k in ("merl", "holes")]
-    for b in alone + together:
-        b.PREPARE_AFTER = prepare_after
-    stack = TableStackBRDF(together)
-    assert stack.members == 2 and stack.name == "merl + holes"
-    rng = np.random.default_rng(15)
-    wi = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
-    wo = torch.as_tensor(rng.normal(size=(5000, 3)), dtype=torch.float32)
-    wi, wo = wi / wi.norm(dim=1, keepdim=True), wo / wo.norm(dim=1, keepdim=True)
-    got = stack.eval_dirs(wi, wo)
-    assert got.shape == (5000, 6) and got.T.is_contiguous()
-    _same(got[:, :3].numpy(), alone[0].eval_dirs(wi, wo).numpy())
-    _same(got[:, 3:].numpy(), alone[1].eval_dirs(wi, wo).numpy())
-    assert all((b._lut is not None) == (prepare_after == 0) for b in together)
 
 
 def test_finite_flag_sees_either_infinity_and_not_nan():

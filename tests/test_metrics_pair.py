@@ -140,16 +140,15 @@ def test_each_table_is_read_once_for_a_pair(tmp_path, monkeypatch):
 
 
 def test_two_tables_stacked_in_one_pass_equal_separate_renders(monkeypatch):
-    """Tables rendered together are looked up together (``TableStackBRDF``: angles and
-    corners once, through the prepared tables here), a neural BRDF between them apart;
-    each image is its separate render to the bit, NaN semantics included (one table
-    unmeasured outside MERL's region and in holes, where its corners are skipped or 0)."""
+    """Tables rendered together are looked up together (``TableStackBRDF``: the corners
+    once), a neural BRDF between them apart; each image is its separate render to the bit,
+    NaN semantics included (one table unmeasured outside MERL's region and in holes, where
+    its corners are skipped or 0)."""
     from brdfkit.render import renderable as brdf_mod
     from brdfkit.render.renderable import TableStackBRDF, stack_tables
 
     from helpers_foundation import measured_mask
 
-    monkeypatch.setattr(TableBRDF, "PREPARE_AFTER", 0)
     holes = np.array(material_table(1), dtype=np.float64)
     holes[~measured_mask()] = np.nan
     holes[np.random.default_rng(0).random(holes.shape[:3]) < 0.2] = np.nan
@@ -164,7 +163,7 @@ def test_two_tables_stacked_in_one_pass_equal_separate_renders(monkeypatch):
     assert [idx for _, idx in passes] == [[0, 2], [1]] and isinstance(passes[0][0], TableStackBRDF)
     made.clear()
     together = quadrature.render_many(brdfs, scene)
-    assert len(made) == 1 and all(b._lut is not None for b in made[0].brdfs)
+    assert len(made) == 1 and all(b._rows is not None for b in made[0].brdfs)
     for brdf, (img, _) in zip(brdfs, together):
         alone, _ = quadrature.render(brdf, scene)
         _same(img, alone)

@@ -1,6 +1,7 @@
 """The quadrature renderer pinned to the one it replaced (issue 14 item 1): the per-technique
-float32 passes of :mod:`brdfkit.render.pairs` against the frozen float64 renderer of
-``helpers_quadrature``, and the pairs kept from one render for the next.
+float32 passes of :mod:`brdfkit.render.pairs` (NumPy since issue 44, node-major, the
+B nodes' grid coordinates from their own frames) against the frozen float64 torch
+renderer of ``helpers_quadrature``, and the pairs kept from one render for the next.
 
 Tolerance: every pixel within 1e-4 of the old one relative to ``max(|old|, 0.01)``
 (measured: 7e-6 at the sun's reflection in the near-mirror, 6e-7 elsewhere), the same
@@ -108,49 +109,51 @@ def test_kept_pairs_give_the_same_image_and_are_bounded(monkeypatch):
 
 def test_outside_of_the_light_rectangles_and_environment_lookup():
     from brdfkit.render.envmap import reference_envmap
+    from brdfkit.render.shares import EnvLookup, outside, uv
     from helpers_quadrature import _rect_ramp
-    from brdfkit.render.pairs import _EnvLookup, _outside, _uv
 
     env = reference_envmap()
     g = torch.Generator().manual_seed(0)
     d = torch.nn.functional.normalize(torch.randn(20000, 3, dtype=torch.float64, generator=g), dim=-1)
     rects = [(u0, u1, v0, v1, ru, rv) for u0, u1, v0, v1, _, _, ru, rv in env.bright]  # NodeSet.rects
-    u, v = _uv(*d.T)
-    outside = _outside(rects, u, v)
-    np.testing.assert_allclose(outside.numpy(), 1 - _rect_ramp(rects, d).numpy(), atol=1e-12)
-    assert 0 < (outside < 1).float().mean() < 0.1
+    dn = d.numpy()
+    u, v = uv(*dn.T)
+    out = outside(rects, u, v)
+    np.testing.assert_allclose(out, 1 - _rect_ramp(rects, d).numpy(), atol=1e-12)
+    assert 0 < (out < 1).mean() < 0.1
     # A rectangle moved across u = 0 ramps the same at the moved directions.
     (u0, u1, v0, v1, ru, rv), shift = rects[1], -0.1 - rects[1][0]
-    moved = _outside([(u0 + shift, u1 + shift, v0, v1, ru, rv)], torch.remainder(u + shift, 1.0), v)
-    np.testing.assert_allclose(moved.numpy(), _outside(rects[1:], u, v).numpy(), atol=1e-9)
+    moved = outside([(u0 + shift, u1 + shift, v0, v1, ru, rv)], np.remainder(u + shift, 1.0), v)
+    np.testing.assert_allclose(moved, outside(rects[1:], u, v), atol=1e-9)
     assert (moved < 1).any()
-    # Mitsuba's bilinear lookup, to float32 rounding.
-    got = _EnvLookup(env, "cpu")(*_uv(*d.float().T)).T
-    want = env.radiance(d.float())
-    assert float(((got - want).abs() / want.abs().clamp_min(1e-3)).max()) < 1e-4
-    assert float((got - want).abs().max()) < 800 * 1e-6 * 4  # the sun's edge: a texel of 800
+    # Mitsuba's bilinear lookup (EnvMap.radiance, float64), to float32 rounding of the
+    # texture coordinates (next to the sun, a float32 u moves a lookup by 1e-5 texel of 800).
+    got = EnvLookup(env)(*uv(*dn.astype(np.float32).T)).T
+    want = env.radiance(dn.astype(np.float32).astype(np.float64))
+    assert float((np.abs(got - want) / np.maximum(np.abs(want), 1e-3)).max()) < 3e-4
+    assert float(np.abs(got - want).max()) < 800 * 1e-6 * 4  # the sun's edge: a texel of 800
 
 
 def test_share_terms_match_half_share():
     from brdfkit.render.nodes import half_share
-    from brdfkit.render.pairs import theta_terms
+    from brdfkit.render.shares import theta_terms
     from brdfkit.render.scene import REFERENCE
 
     q = REFERENCE.quadrature
-    th = torch.tensor([2.5e-5, 1e-3, 0.01, 0.3, 1.0, 1.5], dtype=torch.float64)
-    woh = torch.tensor([0.9, 0.5, 0.99, 0.7, 0.3, 0.05], dtype=torch.float64)
-    cos = torch.tensor([0.8, 0.1, 0.5, 0.9, 0.2, 0.05], dtype=torch.float64)
-    g, sx, sy = theta_terms(q, th.clone())
-    d_c = q.cosine_grid ** 2 * cos.clamp_min(0.25) / math.pi
+    th = np.array([2.5e-5, 1e-3, 0.01, 0.3, 1.0, 1.5])
+    woh = np.array([0.9, 0.5, 0.99, 0.7, 0.3, 0.05])
+    cos = np.array([0.8, 0.1, 0.5, 0.9, 0.2, 0.05])
+    g, sx, sy = theta_terms(q, th.copy())
+    d_c = q.cosine_grid ** 2 * np.clip(cos, 0.25, None) / math.pi
     np.testing.assert_allclose((1 - sx) / (1 + d_c * woh * g), half_share(q, th, woh, cos), rtol=1e-12)
     lo, hi = math.log(q.light_handover[0]), math.log(q.light_handover[1])
-    x = ((torch.log(th) - lo) / (hi - lo)).clamp(0, 1)
+    x = np.clip((np.log(th) - lo) / (hi - lo), 0, 1)
     np.testing.assert_allclose(sy, x * x * (3 - 2 * x), atol=1e-15)
 
 
 def _half_share_table_v1(q, n_o=129, n_t=300, n_p=180):
     """The per-``cos theta_o`` loop over :func:`half_share` that
-    ``nodes._half_share_table`` was until its vectorisation (frozen)."""
+    ``nodes.half_share_table`` was until its vectorisation (frozen)."""
     from brdfkit.render.nodes import half_share
 
     cos_o = np.linspace(0.0, 1.0, n_o)
@@ -180,30 +183,9 @@ def test_half_share_table_matches_the_loop(settings):
 
     q = dataclasses.replace(REFERENCE.quadrature, **settings)
     nodes._SHARE_TABLES.clear()
-    cos_o, got = nodes._half_share_table(q, n_o=33)
+    cos_o, got = nodes.half_share_table(q, n_o=33)
     want_cos, want = _half_share_table_v1(q, n_o=33)
     np.testing.assert_array_equal(cos_o, want_cos)
     assert want.min() >= 0 and want.max() > 0.1
     np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-15)
-    assert nodes._half_share_table(q, n_o=33)[1] is got  # once per process
-
-
-def test_environment_lookup_grid_layout_is_bit_identical():
-    """``_EnvLookup`` hands ``grid_sample`` a strided ``(M, 2)`` view of a ``(2, M)``
-    grid (faster to read): the same radiance, to the bit, as the interleaved grid."""
-    from brdfkit.render.envmap import reference_envmap
-    from brdfkit.render.pairs import _EnvLookup
-
-    look = _EnvLookup(reference_envmap(), "cpu")
-    g = torch.Generator().manual_seed(0)
-    u = torch.cat([torch.rand(50000, generator=g), torch.tensor([0.0, 1.0, 0.5 / look.w, 1 - 1e-7])])
-    v = torch.cat([torch.rand(50000, generator=g), torch.tensor([0.0, 1.0, 0.5, 1e-7])])
-    w = look.w
-    x = (u - 0.5 / w) * w
-    x = x - torch.floor(x / w) * w
-    grid = torch.stack([x * (2.0 / w) - 1, v * 2 - 1], -1)[None, None]
-    want = torch.nn.functional.grid_sample(look.tex, grid, mode="bilinear", padding_mode="border",
-                                           align_corners=True)[0, :, 0]
-    got = look(u, v)
-    assert got.shape == (3, u.shape[0])
-    assert torch.equal(got, want)
+    assert nodes.half_share_table(q, n_o=33)[1] is got  # once per process

@@ -13,13 +13,14 @@ from brdfkit.render.screen import Screen
 
 
 def _screen(m: int) -> Screen:
-    z = torch.zeros(m, dtype=torch.float64)
-    return Screen(pix=torch.zeros(m, dtype=torch.int64), theta_h=z, theta_d=z, phi_d=z,
-                  hd=torch.zeros(m, 6), rw=torch.ones(m, 3), pixels=1)
+    return Screen(pix=np.zeros(m, np.int64), coords=np.zeros((3, m), np.float32), rw=np.ones((m, 3), np.float32),
+                  pixels=1)
 
 
 class _Model:
-    """What :meth:`Screen.reference` asks of a model: a cache and ``reference_at_pairs``."""
+    """What :meth:`Screen.reference` asks of a model: a cache, a device and ``reference_at_pairs``."""
+
+    device = "cpu"
 
     def __init__(self):
         self.cache = types.SimpleNamespace(screen={})

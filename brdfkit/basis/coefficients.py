@@ -20,17 +20,17 @@ import numpy as np
 
 from brdfkit.errors import InputError, ModelMismatchError
 
-__all__ = ["DEFAULT_SIZE", "DEFAULT_STEPS", "BasisBRDF", "basis_sizes", "check_coefficients", "encode_coefficients"]
+__all__ = ["DEFAULT_SIZE", "DEFAULT_STEPS", "BasisBRDF", "basis_sizes", "check_coefficients", "encode_coefficients",
+           "refinement_record"]
 
 DEFAULT_SIZE = 39
 """Numbers per material of a basis embedding by default: 13 components a channel, beside
 the hypernetwork's 40-D latent."""
 
-DEFAULT_STEPS = 80
-"""Most refinement steps of a basis embedding (``brdfkit encode --steps``), chosen with
-:data:`~brdfkit.basis.refine_on_screen.DEFAULT_LR` and
-:data:`~brdfkit.basis.refine_on_screen.DEFAULT_TRUST` on 20 training materials
-(``docs/compression.md``)."""
+DEFAULT_STEPS = 8
+"""Most refinement iterations of a basis embedding (``brdfkit encode --steps``): Gauss-Newton
+iterations of :mod:`brdfkit.basis.refine_on_screen`, with
+:data:`~brdfkit.basis.refine_on_screen.DEFAULT_TRUST` (``docs/compression.md``)."""
 
 
 def basis_sizes(basis) -> range:
@@ -89,7 +89,7 @@ def encode_coefficients(basis, table, *, digest: str, size: int | None = None, s
     >>> emb.kind, emb.size, emb.refinement is None
     ('basis', 6, True)
     """
-    from brdfkit.basis.refine_on_screen import DEFAULT_LR, DEFAULT_TRUST, refine_coefficients
+    from brdfkit.basis.refine_on_screen import DEFAULT_TRUST, refine_coefficients
     from brdfkit.io.embedding import Embedding
     from brdfkit.render.objective import ObjectiveConfig
 
@@ -98,10 +98,18 @@ def encode_coefficients(basis, table, *, digest: str, size: int | None = None, s
     part = basis.leading(_components(basis, int(size)))
     c0 = part.project(table)
     steps = DEFAULT_STEPS if steps is None else int(steps)
-    c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps, lr=DEFAULT_LR), trust=DEFAULT_TRUST)
+    c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps), trust=DEFAULT_TRUST)
     measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
-    record = {k: rec[k] for k in ("steps", "best_step", "stopped")} if steps else None
+    record = refinement_record(rec) if steps else None
     return Embedding(np.asarray(c, np.float32).reshape(-1), "basis", digest, source, measured, refinement=record)
+
+
+def refinement_record(rec: dict) -> dict:
+    """What an embedding records of a refinement (:func:`brdfkit.render.objective.refine_loop`'s
+    record): the iterations, the one kept, why it stopped, the solver and the held-out
+    errors (display MSE) of the start and of each iteration."""
+    return {"steps": rec["steps"], "best_step": rec["best_step"], "stopped": rec["stopped"], "solver": rec["solver"],
+            "heldout": [float(f"{e:.6g}") for e in rec["heldout"]]}
 
 
 def check_coefficients(emb, basis, digest: str, name: str = "") -> np.ndarray:
@@ -124,13 +132,12 @@ def check_coefficients(emb, basis, digest: str, name: str = "") -> np.ndarray:
 
 
 class BasisBRDF:
-    """A basis embedding as a renderable BRDF (``eval_dirs``, ``to_table``).
+    """A basis embedding as a renderable BRDF (``eval_pairs``, ``eval_dirs``, ``to_table``).
 
-    The closed-form decode of all 1.1 million cells (about 0.2 s on one CPU thread) costs
-    less than one trilinear pass of a 128 px render (11.8 million pairs), and evaluating
-    the basis at a render's direction pairs instead would gather ``K + 2`` values at
-    each of their eight corners: so the table is decoded once, on first use, and looked
-    up as :class:`brdfkit.render.renderable.TableBRDF` looks up any table.
+    A render evaluates the decode only at the cells its pairs reach
+    (:meth:`prepare_cells`, :mod:`brdfkit.render.cells`); without them, the whole table is
+    decoded once, on first use, and looked up as
+    :class:`brdfkit.render.renderable.TableBRDF` looks up any table.
     """
 
     def __init__(self, basis, coefficients, name: str = "embedding", device=None):
@@ -138,16 +145,44 @@ class BasisBRDF:
         self.coefficients = np.asarray(coefficients, np.float32)
         self.name = name
         self.device = device
-        self._table = None
+        self._rows = None
 
     def to_table(self) -> np.ndarray:
         """float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis's cells."""
         return self.basis.leading(self.coefficients.shape[0]).decode(self.coefficients)
 
-    def eval_dirs(self, wi, wo):
-        """BRDF ``(N, 3)`` float32 at local direction pairs (as :class:`~brdfkit.render.renderable.TableBRDF`)."""
-        if self._table is None:
-            from brdfkit.render.renderable import TableBRDF
+    def at_cells(self, cells) -> tuple:
+        """``(cells, values)``: the decode at those of the flat MERL ``cells`` the basis
+        covers, float64 ``(n, 3)``."""
+        return self.basis.leading(self.coefficients.shape[0]).decode_at(self.coefficients, cells)
 
-            self._table = TableBRDF(self.to_table(), name=self.name, device=self.device)
-        return self._table.eval_dirs(wi, wo)
+    def prepare_cells(self, cells) -> None:
+        """Decode at ``cells`` only (the cells a render's pairs reach), for the lookups
+        that follow."""
+        from brdfkit.render.lookup import TableRows
+
+        at, values = self.at_cells(cells)
+        self._rows = TableRows.from_cells(at, values)
+
+    @property
+    def rows(self):
+        """The :class:`~brdfkit.render.lookup.TableRows` its lookups read (the whole table's
+        unless :meth:`prepare_cells` was called)."""
+        if self._rows is None:
+            from brdfkit.render.lookup import TableRows
+
+            self._rows = TableRows(self.to_table())
+        return self._rows
+
+    def eval_pairs(self, block):
+        """float32 ``(3, M)`` at a render's pairs (:class:`~brdfkit.render.pairs.PairBlock`)."""
+        return self.rows.lookup(block.coords)
+
+    def eval_dirs(self, wi, wo):
+        """BRDF ``(M, 3)`` float32 at local direction pairs (as :class:`~brdfkit.render.renderable.TableBRDF`)."""
+        from brdfkit.render.renderable import coords_of_dirs
+
+        coords, above = coords_of_dirs(wi, wo)
+        out = self.rows.lookup(coords)
+        out[:, ~above] = 0.0
+        return out.T

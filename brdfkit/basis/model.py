@@ -141,10 +141,19 @@ class PcaBasis:
         reference and components, to float precision)."""
         if not 1 <= k <= self.n_components:
             raise InputError(f"a basis of {self.n_components} components has no {k} leading ones")
-        if "components" not in self.__dict__ and self._rows is not None:
-            return PcaBasis(self.cells, self.reference, self.mean, self._rows(k), self.sigma[:k], self.materials,
-                            self.w_floor)
-        return dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None, _rows=None)
+        # The leading bases made are kept (a few of a few sizes): an encode asks for the
+        # same one several times, and a compact basis restores its rows for each.
+        made = self.__dict__.setdefault("_leading", {})
+        if k not in made:
+            if len(made) >= 4:
+                made.clear()
+            if "components" not in self.__dict__ and self._rows is not None:
+                made[k] = PcaBasis(self.cells, self.reference, self.mean, self._rows(k), self.sigma[:k],
+                                   self.materials, self.w_floor)
+            else:
+                made[k] = dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None,
+                                              _rows=None)
+        return made[k]
 
     def baseline(self) -> "PcaBasis":
         """The basis of the IPCA baseline: Nielsen et al.'s :data:`DEFAULT_COMPONENTS`
@@ -216,6 +225,23 @@ class PcaBasis:
         NaN off the basis cells."""
         mapped = self.mean[:, None] + self.components.T @ np.asarray(coefficients, np.float32)
         return self.decode_mapped(mapped, floor)
+
+    def decode_at(self, coefficients: np.ndarray, cells, floor: float = FLOOR) -> tuple:
+        """:meth:`decode` at some cells only: ``(at, values)``, the flat MERL ``cells``
+        the basis covers (int64, ascending) and the BRDF there, float64 ``(n, 3)``, 1/sr
+        (what a render that reaches only those cells needs)."""
+        cells = np.unique(np.asarray(cells, np.int64))
+        pos = np.searchsorted(self.cells, cells).clip(0, self.cells.size - 1)
+        hit = self.cells[pos] == cells
+        pos, at = pos[hit], cells[hit]
+        mapped = self.mean[pos, None] + self.rows_at(pos).T @ np.asarray(coefficients, np.float32)
+        ref = self.reference[pos, None].astype(np.float64)
+        return at, from_mapped(mapped, self.cell_weight(at)[:, None], ref, floor)
+
+    def rows_at(self, positions) -> np.ndarray:
+        """The components at some of the basis's cells (positions among :attr:`cells`),
+        float32 ``(K, n)``."""
+        return self.components[:, positions]
 
     def decode_mapped(self, mapped: np.ndarray, floor: float = FLOOR) -> np.ndarray:
         """Dense table from mapped values at the basis's cells ``(P, 3)`` (the mean

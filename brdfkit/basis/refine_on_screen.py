@@ -1,40 +1,50 @@
-"""A table's basis coefficients, refined on renders of objective scenes.
+"""A table's basis coefficients, refined on renders of objective scenes: a small nonlinear
+least-squares problem, solved by Gauss-Newton.
 
 :meth:`~brdfkit.basis.model.PcaBasis.project` gives the coefficients that minimise the
 squared error of the *mapped* table (``ln`` of the cosine-weighted values). Renders weigh
 that error otherwise: a few cells near the specular peak and the grazing rim make most of
 an image's light, and the display's tone curve weighs dark pixels more than bright ones.
 :func:`refine_coefficients` starts from the projection and lets the ``3 K`` coefficients
-descend the render-aligned error of the objective scenes (:mod:`brdfkit.render.objective`:
-never a scene the results are judged in), plus a trust term (:data:`DEFAULT_TRUST`) on
-how far the mapped table moves from the projection; each step renders a fixed draw of one
-scene's pairs, and the coefficients with the lowest render error on held-out pixels are
-kept, the projection's own included.
+minimise the render-aligned error of the objective scenes (:mod:`brdfkit.render.objective`:
+never a scene the results are judged in)
+
+    F(c) = 1/S sum_s mean_{p, ch} (D(I_s(c))_p,ch - D(T_s)_p,ch)^2 + trust |c - c0|^2 / 3 P
+
+over each scene's fitted pixels (``D`` the display encoding, ``I_s`` the render from the
+scene's fixed pair draw, ``T_s`` the table's own render, ``P`` the basis's cells; the
+second term is :data:`DEFAULT_TRUST`'s trust term on how far the mapped table moves), and
+keeps the coefficients with the lowest render error on held-out pixels, the projection's
+own included (:func:`brdfkit.render.objective.refine_loop`).
+
+Why Gauss-Newton: the unknowns are few (``K <= 13`` a channel), a render is linear in the
+table (``I = M rho``, ``M`` the scene's pairs as a sparse map from the cells they reach to
+the pixels), the basis is linear in the mapped space (``x' = mean + U c``), and each
+channel's image depends on that channel's coefficients alone; so each channel is a
+least-squares problem of ``K`` unknowns whose Jacobian is the product
+``D'(I) M diag(rho'(x')) U`` at the reached cells. A Levenberg-Marquardt step
+(Marquardt's scaling of the damping) solves it in a few iterations, each a handful of
+sparse products; the 80 Adam steps it replaced ran 308 renders and reached a higher
+objective (``docs/compression.md``).
 
 The decode is evaluated only at the cells whose trilinear corners the scenes' pairs
 reach, as the renderer's lookup of a decoded table would read them (the same corners,
-weights and renormalisation over measured cells, :func:`brdfkit.geometry.trilinear.lookup_trilinear`):
-no dense table is decoded during the steps.
-
-The budget is in steps, on :data:`~brdfkit.render.objective.THREADS` torch thread(s): the
-same table and basis give the same coefficients to the bit.
+weights and renormalisation over measured cells): no dense table is decoded. Everything
+is NumPy, in float64, counted in iterations: the same table and basis give the same
+coefficients to the bit (on the same BLAS thread count).
 """
 
 from __future__ import annotations
 
 import dataclasses
-import functools
 
 import numpy as np
 
-from brdfkit.basis.mapping import from_mapped
-from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H, fractional_indices
+from brdfkit.basis.mapping import EPS, FLOOR, lower_bound
+from brdfkit.geometry import N_CELLS
 
-__all__ = ["DEFAULT_LR", "DEFAULT_TRUST", "Screens", "prepare_screens", "refine_coefficients", "heldout_error",
-           "trilinear_corners"]
-
-DEFAULT_LR = 0.06
-"""Adam's learning rate, in units of each component's training standard deviation."""
+__all__ = ["DEFAULT_TRUST", "DEFAULT_ITERATIONS", "CellMap", "Screens", "cell_map", "prepare_screens",
+           "refine_coefficients", "heldout_error", "solve_channels"]
 
 DEFAULT_TRUST = 0.01
 """Weight of the trust term: the mean squared change of the mapped table over the
@@ -44,220 +54,272 @@ coefficients trade the backlit rim for the rest (``docs/compression.md``: -2.5 d
 judged ``backlight`` scene for +1.6 dB in the suite mean, 20 training materials); with
 it, they move only where renders gain much for a small change of the table."""
 
-
-def trilinear_corners(theta_h, theta_d, phi_d, measured):
-    """The eight corner cells and weights of :func:`brdfkit.geometry.trilinear.lookup_trilinear`
-    at angles (radians, ``(m,)`` NumPy), with its renormalisation over measured corners.
-
-    Parameters
-    ----------
-    theta_h, theta_d, phi_d
-        Angles, float32 or float64 ``(m,)``.
-    measured
-        bool ``(N_CELLS,)``: the cells that hold a value.
-
-    Returns
-    -------
-    cells : numpy.ndarray
-        int64 ``(8, m)`` flat MERL indices.
-    weights : numpy.ndarray
-        float64 ``(8, m)``, 0 at unmeasured corners, summing to 1 over a point's corners
-        (to 0 where none is measured: the lookup's fill of 0).
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> cells, w = trilinear_corners(np.array([0.3]), np.array([0.4]), np.array([1.0]),
-    ...                              np.ones(90 * 90 * 180, bool))
-    >>> cells.shape, round(float(w.sum()), 12)
-    ((8, 1), 1.0)
-    """
-    u_h, u_d, u_p = (np.asarray(u, np.float64) for u in fractional_indices(theta_h, theta_d, phi_d))
-    i0, j0, k0 = (np.floor(u).astype(np.int64) for u in (u_h, u_d, u_p))
-    fh, fd, fp = u_h - i0, u_d - j0, u_p - k0
-    i0, j0 = np.clip(i0, 0, N_THETA_H - 1), np.clip(j0, 0, N_THETA_D - 1)
-    i1, j1 = np.clip(i0 + 1, 0, N_THETA_H - 1), np.clip(j0 + 1, 0, N_THETA_D - 1)
-    k0 = k0 % N_PHI_D
-    k1 = (k0 + 1) % N_PHI_D
-    cells, weights = [], []
-    for ii, wh in ((i0, 1 - fh), (i1, fh)):
-        for jj, wd in ((j0, 1 - fd), (j1, fd)):
-            for kk, wp in ((k0, 1 - fp), (k1, fp)):
-                cells.append(kk + N_PHI_D * (jj + N_THETA_D * ii))
-                weights.append(wh * wd * wp)
-    cells, weights = np.stack(cells), np.stack(weights)
-    weights = np.where(measured[cells], weights, 0.0)
-    total = weights.sum(axis=0)
-    return cells, weights / np.where(total > 0, total, 1.0)
+DEFAULT_ITERATIONS = 8
+"""Most Gauss-Newton iterations of a refinement (``brdfkit encode --steps``)."""
 
 
 @dataclasses.dataclass
-class _Cells:
-    """The basis at the cells some pairs reach (torch float32): mean ``(U,)``,
-    components ``(U, K)``, the mapping's weight ``(U,)`` and reference ``(U,)``, and
-    ``extra(c) -> (U, 3)``, mapped values added to the basis's (``None``: none; a
-    residual's correction, :mod:`brdfkit.residual`)."""
+class CellMap:
+    """Some pairs of a screen as a linear map from the BRDF at the cells they reach to the
+    pixels they light, with the basis at those cells.
 
-    mean: object
-    comp: object
-    weight: object
-    reference: object
-    ids: object = None
+    Attributes
+    ----------
+    cells
+        int64 ``(U,)`` flat MERL indices of the reached cells the basis covers.
+    mean, comp, weight, reference, bound
+        The basis at those cells, float64: the mean ``(U,)``, the components ``(K, U)``,
+        the mapping's weight and reference, and the decode's lower bound
+        (:func:`brdfkit.basis.mapping.lower_bound`), ``(U,)`` each.
+    pixels
+        int64 ``(n,)`` the image pixels the map's rows are, ascending.
+    starts
+        int64 ``(n,)`` each row's first entry (the entries are sorted by row).
+    cols
+        int64 ``(E,)`` each entry's cell (position in ``cells``).
+    vals
+        float64 ``(3, E)`` each entry's corner weight times the pair's radiance, quadrature
+        weight and draw factor, per channel.
+    extra
+        ``None``, or ``extra(c) -> (U, 3)``: mapped values added to the basis's (a
+        residual's correction, :mod:`brdfkit.residual.encoding`).
+    """
+
+    cells: np.ndarray
+    mean: np.ndarray
+    comp: np.ndarray
+    weight: np.ndarray
+    reference: np.ndarray
+    bound: np.ndarray
+    pixels: np.ndarray
+    starts: np.ndarray
+    cols: np.ndarray
+    vals: np.ndarray
     extra: object = None
 
-    def rho(self, c):
-        """BRDF ``(U, 3)`` (1/sr) of coefficients ``c`` ``(K, 3)``:
-        :meth:`~brdfkit.basis.model.PcaBasis.decode` at these cells."""
-        import torch
-
-        mapped = torch.addmm(self.mean[:, None], self.comp, c.to(self.comp.dtype))
+    def mapped(self, c, ch: int, extra=None):
+        """Mapped values ``(U,)`` of channel ``ch`` of coefficients ``c`` ``(K, 3)``
+        (``extra``: :attr:`extra` of ``c`` when made already)."""
+        out = np.asarray(c, np.float64)[:, ch] @ self.comp
+        out += self.mean
         if self.extra is not None:
-            mapped = mapped + self.extra(c)
-        return from_mapped(mapped, self.weight[:, None], self.reference[:, None])
+            out += (self.extra(c) if extra is None else extra)[:, ch]
+        return out
 
+    def rho(self, mapped):
+        """``(rho, d rho / d x')`` of mapped values ``(U,)``: the decode
+        (:func:`brdfkit.basis.mapping.from_mapped`, its default floor) and its derivative
+        (0 where the floor holds)."""
+        x = np.expm1(mapped)
+        e = x + 1.0
+        x *= self.reference + EPS
+        x += self.reference
+        above = x > self.bound
+        rho = np.where(above, x, self.bound)
+        rho /= self.weight
+        e *= self.reference + EPS
+        e /= self.weight
+        e[~above] = 0.0
+        return rho, e
 
-@dataclasses.dataclass
-class _Pairs:
-    """Some of a screen's pairs as a linear map from the BRDF at the cells they reach
-    to the image: ``cells`` (:class:`_Cells`), ``matrix`` and its transpose, sparse CSR
-    ``(3 P, 3 U)`` (channel-major; each pair's corner weights times its radiance,
-    quadrature weight and draw factor, summed per pixel and cell), ``pixels`` ``P``."""
-
-    cells: object
-    matrix: object
-    transposed: object
-    pixels: int
+    def apply(self, ch: int, x):
+        """The map of channel ``ch`` applied to per-cell values ``x`` ``(U,)`` or
+        ``(K, U)``: ``(n,)`` or ``(K, n)``."""
+        prod = x[..., self.cols]
+        prod *= self.vals[ch]
+        return np.add.reduceat(prod, self.starts, axis=-1)
 
     def render(self, c):
-        """Image ``(P, 3)`` float32 of coefficients ``c`` (differentiable)."""
-        rho = self.cells.rho(c)
-        img = _sparse_product().apply(self.matrix, self.transposed, rho.T.reshape(-1, 1))
-        return img.reshape(3, self.pixels).T
+        """Image rows ``(n, 3)`` of coefficients ``c`` ``(K, 3)``."""
+        c = np.asarray(c, np.float64)
+        extra = None if self.extra is None else self.extra(c)
+        return np.stack([self.apply(ch, self.rho(self.mapped(c, ch, extra))[0]) for ch in range(3)], 1)
 
 
-def _csr_tensor(crow, col, values, shape, dtype):
-    """``torch.sparse_csr_tensor`` without its "CSR support is in beta" warning (the
-    product is all that is used)."""
-    import warnings
+def _corner_entries(screen, pairs, factor, basis_row):
+    """The corner entries of ``pairs`` (int64 indices into the screen's pairs, sorted by
+    pixel): their rows (pixels), cells, and per-channel values, unmeasured corners
+    dropped and the weights renormalised over the measured ones."""
+    from brdfkit.render.lookup import cell_of, corners
 
-    import torch
-
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", UserWarning)
-        return torch.sparse_csr_tensor(crow, col, values, shape, dtype=dtype)
-
-
-def _csr(rows, cols, vals, shape):
-    """A float32 CSR tensor of COO entries (duplicates summed), built in NumPy: torch's
-    own COO product is 25 times slower than a CSR one on a CPU, and CSR has no autograd
-    of its transpose (:func:`_sparse_product` takes both)."""
-    import torch
-
-    key = rows.astype(np.int64) * shape[1] + cols
-    uniq, inv = np.unique(key, return_inverse=True)
-    summed = np.bincount(inv.reshape(-1), weights=vals, minlength=uniq.size)
-    r, c = uniq // shape[1], uniq % shape[1]
-    crow = np.searchsorted(r, np.arange(shape[0] + 1))
-    return _csr_tensor(torch.from_numpy(crow), torch.from_numpy(c), torch.from_numpy(summed), shape, torch.float32)
+    rows, w = corners(screen.coords[:, pairs])
+    cells = cell_of(rows)
+    w = np.where(basis_row[cells] >= 0, w.astype(np.float64), 0.0)
+    total = w.sum(0)
+    w /= np.where(total > 0, total, 1.0)
+    rw = screen.rw[pairs].astype(np.float64).T * (1.0 if factor is None else factor)
+    keep = w.T.reshape(-1) > 0  # pair-major: each pair's eight corners together
+    vals = (w.T[:, :, None] * rw.T[:, None, :]).reshape(-1, 3)[keep].T
+    pix = np.repeat(screen.pix[pairs], 8)[keep]
+    return pix, cells.T.reshape(-1)[keep], vals
 
 
-def _transpose(matrix):
-    """The CSR tensor of a CSR tensor's transpose (its CSC structure, read as CSR)."""
-    csc = matrix.to_sparse_csc()
-    return _csr_tensor(csc.ccol_indices(), csc.row_indices(), csc.values(), (matrix.shape[1], matrix.shape[0]),
-                       matrix.dtype)
-
-
-@functools.lru_cache(maxsize=1)
-def _sparse_product():
-    """The autograd function ``matrix @ x`` with the gradient ``transposed @ g`` (both
-    CSR), made on first use (torch is imported only then)."""
-    import torch
-
-    class SparseProduct(torch.autograd.Function):
-        @staticmethod
-        def forward(ctx, matrix, transposed, x):
-            ctx.transposed = transposed
-            return matrix @ x
-
-        @staticmethod
-        def backward(ctx, g):
-            return None, None, ctx.transposed @ g
-
-    return SparseProduct
-
-
-def _prepare(basis, screen, measured, idx, factor) -> _Pairs:
-    """:class:`_Pairs` of a screen's pairs ``idx`` (int64 torch ``(m,)``, repeats allowed),
-    each weighted by ``factor`` (``(m,)``, or ``None``: 1)."""
-    import torch
-
-    i = idx.cpu().numpy()
-    th, td, pd = (t.float().cpu().numpy()[i] for t in (screen.theta_h, screen.theta_d, screen.phi_d))
-    corners, w = trilinear_corners(th, td, pd, measured)
-    used, pos = np.unique(corners.reshape(-1), return_inverse=True)
-    row = np.searchsorted(basis.cells, used).clip(0, len(basis.cells) - 1)
-    row = np.where(basis.cells[row] == used, row, 0)  # unmeasured corners weigh 0
-
-    weight = basis.cell_weight(used)
-    weight = np.where(weight > 0, weight, 1.0)
-    # float32 (the basis's own precision): half the time of float64 a step.
-    f32 = {"dtype": torch.float32}
-    cells = _Cells(torch.tensor(basis.mean[row], **f32), torch.tensor(basis.components[:, row].T, **f32),
-                   torch.tensor(weight, **f32), torch.tensor(basis.reference[row], **f32), used)
-    rw = screen.rw.double().cpu().numpy()[i]
-    if factor is not None:
-        rw = rw * factor.double().cpu().numpy()[:, None]
-    pix = np.broadcast_to(screen.pix.cpu().numpy()[i], w.shape).reshape(-1)
-    pos = pos.reshape(-1)
-    n, u = screen.pixels, used.size
-    rows = np.concatenate([pix + ch * n for ch in range(3)])
-    cols = np.concatenate([pos + ch * u for ch in range(3)])
-    vals = np.concatenate([(w * rw[:, ch]).reshape(-1) for ch in range(3)])
-    matrix = _csr(rows, cols, vals, (3 * n, 3 * u))
-    transposed = _transpose(matrix)
-    return _Pairs(cells, matrix, transposed, n)
+def cell_map(basis, screen, pairs, factor=None, basis_row=None) -> CellMap:
+    """The :class:`CellMap` of a screen's ``pairs`` (int64 ``(m,)``, repeats allowed),
+    each weighted by ``factor`` (``(m,)``, or ``None``: 1); ``basis_row``: each MERL
+    cell's position among the basis's cells, -1 off them."""
+    if basis_row is None:
+        basis_row = np.full(N_CELLS, -1, np.int64)
+        basis_row[basis.cells] = np.arange(basis.cells.size)
+    pairs = np.asarray(pairs, np.int64)
+    if factor is not None:  # repeats of a pair drawn several times: one pair, their factors summed
+        pairs, inv = np.unique(pairs, return_inverse=True)
+        factor = np.bincount(inv.reshape(-1), np.asarray(factor, np.float64), minlength=pairs.size)
+    order = np.argsort(screen.pix[pairs], kind="stable")
+    pairs = pairs[order]
+    factor = None if factor is None else factor[order]
+    pix, cells, vals = _corner_entries(screen, pairs, factor, basis_row)
+    present = np.zeros(N_CELLS, bool)
+    present[cells] = True
+    used = np.flatnonzero(present)
+    pos = np.zeros(N_CELLS, np.int64)
+    pos[used] = np.arange(used.size)
+    pixels, starts = np.unique(pix, return_index=True)
+    row = basis_row[used]
+    comp = basis.components[:, row].astype(np.float64)
+    weight, reference = basis.cell_weight(used), basis.reference[row].astype(np.float64)
+    return CellMap(used, basis.mean[row].astype(np.float64), comp, weight, reference,
+                   lower_bound(reference, weight, FLOOR), pixels, starts, pos[cells], vals)
 
 
 @dataclasses.dataclass
 class Screens:
-    """A table's objective views and, for one basis, the linear maps of their fitted and
+    """A table's objective views and, for one basis, the maps of their fitted and
     held-out pairs (:func:`prepare_screens`): what a refinement and a choice between
-    candidates share, made once."""
+    candidates share, made once. ``fit_targets`` and ``held_targets``: the table's render
+    at each map's pixels, ``(n, 3)`` float64."""
 
     views: list
     fits: list
     helds: list
-    targets: list
+    fit_targets: list
+    held_targets: list
 
-    def with_extra(self, extra) -> "Screens":
+    def with_extra(self, extra, fits: bool = True) -> "Screens":
         """The same maps, the basis's mapped values at each map's cells corrected by
-        ``extra(cells) -> (c -> mapped (U, 3))`` (:func:`refine_coefficients`)."""
+        ``extra(cells) -> (c -> mapped (U, 3))`` (:func:`refine_coefficients`), made once
+        for the cells of all the maps together and evaluated once a set of coefficients;
+        ``fits=False``: the held-out maps only (all a choice by :meth:`held_error` needs)."""
         if extra is None:
             return self
+        maps = (self.fits if fits else []) + self.helds
+        present = np.zeros(N_CELLS, bool)
+        for m in maps:
+            present[m.cells] = True
+        union = np.flatnonzero(present)
+        of_c = extra(union)
+        last: list = [None, None]
 
-        def attach(p):
-            return _Pairs(dataclasses.replace(p.cells, extra=extra(p.cells.ids)), p.matrix, p.transposed, p.pixels)
+        def at(c):
+            key = np.asarray(c, np.float64).tobytes()
+            if last[0] != key:
+                last[:] = [key, of_c(c)]
+            return last[1]
 
-        return Screens(self.views, [attach(p) for p in self.fits], [attach(p) for p in self.helds], self.targets)
+        def attach(m):
+            pos = np.searchsorted(union, m.cells)
+            return dataclasses.replace(m, extra=lambda c: at(c)[pos])
+
+        return dataclasses.replace(self, fits=[attach(m) for m in self.fits] if fits else self.fits,
+                                   helds=[attach(m) for m in self.helds])
+
+    def held_error(self, c) -> float:
+        """The render error on the views' held-out pixels (full pairs) of coefficients
+        ``c`` ``(K, 3)``: the mean over the scenes of the display MSE."""
+        from brdfkit.render.screen import screen_error
+
+        return float(np.mean([screen_error(m.render(c), t) for m, t in zip(self.helds, self.held_targets)]))
 
 
 def prepare_screens(basis, table, config=None) -> Screens:
-    """:class:`Screens` of ``table`` for ``basis`` (its objective views, on
-    :data:`~brdfkit.render.objective.THREADS` thread(s))."""
-    import torch
-
-    from brdfkit.render.objective import THREADS, ObjectiveConfig, objective_views
-    from brdfkit.runtime import torch_threads
+    """:class:`Screens` of ``table`` for ``basis``."""
+    from brdfkit.render.objective import ObjectiveConfig, objective_views
 
     cfg = config or ObjectiveConfig()
-    measured = np.zeros(N_CELLS, bool)
-    measured[basis.cells] = True
-    with torch_threads(THREADS):
-        views = objective_views(table, cfg, torch.device("cpu"))
-        fits = [_prepare(basis, v.screen, measured, v.idx, v.weight) for v in views]
-        helds = [_prepare(basis, v.screen, measured, v.held_pairs, None) for v in views]
-    return Screens(views, fits, helds, [v.target.float().cpu() for v in views])
+    basis_row = np.full(N_CELLS, -1, np.int64)
+    basis_row[basis.cells] = np.arange(basis.cells.size)
+    views = objective_views(table, cfg)
+    fits = [cell_map(basis, v.screen, v.idx, v.weight, basis_row) for v in views]
+    helds = [cell_map(basis, v.screen, v.held_pairs, None, basis_row) for v in views]
+    return Screens(views, fits, helds, [v.target[m.pixels] for v, m in zip(views, fits)],
+                   [v.target[m.pixels] for v, m in zip(views, helds)])
+
+
+class _Channel:
+    """One channel's least-squares problem over the fitted maps: its residuals and
+    Jacobian at coefficients ``c`` (:func:`solve_channels`)."""
+
+    def __init__(self, maps, targets, ch, c0, tau):
+        from brdfkit.render.display import display_encode
+
+        self.maps, self.ch, self.c0, self.tau = maps, ch, c0, tau
+        # 1 / (S 3 n_s): each scene's mean over its pixels and the 3 channels, averaged over scenes.
+        self.alpha = [np.sqrt(1.0 / (len(maps) * 3 * m.pixels.size)) for m in maps]
+        self.goal = [display_encode(t[:, ch]) for t in targets]
+        # A frozen correction (the only kind a fit takes): made once.
+        self.extra = [None if m.extra is None else m.extra(c0) for m in maps]
+
+    def residuals(self, c, jacobian: bool):
+        """``(r, J)``: the stacked residuals (trust term last) and, when asked, their
+        Jacobian ``(R, K)`` in this channel's coefficients; ``c`` ``(K, 3)``."""
+        from brdfkit.render.display import display_encode, display_slope
+
+        rs, js = [], []
+        for m, a, goal, extra in zip(self.maps, self.alpha, self.goal, self.extra):
+            rho, slope = m.rho(m.mapped(c, self.ch, extra))
+            img = m.apply(self.ch, rho)
+            rs.append(a * (display_encode(img) - goal))
+            if jacobian:
+                js.append((a * display_slope(img))[:, None] * m.apply(self.ch, slope * m.comp).T)
+        t = np.sqrt(self.tau)
+        rs.append(t * (c[:, self.ch] - self.c0[:, self.ch]))
+        if jacobian:
+            js.append(t * np.eye(c.shape[0]))
+        return np.concatenate(rs), (np.concatenate(js) if jacobian else None)
+
+
+def solve_channels(maps, targets, c0, start=None, trust: float = DEFAULT_TRUST, cells: int = 1):
+    """The Levenberg-Marquardt step function of :func:`refine_coefficients` over fitted
+    maps (:class:`CellMap`) and their targets: ``step(c, k) -> (c, done)``, one iteration
+    for each of the three channels (each its own problem, with its own damping).
+
+    Parameters
+    ----------
+    maps, targets
+        The fitted maps and the table's render at their pixels.
+    c0
+        ``(K, 3)`` the trust term's centre (the projection).
+    trust, cells
+        The trust term's weight and the basis's cell count ``P`` (``trust / 3 P`` a
+        squared coefficient).
+    """
+    chans = [_Channel(maps, targets, ch, np.asarray(c0, np.float64), trust / (3 * cells)) for ch in range(3)]
+    damping = [1e-3] * 3
+    done = [False] * 3
+
+    def step(c, k):
+        c = np.array(c, np.float64)
+        for ch, prob in enumerate(chans):
+            if done[ch]:
+                continue
+            r, jac = prob.residuals(c, True)
+            cost, jtj, g = r @ r, jac.T @ jac, jac.T @ r
+            scale = np.maximum(np.diag(jtj), 1e-30)
+            for _ in range(8):  # raise the damping until the step lowers the cost
+                delta = -np.linalg.solve(jtj + damping[ch] * np.diag(scale), g)
+                trial = c.copy()
+                trial[:, ch] += delta
+                rt, _ = prob.residuals(trial, False)
+                if rt @ rt < cost:
+                    done[ch] = cost - rt @ rt <= 1e-6 * cost
+                    c, damping[ch] = trial, max(damping[ch] / 3, 1e-7)
+                    break
+                damping[ch] *= 4
+            else:
+                done[ch] = True
+        return c, all(done)
+
+    return step
 
 
 def refine_coefficients(basis, table, coefficients, config=None, trust: float = DEFAULT_TRUST, extra=None,
@@ -271,100 +333,43 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
     table
         ``(90, 90, 180, 3)`` BRDF in 1/sr, NaN where unmeasured.
     coefficients
-        ``(K, 3)`` start, usually ``basis.project(table)``.
+        ``(K, 3)`` start, usually ``basis.project(table)``; also the trust term's centre.
     config
-        :class:`brdfkit.render.objective.ObjectiveConfig` (steps, scenes, pairs,
-        held-out share, seed, resolution; its ``lr`` is read in units of the components'
-        training standard deviations, :data:`DEFAULT_LR` when ``None``).
+        :class:`brdfkit.render.objective.ObjectiveConfig` (its ``steps``: the most
+        Gauss-Newton iterations; scenes, pairs, held-out share, seed, resolution).
     trust
         Weight of the trust term (:data:`DEFAULT_TRUST`; 0: the render error alone).
     extra
         ``extra(cells) -> (c -> mapped (U, 3))``: a correction added to the basis's mapped
-        values at the cells a render reaches, differentiable in the coefficients (a
-        residual's, :mod:`brdfkit.residual.encoding`); ``None``: the basis alone.
+        values at the cells a render reaches (a residual's, held at one value while the
+        coefficients move: :mod:`brdfkit.residual.encoding`); ``None``: the basis alone.
     screens
         :func:`prepare_screens` of the same table, basis and config, when made already.
 
     Returns
     -------
     coefficients : numpy.ndarray
-        float64 ``(K, 3)``, the kept ones (the start when no step lowered the held-out error).
+        float64 ``(K, 3)``, the kept ones (the start when no iteration lowered the
+        held-out error).
     record : dict
-        ``{"steps", "best_step", "stopped", "heldout": [start, kept]}``.
+        :func:`brdfkit.render.objective.refine_loop`'s: ``{"steps", "best_step",
+        "stopped", "solver", "heldout"}`` (``steps`` the iterations).
     """
-    from brdfkit.render.objective import THREADS, ObjectiveConfig
-    from brdfkit.runtime import torch_threads
+    from brdfkit.render.objective import ObjectiveConfig, refine_loop
 
-    cfg = config or ObjectiveConfig()
+    cfg = config or ObjectiveConfig(steps=DEFAULT_ITERATIONS)
     c0 = np.asarray(coefficients, np.float64)
     if cfg.steps == 0:
-        return c0, {"steps": 0, "best_step": 0, "stopped": "steps", "heldout": []}
+        return c0, {"steps": 0, "best_step": 0, "stopped": "steps", "solver": "gauss-newton", "heldout": []}
     screens = (screens or prepare_screens(basis, table, cfg)).with_extra(extra)
-    with torch_threads(THREADS):
-        return _descend(basis, c0, cfg, screens, trust)
+    step = solve_channels(screens.fits, screens.fit_targets, c0, trust=trust, cells=basis.cells.size)
+    return refine_loop(c0, step, screens.held_error, steps=cfg.steps, check_every=1, patience=cfg.patience,
+                       max_seconds=cfg.max_seconds, solver="gauss-newton")
 
 
 def heldout_error(basis, table, coefficients, config=None, extra=None, screens: Screens | None = None) -> float:
     """The render error on the objective scenes' held-out pixels of coefficients ``(K, 3)``
     (with ``extra`` and ``screens`` as :func:`refine_coefficients` takes them): what a
     refinement keeps its result by, and what an encoder may choose between candidates by."""
-    import torch
-
-    from brdfkit.render.objective import THREADS
-    from brdfkit.runtime import torch_threads
-
-    screens = (screens or prepare_screens(basis, table, config)).with_extra(extra)
-    with torch_threads(THREADS):
-        return _held_error(screens)(torch.tensor(np.asarray(coefficients, np.float64)))
-
-
-def _held_error(screens: Screens):
-    """``c -> error`` on the views' held-out pixels (full pairs)."""
-    import torch
-
-    from brdfkit.render.screen import screen_error
-
-    def held_error(c):
-        with torch.no_grad():
-            return float(np.mean([float(screen_error(h.render(c), t, v.held_pixels.cpu()))
-                                  for v, h, t in zip(screens.views, screens.helds, screens.targets)]))
-
-    return held_error
-
-
-def _descend(basis, c0, cfg, screens: Screens, trust=0.0):
-    """The Adam steps of :func:`refine_coefficients` over the screens' views (one scene a
-    step)."""
-    import torch
-
-    from brdfkit.render.objective import Adam
-    from brdfkit.render.screen import screen_error
-
-    views, fits, targets = screens.views, screens.fits, screens.targets
-    sigma = torch.tensor(basis.sigma, dtype=torch.float64)[:, None]
-    start = torch.tensor(c0)
-    held_error = _held_error(screens)
-
-    z = torch.zeros_like(start, requires_grad=True)
-    opt = Adam([z], lr=cfg.learning_rate(DEFAULT_LR))
-    best = (held_error(start), 0, start.clone())
-    first, step, stopped = best[0], 0, "steps"
-    while step < cfg.steps:
-        k = step % len(views)
-        loss = screen_error(fits[k].render(start + sigma * z), targets[k], views[k].fit_pixels.cpu())
-        if trust:
-            loss = loss + trust * ((sigma * z) ** 2).sum() / (3 * basis.cells.size)
-        opt.zero_grad(set_to_none=True)
-        loss.backward()
-        opt.step()
-        step += 1
-        if step % cfg.check_every == 0:
-            c = (start + sigma * z).detach()
-            err = held_error(c)
-            if err < best[0]:
-                best = (err, step, c.clone())
-            elif step - best[1] >= cfg.patience * cfg.check_every:
-                stopped = "converged"
-                break
-    err, best_step, cb = best
-    return cb.numpy(), {"steps": step, "best_step": best_step, "stopped": stopped, "heldout": [first, err]}
+    screens = (screens or prepare_screens(basis, table, config)).with_extra(extra, fits=False)
+    return screens.held_error(np.asarray(coefficients, np.float64))

@@ -152,9 +152,10 @@ def command(ctx, paths, ref, model_path, as_json, resolution, scenes, threads, q
         return
     from brdfkit.evaluation.comparison import FileLoader, compare_files, compare_folders, mean_scores
     from brdfkit.render.scene_suite import scene_names
-    from brdfkit.runtime import set_torch_threads
+    from brdfkit.runtime import set_cpu_threads, set_torch_threads
 
-    # Threads are set on the first render: two images are compared without torch.
+    set_cpu_threads(threads)
+    # torch's threads are set before a hypernetwork is loaded: nothing else imports torch.
     loader = FileLoader(model_path, resolution, progress=not quiet and not as_json,
                         before_torch=lambda: set_torch_threads(threads))
     names = None if scenes is None else scene_names(scenes)

@@ -12,10 +12,10 @@ from brdfkit.cli.common import model_option
 
 
 def threads_option(f):
-    """``--threads N``: torch threads for rendering (default: the idle cores, at least 1)."""
+    """``--threads N``: threads for rendering (default: the idle cores, at least 1)."""
     return click.option("--threads", type=click.IntRange(min=1, max=1024), default=None,
-                        help="Torch threads (default: cores not already busy by the load "
-                             "average, at least 1; docs/render.md).")(f)
+                        help="Threads of the render (and of torch, for a hypernetwork's embedding; default: "
+                             "cores not already busy by the load average, at least 1; docs/render.md).")(f)
 
 
 @click.command("render")
@@ -56,7 +56,8 @@ def command(brdf, model_path, output, png, mitsuba, scene, bsdf_id, spp, resolut
     from brdfkit.errors import InputError
     from brdfkit.files.brdf_file import file_type
     from brdfkit.files.render_file import render_brdf_file
-    from brdfkit.runtime import set_torch_threads
+    from brdfkit.files.brdf_file import EmbeddingDecoders
+    from brdfkit.runtime import set_cpu_threads, set_torch_threads
     from brdfkit.render.image import write_exr, write_png
 
     file_type(brdf)
@@ -78,11 +79,12 @@ def command(brdf, model_path, output, png, mitsuba, scene, bsdf_id, spp, resolut
     refuse_overwrite_of_inputs(png, inputs)
     if not output.lower().endswith(".exr"):
         raise InputError(f"{output}: the output image must be an .exr file (use --png for a PNG)")
-    set_torch_threads(threads)
+    set_cpu_threads(threads)
     t0 = time.perf_counter()
+    models = EmbeddingDecoders(model_path, before_load=lambda: set_torch_threads(threads))
     img, how = render_brdf_file(brdf, model_path, resolution=resolution, mitsuba=mitsuba, spp=spp,
                                 supersample=supersample, scene_file=scene_file, bsdf_id=bsdf_id,
-                                progress=not quiet, scene="reference" if scene_file else scene)
+                                progress=not quiet, scene="reference" if scene_file else scene, model=models)
     write_exr(output, img)
     if png is not None:
         write_png(png, img)

@@ -41,6 +41,9 @@ class EmbeddingKind:
     start
         What an embedding of the kind is before any refinement on renders, for messages
         (``"projection"``, ``"encoder pass"``; ``""``: not said).
+    torch
+        Its decoder runs in torch (the hypernetwork's): a command sizes torch's thread
+        pool before loading one, and imports no torch for the other kinds.
     """
 
     name: str
@@ -53,3 +56,4 @@ class EmbeddingKind:
     open: Callable = dataclasses.field(repr=False)
     aliases: tuple = ()
     start: str = ""
+    torch: bool = False

@@ -76,9 +76,9 @@ class FileLoader:
     progress
         Show render progress on stderr.
     before_torch
-        Called once, before the first render or model load (the first use of torch):
-        ``brdfkit metrics`` sizes torch's thread pool there, so that comparing two
-        images never imports torch.
+        Called once, before the first decoder that runs in torch is loaded (a
+        hypernetwork's): ``brdfkit metrics`` sizes torch's thread pool there, so that
+        nothing else imports torch.
     """
 
     def __init__(self, model_path=None, resolution: int | None = None, progress: bool = True,
@@ -125,7 +125,6 @@ class FileLoader:
             # A .bsdf is rendered from the file itself, as Mitsuba renders it (its table is
             # reciprocal, the file is not); .binary tables are read once per loader.
             tables = {p: self.table(p) for p in todo.values() if p.lower().endswith(".binary")}
-            self._torch_needed()
             images = files.render_brdf_files(list(todo.values()), resolution=settings.resolution,
                                              progress=self.progress, model=self._models, tables=tables, scene=scene)
             self._renders.update(zip(todo, images))

@@ -88,8 +88,9 @@ class EmbeddingDecoders:
     device
         Torch device of a hypernetwork (default: CUDA if available, else CPU).
     before_load
-        Called once, before the first decoder is loaded (the first use of torch for a
-        latent): ``brdfkit metrics`` sizes torch's thread pool there.
+        Called once, before the first decoder that runs in torch is loaded (a hypernetwork's,
+        :attr:`brdfkit.embeddings.EmbeddingKind.torch`): ``brdfkit render`` and ``metrics``
+        size torch's thread pool there, and import no torch for the other kinds.
     """
 
     def __init__(self, model_path=None, *, model=None, device=None, before_load=None):
@@ -100,14 +101,14 @@ class EmbeddingDecoders:
 
     def decoder(self, emb, name: str = ""):
         """The :class:`~brdfkit.embeddings.Decoder` of embedding ``emb`` (checked)."""
-        from brdfkit.embeddings import Decoder, decoder_for
+        from brdfkit.embeddings import Decoder, decoder_for, get_kind
 
         given = self._given
         if given is not None and not isinstance(given, Decoder):  # a loaded hypernetwork
             given = Decoder.of_network(given)
         if given is not None and given.kind == emb.kind and given.digest == emb.decoder:
             return given
-        if self._before_load is not None:
+        if self._before_load is not None and get_kind(emb.kind).torch:
             hook, self._before_load = self._before_load, None
             hook()
         return decoder_for(emb, self.model_path, self.device, name)

@@ -140,20 +140,27 @@ class NeuralBRDF:
         Parameters
         ----------
         wi, wo
-            torch ``(N, 3)`` unit vectors in the local frame (``z`` the normal), incident
-            and outgoing, both pointing away from the surface.
+            ``(N, 3)`` unit vectors in the local frame (``z`` the normal), incident and
+            outgoing, both pointing away from the surface: NumPy arrays (the renderer's,
+            :mod:`brdfkit.render.quadrature`) or torch tensors.
 
         Returns
         -------
-        torch.Tensor
-            ``(N, 3)`` float32 on ``wi``'s device, BRDF in 1/sr; 0 where either
-            direction is at or below the horizon. ``phi_d`` is folded into ``[0, pi)``
-            (reciprocity), as on the MERL grid the model was trained on.
+        numpy.ndarray or torch.Tensor
+            ``(N, 3)`` float32 (NumPy for NumPy inputs, else on ``wi``'s device), BRDF in
+            1/sr; 0 where either direction is at or below the horizon. ``phi_d`` is
+            folded into ``[0, pi)`` (reciprocity), as on the MERL grid the model was
+            trained on.
         """
         import math
 
         import torch
 
+        if isinstance(wi, np.ndarray):
+            with torch.no_grad():
+                out = self.eval_dirs(torch.from_numpy(np.ascontiguousarray(wi, np.float32)),
+                                     torch.from_numpy(np.ascontiguousarray(wo, np.float32)))
+            return out.cpu().numpy()
         dev = self.model.device
         wi_ = wi.to(device=dev, dtype=torch.float64).reshape(-1, 3)
         wo_ = wo.to(device=dev, dtype=torch.float64).reshape(-1, 3)

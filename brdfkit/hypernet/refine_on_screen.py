@@ -115,15 +115,18 @@ def compress_table(model, table, config: ObjectiveConfig | None = None, source: 
 
 
 def _refine(model, table, cfg: ObjectiveConfig, emb0: Embedding) -> CompressResult:
-    """The steps of :func:`compress_table` from the encoder's embedding ``emb0``: step
-    ``k`` descends objective scene ``k mod K``'s fitted pixels; the held-out error is
-    the mean over all ``K`` scenes."""
+    """The steps of :func:`compress_table` from the encoder's embedding ``emb0``, in the
+    one refine-with-a-held-out-check loop (:func:`brdfkit.render.objective.refine_loop`):
+    step ``k`` descends objective scene ``k mod K``'s fitted pixels (Adam; the unknown is a
+    latent of a large network, so first-order steps through torch's autograd); the
+    held-out error is the mean over all ``K`` scenes."""
     import torch
 
-    from brdfkit.render.objective import Adam
+    from brdfkit.render.objective import Adam, refine_loop
     from brdfkit.render.screen import screen_error
 
-    views = objective_views(table, cfg, model.device)
+    views = objective_views(table, cfg)
+    tv = [v.tensors(model.device) for v in views]
     net = model.net
     was = [p.requires_grad for p in net.parameters()]
     for p in net.parameters():
@@ -132,39 +135,33 @@ def _refine(model, table, cfg: ObjectiveConfig, emb0: Embedding) -> CompressResu
     def held_error(z):
         with torch.no_grad():
             w = net.hyponet_weights(z)
-            return float(np.mean([float(screen_error(v.screen.render_hyponet(model, w, v.held_pairs), v.target,
-                                                     v.held_pixels)) for v in views]))
+            return float(np.mean([float(screen_error(v.screen.render_hyponet(model, w, t["held_pairs"]), t["target"],
+                                                     t["held_pixels"])) for v, t in zip(views, tv)]))
 
     try:
         z0 = torch.from_numpy(np.asarray(emb0.values, np.float32).copy()).to(model.device)[None]
         z = z0.clone().requires_grad_(True)
         opt = Adam([z], lr=cfg.learning_rate(DEFAULT_LR))
-        best = (held_error(z0), 0, z0.clone())  # also makes the reference at the pairs
-        first, step, stopped = best[0], 0, "steps"
-        start = time.perf_counter()
-        while step < cfg.steps:
-            if cfg.max_seconds is not None and time.perf_counter() - start >= cfg.max_seconds:
-                stopped = "max_seconds"
-                break
-            v = views[step % len(views)]
-            img = v.screen.render_hyponet(model, net.hyponet_weights(z), v.idx, v.weight)
-            loss = screen_error(img, v.target, v.fit_pixels)
+
+        def step(_, k):
+            v, t = views[(k - 1) % len(views)], tv[(k - 1) % len(views)]
+            img = v.screen.render_hyponet(model, net.hyponet_weights(z), t["idx"], t["weight"])
+            loss = screen_error(img, t["target"], t["fit_pixels"])
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
-            step += 1
-            if step % cfg.check_every == 0:
-                err = held_error(z.detach())
-                if err < best[0]:
-                    best = (err, step, z.detach().clone())
-                elif step - best[1] >= cfg.patience * cfg.check_every:
-                    stopped = "converged"
-                    break
+            return z, False
+
+        start = time.perf_counter()
+        zb, rec = refine_loop(z0, step, lambda x: held_error(x.detach()), steps=cfg.steps,
+                              check_every=cfg.check_every, patience=cfg.patience, max_seconds=cfg.max_seconds,
+                              solver="adam", snapshot=lambda x: x.detach().clone())
     finally:
         for p, r in zip(net.parameters(), was):
             p.requires_grad_(r)
-    err, best_step, zb = best
-    record = {"steps": step, "best_step": best_step, "stopped": stopped}
+    record = {key: rec[key] for key in ("steps", "best_step", "stopped", "solver")}
+    record["heldout"] = [float(f"{e:.6g}") for e in rec["heldout"]]
     emb = Embedding(zb[0].cpu().numpy().astype(np.float32), "hypernet", emb0.decoder, emb0.source,
                     emb0.sample_count, refinement=record)
-    return CompressResult(emb, emb0, step, best_step, (first, err), time.perf_counter() - start, stopped)
+    return CompressResult(emb, emb0, rec["steps"], rec["best_step"], (rec["heldout"][0], min(rec["heldout"])),
+                          time.perf_counter() - start, rec["stopped"])

@@ -126,7 +126,7 @@ class TuneOptions:
         return cls(**out)
 
 
-def _material_data(model, paths, opts, screens):
+def _material_data(model, paths, opts, screens, dev):
     """Per material: the encoder's latent, and per screen the table's image and the fixed
     pair draw ``(idx, weight)`` (:func:`brdfkit.render.objective.draw_pairs`)."""
     import torch
@@ -142,11 +142,9 @@ def _material_data(model, paths, opts, screens):
         latents.append(np.asarray(encode_table(model, table).values, np.float32))
         views = []
         for k, sc in enumerate(screens):
-            with torch.no_grad():
-                at = sc.lookup(table)
-                target = sc.render_table(table, at).float()
-            idx, w = draw_pairs(sc, at, dataclasses.replace(cfg, seed=1000 * i + k),
-                                np.arange(sc.pixels), sc.hd.device)
+            at = sc.lookup(table)  # the screens are NumPy; the tuning's tensors go to its device
+            target = torch.from_numpy(sc.render_table(table, at).astype(np.float32)).to(dev)
+            idx, w = draw_pairs(sc, at, dataclasses.replace(cfg, seed=1000 * i + k), np.arange(sc.pixels), dev)
             views.append((target, idx.int(), w))
         per.append(views)
     return np.stack(latents), per
@@ -426,7 +424,7 @@ def tune(model, data, output, *, exclude=(), steps: int | None = None, minutes: 
     torch.manual_seed(seed)
     screens = [screen(dev, opts.resolution, scene_env(s)) for s in opts.scenes]
     say(f"reading {len(paths)} materials")
-    z0, views = _material_data(m, paths, opts, screens)
+    z0, views = _material_data(m, paths, opts, screens, dev)
     tset = TrainingSet.load(paths, names, reference=m.rho_ref)
     run = _start(m.net, z0, opts, dev, identity=_identity(m.digest, names, opts, seed), names=names,
                  digest=tset.digest, seed=seed, t0=t0)

@@ -71,8 +71,11 @@ class Embedding:
         interpolation).
     refinement
         How the values were refined on renders after their closed-form or encoder start,
-        or ``None`` (not refined): ``{"steps": int, "best_step": int, "stopped": str}``;
-        ``--steps`` of the record replays it.
+        or ``None`` (not refined): ``{"steps": int, "best_step": int, "stopped": str}``
+        (the solver's iterations or steps, the one kept, why it stopped), and, in files
+        written since the refinement became one loop for every kind, ``"solver"``
+        (``"gauss-newton"``, ``"adam"``) and ``"heldout"``, the held-out render errors of
+        the start and of each check (display MSE); ``--steps`` of the record replays it.
     parts
         ``{part: digest}`` of every part that decodes it, when more than the decoder
         (a residual's basis), else ``None``.
@@ -247,7 +250,18 @@ def _refinement(path, doc) -> dict | None:
           and isinstance(rec.get("stopped"), str) and 0 <= rec["best_step"] <= rec["steps"])
     if not ok:
         raise FormatError(path, "'refinement' must be {\"steps\": int, \"best_step\": int <= steps, \"stopped\": str}")
-    return {"steps": rec["steps"], "best_step": rec["best_step"], "stopped": rec["stopped"]}
+    out = {"steps": rec["steps"], "best_step": rec["best_step"], "stopped": rec["stopped"]}
+    if "solver" in rec:
+        if not isinstance(rec["solver"], str):
+            raise FormatError(path, "'refinement' 'solver' must be a name")
+        out["solver"] = rec["solver"]
+    if "heldout" in rec:
+        held = rec["heldout"]
+        if not (isinstance(held, list) and all(isinstance(e, (int, float)) and not isinstance(e, bool)
+                                               and math.isfinite(e) and e >= 0 for e in held)):
+            raise FormatError(path, "'refinement' 'heldout' must be a list of finite errors >= 0")
+        out["heldout"] = [float(e) for e in held]
+    return out
 
 
 def _parts(path, doc) -> dict | None:

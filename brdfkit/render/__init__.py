@@ -10,22 +10,26 @@ Modules, one concept each:
   BRDF is :class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`);
 * :mod:`.measured`: an RGL ``.bsdf`` file evaluated straight from the file, conditioned
   on the view as Mitsuba 3's ``measured`` BSDF is;
-* :mod:`.nodes`, :mod:`.pairs`: the quadrature's node sets and its (pixel, node) pairs;
-* :mod:`.quadrature`: the noise-free reference renderer (torch, no path tracing);
-* :mod:`.screen`: the render-aligned error, a small render of a table or, differentiably,
-  of a hyponet;
+* :mod:`.nodes`, :mod:`.shares`, :mod:`.pairs`: the quadrature's node sets, the share
+  terms and environment radiance a pair's weight is made of, and its (pixel, node) pairs
+  with their MERL grid coordinates;
+* :mod:`.lookup`: a table prepared for a render's trilinear lookups;
+* :mod:`.quadrature`: the noise-free reference renderer (NumPy, no path tracing);
+* :mod:`.screen`: the render-aligned error, a small render of a table or, differentiably
+  in torch, of a hyponet;
 * :mod:`.display`: the display encoding every image metric, PNG and error uses;
 * :mod:`.image`: EXR and PNG files;
 * :mod:`.scene_suite`, :mod:`.objective`: the judged scenes, and what a refinement on
-  renders may descend;
+  renders may descend (and the one loop every refinement runs);
 * :mod:`.mitsuba3`: the ``brdfkit`` BSDF for Mitsuba 3 and path-traced renders.
 
 May import: the ground floor, :mod:`brdfkit.geometry` and :mod:`brdfkit.io`; a renderer
-evaluates any object with ``eval_dirs``, and a hyponet through its model's own methods,
-so nothing here imports the hypernetwork, the basis or any layer above. BRDF *files* are
-rendered by :mod:`brdfkit.files.render_file`, which registers the file loader the Mitsuba
-plugin opens a scene's files with. Nothing here is imported by ``import brdfkit``; torch
-and Mitsuba load only when used.
+evaluates any object with ``eval_pairs`` or ``eval_dirs``, and a hyponet through its
+model's own methods, so nothing here imports the hypernetwork, the basis or any layer
+above. BRDF *files* are rendered by :mod:`brdfkit.files.render_file`, which registers the
+file loader the Mitsuba plugin opens a scene's files with. Nothing here is imported by
+``import brdfkit``; a render imports no torch (only a hyponet's render on a screen, and
+Mitsuba's, load it).
 """
 
 from __future__ import annotations
@@ -41,8 +45,8 @@ def render(brdf, scene=None, env=None, progress=None):
     Parameters
     ----------
     brdf
-        Object with ``eval_dirs`` (:class:`~brdfkit.render.renderable.TableBRDF`,
-        :class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF`).
+        A renderable BRDF (:class:`~brdfkit.render.renderable.TableBRDF`,
+        :class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF`, ...).
     scene, env, progress
         As for :func:`brdfkit.render.quadrature.render` (default: the reference scene).
 

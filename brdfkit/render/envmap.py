@@ -57,12 +57,15 @@ def uv_to_direction(u, v):
 
 
 def direction_to_uv(d):
-    """Texture coordinates ``(u, v)`` in ``[0, 1)`` x ``[0, 1]`` of unit directions (NumPy
-    or torch, shape ``(..., 3)``)."""
-    if type(d).__module__.startswith("torch"):
-        import torch
-        u = torch.atan2(d[..., 0], -d[..., 2]) / (2 * math.pi)
-        return u - torch.floor(u), torch.arccos(d[..., 1].clamp(-1.0, 1.0)) / math.pi
+    """Texture coordinates ``(u, v)`` in ``[0, 1)`` x ``[0, 1]`` of unit directions (shape
+    ``(..., 3)``; float64).
+
+    Examples
+    --------
+    >>> u, v = direction_to_uv(np.array([0.0, 1.0, 0.0]))
+    >>> float(v)
+    0.0
+    """
     d = np.asarray(d, np.float64)
     u = np.arctan2(d[..., 0], -d[..., 2]) / (2 * np.pi)
     return u - np.floor(u), np.arccos(np.clip(d[..., 1], -1.0, 1.0)) / np.pi
@@ -96,36 +99,22 @@ class EnvMap:
         return hashlib.sha256(np.ascontiguousarray(self.image).tobytes()).hexdigest()[:16]
 
     def radiance(self, d):
-        """Radiance arriving from world directions ``d`` (torch ``(N, 3)`` unit vectors),
-        bilinear exactly as Mitsuba 3's ``envmap`` looks it up; returns ``(N, 3)`` of
-        ``d``'s dtype."""
-        import torch
-
+        """Radiance arriving from world directions ``d`` (``(N, 3)`` unit vectors),
+        bilinear exactly as Mitsuba 3's ``envmap`` looks it up; float64 ``(N, 3)``."""
         h, w = self.shape
-        tex = self._torch_texture(d.device)
         u, v = direction_to_uv(d)
         x = (u - 0.5 / w) * w  # column j at u = (j + 0.5) / W
-        x = x - torch.floor(x / w) * w
+        x = x - np.floor(x / w) * w
         y = v * (h - 1)
-        x0 = torch.floor(x).clamp(0, w - 1)
-        y0 = torch.floor(y).clamp(0, h - 2)
+        x0 = np.clip(np.floor(x), 0, w - 1)
+        y0 = np.clip(np.floor(y), 0, h - 2)
         fx, fy = (x - x0)[:, None], (y - y0)[:, None]
-        x0, y0 = x0.long(), y0.long()
+        x0, y0 = x0.astype(np.intp), y0.astype(np.intp)
         x1 = (x0 + 1) % w
-        flat = tex.reshape(-1, 3)
+        flat = np.asarray(self.image, np.float64).reshape(-1, 3)
         v00, v01 = flat[y0 * w + x0], flat[y0 * w + x1]
         v10, v11 = flat[(y0 + 1) * w + x0], flat[(y0 + 1) * w + x1]
-        out = (1 - fy) * ((1 - fx) * v00 + fx * v01) + fy * ((1 - fx) * v10 + fx * v11)
-        return out.to(d.dtype)
-
-    def _torch_texture(self, device):
-        import torch
-
-        cache = self.__dict__.setdefault("_tex", {})
-        key = str(device)
-        if key not in cache:
-            cache[key] = torch.as_tensor(self.image, dtype=torch.float32, device=device).contiguous()
-        return cache[key]
+        return (1 - fy) * ((1 - fx) * v00 + fx * v01) + fy * ((1 - fx) * v10 + fx * v11)
 
     def exr_path(self, folder: str | os.PathLike | None = None) -> str:
         """This map as an OpenEXR file for Mitsuba, written once (atomically) into a cache

@@ -15,7 +15,7 @@ convention of every brdfkit renderer) is :meth:`brdfkit.io.rgl_bsdf.RglBsdf.eval
 values of the file (RGL's RGB files hold them where a measured spectrum lies outside
 the sRGB gamut) pass through, as in Mitsuba.
 
-May import: the ground floor, :mod:`brdfkit.io`; numpy; torch inside the methods.
+May import: the ground floor, :mod:`brdfkit.io`; numpy.
 """
 
 from __future__ import annotations
@@ -44,22 +44,17 @@ class MeasuredBRDF:
     """
 
     def __init__(self, bsdf, name: str = "measured"):
-        import torch
-
         self.bsdf = bsdf
         self.name = name
-        self.device = torch.device("cpu")
+        self.device = "cpu"
 
     def eval_dirs(self, wi, wo):
-        """BRDF ``(N, 3)`` float32 at local direction pairs (torch ``(N, 3)``): ``wi``
+        """BRDF ``(N, 3)`` float32 at local direction pairs (NumPy ``(N, 3)``): ``wi``
         toward the light, ``wo`` toward the camera (Mitsuba's ``si.wi``); 0 where either
         is at or below the horizon, or where the file's warp has an empty row."""
-        import torch
-
-        light = wi.detach().to("cpu", torch.float64).reshape(-1, 3).numpy()
-        view = wo.detach().to("cpu", torch.float64).reshape(-1, 3).numpy()
+        light = np.asarray(wi, np.float64).reshape(-1, 3)
+        view = np.asarray(wo, np.float64).reshape(-1, 3)
         with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
             f = self.bsdf.eval(view, light) / light[:, 2:3]
         keep = (light[:, 2:3] > 0) & (view[:, 2:3] > 0) & np.isfinite(f)
-        out = np.where(keep, f, 0.0).astype(np.float32)
-        return torch.from_numpy(out).to(wi.device)
+        return np.where(keep, f, 0.0).astype(np.float32)

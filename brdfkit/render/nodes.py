@@ -11,7 +11,7 @@ import numpy as np
 
 from brdfkit.render.scene import Quadrature
 
-__all__ = ["NodeSet", "half_share"]
+__all__ = ["NodeSet", "half_share", "frames", "half_share_table"]
 
 # Sub-grid per light patch for its averaged radiance.
 _PATCH_SUBGRID = 8
@@ -25,11 +25,6 @@ def _concentric(a, b):
     phi = np.where(big, (np.pi / 4) * y / np.where(x == 0, 1, x),
                    np.pi / 2 - (np.pi / 4) * x / np.where(y == 0, 1, y))
     return r * np.cos(phi), r * np.sin(phi)
-
-
-def _smoothstep(x):
-    x = x.clamp(0.0, 1.0)
-    return x * x * (3.0 - 2.0 * x)
 
 
 class NodeSet:
@@ -87,7 +82,7 @@ class NodeSet:
             sv = vc[:, None, None] + off[None, None, :] * dv
             su, sv = np.broadcast_arrays(su, sv)
             dw = 2 * np.pi ** 2 * np.sin(np.pi * sv) * du * dv / (s * s)
-            rad = _env_radiance_np(env, uv_to_direction(su.ravel(), sv.ravel())).reshape(len(uc), s * s, 3)
+            rad = env.radiance(uv_to_direction(su.ravel(), sv.ravel())).reshape(len(uc), s * s, 3)
             w = dw.reshape(len(uc), s * s)
             weights.append(w.sum(1))
             rads.append((rad * w[..., None]).sum(1) / w.sum(1)[:, None])
@@ -103,15 +98,9 @@ class NodeSet:
         return len(self.cosine) + len(self.half) + len(self.light)
 
 
-def _env_radiance_np(env, d):
-    import torch
-
-    return env.radiance(torch.as_tensor(d, dtype=torch.float64)).double().numpy()
-
-
 def half_share(q: Quadrature, theta_h, wo_dot_h, cos_i):
     """``s_B0``: the half-vector nodes' share before the light rectangles, a function of
-    the pair's geometry only (NumPy or torch arrays).
+    the pair's geometry only (NumPy arrays, broadcastable).
 
     A balance between the half-vector nodes' density ``d_B`` (per steradian of ``wi``,
     with the ring count taken as a continuous function of ``theta_h``) and the cosine
@@ -119,27 +108,25 @@ def half_share(q: Quadrature, theta_h, wo_dot_h, cos_i):
     smooth cut to 0 at ``theta_h = half_extent``:
     ``s_B0 = cut / (1 + (d_C / d_B)^k)``.
     """
-    xp = np if isinstance(theta_h, np.ndarray) else __import__("torch")
     k, p = q.half_rings, q.half_power
-    th = xp.clip(theta_h, 1e-12, None) if xp is np else theta_h.clamp_min(1e-12)
+    th = np.clip(theta_h, 1e-12, None)
     u = k * (th / (math.pi / 2)) ** (1.0 / p)
     dth_du = (math.pi / 2) * p * u ** (p - 1) / k ** p
-    m = xp.maximum(q.half_phi * xp.sqrt(xp.sin(th)), q.half_phi_min + 0 * th)
-    d_b = m / (2 * math.pi * xp.sin(th) * dth_du * 4 * (xp.clip(wo_dot_h, 1e-12, None) if xp is np
-                                                        else wo_dot_h.clamp_min(1e-12)))
-    d_c = q.cosine_grid ** 2 * (xp.clip(cos_i, 0.25, None) if xp is np else cos_i.clamp_min(0.25)) / math.pi
-    x = xp.clip(th / q.half_extent, 0.0, 1.0) if xp is np else (th / q.half_extent).clamp(0.0, 1.0)
+    m = np.maximum(q.half_phi * np.sqrt(np.sin(th)), q.half_phi_min)
+    d_b = m / (2 * math.pi * np.sin(th) * dth_du * 4 * np.clip(wo_dot_h, 1e-12, None))
+    d_c = q.cosine_grid ** 2 * np.clip(cos_i, 0.25, None) / math.pi
+    x = np.clip(th / q.half_extent, 0.0, 1.0)
     cut = 1.0 - x * x * (3.0 - 2.0 * x)
     return cut / (1.0 + (d_c / d_b) ** q.share_power)
 
 
 _SHARE_TABLES: dict = {}
-# cos(theta_o) values per step of _half_share_table: (2, 300, 180) float64 temporaries,
+# cos(theta_o) values per step of half_share_table: (2, 300, 180) float64 temporaries,
 # 0.9 MB each (larger steps measured slower: the temporaries leave the cache).
 _SHARE_CHUNK = 2
 
 
-def _half_share_table(q: Quadrature, n_o: int = 129, n_t: int = 300, n_p: int = 180):
+def half_share_table(q: Quadrature, n_o: int = 129, n_t: int = 300, n_p: int = 180):
     """``I_B(cos theta_o) = integral of s_B0(wi, wo) cos(theta_i) / pi dwi`` (:func:`half_share`) over the upper
     hemisphere at ``n_o`` values of ``cos theta_o`` (error about 1e-5), by a fine midpoint
     rule in half-vector space (``dwi = 4 wo.h dh``; ``wo`` in the ``xz`` plane, so
@@ -195,13 +182,13 @@ def _half_share_table(q: Quadrature, n_o: int = 129, n_t: int = 300, n_p: int = 
     return _SHARE_TABLES[key]
 
 
-def _frames(n):
-    """Orthonormal tangent frames (Duff et al. 2017), continuous for ``n_z > -1``."""
-    import torch
-
-    s = torch.where(n[:, 2] >= 0, 1.0, -1.0).to(n.dtype)
+def frames(n):
+    """Orthonormal tangent frames ``(t, b)`` of unit normals ``n`` ``(P, 3)`` (Duff et al.
+    2017), continuous for ``n_z > -1``; float64 ``(P, 3)`` each."""
+    n = np.asarray(n, np.float64)
+    s = np.where(n[:, 2] >= 0, 1.0, -1.0)
     a = -1.0 / (s + n[:, 2])
     b = n[:, 0] * n[:, 1] * a
-    t = torch.stack([1 + s * n[:, 0] ** 2 * a, s * b, -s * n[:, 0]], -1)
-    bt = torch.stack([b, s + n[:, 1] ** 2 * a, -n[:, 1]], -1)
+    t = np.stack([1 + s * n[:, 0] ** 2 * a, s * b, -s * n[:, 0]], -1)
+    bt = np.stack([b, s + n[:, 1] ** 2 * a, -n[:, 1]], -1)
     return t, bt

@@ -32,7 +32,8 @@ import numpy as np
 
 from brdfkit.errors import InputError, require_counts
 
-__all__ = ["OBJECTIVE", "THREADS", "ObjectiveConfig", "ObjectiveView", "draw_pairs", "objective_views", "Adam"]
+__all__ = ["OBJECTIVE", "THREADS", "ObjectiveConfig", "ObjectiveView", "draw_pairs", "objective_views", "refine_loop",
+           "Adam"]
 
 OBJECTIVE = ("studio-0", "studio-1", "studio-2", "studio-3")
 """The scenes a refinement descends: four of the suite's objective scenes, none of them
@@ -115,7 +116,7 @@ class ObjectiveConfig:
         return default if self.lr is None else float(self.lr)
 
 
-def draw_pairs(screen, target, cfg, fit_pixels, device):
+def draw_pairs(screen, target, cfg, fit_pixels, device=None):
     """A fixed draw of a screen's pairs, for renders that estimate the full one.
 
     In each of ``fit_pixels``, ``K = cfg.pairs_per_pixel`` of the pixel's ``n`` pairs
@@ -124,7 +125,8 @@ def draw_pairs(screen, target, cfg, fit_pixels, device):
     integrand at the pair, ``target * screen.rw`` summed over the channels; uniform when
     the pixel's integrand is zero) and weighted ``1 / (K p_k)``, so that a render from
     these pairs is an unbiased estimate of the full render, exact for the table itself.
-    Pixels without pairs are skipped.
+    Pixels without pairs are skipped. The draw is ``rng.choice``'s (inverse CDF of one
+    uniform number a pair, the pixels in order), made for all pixels at once.
 
     Parameters
     ----------
@@ -132,52 +134,60 @@ def draw_pairs(screen, target, cfg, fit_pixels, device):
         :class:`brdfkit.render.screen.Screen` with ``M`` pairs and ``P`` pixels.
     target
         The table at the pairs (:meth:`brdfkit.render.screen.Screen.lookup`), float64
-        torch ``(M, 3)``, 1/sr.
+        ``(M, 3)``, 1/sr.
     cfg
         :class:`ObjectiveConfig`: ``seed`` (of a NumPy generator), ``pairs_per_pixel``
         and ``uniform_share``.
     fit_pixels
         Integer array of the pixels to draw in, each in ``[0, P)``, in the draw's order.
     device
-        Torch device of the results.
+        ``None``: NumPy results; else a torch device to put them on (the hypernetwork's
+        tuning).
 
     Returns
     -------
-    idx : torch.Tensor
+    idx
         int64 ``(K * F,)`` pair indices in ``[0, M)``, ``K`` per pixel with pairs, pixel
         after pixel (``F`` such pixels).
-    weight : torch.Tensor
+    weight
         float32 ``(K * F,)`` the pairs' ``1 / (K p_k)``.
     """
-    import torch
-
     rng = np.random.default_rng(cfg.seed)
-    pix = screen.pix.cpu().numpy()
-    c = (target * screen.rw.double()).sum(1).clamp_min(0).cpu().numpy()
+    pix = np.asarray(screen.pix)
+    c = np.clip((np.asarray(target, np.float64) * np.asarray(screen.rw, np.float64)).sum(1), 0, None)
     order = np.argsort(pix, kind="stable")
     starts = np.searchsorted(pix[order], np.arange(screen.pixels + 1))
+    fit = np.asarray(fit_pixels, np.int64)
+    fit = fit[starts[fit + 1] > starts[fit]]
+    n = starts[fit + 1] - starts[fit]
+    members = order[np.concatenate([np.arange(starts[p], starts[p + 1]) for p in fit])] if fit.size else order[:0]
+    seg = np.repeat(np.arange(fit.size), n)
+    cm = c[members]
+    tot = np.bincount(seg, cm, minlength=fit.size)
+    uniform = 1.0 / n[seg]
+    prob = np.where(tot[seg] > 0, (1 - cfg.uniform_share) * cm / np.where(tot > 0, tot, 1.0)[seg]
+                    + cfg.uniform_share * uniform, uniform)
+    cdf = np.cumsum(prob)
+    first = np.concatenate([[0], np.cumsum(n)[:-1]])
+    base = np.concatenate([[0.0], cdf])[first]  # the cumulated probability before each pixel
+    cdf -= base[seg]
+    cdf /= cdf[first + n - 1][seg]  # each pixel's CDF ends at 1, as rng.choice makes it
+    cdf += seg
     k = cfg.pairs_per_pixel
-    idx, wts = [], []
-    for p in fit_pixels:
-        members = order[starts[p]:starts[p + 1]]
-        if members.size == 0:
-            continue
-        cm = c[members]
-        tot = cm.sum()
-        prob = np.full(members.size, 1.0 / members.size)
-        if tot > 0:
-            prob = (1 - cfg.uniform_share) * cm / tot + cfg.uniform_share * prob
-        pick = rng.choice(members.size, size=k, p=prob)
-        idx.append(members[pick])
-        wts.append(1.0 / (k * prob[pick]))
-    idx = torch.from_numpy(np.concatenate(idx)).to(device)
-    w = torch.from_numpy(np.concatenate(wts).astype(np.float32)).to(device)
-    return idx, w
+    u = rng.random((fit.size, k)) + np.arange(fit.size)[:, None]
+    lo = np.repeat(first, k)
+    pick = np.clip(np.searchsorted(cdf, u.reshape(-1), side="right"), lo, lo + np.repeat(n, k) - 1)
+    idx, wts = members[pick], 1.0 / (k * prob[pick])
+    if device is None:
+        return idx, wts.astype(np.float32)
+    import torch
+
+    return torch.from_numpy(idx).to(device), torch.from_numpy(wts.astype(np.float32)).to(device)
 
 
 @dataclasses.dataclass
 class ObjectiveView:
-    """One objective scene's small render of the table.
+    """One objective scene's small render of the table (NumPy).
 
     Attributes
     ----------
@@ -186,23 +196,36 @@ class ObjectiveView:
     idx, weight
         The fitted pixels' pair draw (:func:`draw_pairs`).
     fit_pixels, held_pixels
-        int64 torch pixel indices fitted and held out.
+        int64 pixel indices fitted and held out.
     held_pairs
-        int64 torch indices of the held-out pixels' pairs (all of them).
+        int64 indices of the held-out pixels' pairs (all of them).
     target
-        float32 torch ``(P, 3)``, the table's render.
+        float64 ``(P, 3)``, the table's render.
+    at_pairs
+        float64 ``(M, 3)``, the table at the screen's pairs.
     """
 
     screen: object
-    idx: object
-    weight: object
-    fit_pixels: object
-    held_pixels: object
-    held_pairs: object
-    target: object
+    idx: np.ndarray
+    weight: np.ndarray
+    fit_pixels: np.ndarray
+    held_pixels: np.ndarray
+    held_pairs: np.ndarray
+    target: np.ndarray
+    at_pairs: np.ndarray | None = None
+
+    def tensors(self, device=None) -> dict:
+        """Its arrays as torch tensors on ``device`` (a hyponet's refinement): ``idx``,
+        ``weight``, ``fit_pixels``, ``held_pixels``, ``held_pairs``, ``target`` (float32)."""
+        import torch
+
+        to = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(device or "cpu")  # noqa: E731
+        return {"idx": to(self.idx), "weight": to(self.weight), "fit_pixels": to(self.fit_pixels),
+                "held_pixels": to(self.held_pixels), "held_pairs": to(self.held_pairs),
+                "target": to(self.target.astype(np.float32))}
 
 
-def objective_views(table, cfg: ObjectiveConfig, device) -> list[ObjectiveView]:
+def objective_views(table, cfg: ObjectiveConfig, device=None) -> list[ObjectiveView]:
     """The :class:`ObjectiveView` of every scene of ``cfg.scenes``, each with its own
     held-out pixels and pair draw (seeded by ``cfg.seed``).
 
@@ -213,28 +236,99 @@ def objective_views(table, cfg: ObjectiveConfig, device) -> list[ObjectiveView]:
     cfg
         :class:`ObjectiveConfig`.
     device
-        Torch device of the screens.
+        Ignored (NumPy); kept for callers that pass one.
     """
-    import torch
-
+    from brdfkit.render.lookup import TableRows
     from brdfkit.render.scene_suite import scene_env
     from brdfkit.render.screen import screen
 
     rng = np.random.default_rng(cfg.seed)
+    rows = TableRows(table)
     views = []
     for name in cfg.scenes:
-        sc = screen(device, cfg.resolution, env=scene_env(name))
-        with torch.no_grad():
-            at_pairs = sc.lookup(table)
-            target = sc.render_table(table, at_pairs)
+        sc = screen(None, cfg.resolution, env=scene_env(name))
+        at_pairs = sc.lookup(rows)
+        target = sc.render_table(rows, at_pairs)
         perm = rng.permutation(sc.pixels)
         n_held = max(1, int(round(cfg.holdout * sc.pixels)))
-        held = torch.from_numpy(np.sort(perm[:n_held])).to(device)
+        held = np.sort(perm[:n_held])
         fit = np.sort(perm[n_held:])
-        idx, wts = draw_pairs(sc, at_pairs, cfg, fit, device)
-        views.append(ObjectiveView(sc, idx, wts, torch.from_numpy(fit).to(device), held,
-                                   torch.isin(sc.pix, held).nonzero().squeeze(1), target.float()))
+        idx, wts = draw_pairs(sc, at_pairs, cfg, fit)
+        held_pairs = np.flatnonzero(np.isin(sc.pix, held))
+        views.append(ObjectiveView(sc, idx, wts, fit, held, held_pairs, target, at_pairs))
     return views
+
+
+def refine_loop(start, step, held_error, *, steps: int, check_every: int = 1, patience: int = 2,
+                max_seconds: float | None = None, solver: str = "", snapshot=None):
+    """The refine-with-a-held-out-check loop that every refinement on renders runs: the
+    basis's and the residual's Gauss-Newton iterations
+    (:mod:`brdfkit.basis.refine_on_screen`), the hypernetwork latent's Adam steps
+    (:mod:`brdfkit.hypernet.refine_on_screen`).
+
+    Every ``check_every`` steps the held-out error of the iterate is measured, and the
+    iterate with the lowest is kept, the start's own included: a refinement is never
+    worse than its start on the held-out pixels. It stops after ``steps`` steps, when
+    ``patience`` checks in a row bring no gain (``"converged"``), when the solver says it
+    can go no further (``"converged"``), or, only when asked, after ``max_seconds`` of
+    wall-clock time (``"max_seconds"``: the one way a result depends on the machine).
+
+    Parameters
+    ----------
+    start
+        The starting parameters.
+    step
+        ``step(x, k) -> (x, done)``: solver step ``k`` (from 1) from ``x``; ``done`` when
+        it cannot improve the fitted objective any more.
+    held_error
+        ``held_error(x) -> float``.
+    steps, check_every, patience, max_seconds
+        The budget, in steps (module docstring).
+    solver
+        Its name, for the record.
+    snapshot
+        ``snapshot(x) -> copy`` of an iterate that ``step`` may change in place (default:
+        the iterate itself).
+
+    Returns
+    -------
+    best
+        The kept parameters.
+    record : dict
+        ``{"steps", "best_step", "stopped", "solver", "heldout"}``: the steps taken, the
+        one kept (0: the start), why it stopped, the solver, and the held-out errors of
+        the start and of every check.
+
+    Examples
+    --------
+    >>> best, rec = refine_loop(4.0, lambda x, k: (x / 2, False), lambda x: abs(x - 1.1), steps=5)
+    >>> best, rec["best_step"], rec["stopped"], len(rec["heldout"])
+    (1.0, 2, 'converged', 5)
+    """
+    import time
+
+    keep = snapshot or (lambda x: x)
+    x, first = start, float(held_error(start))
+    best, best_step, best_err = keep(start), 0, first
+    errors, k, stopped, t0 = [first], 0, "steps", time.perf_counter()
+    while k < steps:
+        if max_seconds is not None and time.perf_counter() - t0 >= max_seconds:
+            stopped = "max_seconds"
+            break
+        x, done = step(x, k + 1)
+        k += 1
+        if k % check_every == 0 or done or k == steps:
+            err = float(held_error(x))
+            errors.append(err)
+            if err < best_err:
+                best, best_step, best_err = keep(x), k, err
+            elif k - best_step >= patience * check_every:
+                stopped = "converged"
+                break
+        if done:
+            stopped = "converged"
+            break
+    return best, {"steps": k, "best_step": best_step, "stopped": stopped, "solver": solver, "heldout": errors}
 
 
 class Adam:

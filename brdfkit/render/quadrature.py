@@ -47,14 +47,21 @@ constant BRDF under any environment that is constant outside the light rectangle
 changes the weights by well under 1% otherwise (:attr:`RenderStats.scale_range`).
 
 The BRDF is evaluated only at the queried direction pairs above the horizon with a
-non-zero share (``brdf.eval_dirs``: a trilinear table lookup or the hyponet itself),
-in blocks of pixels x nodes, and each pixel sums its pairs in float64. The pairs, their
-directions and their ``L_env w s cos`` are computed technique by technique, mostly in
-float32, by :mod:`brdfkit.render.pairs`; they depend on the scene, not on the BRDF, so
-those of the last scene rendered (up to :data:`PAIR_CACHE_BYTES`, 0.47 GB at 256 x 256)
-are kept for the next render of the same scene in the process (:func:`clear_cache`
-frees them). Background pixels are black. Everything runs in torch on the BRDF's
-device; ``eval_dirs`` must not modify its arguments.
+non-zero share, in blocks of pixels x nodes, and each pixel sums its pairs in float64.
+The pairs, their grid coordinates and their ``L_env w s cos`` are computed technique by
+technique, mostly in float32, by :mod:`brdfkit.render.pairs`; they depend on the scene,
+not on the BRDF, so those of the last scene rendered (up to :data:`PAIR_CACHE_BYTES`,
+0.33 GB at 256 x 256) are kept for the next render of the same scene in the process
+(:func:`clear_cache` frees them). Background pixels are black.
+
+A BRDF is evaluated by ``brdf.eval_pairs(block) -> (3, M)`` at a
+:class:`~brdfkit.render.pairs.PairBlock` (a table: a trilinear lookup at the pairs' grid
+coordinates, :mod:`brdfkit.render.lookup`), or, for one that has only
+``eval_dirs(wi, wo) -> (M, 3)``, at the pairs' local directions (NumPy float32
+``(M, 3)``; an RGL file, a hyponet). Everything runs in NumPy, on
+:func:`brdfkit.runtime.cpu_threads` threads, one block of pixels each: a block's pixels
+are summed by one thread in a fixed order, so the image does not depend on the thread
+count.
 """
 
 from __future__ import annotations
@@ -68,10 +75,10 @@ from brdfkit.render.nodes import NodeSet, half_share  # noqa: F401 (re-exported)
 from brdfkit.render.pairs import Techniques, block_pairs
 from brdfkit.render.scene import REFERENCE, Quadrature, Scene
 
-__all__ = ["NodeSet", "RenderStats", "clear_cache", "render", "render_many", "render_pixels"]
+__all__ = ["NodeSet", "RenderStats", "ScenePairs", "clear_cache", "evaluate", "render", "render_many", "render_pixels"]
 
-# Pairs (pixel x node) per block: large enough to amortise Python, small enough for cache.
-BLOCK_PAIRS = 1 << 17
+# Pixels per block: (pixels x nodes) float32 temporaries of about 0.2 MB, in cache.
+BLOCK_PIXELS = 160
 # Most bytes of BRDF-independent pairs kept for the next render of the same scene.
 PAIR_CACHE_BYTES = 1 << 30
 
@@ -79,13 +86,14 @@ _TECHNIQUES: dict = {}
 _PAIRS: dict = {}
 
 
-def _techniques(q, env, device):
-    """The :class:`~brdfkit.render.pairs.Techniques` of ``(q, env, device)``, the last one
-    kept per process (a render of several BRDFs in turn builds it once)."""
-    key = (q, env.digest(), env.bright, str(device))
+def _techniques(q, env):
+    """The :class:`~brdfkit.render.pairs.Techniques` of ``(q, env)``, the last few kept
+    per process (a render of several BRDFs in turn builds it once)."""
+    key = (q, env.digest(), env.bright)
     if key not in _TECHNIQUES:
-        _TECHNIQUES.clear()
-        _TECHNIQUES[key] = Techniques(NodeSet(q, env), env, device)
+        if len(_TECHNIQUES) >= 8:
+            _TECHNIQUES.clear()
+        _TECHNIQUES[key] = Techniques(NodeSet(q, env), env)
     return _TECHNIQUES[key]
 
 
@@ -112,6 +120,72 @@ class RenderStats:
     scale_range: tuple = (1.0, 1.0)
 
 
+def _needs_directions(brdf) -> bool:
+    return not hasattr(brdf, "eval_pairs")
+
+
+def evaluate(brdf, block):
+    """float32 ``(C, M)`` of ``brdf`` at a block's pairs (``eval_pairs``, or
+    ``eval_dirs`` at their directions; 0 where a value is not finite, as a renderer
+    must not spread a NaN over a pixel)."""
+    if not _needs_directions(brdf):
+        return brdf.eval_pairs(block)
+    vals = np.asarray(brdf.eval_dirs(block.wi.T, block.wo.T), np.float32).T
+    return np.where(np.isfinite(vals), vals, np.float32(0))
+
+
+class ScenePairs:
+    """The :class:`~brdfkit.render.pairs.PairBlock` of each block of pixels of one scene:
+    made on demand, or taken from the last scene's (kept up to :data:`PAIR_CACHE_BYTES`
+    once every block was made: :meth:`keep`).
+
+    Parameters
+    ----------
+    normals
+        float64 ``(P, 3)`` unit world normals.
+    env, wo_world, q
+        As for :func:`render_pixels`.
+    directions
+        The blocks must hold the pairs' local directions (a BRDF with only ``eval_dirs``).
+    """
+
+    def __init__(self, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | None = None,
+                 directions: bool = False):
+        import hashlib
+
+        q = q or REFERENCE.quadrature
+        self.normals = np.ascontiguousarray(normals, np.float64).reshape(-1, 3)
+        self.starts = list(range(0, self.normals.shape[0], BLOCK_PIXELS))
+        self.key = (q, env.digest(), env.bright, tuple(map(float, wo_world)), BLOCK_PIXELS,
+                    hashlib.sha256(self.normals.tobytes()).hexdigest())
+        self.directions = directions
+        self.cached = _PAIRS.get((self.key, True)) or _PAIRS.get((self.key, directions))
+        if self.cached is None:
+            _PAIRS.clear()  # one scene kept: free the last before building the next
+            self._tq = _techniques(q, env)
+        self._wo = np.asarray(wo_world, np.float64)
+        self._made: dict = {}
+
+    def block(self, i: int):
+        """The :class:`~brdfkit.render.pairs.PairBlock` of block ``i`` (pixels
+        ``starts[i]`` on)."""
+        if self.cached is not None:
+            return self.cached[i]
+        s = self.starts[i]
+        pb = block_pairs(self._tq, self.normals[s:s + BLOCK_PIXELS], self._wo, self.directions)
+        self._made[i] = pb
+        return pb
+
+    def keep(self) -> None:
+        """Keep the blocks made for the next render of this scene (all of them, within
+        :data:`PAIR_CACHE_BYTES`)."""
+        if self.cached is None and len(self._made) == len(self.starts):
+            blocks = [self._made[i] for i in range(len(self.starts))]
+            if sum(b.nbytes for b in blocks) <= PAIR_CACHE_BYTES:
+                _PAIRS[(self.key, self.directions)] = blocks
+        self._made = {}
+
+
 def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | None = None,
                   progress=None, stats: RenderStats | None = None):
     """Direct lighting of surface points with world normals ``normals``.
@@ -119,7 +193,7 @@ def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | 
     Parameters
     ----------
     brdf
-        Object with ``eval_dirs(wi, wo)`` (see :mod:`brdfkit.render.renderable`).
+        A renderable BRDF (``eval_pairs`` or ``eval_dirs``, :mod:`brdfkit.render.renderable`).
     normals
         Array-like ``(P, 3)`` unit world normals.
     env
@@ -146,65 +220,41 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
                    progress=None, stats: RenderStats | None = None):
     """:func:`render_pixels` of several BRDFs in one pass: the nodes, shares and weights
     are computed once (or taken from the last render of the same scene) and each BRDF is
-    evaluated at the same direction pairs; each image is the one a render of that BRDF
-    alone gives, to the bit (same pairs, same operations, same order)."""
-    import hashlib
-
-    import torch
-
+    evaluated at the same pairs; each image is the one a render of that BRDF alone
+    gives, to the bit (same pairs, same operations, same order)."""
     from brdfkit.render.renderable import stack_tables
+    from brdfkit.runtime import thread_map
 
-    q = q or REFERENCE.quadrature
-    devs = [getattr(b, "device", None) or torch.device("cpu") for b in brdfs]
-    if len({str(torch.device(d)) for d in devs}) != 1:
-        raise ValueError(f"BRDFs rendered together must share a device, got {sorted(map(str, devs))}")
-    dev = torch.device(devs[0])
-    normals = np.ascontiguousarray(normals, np.float64)
-    key = (q, env.digest(), env.bright, str(dev), tuple(map(float, wo_world)),
-           hashlib.sha256(normals.tobytes()).hexdigest())
-    cached = _PAIRS.get(key)
-    if cached is None:
-        _PAIRS.clear()  # one scene kept: free the last before building the next
-        tq = _techniques(q, env, dev)
-        n_all = torch.as_tensor(normals, device=dev)
-        wo_w = torch.as_tensor(wo_world, dtype=torch.float64, device=dev)
-        block = max(1, BLOCK_PAIRS // (tq.n_c + tq.n_b + tq.n_a))
-        blocks, kept_bytes = [], 0
+    normals = np.asarray(normals, np.float64).reshape(-1, 3)
     total = normals.shape[0]
-    # Tables on one device are looked up together (the pairs' angles and corners once).
+    pairs = ScenePairs(normals, env, wo_world, q, any(_needs_directions(b) for b in brdfs))
     passes = stack_tables(brdfs)
-    outs = [torch.zeros(3 * len(idx), total, dtype=torch.float64, device=dev) for _, idx in passes]
+    outs = [np.zeros((3 * len(idx), total)) for _, idx in passes]
     evaluations, smin, smax = 0, math.inf, -math.inf
-    with torch.no_grad():
-        for b, s in enumerate(range(0, total, block) if cached is None else (c[0] for c in cached)):
-            if cached is None:
-                p = min(block, total - s)
-                pix, wi, wo, rw, (scale, big) = block_pairs(tq, n_all[s:s + p], wo_w)
-                lo, hi = (float(scale[big].min()), float(scale[big].max())) if big.any() else (math.inf, -math.inf)
-                if blocks is not None:
-                    blocks.append((s, p, pix, wi, wo, rw, lo, hi))
-                    kept_bytes += 40 * wi.shape[0]
-                    if kept_bytes > PAIR_CACHE_BYTES:
-                        blocks = None
-            else:
-                s, p, pix, wi, wo, rw, lo, hi = cached[b]
-            smin, smax = min(smin, lo), max(smax, hi)
-            evaluations += wi.shape[0]
-            for (brdf, idx), out in zip(passes, outs):
-                contrib = (brdf.eval_dirs(wi, wo).T.view(len(idx), 3, -1) * rw).view(3 * len(idx), -1)
-                for ch in range(3 * len(idx)):
-                    out[ch, s:s + p].index_add_(0, pix, contrib[ch].double())
-            if progress is not None:
-                progress(s + p, total)
-    if cached is None and blocks is not None:
-        _PAIRS[key] = blocks
+
+    def one(i):
+        s, pb = pairs.starts[i], pairs.block(i)
+        for (brdf, _), out in zip(passes, outs):
+            contrib = evaluate(brdf, pb).reshape(-1, 3, pb.pix.size) * pb.rw
+            for ch, row in enumerate(contrib.reshape(-1, pb.pix.size)):
+                out[ch, s:s + pb.pixels] = np.bincount(pb.pix, row, minlength=pb.pixels)
+        return s, pb
+
+    for s, pb in thread_map(one, range(len(pairs.starts))):
+        evaluations += pb.pix.size
+        big = pb.big
+        if big.any():
+            smin, smax = min(smin, float(pb.scale[big].min())), max(smax, float(pb.scale[big].max()))
+        if progress is not None:
+            progress(s + pb.pixels, total)
+    pairs.keep()
     if stats is not None:
         stats.evaluations = evaluations
         stats.scale_range = (smin, smax) if smin <= smax else (1.0, 1.0)
     images = [None] * len(brdfs)
     for (_, idx), out in zip(passes, outs):
         for j, i in enumerate(idx):
-            images[i] = out[3 * j:3 * j + 3].T.float().cpu().numpy()
+            images[i] = out[3 * j:3 * j + 3].T.astype(np.float32)
     return images
 
 
@@ -214,8 +264,8 @@ def render(brdf, scene: Scene = REFERENCE, env=None, progress=None, stats: Rende
     Parameters
     ----------
     brdf
-        Object with ``eval_dirs`` (:class:`~brdfkit.render.renderable.TableBRDF`,
-        :class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF`).
+        A renderable BRDF (:class:`~brdfkit.render.renderable.TableBRDF`,
+        :class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF`, ...).
     scene
         :class:`~brdfkit.render.scene.Scene` (resolution, quadrature).
     env
@@ -246,7 +296,7 @@ def render_many(brdfs, scene: Scene = REFERENCE, env=None, progress=None, stats:
     Parameters
     ----------
     brdfs
-        Sequence of objects with ``eval_dirs``, on one device.
+        Sequence of renderable BRDFs.
     scene, env, progress, stats
         As for :func:`render` (``stats.evaluations`` counts the evaluations of one BRDF).
 

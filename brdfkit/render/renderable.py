@@ -1,28 +1,43 @@
-"""BRDFs a renderer evaluates at the directions it queries.
+"""BRDFs a renderer evaluates at the pairs it queries.
 
-A renderable BRDF has ``eval_dirs(wi, wo) -> (N, 3)`` (torch ``(N, 3)`` unit vectors in
-the local frame, ``z`` the normal; BRDF in 1/sr, 0 where either direction is at or below
-the horizon) and a ``name``. Two kinds exist:
+A renderable BRDF has a ``name`` and one of
 
-* :class:`TableBRDF`: a dense MERL-grid table, interpolated with
-  :func:`brdfkit.geometry.trilinear.lookup_trilinear` (NaN-aware; 0 where no corner is measured);
-* :class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`: one material's hyponet, evaluated directly at the
-  queried directions (never through a dense table).
+* ``eval_pairs(block) -> (3, M)`` float32: the BRDF (1/sr) at a block's pairs
+  (:class:`brdfkit.render.pairs.PairBlock`: their MERL grid coordinates, radiance weights
+  and, when the renderer was asked for them, local directions); a table's, by a
+  trilinear lookup at the grid coordinates;
+* ``eval_dirs(wi, wo) -> (M, 3)``: the BRDF at local direction pairs (NumPy float32
+  ``(M, 3)`` unit vectors, ``z`` the normal; 0 where either is at or below the horizon),
+  for a BRDF that is not a function of the grid's angles alone (an RGL file conditioned
+  on the view, :class:`brdfkit.render.measured.MeasuredBRDF`) or is evaluated from its
+  own inputs (a hyponet, :class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`).
 
-:func:`brdfkit.files.brdf_file.load_brdf` opens either from a file: a MERL ``.binary`` or an
-embedding ``.emb`` with its model.
+:class:`TableBRDF` is a dense MERL-grid table, interpolated as
+:func:`brdfkit.geometry.trilinear.lookup_trilinear` does (NaN-aware; 0 where no corner is
+measured) through :class:`brdfkit.render.lookup.TableRows`.
+:func:`brdfkit.files.brdf_file.load_brdf` opens any of them from a file.
 """
 
 from __future__ import annotations
 
-
 import numpy as np
 
-from brdfkit.runtime import resolve_device
 from brdfkit.errors import InputError
 from brdfkit.geometry import TABLE_SHAPE
 
-__all__ = ["TableBRDF", "TableStackBRDF", "stack_tables"]
+__all__ = ["TableBRDF", "TableStackBRDF", "stack_tables", "coords_of_dirs"]
+
+
+def coords_of_dirs(wi, wo):
+    """Grid coordinates ``(3, M)`` float32 of local direction pairs ``(M, 3)`` and the
+    mask of those above the horizon (both ``z > 0``)."""
+    from brdfkit.render.pairs import _coords
+
+    wi = np.ascontiguousarray(np.asarray(wi, np.float32).reshape(-1, 3).T)
+    wo = np.ascontiguousarray(np.asarray(wo, np.float32).reshape(-1, 3).T)
+    out = np.empty((3, wi.shape[1]), np.float32)
+    _coords(wi, wo, out)
+    return out, (wi[2] > 0) & (wo[2] > 0)
 
 
 class TableBRDF:
@@ -35,126 +50,84 @@ class TableBRDF:
     name
         Shown in progress messages and metric tables.
     device
-        Torch device of the float32 copy used for lookups (default: CUDA if available).
-
-    Notes
-    -----
-    Lookups go through a :class:`brdfkit.geometry.trilinear.TrilinearTable` once the BRDF has been
-    asked for :attr:`PREPARE_AFTER` pairs (same values to the bit; building it costs
-    about as much as one plain lookup of a render's block, so a tiny render skips it).
+        Ignored (renders run in NumPy); kept for callers that pass one.
     """
 
-    PREPARE_AFTER = 1 << 18
-
     def __init__(self, table, name: str = "table", device=None):
-        import torch
-
         arr = np.asarray(table)
         if arr.shape != TABLE_SHAPE:
             raise InputError(f"{name}: BRDF table of shape {arr.shape}, expected {TABLE_SHAPE}")
         self.name = name
         self.table = arr
-        self.device = resolve_device(device)
-        self._t = torch.as_tensor(np.ascontiguousarray(arr, np.float32), device=self.device)
-        self._lut = None  # trilinear.TrilinearTable of _t, built after PREPARE_AFTER pairs
-        self._pairs = 0
+        self.device = "cpu"
+        self._rows = None
 
-    def _lookup_table(self, pairs: int):
-        """The table to look up after ``pairs`` more pairs: the prepared one once asked for
-        :attr:`PREPARE_AFTER` in all, else the plain float32 table."""
-        from brdfkit.geometry.trilinear import TrilinearTable
+    @property
+    def rows(self):
+        """The :class:`~brdfkit.render.lookup.TableRows` of the table (made once)."""
+        if self._rows is None:
+            from brdfkit.render.lookup import TableRows
 
-        self._pairs += pairs
-        if self._lut is None and self._pairs >= self.PREPARE_AFTER:
-            self._lut = TrilinearTable(self._t)
-        return self._t if self._lut is None else self._lut
+            self._rows = TableRows(self.table)
+        return self._rows
+
+    def eval_pairs(self, block):
+        """float32 ``(3, M)`` at a :class:`~brdfkit.render.pairs.PairBlock`'s pairs."""
+        return self.rows.lookup(block.coords)
 
     def eval_dirs(self, wi, wo):
-        """BRDF ``(N, 3)`` float32 at local direction pairs ``wi, wo`` (torch ``(N, 3)``)."""
-        from brdfkit.geometry.trilinear import lookup_trilinear
-
-        th, td, pd, above = _pair_angles(wi, wo, self.device)
-        rho = lookup_trilinear(self._lookup_table(th.shape[0]), th, td, pd, fill=0.0)
-        # In place on the (3, N) rows: the prepared lookup's (N, 3) is channel-major in
-        # memory, and so is what comes back (the quadrature reads it per channel).
-        return _zero_below(rho.T, above).T.to(wi.device)
-
-
-def _zero_below(rows, above):
-    """``rows`` ``(C, N)`` set to 0 in place where not ``above``: by the indices of the few
-    pairs below the horizon (a third of a broadcast ``masked_fill_``'s time)."""
-    return rows.index_fill_(1, (~above).nonzero().squeeze(1), 0.0)
-
-
-def _pair_angles(wi, wo, device):
-    """``(theta_h, theta_d, phi_d, above)`` of direction pairs, float32 on ``device``."""
-    import torch
-
-    from brdfkit.geometry import half_diff_from_io
-
-    wi_ = wi.to(device, torch.float32).reshape(-1, 3)
-    wo_ = wo.to(device, torch.float32).reshape(-1, 3)
-    th, _, td, pd = half_diff_from_io(wi_, wo_)
-    return th, td, pd, (wi_[:, 2] > 0) & (wo_[:, 2] > 0)
+        """BRDF ``(M, 3)`` float32 at local direction pairs ``wi, wo`` ``(M, 3)``."""
+        coords, above = coords_of_dirs(wi, wo)
+        out = self.rows.lookup(coords)
+        out[:, ~above] = 0.0
+        return out.T
 
 
 class TableStackBRDF:
-    """Several :class:`TableBRDF` evaluated together at the same direction pairs (a
-    quadrature pass rendering two tables: ``brdfkit metrics`` of a pair).
-
-    The pairs' angles, and once both tables are prepared the corners' rows and weights
-    (:func:`brdfkit.geometry.trilinear.lookup_prepared_many`), are computed once for all members;
-    each member's values are those of its own ``eval_dirs``, to the bit.
-
-    Parameters
-    ----------
-    brdfs
-        :class:`TableBRDF` on one device.
+    """Several :class:`TableBRDF` evaluated together at the same pairs (a quadrature pass
+    rendering two tables: ``brdfkit metrics`` of a pair): the corners' rows and weights
+    are computed once for all members; each member's values are those of its own
+    ``eval_pairs``, to the bit.
 
     Attributes
     ----------
     members
-        Number of tables: ``eval_dirs`` returns ``(N, 3 members)``.
+        Number of tables: ``eval_pairs`` returns ``(3 members, M)``.
     """
 
     def __init__(self, brdfs):
         self.brdfs = list(brdfs)
         if not self.brdfs or any(not isinstance(b, TableBRDF) for b in self.brdfs):
             raise TypeError("TableStackBRDF takes TableBRDF members")
-        if len({str(b.device) for b in self.brdfs}) != 1:
-            raise ValueError("the tables of a TableStackBRDF must share a device")
         self.members = len(self.brdfs)
-        self.device = self.brdfs[0].device
+        self.device = "cpu"
         self.name = " + ".join(b.name for b in self.brdfs)
 
-    def eval_dirs(self, wi, wo):
-        """float32 ``(N, 3 members)`` at local direction pairs ``wi, wo`` (torch
-        ``(N, 3)``): member ``j`` in columns ``3 j .. 3 j + 2``, channel-major in memory."""
-        import torch
+    def eval_pairs(self, block):
+        """float32 ``(3 members, M)``: member ``j`` in rows ``3 j .. 3 j + 2``."""
+        from brdfkit.render.lookup import BLOCK, corners
 
-        from brdfkit.geometry import fractional_indices
-        from brdfkit.geometry.trilinear import TrilinearTable, lookup_prepared_many, lookup_trilinear
-
-        th, td, pd, above = _pair_angles(wi, wo, self.device)
-        tables = [b._lookup_table(th.shape[0]) for b in self.brdfs]
-        if all(isinstance(t, TrilinearTable) for t in tables):
-            rhos = lookup_prepared_many(tables, *fractional_indices(th, td, pd), 0.0)
-        else:
-            rhos = [lookup_trilinear(t, th, td, pd, fill=0.0) for t in tables]
-        return _zero_below(torch.cat([r.T for r in rhos]), above).T.to(wi.device)
+        tables = [b.rows for b in self.brdfs]
+        m = block.coords.shape[1]
+        out = np.empty((3 * len(tables), m), np.float32)
+        for s in range(0, m, BLOCK):
+            rows, w = corners(block.coords[:, s:s + BLOCK])
+            for j, t in enumerate(tables):
+                t.combine(t.gather(rows), w, out[3 * j:3 * j + 3, s:s + BLOCK])
+        return out
 
 
 def stack_tables(brdfs) -> list:
     """How a pass evaluates ``brdfs``: ``[(evaluator, indices)]``, the :class:`TableBRDF`
-    among them (two or more on one device) as one :class:`TableStackBRDF` whose members
-    are ``brdfs[i]`` for ``i`` in ``indices`` (in order), every other BRDF alone."""
-    out, stacks = [], {}
+    among them (two or more) as one :class:`TableStackBRDF` whose members are
+    ``brdfs[i]`` for ``i`` in ``indices`` (in order), every other BRDF alone."""
+    out, stack = [], None
     for i, b in enumerate(brdfs):
         if type(b) is TableBRDF:
-            if str(b.device) not in stacks:
-                stacks[str(b.device)] = []
-                out.append(stacks[str(b.device)])
-            stacks[str(b.device)].append(i)
+            if stack is None:
+                stack = []
+                out.append(stack)
+            stack.append(i)
         else:
             out.append([i])
     return [(TableStackBRDF([brdfs[i] for i in idx]) if len(idx) > 1 else brdfs[idx[0]], idx) for idx in out]

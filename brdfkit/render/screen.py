@@ -7,12 +7,15 @@ Renders are what brdfkit is judged by (reference-scene PSNR and Delta E 2000,
 A render of the reference scene (:mod:`brdfkit.render.quadrature`) is *linear* in the
 BRDF: pixel ``p`` is ``sum_k rw_pk f(wi_pk, wo_pk)`` over its quadrature pairs ``k``. A
 :class:`Screen` keeps those pairs for a low-resolution image (32 px by default: 812
-pixels on the sphere) once, as Rusinkiewicz angles, network inputs and weights, so that
+pixels on the sphere) once, in NumPy, as grid coordinates and weights, so that
 
 * a table is rendered by a trilinear lookup at the pairs (:meth:`Screen.render_table`),
-* a hyponet is rendered by evaluating it at the pairs only, with gradients
-  (:meth:`Screen.render_hyponet`): no dense table is made, and the render is what the
-  refinement of :mod:`brdfkit.hypernet.refine_on_screen` descends on,
+  and a basis's coefficients through a sparse map of the cells the pairs reach
+  (:mod:`brdfkit.basis.refine_on_screen`);
+* a hyponet is rendered in torch by evaluating it at the pairs only, with gradients
+  (:meth:`Screen.render_hyponet`, the pairs as tensors by :meth:`Screen.tensors`): no dense
+  table is made, and the render is what the refinement of
+  :mod:`brdfkit.hypernet.refine_on_screen` descends on,
 
 and :func:`screen_error` compares two such images as the metrics do: exposure, clip to
 ``[0, 1]``, sRGB OETF, mean squared difference (:func:`brdfkit.render.display.display_encode`),
@@ -63,63 +66,89 @@ def rotated_envmap(turn: float = 0.5):
 
 @dataclasses.dataclass
 class Screen:
-    """The quadrature pairs of one low-resolution scene, ready for repeated renders.
+    """The quadrature pairs of one low-resolution scene, ready for repeated renders (NumPy).
 
     Attributes
     ----------
     pix
         int64 ``(M,)`` the pair's pixel in ``[0, P)``.
-    theta_h, theta_d, phi_d
-        float64 ``(M,)`` radians, ``phi_d`` folded into ``[0, pi)``.
-    hd
-        float32 ``(M, 6)`` network inputs (:func:`brdfkit.geometry.hd_vectors`).
+    coords
+        float32 ``(3, M)`` the pairs' MERL grid coordinates (what a table's lookup needs,
+        :mod:`brdfkit.render.lookup`).
     rw
         float32 ``(M, 3)`` radiance times quadrature weight.
     pixels
         ``P``, the pixels on the object.
     """
 
-    pix: object
-    theta_h: object
-    theta_d: object
-    phi_d: object
-    hd: object
-    rw: object
+    pix: np.ndarray
+    coords: np.ndarray
+    rw: np.ndarray
     pixels: int
 
-    def _sum(self, f):
-        import torch
+    @functools.cached_property
+    def angles(self):
+        """float64 ``(theta_h, theta_d, phi_d)`` of the pairs (radians, ``phi_d`` in
+        ``[0, pi)``), from their grid coordinates."""
+        u = self.coords.astype(np.float64)
+        return (u[0] / 90) ** 2 * (math.pi / 2), u[1] / 90 * (math.pi / 2), u[2] / 180 * math.pi
 
-        out = torch.zeros(self.pixels, 3, dtype=f.dtype, device=f.device)
-        return out.index_add(0, self.pix, f * self.rw.to(f.dtype))
+    theta_h = property(lambda self: self.angles[0])
+    theta_d = property(lambda self: self.angles[1])
+    phi_d = property(lambda self: self.angles[2])
+
+    @functools.cached_property
+    def hd(self):
+        """float32 ``(M, 6)`` network inputs (:func:`brdfkit.geometry.hd_vectors`)."""
+        from brdfkit.geometry import hd_vectors
+
+        return hd_vectors(*self.angles).astype(np.float32)
+
+    def sum_pixels(self, f, channels: int = 3):
+        """Image ``(P, C)`` float64 of per-pair values ``f`` ``(M, C)`` (BRDF times
+        ``rw``, summed per pixel)."""
+        f = np.asarray(f, np.float64).reshape(self.pix.size, channels)
+        return np.stack([np.bincount(self.pix, f[:, c], minlength=self.pixels) for c in range(channels)], 1)
 
     def lookup(self, table):
-        """A ``(90, 90, 180, 3)`` table at the pairs, float64 torch ``(M, 3)`` (trilinear,
-        as :class:`~brdfkit.render.renderable.TableBRDF` renders it; unmeasured corners left out)."""
-        import torch
+        """A ``(90, 90, 180, 3)`` table at the pairs, float64 ``(M, 3)`` (trilinear, as
+        :class:`~brdfkit.render.renderable.TableBRDF` renders it; unmeasured corners left out)."""
+        from brdfkit.render.lookup import TableRows
 
-        from brdfkit.geometry.trilinear import lookup_trilinear
-
-        t = torch.as_tensor(np.ascontiguousarray(table, np.float32), device=self.hd.device)
-        return lookup_trilinear(t, self.theta_h.float(), self.theta_d.float(), self.phi_d.float(), fill=0.0).double()
+        rows = table if isinstance(table, TableRows) else TableRows(table)
+        return rows.lookup(self.coords).T.astype(np.float64)
 
     def render_table(self, table, at_pairs=None):
-        """Image ``(P, 3)`` float64 torch of a table (``at_pairs``: its :meth:`lookup`,
-        when already made)."""
-        return self._sum(self.lookup(table) if at_pairs is None else at_pairs)
+        """Image ``(P, 3)`` float64 of a table (``at_pairs``: its :meth:`lookup`, when
+        already made)."""
+        return self.sum_pixels((self.lookup(table) if at_pairs is None else at_pairs) * self.rw)
+
+    def tensors(self, device=None) -> dict:
+        """The pairs as torch tensors on ``device`` (made once per device): ``pix``
+        (int64), ``hd`` (float32 ``(M, 6)``), ``rw`` (float32 ``(M, 3)``) and the angles
+        (float64): what a hyponet's render (:meth:`render_hyponet`) needs."""
+        import torch
+
+        key = str(torch.device(device) if device is not None else torch.device("cpu"))
+        cache = self.__dict__.setdefault("_tensors", {})
+        if key not in cache:
+            to = lambda a: torch.from_numpy(np.ascontiguousarray(a)).to(key)  # noqa: E731
+            cache[key] = {"pix": to(self.pix), "hd": to(self.hd), "rw": to(self.rw), "theta_h": to(self.theta_h),
+                          "theta_d": to(self.theta_d), "phi_d": to(self.phi_d)}
+        return cache[key]
 
     def reference(self, model):
-        """The model's ``rho_ref`` at the pairs, float32 ``(M, 3)`` (cached per model;
+        """The model's ``rho_ref`` at the pairs, float32 torch ``(M, 3)`` (cached per model;
         ``model`` a :class:`~brdfkit.hypernet.loaded.LoadedNetwork`, or anything with its
-        ``cache``, ``reference_at_pairs`` and ``hyponet_values``)."""
+        ``cache``, ``device``, ``reference_at_pairs`` and ``hyponet_values``)."""
         key = id(self)
         cache = model.cache.screen
         # The id of a screen that was freed is reused by the next one made: a cached
-        # reference counts only if its screen is this one (else another scene's pairs are
-        # indexed out of bounds, a device-side assert on CUDA).
+        # reference counts only if its screen is this one.
         hit = cache.get(key)
         if hit is None or hit[0]() is not self:
-            ref = model.reference_at_pairs(self.theta_h, self.theta_d, self.phi_d)
+            t = self.tensors(model.device)
+            ref = model.reference_at_pairs(t["theta_h"], t["theta_d"], t["phi_d"])
             if len(cache) >= 8:  # a few scenes per model (screen tuning turns three)
                 cache.clear()
             cache[key] = hit = (weakref.ref(self), ref)
@@ -133,18 +162,20 @@ class Screen:
         Parameters
         ----------
         idx
-            Evaluate only these pairs (int64 ``(K,)``, repeats allowed): a subset of the
-            pixels' pairs, or a draw of them.
+            Evaluate only these pairs (int64 torch ``(K,)``, repeats allowed): a subset
+            of the pixels' pairs, or a draw of them.
         scale
-            float32 ``(K,)`` factor of each evaluated pair (a draw's ``1 / (K p)``).
+            float32 torch ``(K,)`` factor of each evaluated pair (a draw's ``1 / (K p)``).
         """
         import torch
 
-        hd, ref, pix, rw = self.hd, self.reference(model), self.pix, self.rw
+        t = self.tensors(model.device)
+        hd, ref, pix, rw = t["hd"], self.reference(model), t["pix"], t["rw"]
         if idx is not None:
+            idx = torch.as_tensor(idx, device=hd.device).long()
             hd, ref, pix, rw = hd[idx], ref[idx], pix[idx], rw[idx]
         if scale is not None:
-            rw = rw * scale[:, None]
+            rw = rw * torch.as_tensor(scale, device=rw.device)[:, None]
         rho = model.hyponet_values(weights, hd, ref)
         out = torch.zeros(self.pixels, 3, dtype=rho.dtype, device=rho.device)
         return out.index_add(0, pix, rho * rw)
@@ -152,15 +183,22 @@ class Screen:
 
 def screen_error(pred, ref, pixels=None):
     """Mean squared difference of two :class:`Screen` images after the metrics' display
-    encoding (torch, differentiable in ``pred``); over the pixel indices ``pixels`` only
-    when given. The whole image of ``RESOLUTION^2`` pixels is not divided by: this is the
-    mean over the object's pixels."""
-    from brdfkit.render.display import display_encode_torch
+    encoding; over the pixel indices ``pixels`` only when given. NumPy images give a
+    float; torch ones a torch scalar, differentiable in ``pred``. The whole image of
+    ``RESOLUTION^2`` pixels is not divided by: this is the mean over the object's pixels."""
+    if type(pred).__module__.startswith("torch"):
+        from brdfkit.render.display import display_encode_torch
 
-    a, b = display_encode_torch(pred), display_encode_torch(ref)
+        a, b = display_encode_torch(pred), display_encode_torch(ref)
+        if pixels is not None:
+            a, b = a[pixels], b[pixels]
+        return ((a - b) ** 2).mean()
+    from brdfkit.render.display import display_encode
+
+    a, b = display_encode(pred), display_encode(ref)
     if pixels is not None:
         a, b = a[pixels], b[pixels]
-    return ((a - b) ** 2).mean()
+    return float(np.mean((a - b) ** 2))
 
 
 def screen_psnr(pred, ref, pixels=None) -> float:
@@ -174,12 +212,13 @@ _SCREENS: dict = {}
 
 def screen(device=None, resolution: int = SCREEN_RESOLUTION, env=None, q: Quadrature = QUADRATURE) -> Screen:
     """The :class:`Screen` of the reference scene at ``resolution`` pixels (kept per
-    process: built in about 0.1 s, 40 MB at 32 px).
+    process: 32 px built in about 0.05 s, 10 MB).
 
     Parameters
     ----------
     device
-        Torch device (``None``: CPU).
+        Ignored (the pairs are NumPy arrays; :meth:`Screen.tensors` puts them on a torch
+        device); kept for callers that pass one.
     resolution
         Image side in pixels.
     env
@@ -187,36 +226,26 @@ def screen(device=None, resolution: int = SCREEN_RESOLUTION, env=None, q: Quadra
     q
         Quadrature node counts (default: the reference scene's).
     """
-    import torch
-
-    from brdfkit.geometry import half_diff_from_io, hd_vectors
     from brdfkit.render.envmap import reference_envmap
     from brdfkit.render.pairs import block_pairs
-    from brdfkit.render.quadrature import _techniques
+    from brdfkit.render.quadrature import BLOCK_PIXELS, _techniques
+    from brdfkit.runtime import thread_map
 
     env = env if env is not None else reference_envmap()
-    dev = torch.device(device) if device is not None else torch.device("cpu")
-    key = (resolution, env.digest(), env.bright, q, str(dev))
+    key = (resolution, env.digest(), env.bright, q)
     if key in _SCREENS:
         return _SCREENS[key]
     normals, inside = Scene(resolution=resolution, quadrature=q).pixel_normals()
-    normals = torch.as_tensor(np.ascontiguousarray(normals[inside]), device=dev)
-    tq = _techniques(q, env, dev)
-    wo_world = torch.tensor([0.0, 0.0, 1.0], dtype=torch.float64, device=dev)
-    parts = []
-    block = max(1, (1 << 17) // (tq.n_c + tq.n_b + tq.n_a))
-    with torch.no_grad():
-        for s in range(0, normals.shape[0], block):
-            pix, wi, wo, rw, _ = block_pairs(tq, normals[s:s + block], wo_world)
-            above = (wi[:, 2] > 0) & (wo[:, 2] > 0)
-            th, _, td, pd = half_diff_from_io(wi.double(), wo.double())
-            pd = torch.remainder(pd, math.pi)
-            pd = torch.where(pd > math.pi - 1e-9, pd - math.pi, pd)
-            parts.append((pix.long()[above] + s, th[above], td[above], pd[above], rw.T[above]))
-    pix, th, td, pd, rw = (torch.cat(p) for p in zip(*parts))
-    out = Screen(pix=pix, theta_h=th, theta_d=td, phi_d=pd, hd=hd_vectors(th, td, pd).float(),
-                 rw=rw.contiguous(), pixels=int(normals.shape[0]))
-    if len(_SCREENS) >= 4:
+    normals = np.ascontiguousarray(normals[inside])
+    tq = _techniques(q, env)
+    wo_world = np.array([0.0, 0.0, 1.0])
+    starts = range(0, normals.shape[0], BLOCK_PIXELS)
+    parts = list(thread_map(lambda s: block_pairs(tq, normals[s:s + BLOCK_PIXELS], wo_world), starts))
+    pix = np.concatenate([pb.pix.astype(np.int64) + s for s, pb in zip(starts, parts)])
+    coords = np.concatenate([pb.coords for pb in parts], 1)
+    rw = np.ascontiguousarray(np.concatenate([pb.rw for pb in parts], 1).T)
+    out = Screen(pix=pix, coords=coords, rw=rw, pixels=int(normals.shape[0]))
+    if len(_SCREENS) >= 8:
         _SCREENS.clear()
     _SCREENS[key] = out
     return out

@@ -101,6 +101,15 @@ class BasisResidual:
         weights = hyponet_weights(state, cfg, z)
         return np.stack([evaluate(weights, hd, ch) for ch in range(3)], axis=1)
 
+    def correction_channel(self, coefficients: np.ndarray, hd: np.ndarray) -> np.ndarray:
+        """One channel's mapped correction ``(N,)`` float32 of its coefficients ``(K,)`` at
+        HD vectors ``hd (N, 6)`` (each channel's correction depends on its own
+        coefficients alone)."""
+        c = np.asarray(coefficients, np.float64)
+        _, cfg, state = self.net_for(c.shape[0])
+        z = net_input((c / self.basis.sigma[:c.shape[0]].astype(np.float64))[None], cfg.k_max)
+        return evaluate(hyponet_weights(state, cfg, z), hd, 0)
+
     def mapped(self, coefficients: np.ndarray, gain: float = 1.0) -> np.ndarray:
         """Mapped values ``(P, 3)`` at the basis's cells, the mean included."""
         c = np.asarray(coefficients, np.float32)

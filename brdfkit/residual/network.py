@@ -13,8 +13,11 @@ channel's mapped value. The head's rows of the last layer start at zero and so d
 last layer's base: an untrained network corrects nothing, and the model *is* the basis.
 
 :class:`ResidualNet` is the torch module that training fits; :func:`hyponet_weights` and
-:func:`evaluate` are the same forward pass in NumPy, which ``decode``, ``render`` and
-``metrics`` use so that they load no torch.
+:func:`evaluate` are the same forward pass in NumPy, which ``encode``, ``decode``,
+``render`` and ``metrics`` use so that they load no torch, and
+:func:`evaluate_with_jacobian` adds its derivative in the coefficients (forward mode), what
+an encoder's Gauss-Newton fit through the correction needs
+(:func:`brdfkit.residual.encoding.fit_through`).
 """
 
 from __future__ import annotations
@@ -24,7 +27,8 @@ import json
 
 import numpy as np
 
-__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "net_input", "hyponet_weights", "evaluate"]
+__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "net_input", "hyponet_weights", "evaluate",
+           "evaluate_with_jacobian"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -108,9 +112,10 @@ def hyponet_weights(state: dict, cfg: ResidualConfig, z: np.ndarray) -> list:
     return out
 
 
-def evaluate(weights: list, hd: np.ndarray, row: int, chunk: int = 262144) -> np.ndarray:
+def evaluate(weights: list, hd: np.ndarray, row: int, chunk: int = 16384) -> np.ndarray:
     """The hyponet of row ``row`` of ``weights`` at HD vectors ``hd (N, 6)``: ``(N,)``
-    float32 mapped corrections."""
+    float32 mapped corrections (``chunk`` cells at a time: the hidden layers' arrays stay
+    in cache)."""
     w1, b1, w2, b2, w3, b3 = (w[row] for w in weights)
     out = np.empty(hd.shape[0], np.float32)
     for s in range(0, hd.shape[0], chunk):
@@ -118,6 +123,71 @@ def evaluate(weights: list, hd: np.ndarray, row: int, chunk: int = 262144) -> np
         h = _relu(h @ w2 + b2)
         out[s:s + chunk] = (h @ w3)[:, 0] + b3[0]
     return out
+
+
+def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray, hd: np.ndarray):
+    """The correction of one channel at HD vectors ``hd (N, 6)`` and its derivative in
+    that channel's normalised coefficients ``c_norm (K,)`` (``c_k / sigma_k``), by forward
+    mode through :func:`hyponet_weights` and :func:`evaluate` (float32, the ``K``
+    directions at once).
+
+    Returns
+    -------
+    value : numpy.ndarray
+        float32 ``(N,)``, :func:`evaluate`'s.
+    jacobian : numpy.ndarray
+        float32 ``(N, K)``.
+
+    Examples
+    --------
+    >>> rng = np.random.default_rng(0)
+    >>> cfg = ResidualConfig(k_max=3, width=4, hidden=5)
+    >>> state = {"body.0.weight": rng.normal(size=(5, 6)), "body.0.bias": rng.normal(size=5),
+    ...          "body.2.weight": rng.normal(size=(5, 5)), "body.2.bias": rng.normal(size=5),
+    ...          "head.weight": rng.normal(size=(53, 5)), "head.bias": rng.normal(size=53)}
+    >>> state.update({f"base.{i}": rng.normal(size=s) for i, s in enumerate(hyponet_shapes(4))})
+    >>> state = {k: (0.3 * v).astype(np.float32) for k, v in state.items()}
+    >>> hd, c, step = rng.normal(size=(7, 6)).astype(np.float32), np.array([0.3, -0.2]), np.array([1e-2, 0.0])
+    >>> value, jac = evaluate_with_jacobian(state, cfg, c, hd)
+    >>> (plus, _), (minus, _) = (evaluate_with_jacobian(state, cfg, c + s * step, hd) for s in (1, -1))
+    >>> bool(np.allclose((plus - minus) / 2e-2, jac[:, 0], rtol=1e-2, atol=1e-3))
+    True
+    """
+    k = int(np.asarray(c_norm).shape[0])
+    z = net_input(np.asarray(c_norm)[None], cfg.k_max)[0]
+    w0, b0 = state["body.0.weight"], state["body.0.bias"]
+    a1 = w0 @ z + b0
+    m1 = (a1 > 0).astype(np.float32)
+    h1, d1 = a1 * m1, m1[:, None] * w0[:, :k]  # (H,), (H, K)
+    w2, b2 = state["body.2.weight"], state["body.2.bias"]
+    a2 = w2 @ h1 + b2
+    m2 = (a2 > 0).astype(np.float32)
+    h2, d2 = a2 * m2, m2[:, None] * (w2 @ d1)
+    flat, dflat = state["head.weight"] @ h2 + state["head.bias"], state["head.weight"] @ d2  # (F,), (F, K)
+    tensors, at = [], 0
+    for i, shape in enumerate(hyponet_shapes(cfg.width)):
+        n = int(np.prod(shape))
+        tensors.append((state[f"base.{i}"] + flat[at:at + n].reshape(shape), dflat[at:at + n].reshape(shape + (k,))))
+        at += n
+    # Tangents laid out (N, K, W): each layer's product one matrix product for all K.
+    (v1, t1), (c1, u1), (v2, t2), (c2, u2), (v3, t3), (c3, u3) = (
+        (v, np.moveaxis(t, -1, 0)) for v, t in tensors)  # t: (K, ...shape)
+    hd = np.asarray(hd, np.float32)
+    n, width = hd.shape[0], cfg.width
+    a = hd @ v1 + c1  # (N, W)
+    da = (hd @ np.moveaxis(t1, 0, 1).reshape(6, -1)).reshape(n, k, width) + u1  # (N, K, W)
+    mask = a > 0
+    h = np.where(mask, a, 0)
+    da *= mask[:, None, :]
+    b = h @ v2 + c2
+    db = (h @ np.moveaxis(t2, 0, 1).reshape(width, -1)).reshape(n, k, width) + u2
+    db += (da.reshape(-1, width) @ v2).reshape(n, k, width)
+    mask = b > 0
+    g = np.where(mask, b, 0)
+    db *= mask[:, None, :]
+    value = (g @ v3)[:, 0] + c3[0]
+    jac = (db.reshape(-1, width) @ v3).reshape(n, k) + g @ t3[:, :, 0].T + u3[:, 0]
+    return value.astype(np.float32), jac.astype(np.float32)
 
 
 def ResidualNet(cfg: ResidualConfig):

@@ -14,8 +14,8 @@ memory: a :class:`~brdfkit.render.renderable.TableBRDF` or a
 :class:`~brdfkit.hypernet.neural_brdf.NeuralBRDF`).
 
 Evaluation calls the BRDF's ``eval_dirs`` (trilinear table lookup, or the hyponet at the
-queried directions) once per wavefront through ``dr.wrap(source="drjit", target="torch")``:
-vectorised, no per-lane Python. Because a Python call cannot be traced into a symbolic
+queried directions; NumPy arrays in and out) once per wavefront through
+``dr.wrap(source="drjit", target="torch")``: vectorised, no per-lane Python. Because a Python call cannot be traced into a symbolic
 kernel, renders run with Dr.Jit's symbolic loops and calls switched off
 (:func:`brdfkit.render.mitsuba3.scenes.render_scene` does this), i.e. in wavefront mode.
 
@@ -82,15 +82,11 @@ def estimate_alpha(brdf) -> float:
     float
         In ``[0.002, 0.6]``.
     """
-    import torch
-
     from brdfkit.geometry import io_from_half_diff
 
     th = np.geomspace(1e-4, 1.2, 200)
     wi, wo = io_from_half_diff(th, np.full_like(th, 0.05), np.full_like(th, math.pi / 2))
-    with torch.no_grad():
-        f = brdf.eval_dirs(torch.as_tensor(wi, dtype=torch.float32),
-                           torch.as_tensor(wo, dtype=torch.float32)).double().cpu().numpy()
+    f = np.asarray(brdf.eval_dirs(wi.astype(np.float32), wo.astype(np.float32)), np.float64)
     lum = f @ np.array([0.2126, 0.7152, 0.0722])
     peak, floor = float(lum[0]), float(lum[-1])
     if not np.isfinite(lum).all() or peak < 2 * max(floor, 1e-12):
@@ -153,11 +149,12 @@ def bsdf_class(mi, dr):
             def call(a, b):
                 import torch
 
+                # Dr.Jit's Array3f arrives as (3, N); a BRDF takes NumPy (N, 3).
                 with torch.no_grad():
-                    # Dr.Jit's Array3f arrives as (3, N); the BRDF wants (N, 3).
-                    out = brdf.eval_dirs(a.T.contiguous().float(), b.T.contiguous().float())
-                    out = torch.nan_to_num(out.float(), nan=0.0, posinf=0.0, neginf=0.0).clamp_min(0.0)
-                return out.T.contiguous()
+                    wi_, wo_ = (x.detach().float().cpu().numpy().T for x in (a, b))
+                out = np.asarray(brdf.eval_dirs(wi_, wo_), np.float32)
+                out = np.clip(np.nan_to_num(out, nan=0.0, posinf=0.0, neginf=0.0), 0.0, None)
+                return torch.from_numpy(np.ascontiguousarray(out.T)).to(a.device)
 
             return mi.Color3f(call(wi, wo))
 
