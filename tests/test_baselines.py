@@ -393,11 +393,20 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
 
     assert get_method("ipca").defaults() == {"lam": DEFAULT_LAMBDA}
     assert get_method("nbrdf").defaults()["steps"] == DEFAULT_STEPS
-    assert get_method("hypernet").defaults() == {"refine": True, "refine_target": "weights"}
+    from brdfkit.hypernet.refine_on_samples import RefineConfig
+    from brdfkit.methods.hypernet import DEFAULT_REFINE_STEPS
+
+    assert DEFAULT_REFINE_STEPS == RefineConfig().max_steps
+    assert get_method("hypernet").defaults() == {"refine": True, "refine_target": "weights",
+                                                  "steps": DEFAULT_REFINE_STEPS}
+    assert get_method("hypernet").make_options(steps=20).quick().steps == 10
+    for bad in (0, 2.5, True, "many"):
+        with pytest.raises(InputError, match="hypernet option steps must be a whole number"):
+            get_method("hypernet").make_options(steps=bad)
     assert get_method("nbrdf").make_options(steps=None, lr=0.01).steps == DEFAULT_STEPS
     with pytest.raises(InputError, match="'ipca' takes the option.*lam, got lr"):
         get_method("ipca").make_options(lr=1.0)
-    with pytest.raises(InputError, match="'hypernet' takes the option.*refine, refine_target, got lam"):
+    with pytest.raises(InputError, match="'hypernet' takes the option.*refine, refine_target, steps, got lam"):
         get_method("hypernet").make_options(lam=1.0)
     with pytest.raises(InputError, match="refine_target"):
         get_method("hypernet").make_options(refine_target="bias")

@@ -56,7 +56,7 @@ def test_bench_cli_end_to_end(setup, tmp_path, capsys):
     code, stdout, stderr = run_cli(capsys, [
         "bench", "--data", setup["lib"], "--test-list", setup["test_list"],
         "-m", setup["model"], "--ipca", setup["basis"], "--n", "40,160", "--seeds", "1",
-        "--nbrdf-steps", "30", "--resolution", str(RES), "--compression-models", f"{setup['model']},pca-1",
+        "--nbrdf-steps", "30", "-O", "hypernet.steps=20", "--resolution", str(RES), "--compression-models", f"{setup['model']},pca-1",
         "--compression-data", comp, "--threads", "1", "-o", out])
     assert code == 0, stderr[-3000:]
     assert stdout == ""  # progress and messages go to stderr
@@ -65,7 +65,8 @@ def test_bench_cli_end_to_end(setup, tmp_path, capsys):
     result = json.loads((out / "bench.json").read_text())
     assert result["complete"] and result["format"] == "brdfkit-bench"
     assert set(result["environment"]["method_defaults"]) == {"hypernet", "ipca", "nbrdf", "prior"}
-    assert result["environment"]["method_defaults"]["hypernet"] == {"refine": True, "refine_target": "weights"}
+    assert result["environment"]["method_defaults"]["hypernet"] == {"refine": True, "refine_target": "weights",
+                                                                    "steps": 300}
     test_names = [setup["names"][0], setup["names"][2]]
     assert result["materials"]["sparse"] == test_names
 

@@ -12,7 +12,11 @@ import dataclasses
 from brdfkit.errors import InputError
 from brdfkit.methods.method import Method, MethodOptions
 
-__all__ = ["METHOD", "HypernetOptions"]
+__all__ = ["METHOD", "HypernetOptions", "DEFAULT_REFINE_STEPS"]
+
+DEFAULT_REFINE_STEPS = 300
+"""Most Adam steps of each stage of the hypernet method's refinement
+(:attr:`brdfkit.hypernet.refine_on_samples.RefineConfig.max_steps`, whose default it is)."""
 
 
 def _load(path, device):
@@ -25,13 +29,16 @@ def _load(path, device):
 class HypernetOptions(MethodOptions):
     """``refine``: fit the encoded material to its own samples, early-stopped on held-out
     ones (:func:`brdfkit.hypernet.refine_on_samples.refine`; off: the paper's one encoder pass);
-    ``refine_target``: ``latent`` or ``weights`` (the latent, then the hyponet's weights).
+    ``refine_target``: ``latent`` or ``weights`` (the latent, then the hyponet's weights);
+    ``steps``: most Adam steps of each stage of the refinement (a budget in steps, not
+    seconds: the same samples give the same table on any machine).
     On the validation split refining beat the encoder alone at every N, and ``weights``
     beat ``latent`` at N = 40 and 4000 and tied it at 400 (``docs/notes/generalisation.md``,
     Lever 4)."""
 
     refine: bool = True
     refine_target: str = "weights"
+    steps: int = DEFAULT_REFINE_STEPS
 
     def __post_init__(self):
         if not isinstance(self.refine, bool):
@@ -39,6 +46,11 @@ class HypernetOptions(MethodOptions):
         if self.refine_target not in ("latent", "weights"):
             raise InputError(f"hypernet option refine_target must be 'latent' or 'weights', "
                              f"got {self.refine_target!r}")
+        if isinstance(self.steps, bool) or not isinstance(self.steps, int) or self.steps < 1:
+            raise InputError(f"hypernet option steps must be a whole number >= 1, got {self.steps!r}")
+
+    def quick(self) -> "HypernetOptions":
+        return dataclasses.replace(self, steps=min(10, self.steps))
 
 
 def _reconstruct(samples, model, options, *, seed, device):
@@ -50,7 +62,8 @@ def _reconstruct(samples, model, options, *, seed, device):
         return NeuralBRDF.from_embedding(model, emb).to_table(), emb
     from brdfkit.hypernet.refine_on_samples import RefineConfig, refine
 
-    result = refine(model, samples, emb, config=RefineConfig(target=options.refine_target), seed=seed)
+    config = RefineConfig(target=options.refine_target, max_steps=options.steps)
+    result = refine(model, samples, emb, config=config, seed=seed)
     # The weights stage changes the hyponet, which no latent decodes to: no embedding then.
     return result.brdf.to_table(), result.embedding if options.refine_target == "latent" else None
 
