@@ -240,6 +240,11 @@ def test_real_demo_end_to_end(shelf, monkeypatch, capsys, tmp_path):
     # The sheet and the plot, of the first material.
     for png in ("sheet-violet-rubber.png", "sheet-violet-rubber-backlight.png", "plot-violet-rubber.png"):
         assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # The page of the materials: the first, its unseen compression decoded by the page's shader, the other.
+    page = (out / "view.html").read_text()
+    data = json.loads(page.split('<script id="brdfkit-data" type="application/json">')[1].split("</script>")[0])
+    assert [(m["label"], m["kind"]) for m in data["materials"]] == [
+        ("violet-rubber", "table"), ("violet-rubber-merl80-l40", "live"), ("teflon", "table")]
     assert not [n for n in os.listdir(out) if n.startswith(".brdfkit-tmp-")]
 
 
@@ -353,7 +358,8 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
                                             "--gallery", gallery])
     assert code == 0, stderr[-3000:]
     assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples",
-                                       "sheet-teflon-backlight.png", "sheet-teflon.png"]
+                                       "sheet-teflon-backlight.png", "sheet-teflon.png", "view.html"]
+    assert "Look: open" in stdout and "drag on a sphere to turn the light" in re.sub(r"\s+", " ", stdout)
     assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", stdout)
     assert "(8 tables, 0.28 GB); brdfkit material teflon -o teflon.binary writes" in re.sub(r"\s+", " ", stdout)
     # The sheets' scores in errors.json (what the gallery quotes), and its copies for the docs.

@@ -21,6 +21,9 @@ folder ``$BRDFKIT_REAL_DATA/rgl`` (every ``*_rgb.bsdf`` in it). Jobs (any combin
   ``--spp``, ``--px``) against brdfkit's quadrature render of the file (4 x 4 points a
   pixel: Mitsuba box-filters a pixel) and of its tables (the ``mean`` rule, and the
   ``grazing`` rule, which is what brdfkit rendered before the file was evaluated directly).
+  ``--integrator emitter`` renders by light sampling alone instead (Mitsuba's ``direct``
+  integrator without BSDF samples: the file's BSDF is evaluated, never sampled; the lead
+  of ``chm_mint``'s gap, ``docs/notes/rgl-bsdf.md``).
   ``--seeds 2`` also renders each name with a second seed (Mitsuba's own noise
   floor, per material), and ``--control TABLE`` writes a MERL table as a ``.bsdf`` and compares
   brdfkit's render of that file with Mitsuba's (the renderers' agreement on a file
@@ -139,7 +142,7 @@ def tables(files, px):
     return rows
 
 
-def mitsuba(files, names, px, spp, seeds, control, folder):
+def mitsuba(files, names, px, spp, seeds, control, folder, integrator="path"):
     from brdfkit.testing.mitsuba_measured import measured_render
 
     mask = inner_mask(px)
@@ -154,8 +157,9 @@ def mitsuba(files, names, px, spp, seeds, control, folder):
         todo.append((f"control: {os.path.basename(control)} written by brdfkit", written))
     for k, (name, path) in enumerate(todo):  # the control last
         t0 = time.perf_counter()
-        ref = measured_render(path, resolution=px, spp=spp, seed=0, timeout=7200)
-        row = {"material": name, "px": px, "spp": spp, "mitsuba_s": round(time.perf_counter() - t0, 1),
+        ref = measured_render(path, resolution=px, spp=spp, seed=0, timeout=14400, integrator=integrator)
+        row = {"material": name, "px": px, "spp": spp, "integrator": integrator,
+               "mitsuba_s": round(time.perf_counter() - t0, 1),
                "load": load_average(), "mitsuba_nonfinite_pixels": _nonfinite(ref, mask)}
         direct, images, seconds = _renders(path, px, ("least-squares", "grazing"))
         row.update(mean_mitsuba=_mean(ref, mask), mean_direct=_mean(direct, mask),
@@ -163,7 +167,7 @@ def mitsuba(files, names, px, spp, seeds, control, folder):
                    psnr_table_least_squares=_psnr(images["least-squares"], ref, mask),
                    psnr_table_grazing=_psnr(images["grazing"], ref, mask), direct_render_s=seconds)
         if seeds > 1 and k < len(names):
-            other = measured_render(path, resolution=px, spp=spp, seed=1, timeout=7200)
+            other = measured_render(path, resolution=px, spp=spp, seed=1, timeout=14400, integrator=integrator)
             row["psnr_mitsuba_seed_0_vs_1"] = _psnr(other, ref, mask)
             row["mitsuba_nonfinite_pixels_seed_1"] = _nonfinite(other, mask)
             row["psnr_direct_vs_seed_1"] = _psnr(direct, other, mask)
@@ -179,6 +183,9 @@ def main(argv=None):
     ap.add_argument("--mitsuba", nargs="*", default=None, metavar="NAME", help="Mitsuba's render of these files")
     ap.add_argument("--seeds", type=int, default=1, help="2: a second Mitsuba render of each name (noise floor)")
     ap.add_argument("--control", default=None, metavar="TABLE", help="a MERL table written as .bsdf: the control")
+    ap.add_argument("--integrator", choices=("path", "emitter"), default="path",
+                    help="Mitsuba's: the path tracer (light and BSDF sampling, MIS), or light sampling alone "
+                         "(emitter: the BSDF evaluated, never sampled)")
     ap.add_argument("--px", type=int, default=64)
     ap.add_argument("--spp", type=int, default=16384)
     args = record_options(ap).parse_args(argv)
@@ -199,7 +206,7 @@ def main(argv=None):
     with tempfile.TemporaryDirectory(prefix="rgl-real-") as folder:
         if args.mitsuba is not None:
             record["mitsuba"] = {"rows": mitsuba(files, args.mitsuba, args.px, args.spp, args.seeds, args.control,
-                                                 folder)}
+                                                 folder, args.integrator)}
             save()
         if args.load:
             record["load"] = {"rows": load(files)}

@@ -177,6 +177,11 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
     for folder, paths in folders.items():
         size = sum(os.path.getsize(p) for p in paths)
         report.print(f"  {folder}/  ({len(paths)} file{'s' * (len(paths) > 1)}, {_fmt_bytes(size)})")
+    view = os.path.join(res.out_dir, "view.html")
+    if view in res.files:
+        report.print(f"Look: open {os.path.relpath(view)} in a browser (no network needed): the materials on the "
+                     "reference scene's sphere; choose 'directional light' and drag on a sphere to turn the light "
+                     "(docs/view.md).", soft_wrap=True)
     name = res.sheet_material
     samples = os.path.relpath(os.path.join(res.out_dir, "samples", f"{name}-40.csv"))
     if res.keep_tables:

@@ -233,8 +233,8 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
     ObjectiveConfig(steps=refine_steps)  # its one-line refusal, before any work
     out_dir = os.path.abspath(out_dir)
     os.makedirs(out_dir, exist_ok=True)
-    # The sheet takes its tiles' labels from its inputs' file stems, so it renders files
-    # named by label in a temporary folder, written there or linked to the kept tables.
+    # The sheet takes its tiles' labels from its inputs' file stems: it renders files named
+    # by label in a temporary folder, written there or linked to the kept tables.
     sheet_dir = scratch_folder(out_dir, keep_tables=False) if render else contextlib.nullcontext(None)
     with sheet_dir as scratch:
         return _run(out_dir, scratch, keep_tables, names, seed, device, resolution, int(refine_steps))
@@ -297,7 +297,7 @@ def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_
 
     name = names[0]
     plot_path, sheet_path = write_figures(files, err, clock, name, shown, sheet_inputs, tiles, resolution,
-                                          compressions=COMPRESSION_MODELS)
+                                          compressions=COMPRESSION_MODELS, live=INTERPOLATION_MODEL)
     times = _times(clock, models, names, files, refine_steps, len(tiles), resolution)
     files.written.append(_write_errors(out_dir, models, columns, rows, refine_steps, seed, scored, files.sheets))
     times.append(("whole demo", time.monotonic() - t_all))
@@ -435,6 +435,7 @@ def _times(clock, models: _Models, names, files, refine_steps, renders, resoluti
     if files.scratch is not None:
         times.append((f"comparison sheets, reference and backlight ({2 * renders - 2} renders, {resolution} px)",
                       clock.total("sheet")))
+        times.append(("the page of the materials (view.html)", clock.total("view")))
     return times
 
 

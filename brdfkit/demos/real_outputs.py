@@ -1,7 +1,7 @@
 """What the real-materials demo (:mod:`brdfkit.demos.real_materials`) writes, and the clock
 of its steps: its output folders and the files it keeps, its dense tables (kept in the
 output folder, or the comparison sheet's inputs in a temporary folder), the plot, the
-comparison sheets, ``errors.json``, and their copies into the docs' gallery
+comparison sheets, the page of the materials (``view.html``), ``errors.json``, and their copies into the docs' gallery
 (``brdfkit demo --gallery docs/images``).
 """
 
@@ -11,7 +11,7 @@ import os
 import shutil
 import time
 
-__all__ = ["StepClock", "DemoFiles", "write_figures", "write_errors", "GALLERY", "check_gallery", "copy_to_gallery"]
+__all__ = ["StepClock", "DemoFiles", "write_view", "write_figures", "write_errors", "GALLERY", "check_gallery", "copy_to_gallery"]
 
 
 class StepClock:
@@ -76,6 +76,7 @@ class DemoFiles:
         self.written: list[str] = []
         self.n_tables = 0
         self.sheets: dict = {}
+        self.materials: dict = {}  # {name: table} of the materials themselves (view.html)
 
     def table(self, folder: str, stem: str, table, tile: str | None = None) -> str | None:
         """Write ``OUT/folder/stem.binary`` when tables are kept, and the sheet's input
@@ -83,6 +84,8 @@ class DemoFiles:
         returns the latter, else ``None``. ``table``: ``(90, 90, 180, 3)``, 1/sr."""
         from brdfkit.io.merl import write_merl
 
+        if folder == "materials":
+            self.materials[stem] = table
         kept_path = None
         if self.keep_tables:
             kept_path = os.path.join(self.dirs[folder], stem + ".binary")
@@ -116,8 +119,27 @@ SHEET_SCENES = ("reference", "backlight")
 compressions fail first (the hypernetwork's latent loses 5 dB there; ``docs/notes/compression.md``)."""
 
 
+def write_view(files: DemoFiles, err, clock: StepClock, model: str) -> str:
+    """``OUT/view.html`` (:mod:`brdfkit.view`): the materials live in a browser, the first
+    one, its embedding by ``model`` decoded by the page's shader from its numbers, then the
+    others; returns its path."""
+    from brdfkit.view.inputs import PageInput, read_inputs
+    from brdfkit.view.page import write_inputs
+
+    names = list(files.materials)
+    path = os.path.join(files.out_dir, "view.html")
+    with clock("view"):
+        inputs = [PageInput(names[0], names[0], "table", table=files.materials[names[0]]),
+                  *read_inputs([os.path.join(files.dirs["embeddings"], f"{names[0]}-{model}.emb")], live=True),
+                  *(PageInput(n, n, "table", table=files.materials[n]) for n in names[1:])]
+        size = write_inputs(inputs, path)["bytes"]
+    err.print(f"the page of the materials, to open in a browser: {path} ({size / 1e6:.1f} MB)")
+    files.written.append(path)
+    return path
+
+
 def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dict, inputs: dict,
-                  tiles: dict, resolution: int, compressions=()) -> tuple[str, str | None]:
+                  tiles: dict, resolution: int, compressions=(), live: str | None = None) -> tuple[str, str | None]:
     """The plot of ``shown`` (``{label: (90, 90, 180, 3) table}``, the material first;
     :func:`brdfkit.figures.brdf_plot.plot_brdfs`) and, when ``files`` has a scratch folder,
     the comparison sheets (:func:`brdfkit.figures.comparison_sheet.comparison_sheet`, one in
@@ -126,6 +148,7 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
     label}``, the reference first), rendered at ``resolution`` pixels, of the material
     ``name``; the backlit sheet shows the keys of ``compressions`` only; progress on the
     console ``err``. Each sheet's scores go to ``files.sheets`` (:func:`sheet_scores`).
+    With the sheets and ``live`` (a model), also ``view.html`` (:func:`write_view`).
 
     Returns
     -------
@@ -158,6 +181,8 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
                                     loader=loader)
             files.sheets[scene] = sheet_scores(loader, inputs["reference"], shown, rows, scene)
         files.written.append(path)
+    if live is not None:
+        write_view(files, err, clock, live)
     return plot_path, sheet_path
 
 

@@ -9,6 +9,11 @@ so a render enlarged by a factor that is not whole keeps smooth edges), each pre
 (:func:`brdfkit.evaluation.metrics.score`: PSNR, mean CIEDE2000, SSIM, and the BRDF log RMSE when
 both are BRDF files). The bottom row holds the per-pixel CIEDE2000 against the reference
 (:func:`brdfkit.evaluation.metrics.delta_e_2000_map`) on one colour scale for all predictions.
+The pictures' silhouettes are antialiased (each pixel the sphere's outline crosses, the
+mean of 4 x 4 points, as ``brdfkit render --supersample 4`` gives it:
+:func:`brdfkit.figures.canvas.antialias_silhouette`); the scores, and the mean and
+largest Delta E under each error image, are those of the renders themselves, as ``brdfkit
+metrics`` computes them.
 
 Inputs are what ``brdfkit metrics`` takes: MERL tables (``.binary``) and embeddings
 (``.emb``, with their model), rendered in the reference scene by the quadrature renderer
@@ -23,7 +28,7 @@ from typing import Sequence
 import numpy as np
 
 from brdfkit.errors import InputError
-from brdfkit.figures.canvas import bare_axes, pyplot, save_png, show_image, show_render
+from brdfkit.figures.canvas import antialias_silhouette, bare_axes, pyplot, save_png, show_image, show_render
 
 __all__ = ["comparison_sheet", "DELTA_E_SCALE"]
 
@@ -38,6 +43,21 @@ def _caption(scores: dict) -> str:
     if scores.get("brdf_log_rmse") is not None:
         rows.append(f"BRDF log RMSE {scores['brdf_log_rmse']:.3f}")
     return "\n".join(rows)
+
+
+def _antialiased(loader, paths, images, scene: str) -> list:
+    """The sheet's pictures: ``images`` (the renders of ``paths``) with their silhouettes
+    antialiased (:func:`brdfkit.figures.canvas.antialias_silhouette`) when every input is a
+    BRDF file (an ``.exr`` is shown as it is, and so then are the others)."""
+    if any(p.lower().endswith(".exr") for p in paths):
+        return images
+    from brdfkit.files.brdf_file import load_brdf
+    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.render.scene_suite import scene_env
+
+    brdfs = [TableBRDF(loader.table(p)) if p.lower().endswith(".binary") else load_brdf(p, model_path=loader.model_path)
+             for p in paths]
+    return antialias_silhouette(brdfs, images, env=scene_env(scene))
 
 
 def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
@@ -114,18 +134,20 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
         images.append(img)
         maps.append(delta_e_2000_map(img, img_ref))
     top = max(DELTA_E_SCALE, float(np.ceil(max(np.percentile(m, 99.5) for m in maps))))
+    # The pictures' silhouettes antialiased; the scores and the captions' numbers stay the renders'.
+    shown = _antialiased(loader, [ref, *preds], [img_ref, *images], scene)
 
     n = len(preds) + 1
     fig, axes = pyplot().subplots(2, n, figsize=(2.6 * n + 0.9, 6.4), dpi=dpi, squeeze=False,
                                   layout="constrained")
-    show_render(axes[0, 0], img_ref, f"reference\n{labels[0]}")
+    show_render(axes[0, 0], shown[0], f"reference\n{labels[0]}")
     axes[1, 0].text(0.5, 0.5, "per-pixel error\nagainst the\nreference\n(Delta E 2000)",
                     ha="center", va="center", fontsize=9, color="0.3", transform=axes[1, 0].transAxes)
     im = None
-    for j, (label, img, de) in enumerate(zip(labels[1:], images, maps), start=1):
+    for j, (label, img, de) in enumerate(zip(labels[1:], shown[1:], maps), start=1):
         show_render(axes[0, j], img, label)
         axes[0, j].set_xlabel(_caption(rows[label]), fontsize=8.5, loc="left")
-        im = show_image(axes[1, j], de, cmap="inferno", vmin=0.0, vmax=top)
+        im = show_image(axes[1, j], delta_e_2000_map(img, shown[0]), cmap="inferno", vmin=0.0, vmax=top)
         axes[1, j].set_xlabel(f"mean {rows[label]['delta_e']:.2f}, max {float(de.max()):.1f}", fontsize=8.5)
     for ax in axes.ravel():
         bare_axes(ax)

@@ -5,7 +5,8 @@ Sec. 5) in one PNG.
 blend ``(1 - t) A + t B`` (:func:`brdfkit.api.interpolate`: of the basis's coefficients, or
 of the hypernetwork's latents) decoded by the model and rendered in the reference scene by the
 quadrature renderer, all in one pass (:func:`brdfkit.render.quadrature.render_many`).
-The renders sit side by side, one screen pixel per render pixel, each labelled with its
+The renders sit side by side, one screen pixel per render pixel (their silhouettes
+antialiased: :func:`brdfkit.figures.canvas.antialias_silhouette`), each labelled with its
 ``t``; a caption names A and B. ``brdfkit interpolate A B --sheet strip.png`` draws it.
 """
 
@@ -98,7 +99,7 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     from brdfkit.embeddings import interpolate, open_embedding
     from brdfkit.render.scene import reference_scene
     from brdfkit.render.quadrature import render_many
-    from brdfkit.figures.canvas import pyplot, save_png, show_render
+    from brdfkit.figures.canvas import antialias_silhouette, pyplot, save_png, show_render
 
     check_strip(steps, size)
     ts = strip_ts(steps)
@@ -108,6 +109,7 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     with ProgressBar(f"quadrature {steps} blends", enabled=progress) as bar:
         done = render_many(brdfs, reference_scene(size), progress=bar if progress else None)
     images = [img for img, _ in done]
+    shown = antialias_silhouette(brdfs, images)  # the pictures' silhouettes; the images returned as rendered
 
     names = [os.path.basename(e.source) if e.source else n for e, n in ((a, "A"), (b, "B"))]
     fig = pyplot().figure(dpi=dpi)
@@ -125,7 +127,7 @@ def interpolation_strip(decoder, a, b, output: str | os.PathLike, *, steps: int 
     height = MARGIN_PX + line + size + line + MARGIN_PX
     fig.set_size_inches(width / dpi, height / dpi)
     left = (width - steps * col) // 2
-    for i, (label, img) in enumerate(zip(labels, images)):
+    for i, (label, img) in enumerate(zip(labels, shown)):
         x = left + i * col + (col - size) // 2
         show_render(fig.add_axes((x / width, (MARGIN_PX + line) / height, size / width, size / height)), img,
                     interpolation="nearest")  # one PNG pixel per render pixel: nothing to resample

@@ -10,7 +10,7 @@ folder; nothing is unpickled.
 * :func:`measured_eval`: ``bsdf.eval`` (``f cos(theta_o)``) at direction pairs;
 * :func:`measured_render`: the reference scene (:mod:`brdfkit.render.scene`, the same
   dict as :func:`brdfkit.render.mitsuba3.scenes.reference_scene_dict`) path-traced with
-  the file on the sphere.
+  the file on the sphere, or lit by light sampling alone (:data:`INTEGRATORS`).
 
 Run as ``python -m brdfkit.testing.mitsuba_measured JOB FOLDER`` by these functions.
 """
@@ -25,7 +25,7 @@ import tempfile
 
 import numpy as np
 
-__all__ = ["measured_eval", "measured_render", "mitsuba_available"]
+__all__ = ["measured_eval", "measured_render", "mitsuba_available", "INTEGRATORS"]
 
 
 def mitsuba_available() -> bool:
@@ -81,11 +81,23 @@ def measured_eval(path, wi, wo, *, wavelengths=None, timeout: float = 600.0) -> 
     return values if many else values[0]
 
 
-def measured_render(path, resolution: int = 64, spp: int = 256, seed: int = 0, timeout: float = 600.0) -> np.ndarray:
+INTEGRATORS = {"path": None, "emitter": {"type": "direct", "emitter_samples": 1, "bsdf_samples": 0,
+                                         "hide_emitters": True}}
+"""The integrators of :func:`measured_render`: ``path``, the reference scene's own (a path
+tracer of depth 2: light and BSDF sampling, combined by multiple importance sampling), and
+``emitter``, Mitsuba's ``direct`` integrator with light sampling alone (one environment
+sample a pixel sample, no BSDF sampling: the BSDF is only evaluated, never sampled)."""
+
+
+def measured_render(path, resolution: int = 64, spp: int = 256, seed: int = 0, timeout: float = 600.0,
+                    integrator: str = "path") -> np.ndarray:
     """The reference scene path-traced by Mitsuba (``scalar_rgb``) with the ``measured``
-    BSDF of ``path`` on the sphere: float32 ``(R, R, 3)`` linear RGB."""
+    BSDF of ``path`` on the sphere: float32 ``(R, R, 3)`` linear RGB; ``integrator`` one
+    of :data:`INTEGRATORS`."""
+    if integrator not in INTEGRATORS:
+        raise ValueError(f"integrator {integrator!r}: expected one of {', '.join(INTEGRATORS)}")
     args = {"path": os.path.abspath(os.fspath(path)), "resolution": int(resolution), "spp": int(spp),
-            "seed": int(seed)}
+            "seed": int(seed), "integrator": INTEGRATORS[integrator]}
     return _run("render", args, {}, timeout)["out_image"]
 
 
@@ -119,6 +131,8 @@ def _child_render(mi, folder, args):
     mi.set_variant("scalar_rgb")
     scene = dataclasses.replace(REFERENCE, resolution=args["resolution"])
     d = reference_scene_dict({"type": "measured", "filename": args["path"]}, scene, args["spp"], mi=mi)
+    if args.get("integrator"):
+        d["integrator"] = dict(args["integrator"])
     img = np.array(mi.render(mi.load_dict(d), spp=args["spp"], seed=args["seed"]), dtype=np.float32)[..., :3]
     np.save(os.path.join(folder, "out_image.npy"), img, allow_pickle=False)
 

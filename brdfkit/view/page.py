@@ -18,6 +18,7 @@ the reference scene at ``S`` pixels, without controls, and sets ``document.title
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 from importlib import resources
@@ -26,7 +27,7 @@ import numpy as np
 
 from brdfkit.view.textures import blob, encode_planes, table_texture
 
-__all__ = ["ASSETS", "SCRIPTS", "SHADERS", "asset", "page_data", "page_html", "write_page"]
+__all__ = ["ASSETS", "SCRIPTS", "SHADERS", "asset", "page_data", "page_html", "write_page", "write_inputs"]
 
 SCRIPTS = ("blobs.js", "gl.js", "live.js", "plots.js", "viewer.js")
 """The page's JavaScript, in order."""
@@ -45,12 +46,19 @@ def asset(name: str) -> str:
     return resources.files("brdfkit.view").joinpath("assets", name).read_text(encoding="utf-8")
 
 
+@functools.lru_cache(maxsize=1)
+def _quadrature() -> dict:
+    """The reference scene's quadrature data, computed once per process (about a second)."""
+    from brdfkit.view.quadrature_data import scene_quadrature
+
+    return scene_quadrature()
+
+
 def _scene_record(compress: bool) -> dict:
     from brdfkit.render.envmap import SUN_UV, uv_to_direction
     from brdfkit.render.scene import REFERENCE
-    from brdfkit.view.quadrature_data import scene_quadrature
 
-    q = scene_quadrature()
+    q = _quadrature()
     env = np.ascontiguousarray(q["env"], np.float32)
     return {"nodes": blob(np.ascontiguousarray(q["nodes"]).tobytes(), compress), "node_width": q["nodes"].shape[1],
             "counts": list(q["counts"]), "rects": [list(r) for r in q["rects"]], "constants": q["constants"],
@@ -156,7 +164,7 @@ def write_page(paths, output, *, model_path=None, live: bool = False, compress: 
     dict
         ``{"output", "bytes", "materials": [(label, kind)], "samples": [label]}``.
     """
-    from brdfkit.atomic import atomic_open, refuse_overwrite_of_inputs
+    from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import InputError
     from brdfkit.view.inputs import read_inputs
 
@@ -164,10 +172,19 @@ def write_page(paths, output, *, model_path=None, live: bool = False, compress: 
     if not output.lower().endswith((".html", ".htm")):
         raise InputError(f"{output}: the page must be an .html file")
     refuse_overwrite_of_inputs(output, [*map(os.fspath, paths), model_path])
-    inputs = read_inputs(paths, model_path, live=live, progress=progress)
-    text = page_html(page_data(inputs, compress), shaders)
-    data = text.encode("utf-8")
+    return write_inputs(read_inputs(paths, model_path, live=live, progress=progress), output, compress=compress,
+                        shaders=shaders)
+
+
+def write_inputs(inputs, output, *, compress: bool = True, shaders: dict | None = None) -> dict:
+    """Write the page of inputs already read (:class:`brdfkit.view.inputs.PageInput`: a
+    table in memory needs no file) to ``output``, atomically; returns what
+    :func:`write_page` returns."""
+    from brdfkit.atomic import atomic_open
+
+    data = page_html(page_data(inputs, compress), shaders).encode("utf-8")
     with atomic_open(output, "wb") as f:
         f.write(data)
-    return {"output": output, "bytes": len(data), "materials": [(i.label, i.kind) for i in inputs if i.kind != "samples"],
+    return {"output": os.fspath(output), "bytes": len(data),
+            "materials": [(i.label, i.kind) for i in inputs if i.kind != "samples"],
             "samples": [i.label for i in inputs if i.kind == "samples"]}

@@ -34,7 +34,11 @@ function drawLobe(canvas, lobes, thetaI, what, samples, settings) {
     ctx.beginPath();
     ctx.arc(cx, cy, r, Math.PI, 2 * Math.PI);
     ctx.stroke();
-    if (k > 0) ctx.fillText(`1e${lo + k}`, cx + r + 2, cy + 12);
+    if (k > 0) {
+      ctx.textAlign = 'center';
+      ctx.fillText(`1e${lo + k}`, Math.min(cx + r, w - 14), cy + 12);
+      ctx.textAlign = 'left';
+    }
   }
   ctx.beginPath();
   ctx.moveTo(cx - radius, cy);

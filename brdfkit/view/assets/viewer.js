@@ -168,7 +168,7 @@ class Viewer {
       }
     }
     this.composite();
-    this.gl.finish();
+    this.gl.readPixels(0, 0, 1, 1, this.gl.RGBA, this.gl.UNSIGNED_BYTE, new Uint8Array(4));  // the draws done
     if (!this.still) {
       const what = this.lightMode === 0 ? 'the reference scene\'s environment, the quadrature of brdfkit render'
         : 'a directional light';
@@ -328,11 +328,10 @@ async function main() {
   }
   await v.renderAll();
   window.brdfkitTimes = { load: t1 - t0, render: performance.now() - t1 };
-  if (v.still) {
-    await nextFrame();
-    await nextFrame();
-    document.title = 'ready';
-  }
+  await nextFrame();
+  await nextFrame();
+  if (v.still) document.title = 'ready';
+  document.body.dataset.state = 'ready';
 }
 
 main().catch((e) => {
