@@ -299,11 +299,12 @@ def test_unmeasured_cells_are_left_out_of_the_loss():
 
 @pytest.mark.slow
 def test_codes_and_a_cosine_rate_train_to_the_same_bytes_twice(trained, tmp_path):
-    """The auto-decoder codes and the cosine learning rate (``-O codes_lr``, ``-O lr_end``):
-    seeded, so the same run twice gives the same bytes, and they change what is learnt."""
+    """The auto-decoder codes, the cosine learning rate and the render-weighted cells
+    (``-O codes_lr``, ``-O lr_end``, ``-O render_weight``): seeded, so the same run twice
+    gives the same bytes, and they change what is learnt."""
     lib, basis, res = trained
     run = ["fit", "--method", "residual", lib, "-O", f"basis={basis}", *TINY, "-O", "codes_lr=0.01",
-           "-O", "lr_end=0.1", "--steps", "6"]
+           "-O", "lr_end=0.1", "-O", "render_weight=0.5", "--steps", "6"]
     outs = []
     for name in ("a", "b"):
         code, err = run_cli_uncaptured(run + ["-o", tmp_path / f"{name}.safetensors"])
@@ -314,3 +315,43 @@ def test_codes_and_a_cosine_rate_train_to_the_same_bytes_twice(trained, tmp_path
 
     meta = json.loads(read_header(tmp_path / "a.safetensors")["meta"])
     assert meta["options"]["codes_lr"] == 0.01 and meta["options"]["lr_end"] == 0.1
+
+
+def test_render_weights_are_where_the_objective_scenes_look(trained):
+    """A cell's render weight is positive only where an objective scene's pairs reach it,
+    mean 1 per channel, and in proportion to how much a small change of the cell's mapped
+    value moves the scenes' display-encoded renders (two cells compared by finite
+    differences); its pool draws only where the weight is positive."""
+    from brdfkit.basis.mapping import EPS
+    from brdfkit.materials.synthetic import Material, table
+    from brdfkit.render.display import display_encode
+    from brdfkit.residual.render_weights import cell_pool, render_weights, scene_maps
+
+    import glob
+
+    from brdfkit.basis import fit_basis
+
+    lib, _, _ = trained  # the shipped bases' weight floor: no cell where x' cannot resolve rho
+    pca = fit_basis(sorted(glob.glob(os.path.join(lib, "*.binary"))), 4, w_floor=0.005)
+    maps = scene_maps(pca, resolution=8)
+    t = table(Material("glossy", "dielectric", 0.3, albedo=(0.1, 0.1, 0.1)))
+    g = render_weights(pca, t, maps)
+    reached = np.zeros(pca.cells.size, bool)
+    for _, _, _, at in maps:
+        reached[at] = True
+    assert g.shape == (pca.cells.size, 3) and np.allclose(g.mean(axis=0), 1.0, rtol=1e-4)
+    assert bool((g[~reached] == 0).all()) and bool((g[reached] > 0).any())
+
+    def moved(i, delta=1e-3):  # display-space change of the scenes when x' of cell i moves by delta
+        flat = t.reshape(-1, 3).copy()
+        c, w = pca.cells[i], pca.cell_weight()[i]
+        flat[c, 0] = ((flat[c, 0] * w + EPS) * np.exp(delta) - EPS) / w
+        return sum(float(((display_encode(sc.render_table(flat.reshape(t.shape)))
+                           - display_encode(sc.render_table(t)))[:, 0] ** 2).sum()) for sc, _, _, _ in maps)
+
+    order = np.argsort(g[:, 0])
+    big = order[-1]
+    mid = order[min(np.searchsorted(g[order, 0], 0.01 * g[big, 0]), order.size - 2)]
+    assert moved(big) / moved(mid) == pytest.approx(g[big, 0] / g[mid, 0], rel=0.05)
+    pool = cell_pool(g[:, 0], seed=0, size=20000)
+    assert bool(np.isin(pool, np.flatnonzero(g[:, 0] > 0)).all())

@@ -34,31 +34,40 @@ __all__ = ["TRAIN_DEFAULTS", "fit_residual", "training_pairs"]
 
 TRAIN_DEFAULTS = {"steps": 8000, "batch": 24, "cells": 4096, "lr": 1e-3, "lr_end": 1.0, "mixup": 0.5,
                   "sizes": "9,21,39", "shared": False, "k_min": 1, "k_max": 13, "width": 32, "hidden": 64,
-                  "codes_lr": 0.0, "seed": 0, "checkpoint_every": 1000, "storage": "float32"}
+                  "codes_lr": 0.0, "render_weight": 0.0, "seed": 0, "checkpoint_every": 1000, "storage": "float32"}
 """The options of :func:`fit_residual` and their defaults (``-O KEY=VALUE``)."""
 
 
-def training_pairs(basis, paths, k_max: int, say=lambda m: None):
-    """``(z, mapped)``: coefficients in training standard deviations ``(3 M, k_max)``
-    float32 and mapped tables less the mean ``(3 M, P)`` float16, a row per channel, NaN
-    where the table is unmeasured (such cells are left out of the loss: the network learns
-    what was measured, not to cancel the basis at a table's holes)."""
+def training_pairs(basis, paths, k_max: int, say=lambda m: None, pools: bool = False, seed: int = 0):
+    """``(z, mapped, pools)``: coefficients in training standard deviations ``(3 M, k_max)``
+    float32, mapped tables less the mean ``(3 M, P)`` float16, a row per channel, NaN where
+    the table is unmeasured (such cells are left out of the loss: the network learns what
+    was measured, not to cancel the basis at a table's holes), and with ``pools`` each row's
+    cells drawn in proportion to its render weights (int32 ``(3 M, POOL)``,
+    :mod:`brdfkit.residual.render_weights`; else ``None``)."""
     from brdfkit.io.merl import read_merl
 
     part = basis.leading(k_max)
     sigma = part.sigma.astype(np.float64)
-    zs, rows = [], []
+    zs, rows, drawn = [], [], []
+    if pools:
+        from brdfkit.residual.render_weights import cell_pool, render_weights, scene_maps
+
+        maps = scene_maps(basis)
     for i, p in enumerate(paths):
         table = read_merl(p)
         mapped = part.mapped_table(table) - part.mean[:, None]
         zs.append((part.project(table) / sigma[:, None]).T)
         rows.append(mapped.T.astype(np.float16))
+        if pools:
+            g = render_weights(basis, table, maps)
+            drawn.extend(cell_pool(g[:, ch], seed=(seed * 1_000_003 + i) * 3 + ch) for ch in range(3))
         if (i + 1) % 20 == 0:
             say(f"read {i + 1} of {len(paths)} tables")
-    return np.concatenate(zs).astype(np.float32), np.concatenate(rows)
+    return np.concatenate(zs).astype(np.float32), np.concatenate(rows), (np.stack(drawn) if pools else None)
 
 
-_NEUTRAL = ("lr_end", "codes_lr")
+_NEUTRAL = ("lr_end", "codes_lr", "render_weight")
 """Options that, at their defaults, train exactly as before they existed: left out of a
 checkpoint's identity there, so that a checkpoint written before them still resumes."""
 
@@ -86,13 +95,19 @@ def _sizes(text) -> list:
     return sizes
 
 
-def _step_batch(g, zt, mapped, comp, sigma, opts, torch, k_min, k_max):
+def _step_batch(g, zt, mapped, comp, sigma, opts, torch, k_min, k_max, pools=None):
     """One step's rows: inputs ``(B, 2 k_max)`` (differentiable in ``zt``, the coefficients
     ``(3 M, >= k_max)`` in standard deviations), cell indices ``(B, C)``, targets ``(B, C)``
-    and whether each target was measured (``None``: all were)."""
+    and whether each target was measured (``None``: all were). With ``pools``, a share
+    ``render_weight`` of each row's cells comes from its pool (in proportion to its render
+    weights), the rest uniform."""
     n, p, b = zt.shape[0], mapped.shape[1], opts["batch"]
     rows = torch.randint(n, (b,), generator=g)
     cells = torch.randint(p, (b, opts["cells"]), generator=g)
+    if pools is not None:
+        pick = torch.rand(b, opts["cells"], generator=g) < opts["render_weight"]
+        at = torch.randint(pools.shape[1], (b, opts["cells"]), generator=g)
+        cells = torch.where(pick, torch.as_tensor(pools[rows.numpy()[:, None], at.numpy()]).long(), cells)
     zt = zt[:, :k_max]
     zb = zt[rows]
     tb = torch.as_tensor(mapped[rows.numpy()[:, None], cells.numpy()], dtype=torch.float32)
@@ -175,10 +190,10 @@ def fit_residual(data, output, *, basis=None, exclude=(), progress: bool = True,
     group = ProcessGroup(device)
     say = (lambda m: print(f"fit residual: {m}", flush=True)) if progress and group.rank == 0 else (lambda m: None)
     t0 = time.monotonic()
-    z, mapped = training_pairs(pca, paths, k_top, say)
+    z, mapped, pools = training_pairs(pca, paths, k_top, say, pools=opts["render_weight"] > 0, seed=opts["seed"])
     say(f"{len(paths)} tables, {mapped.shape[1]:,} cells, {z.shape[0]} channels in {time.monotonic() - t0:.0f} s")
     part = pca.leading(k_top)
-    data_t = (z, mapped, torch.as_tensor(part.components), torch.as_tensor(part.sigma), _cell_hd(part))
+    data_t = (z, mapped, torch.as_tensor(part.components), torch.as_tensor(part.sigma), _cell_hd(part), pools)
     run = _Run(os.fspath(output) + ".ckpt", _identity(names, file_digest(bpath), opts), opts, group, say)
     done = run.resume() if resume else []
     with StopSignals() as stop:
@@ -220,8 +235,10 @@ def _options(given: dict) -> dict:
     for k in ("steps", "batch", "cells", "k_min", "k_max", "width", "hidden", "checkpoint_every"):
         if opts[k] < 1:
             raise InputError(f"-O {k}={opts[k]}: must be at least 1")
-    if not (opts["lr"] > 0 and 0 <= opts["mixup"] <= 1 and opts["k_min"] <= opts["k_max"]):
-        raise InputError("residual options: lr > 0, 0 <= mixup <= 1 and k_min <= k_max")
+    if not (opts["lr"] > 0 and 0 <= opts["mixup"] <= 1 and opts["k_min"] <= opts["k_max"]
+            and 0 <= opts["render_weight"] <= 1 and 0 < opts["lr_end"] <= 1 and opts["codes_lr"] >= 0):
+        raise InputError("residual options: lr > 0, 0 <= mixup <= 1, k_min <= k_max, 0 <= render_weight <= 1, "
+                         "0 < lr_end <= 1 and codes_lr >= 0")
     from brdfkit.residual.residual_file import STORAGES
 
     if opts["storage"] not in STORAGES:
@@ -301,7 +318,7 @@ class _Run:
         import torch
 
         (model, net, opt, codes), (opts, group) = nets, (self.opts, self.group)
-        z, mapped, comp, sigma, hd = data_t
+        z, mapped, comp, sigma, hd, pools = data_t
         zt = torch.as_tensor(z)
         shown, seen = 0.0, 0.0
         while step < opts["steps"] and not stop.requested:
@@ -312,7 +329,7 @@ class _Run:
             # it would have.
             g = torch.Generator().manual_seed(((opts["seed"] * 101 + index) * 7_919 + group.rank) * 1_000_003 + step)
             zb, cells, tb, measured = _step_batch(g, zt if codes is None else zt[:, :cfg.k_max] + codes, mapped,
-                                                  comp, sigma, opts, torch, cfg.k_min, cfg.k_max)
+                                                  comp, sigma, opts, torch, cfg.k_min, cfg.k_max, pools)
             dev = group.device
             loss = _loss(model(zb.to(dev), hd[cells].to(dev)), tb.to(dev), None if measured is None else measured.to(dev))
             opt.zero_grad(set_to_none=True)
