@@ -24,6 +24,13 @@ folder ``$BRDFKIT_REAL_DATA/rgl`` (every ``*_rgb.bsdf`` in it). Jobs (any combin
   ``--integrator emitter`` renders by light sampling alone instead (Mitsuba's ``direct``
   integrator without BSDF samples: the file's BSDF is evaluated, never sampled; the lead
   of ``chm_mint``'s gap, ``docs/notes/rgl-bsdf.md``).
+* ``--quadrature NAME ...``: brdfkit's render of the file at denser quadratures
+  (:data:`DENSER`) against Mitsuba's path tracer (two seeds), and Mitsuba's render by light
+  sampling alone (two seeds, ``--emitter-spp``) against both, by pixel and by region of the
+  sphere: which of the two renderers leaves ``chm_mint``'s gap (``docs/notes/rgl-bsdf.md``).
+* ``--sampling NAME ...``: where Mitsuba's ``measured`` plugin draws its BSDF samples
+  against the density its ``pdf`` gives them (rings about the mirror direction, four
+  quadrants each): the path tracer weighs a BSDF sample by that density.
   ``--seeds 2`` also renders each name with a second seed (Mitsuba's own noise
   floor, per material), and ``--control TABLE`` writes a MERL table as a ``.bsdf`` and compares
   brdfkit's render of that file with Mitsuba's (the renderers' agreement on a file
@@ -142,6 +149,126 @@ def tables(files, px):
     return rows
 
 
+RINGS = (0.0, 0.5, 1.0, 2.0, 4.0, 8.0, 16.0, 30.0, 60.0, 180.0)
+"""Rings of the sampling check, degrees from the mirror direction (each cut in four
+quadrants about it)."""
+
+
+def _bins(v, mirror, e1, e2):
+    """(ring, quadrant) of unit directions ``v (M, 3)`` about ``mirror``."""
+    import numpy as np
+
+    a = np.degrees(np.arccos(np.clip(v @ mirror, -1, 1)))
+    q = (((np.arctan2(v @ e2, v @ e1) + 2 * np.pi) % (2 * np.pi)) // (np.pi / 2)).astype(int) % 4
+    return np.clip(np.searchsorted(RINGS, a, side="right") - 1, 0, len(RINGS) - 2), q
+
+
+def sampling(files, names, n=60000, per_bin=2000, angles=(30, 60), seed=0):
+    """Mitsuba's ``measured`` BSDF: where ``bsdf.sample`` puts its directions against the
+    density ``bsdf.pdf`` says they follow, in rings about the mirror direction, at a few
+    view angles (``n`` samples; the pdf integrated over each bin by ``per_bin`` stratified
+    points). Its path tracer weighs each BSDF sample by ``pdf``: where the two disagree its
+    render is biased, and a render by light sampling alone is not."""
+    import numpy as np
+
+    from brdfkit.testing.mitsuba_measured import measured_sampling
+
+    rng = np.random.default_rng(seed)
+    rows = []
+    nb = len(RINGS) - 1
+    for name in names:
+        for ti in angles:
+            t = np.radians(ti)
+            mirror, e1, e2 = np.array([-np.sin(t), 0, np.cos(t)]), np.array([np.cos(t), 0, np.sin(t)]), np.array([0, 1.0, 0])
+            pts, where, dw = [], [], []
+            for i in range(nb):  # stratified points of each bin, and the solid angle each stands for
+                c0, c1 = np.cos(np.radians(RINGS[i])), np.cos(np.radians(RINGS[i + 1]))
+                for q in range(4):
+                    uu, vv = (np.arange(per_bin) + rng.random(per_bin)) / per_bin, rng.permutation(
+                        (np.arange(per_bin) + rng.random(per_bin)) / per_bin)
+                    cz, ph = c0 + (c1 - c0) * uu, (q + vv) * np.pi / 2
+                    sz = np.sqrt(1 - cz ** 2)
+                    pts.append(cz[:, None] * mirror + sz[:, None] * (np.cos(ph)[:, None] * e1 + np.sin(ph)[:, None] * e2))
+                    where += [(i, q)] * per_bin
+                    dw.append(np.full(per_bin, (c0 - c1) * (np.pi / 2) / per_bin))
+            pts, dw = np.concatenate(pts), np.concatenate(dw)
+            m = max(n, pts.shape[0])
+            wo = np.zeros((m, 3))
+            wo[:pts.shape[0]] = pts
+            wo[pts.shape[0]:, 2] = 1.0
+            out = measured_sampling(files[name], np.tile([np.sin(t), 0.0, np.cos(t)], (m, 1)), rng.random((m, 3)), wo,
+                                    timeout=7200)
+            ok = out["sampled_pdf"][:n] > 0
+            counts = np.zeros((nb, 4))
+            np.add.at(counts, _bins(out["sampled"][:n][ok], mirror, e1, e2), 1)
+            expected = np.zeros((nb, 4))
+            above = pts[:, 2] > 0
+            np.add.at(expected, tuple(np.array(where)[above].T), (out["pdf"][:pts.shape[0]] * dw)[above])
+            frac = counts / n
+            z = (frac - expected) / np.sqrt(np.maximum(expected, 1e-9) / n)
+            rows.append({"material": name, "theta_i": ti, "samples": n, "rings_deg": list(RINGS),
+                         "sampled_fraction": np.round(frac, 5).tolist(), "pdf_mass": np.round(expected, 5).tolist(),
+                         "pdf_mass_total": round(float(expected.sum()), 4),
+                         "excess_mass": round(float(np.clip(frac - expected, 0, None).sum()), 4),
+                         "chi2_per_bin": round(float((z ** 2).mean()), 2), "max_abs_z": round(float(np.abs(z).max()), 1)})
+            print({k: v for k, v in rows[-1].items() if k not in ("sampled_fraction", "pdf_mass", "rings_deg")},
+                  flush=True)
+    return rows
+
+
+DENSER = {"default": {}, "2x": dict(cosine_grid=20, half_rings=40, half_phi=24, half_phi_min=10, light_density=1.5),
+          "half 2x": dict(half_rings=40, half_phi=24, half_phi_min=10), "cosine 2x": dict(cosine_grid=20),
+          "light 2x": dict(light_density=1.5),
+          "11x": dict(cosine_grid=30, half_rings=80, half_phi=48, half_phi_min=20, light_density=2.0)}
+"""Quadrature settings of ``--quadrature`` (:class:`brdfkit.render.scene.Quadrature` fields
+over the reference scene's; ``11x``: about eleven times its nodes a point)."""
+
+
+def _regions(px):
+    """Masks of the sphere's rim (left, right, top, bottom) and centre, for region means."""
+    n, m = _scene(px).pixel_normals()
+    inner, nx, ny = m.all(2), n[..., 0, 0], n[..., 0, 1]
+    rim = inner & (nx ** 2 + ny ** 2 > 0.75 ** 2)
+    return {"left rim": rim & (nx < -0.3), "right rim": rim & (nx > 0.3), "top rim": rim & (ny > 0.3),
+            "bottom rim": rim & (ny < -0.3), "centre": inner & ~(nx ** 2 + ny ** 2 > 0.75 ** 2)}
+
+
+def quadrature(files, names, px, spp, emitter_spp):
+    """brdfkit's render of each file at the quadratures of :data:`DENSER` against Mitsuba's
+    path tracer (two seeds, ``spp``), and Mitsuba's render by light sampling alone (two seeds,
+    ``emitter_spp``: it never samples the BSDF) against both, per pixel and by region means."""
+    import numpy as np
+
+    from brdfkit.files.brdf_file import load_brdf
+    from brdfkit.render.quadrature import render
+    from brdfkit.testing.mitsuba_measured import measured_render
+
+    mask, regions = inner_mask(px), _regions(px)
+    rows = []
+    for name in names:
+        path = files[name]
+        mi = {f"path seed {s}": measured_render(path, resolution=px, spp=spp, seed=s, timeout=14400) for s in (0, 1)}
+        mi.update({f"emitter seed {s}": measured_render(path, resolution=px, spp=emitter_spp, seed=s, timeout=14400,
+                                                        integrator="emitter") for s in (0, 1)})
+        row = {"material": name, "px": px, "spp": spp, "emitter_spp": emitter_spp,
+               "psnr_path_seed_0_vs_1": _psnr(mi["path seed 1"], mi["path seed 0"], mask),
+               "psnr_emitter_seed_0_vs_1": _psnr(mi["emitter seed 1"], mi["emitter seed 0"], mask),
+               "psnr_emitter_vs_path": _psnr(mi["emitter seed 0"], mi["path seed 0"], mask), "quadratures": {}}
+        brdf, images = load_brdf(path), dict(mi)
+        for label, kw in DENSER.items():
+            q = dataclasses.replace(_scene(px).quadrature, **kw)
+            t0 = time.perf_counter()
+            images[f"brdfkit {label}"], _ = render(brdf, dataclasses.replace(_scene(px), quadrature=q))
+            row["quadratures"][label] = {"settings": kw, "seconds": round(time.perf_counter() - t0, 1),
+                                         **{f"psnr_vs_path_seed_{s}": _psnr(images[f"brdfkit {label}"],
+                                                                            mi[f"path seed {s}"], mask) for s in (0, 1)}}
+            print(name, label, row["quadratures"][label], flush=True)
+        row["region_means_green"] = {k: {r: round(float(np.nan_to_num(img)[m][:, 1].mean()), 5)
+                                         for r, m in regions.items()} for k, img in images.items()}
+        rows.append(row)
+    return rows
+
+
 def mitsuba(files, names, px, spp, seeds, control, folder, integrator="path"):
     from brdfkit.testing.mitsuba_measured import measured_render
 
@@ -186,12 +313,18 @@ def main(argv=None):
     ap.add_argument("--integrator", choices=("path", "emitter"), default="path",
                     help="Mitsuba's: the path tracer (light and BSDF sampling, MIS), or light sampling alone "
                          "(emitter: the BSDF evaluated, never sampled)")
+    ap.add_argument("--sampling", nargs="*", default=None, metavar="NAME",
+                    help="Mitsuba's BSDF samples of these files against its own pdf (rings about the mirror direction)")
+    ap.add_argument("--quadrature", nargs="*", default=None, metavar="NAME",
+                    help="brdfkit's render of these files at denser quadratures against Mitsuba's path tracer and "
+                         "its render by light sampling alone")
+    ap.add_argument("--emitter-spp", type=int, default=16384, help="samples a pixel of the light-sampling renders")
     ap.add_argument("--px", type=int, default=64)
     ap.add_argument("--spp", type=int, default=16384)
     args = record_options(ap).parse_args(argv)
     set_threads(args.threads)
     files = _files()
-    missing = [n for n in args.mitsuba or [] if n not in files]
+    missing = [n for n in (args.mitsuba or []) + (args.sampling or []) + (args.quadrature or []) if n not in files]
     if missing:
         sys.exit(f"rgl_real.py: error: not in $BRDFKIT_REAL_DATA/rgl: {', '.join(missing)}")
     argv_shown = [os.path.basename(a) if os.path.isabs(a) else a for a in sys.argv[1:]]
@@ -207,6 +340,12 @@ def main(argv=None):
         if args.mitsuba is not None:
             record["mitsuba"] = {"rows": mitsuba(files, args.mitsuba, args.px, args.spp, args.seeds, args.control,
                                                  folder, args.integrator)}
+            save()
+        if args.sampling is not None:
+            record["sampling"] = {"rows": sampling(files, args.sampling)}
+            save()
+        if args.quadrature is not None:
+            record["quadrature"] = {"rows": quadrature(files, args.quadrature, args.px, args.spp, args.emitter_spp)}
             save()
         if args.load:
             record["load"] = {"rows": load(files)}

@@ -8,6 +8,8 @@ imports in-process. Arrays go to and from the child as ``.npy`` files in a tempo
 folder; nothing is unpickled.
 
 * :func:`measured_eval`: ``bsdf.eval`` (``f cos(theta_o)``) at direction pairs;
+* :func:`measured_sampling`: ``bsdf.sample`` (the directions it draws) and ``bsdf.pdf``
+  (the density it says they follow);
 * :func:`measured_render`: the reference scene (:mod:`brdfkit.render.scene`, the same
   dict as :func:`brdfkit.render.mitsuba3.scenes.reference_scene_dict`) path-traced with
   the file on the sphere, or lit by light sampling alone (:data:`INTEGRATORS`).
@@ -25,7 +27,7 @@ import tempfile
 
 import numpy as np
 
-__all__ = ["measured_eval", "measured_render", "mitsuba_available", "INTEGRATORS"]
+__all__ = ["measured_eval", "measured_render", "measured_sampling", "mitsuba_available", "INTEGRATORS"]
 
 
 def mitsuba_available() -> bool:
@@ -122,6 +124,43 @@ def _child_eval(mi, folder, args):
         np.save(os.path.join(folder, f"out_values_{i}.npy"), out, allow_pickle=False)
 
 
+def measured_sampling(path, wi, u, wo, timeout: float = 600.0) -> dict:
+    """Mitsuba's ``measured`` BSDF of ``path`` (``scalar_rgb``) sampling and its density:
+    ``bsdf.sample`` at views ``wi`` ``(M, 3)`` with random numbers ``u`` ``(M, 3)``, and
+    ``bsdf.pdf`` at the pairs ``(wi, wo)`` of the caller's ``wo`` ``(M, 3)`` (the same ``wi``).
+
+    Returns
+    -------
+    dict
+        ``{"sampled" (M, 3): the sampled directions (zeros where the sample failed),
+        "weight" (M, 3), "sampled_pdf" (M,), "pdf" (M,): the density at the given wo}``.
+    """
+    arrays = {"wi": np.asarray(wi, np.float64), "u": np.asarray(u, np.float64), "wo": np.asarray(wo, np.float64)}
+    out = _run("sample", {"path": os.path.abspath(os.fspath(path))}, arrays, timeout)
+    return {k[4:]: v for k, v in out.items()}
+
+
+def _child_sample(mi, folder, args):
+    wi, u, wo = (np.load(os.path.join(folder, f"{n}.npy")) for n in ("wi", "u", "wo"))
+    mi.set_variant("scalar_rgb")
+    ctx = mi.BSDFContext()
+    si = mi.SurfaceInteraction3f()
+    si.sh_frame = mi.Frame3f(mi.Vector3f(0.0, 0.0, 1.0))
+    bsdf = mi.load_dict({"type": "measured", "filename": args["path"]})
+    m = wi.shape[0]
+    sampled, weight, spdf, pdf = np.zeros((m, 3)), np.zeros((m, 3)), np.zeros(m), np.zeros(m)
+    for k in range(m):
+        si.wi = mi.Vector3f(*wi[k])
+        bs, w = bsdf.sample(ctx, si, float(u[k, 0]), mi.Point2f(float(u[k, 1]), float(u[k, 2])))
+        if bs.pdf > 0:
+            sampled[k] = [bs.wo[0], bs.wo[1], bs.wo[2]]
+            weight[k] = [w[0], w[1], w[2]]
+            spdf[k] = bs.pdf
+        pdf[k] = bsdf.pdf(ctx, si, mi.Vector3f(*wo[k]))
+    for name, a in (("sampled", sampled), ("weight", weight), ("sampled_pdf", spdf), ("pdf", pdf)):
+        np.save(os.path.join(folder, f"out_{name}.npy"), a, allow_pickle=False)
+
+
 def _child_render(mi, folder, args):
     import dataclasses
 
@@ -143,7 +182,7 @@ def _main(argv):
         args = json.load(f)
     import mitsuba as mi
 
-    {"eval": _child_eval, "render": _child_render}[job](mi, folder, args)
+    {"eval": _child_eval, "render": _child_render, "sample": _child_sample}[job](mi, folder, args)
 
 
 if __name__ == "__main__":
