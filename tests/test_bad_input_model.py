@@ -51,6 +51,7 @@ MODEL_COMMANDS = {  # command -> arguments before -m, given the good folder and 
     "sparse": lambda g, o: ["sparse", g / "samples.csv", "-o", o / "x.binary", "--emb", o / "x.emb"],
     "interpolate": lambda g, o: ["interpolate", g / "a.emb", g / "b.emb", "--t", "0.5", "-o", o / "x.emb",
                                  "--binary", o / "x.binary"],
+    "view": lambda g, o: ["view", g / "a.emb", "-o", o / "p.html"],
 }
 BAD_MODEL_NAMES = ["missing", "directory", "empty", "text", "pickle", "torch_save", "truncated_header",
                    "truncated_payload", "reference_table", "merl_table"]

@@ -249,3 +249,27 @@ def test_export_refuses_what_it_cannot_decode(tmp_path, capsys):
     write_embedding(tmp_path / "h.emb", Embedding(np.zeros(7), "hypernet", "ab" * 32, "x"))
     code, _, err = run_cli(capsys, ["export", tmp_path / "h.emb", "--glsl", tmp_path / "out"])
     assert code == 2 and "a hypernet embedding has no GLSL decoder" in one_error_line(err)
+
+
+@pytest.mark.realdata
+@pytest.mark.slow
+def test_a_page_of_rgls_own_file_and_a_cornell_file(tmp_path, capsys):
+    """An RGL ``.bsdf`` travels as its reciprocal table; a Cornell ``.brdf`` as points."""
+    import os
+    from pathlib import Path
+
+    from brdfkit.io.rgl_bsdf import read_bsdf_table
+    from brdfkit.view.textures import table_texture
+
+    root = os.environ.get("BRDFKIT_REAL_DATA")
+    rgl, cornell = (Path(root or "") / "rgl" / "chm_mint_rgb.bsdf", Path(root or "") / "cornell" / "acryl_blue.brdf")
+    if not root or not rgl.is_file() or not cornell.is_file():
+        pytest.skip("$BRDFKIT_REAL_DATA/rgl/chm_mint_rgb.bsdf or cornell/acryl_blue.brdf is absent")
+    code, _, err = run_cli(capsys, ["view", rgl, cornell, "-o", tmp_path / "p.html"])
+    assert code == 0, err
+    html = (tmp_path / "p.html").read_text()
+    data = json.loads(html.split('<script id="brdfkit-data" type="application/json">')[1].split("</script>")[0])
+    half, scale = table_texture(read_bsdf_table(rgl))
+    assert data["materials"][0]["scale"] == 1.0 / scale
+    assert np.array_equal(np.frombuffer(blob_bytes(data["materials"][0]["table"]), np.float16), half.reshape(-1))
+    assert data["samples"][0]["count"] == 1439
