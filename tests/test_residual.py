@@ -355,3 +355,18 @@ def test_render_weights_are_where_the_objective_scenes_look(trained):
     assert moved(big) / moved(mid) == pytest.approx(g[big, 0] / g[mid, 0], rel=0.05)
     pool = cell_pool(g[:, 0], seed=0, size=20000)
     assert bool(np.isin(pool, np.flatnonzero(g[:, 0] > 0)).all())
+
+
+def test_members_are_planned_a_size_each_and_configs_read_as_before():
+    """``-O members=M``: M networks a size, each its own member number; a config of member 0
+    writes the JSON it wrote before members existed (files of one network a size keep
+    their bytes), and a member's config reads back."""
+    from brdfkit.residual.training import TRAIN_DEFAULTS, plan
+
+    assert plan(dict(TRAIN_DEFAULTS, sizes="9,21", members=2)) == [(3, 3, 0), (3, 3, 1), (7, 7, 0), (7, 7, 1)]
+    assert plan(dict(TRAIN_DEFAULTS, sizes="9")) == [(3, 3, 0)]
+    assert "member" not in ResidualConfig(3, 3).to_json()
+    cfg = ResidualConfig(3, 3, member=2)
+    assert ResidualConfig.from_json(cfg.to_json()) == cfg
+    with pytest.raises(ValueError, match="member"):
+        ResidualConfig(3, 3, member=-1)

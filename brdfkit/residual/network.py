@@ -44,23 +44,33 @@ class ResidualConfig:
         The hyponet's hidden width.
     hidden
         The hypernetwork body's width.
+    member
+        Which of the networks that serve the same sizes this is (0, 1, ...): a file may hold
+        several *members* a size, and ``encode`` keeps per material the one that renders the
+        objective scenes best (``docs/notes/compression.md``).
     """
 
     k_min: int = 1
     k_max: int = 30
     width: int = 32
     hidden: int = 64
+    member: int = 0
 
     def __post_init__(self):
         for name in ("k_min", "k_max", "width", "hidden"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"residual config: {name} must be a positive whole number, not {v!r}")
+        if isinstance(self.member, bool) or not isinstance(self.member, int) or self.member < 0:
+            raise ValueError(f"residual config: member must be a whole number >= 0, not {self.member!r}")
         if self.k_min > self.k_max:
             raise ValueError(f"residual config: k_min {self.k_min} > k_max {self.k_max}")
 
     def to_json(self) -> str:
-        return json.dumps(dataclasses.asdict(self), sort_keys=True)
+        d = dataclasses.asdict(self)
+        if not d["member"]:  # files of one network a size read and write as before members existed
+            del d["member"]
+        return json.dumps(d, sort_keys=True)
 
     @classmethod
     def from_json(cls, text: str) -> "ResidualConfig":

@@ -34,7 +34,8 @@ __all__ = ["TRAIN_DEFAULTS", "fit_residual", "training_pairs"]
 
 TRAIN_DEFAULTS = {"steps": 8000, "batch": 24, "cells": 4096, "lr": 1e-3, "lr_end": 1.0, "mixup": 0.5,
                   "sizes": "9,21,39", "shared": False, "k_min": 1, "k_max": 13, "width": 32, "hidden": 64,
-                  "codes_lr": 0.0, "render_weight": 0.0, "seed": 0, "checkpoint_every": 1000, "storage": "float32"}
+                  "codes_lr": 0.0, "render_weight": 0.0, "members": 1, "seed": 0, "checkpoint_every": 1000,
+                  "storage": "float32"}
 """The options of :func:`fit_residual` and their defaults (``-O KEY=VALUE``)."""
 
 
@@ -67,7 +68,7 @@ def training_pairs(basis, paths, k_max: int, say=lambda m: None, pools: bool = F
     return np.concatenate(zs).astype(np.float32), np.concatenate(rows), (np.stack(drawn) if pools else None)
 
 
-_NEUTRAL = ("lr_end", "codes_lr", "render_weight")
+_NEUTRAL = ("lr_end", "codes_lr", "render_weight", "members")
 """Options that, at their defaults, train exactly as before they existed: left out of a
 checkpoint's identity there, so that a checkpoint written before them still resumes."""
 
@@ -79,10 +80,11 @@ def _identity(names, basis_digest, opts) -> str:
 
 
 def plan(opts: dict) -> list:
-    """The ``(k_min, k_max)`` of each network to train, in order."""
+    """The ``(k_min, k_max, member)`` of each network to train, in order: ``members``
+    networks a size (each its own initialisation and draws)."""
     if opts["shared"]:
-        return [(opts["k_min"], opts["k_max"])]
-    return [(s // 3, s // 3) for s in _sizes(opts["sizes"])]
+        return [(opts["k_min"], opts["k_max"], m) for m in range(opts["members"])]
+    return [(s // 3, s // 3, m) for s in _sizes(opts["sizes"]) for m in range(opts["members"])]
 
 
 def _sizes(text) -> list:
@@ -182,7 +184,7 @@ def fit_residual(data, output, *, basis=None, exclude=(), progress: bool = True,
     bpath = resolve_basis(basis)
     pca = load_basis(bpath)
     nets_plan = plan(opts)
-    k_top = max(k for _, k in nets_plan)
+    k_top = max(k for _, k, _ in nets_plan)
     if k_top > pca.n_components:
         raise InputError(f"a network of {k_top} components: the basis has {pca.n_components}")
     paths, names, _, _ = collect_materials(data, exclude)
@@ -198,8 +200,9 @@ def fit_residual(data, output, *, basis=None, exclude=(), progress: bool = True,
     done = run.resume() if resume else []
     with StopSignals() as stop:
         for i in range(len(done), len(nets_plan)):
-            k_min, k_max = nets_plan[i]
-            state = run.train(i, ResidualConfig(k_min, k_max, opts["width"], opts["hidden"]), data_t, stop, done)
+            k_min, k_max, member = nets_plan[i]
+            state = run.train(i, ResidualConfig(k_min, k_max, opts["width"], opts["hidden"], member), data_t, stop,
+                              done)
             if state is None:
                 say(f"stopped; --resume continues from {run.ckpt}")
                 group.close()
@@ -211,7 +214,7 @@ def fit_residual(data, output, *, basis=None, exclude=(), progress: bool = True,
 
         raise TrainingError(f"the processes ended with different weights ({', '.join(d[:12] for d in digests)})")
     if group.rank == 0:
-        cfgs = [ResidualConfig(lo, hi, opts["width"], opts["hidden"]) for lo, hi in nets_plan]
+        cfgs = [ResidualConfig(lo, hi, opts["width"], opts["hidden"], m) for lo, hi, m in nets_plan]
         _write(output, list(zip(cfgs, done)), bpath, opts, names, group.world, digests)
         say(f"wrote {output}: {len(done)} network(s), {time.monotonic() - t0:.0f} s")
     group.barrier()
@@ -232,7 +235,7 @@ def _options(given: dict) -> dict:
                     str(v).lower() in ("1", "true", "yes")
             except (TypeError, ValueError):
                 raise InputError(f"-O {k}={v!r}: expected a {type(TRAIN_DEFAULTS[k]).__name__}") from None
-    for k in ("steps", "batch", "cells", "k_min", "k_max", "width", "hidden", "checkpoint_every"):
+    for k in ("steps", "batch", "cells", "k_min", "k_max", "width", "hidden", "checkpoint_every", "members"):
         if opts[k] < 1:
             raise InputError(f"-O {k}={opts[k]}: must be at least 1")
     if not (opts["lr"] > 0 and 0 <= opts["mixup"] <= 1 and opts["k_min"] <= opts["k_max"]
@@ -331,7 +334,8 @@ class _Run:
             zb, cells, tb, measured = _step_batch(g, zt if codes is None else zt[:, :cfg.k_max] + codes, mapped,
                                                   comp, sigma, opts, torch, cfg.k_min, cfg.k_max, pools)
             dev = group.device
-            loss = _loss(model(zb.to(dev), hd[cells].to(dev)), tb.to(dev), None if measured is None else measured.to(dev))
+            measured = None if measured is None else measured.to(dev)
+            loss = _loss(model(zb.to(dev), hd[cells].to(dev)), tb.to(dev), measured)
             opt.zero_grad(set_to_none=True)
             if codes is not None:
                 codes.opt.zero_grad(set_to_none=True)
