@@ -25,6 +25,8 @@ px, PSNR after the metrics' display encoding against the table's own.
         -O basis=runs/levers/basis64.safetensors -O sizes=9 --steps 4000 -o runs/levers/base.safetensors
     python benchmarks/studies/study_residual_levers.py score runs/levers/base.safetensors ... \\
         --proxies proxies/merl --basis runs/levers/basis64.safetensors -k 3 -o runs/levers/score-k3.json
+    python benchmarks/studies/study_residual_levers.py choose runs/levers/score-k3*.json \\
+        --groups base base,cos-s1,cos-s2     # a choice per material among members
 """
 
 from __future__ import annotations
@@ -154,6 +156,37 @@ def table_of(doc):
               + " | ".join(f"{per[s]:.2f}" for s in SUITE) + " |")
 
 
+def choose(a):
+    """A choice per material among several residuals (*members*): the candidate (basis alone,
+    each member's projection or fitted coefficients) with the best objective-scene PSNR,
+    its judged scenes reported, against full PCA."""
+    from brdfkit.render.objective import OBJECTIVE
+    from brdfkit.render.scene_suite import SUITE
+
+    recs = {}
+    for path in a.records:
+        with open(path, encoding="utf-8") as f:
+            for r in json.load(f)["records"]:
+                recs.setdefault(r["material"], {}).update(r["psnr"])
+    rows = {}
+    for group in a.groups:
+        members = group.split(",")
+        picked = []
+        for ps in recs.values():
+            cands = ["basis"] + [f"{m}: {c}" for m in members for c in ("c0", "fitted")]
+            picked.append(ps[max(cands, key=lambda c: np.mean([ps[c][s] for s in OBJECTIVE]))])
+        rows[f"chosen among {len(members)}: {group}"] = picked
+    for label in sorted({k for ps in recs.values() for k in ps if k.startswith("PCA")}):
+        rows[label] = [ps[label] for ps in recs.values()]
+    print(f"\n{len(recs)} materials\n")
+    print("| row | objective scenes | judged scenes | " + " | ".join(SUITE) + " |")
+    print("| --- | ---: | ---: | " + " | ".join("---:" for _ in SUITE) + " |")
+    for label, picked in rows.items():
+        per = {s: float(np.mean([p[s] for p in picked])) for s in (*OBJECTIVE, *SUITE)}
+        print(f"| {label} | {np.mean([per[s] for s in OBJECTIVE]):.2f} | {np.mean([per[s] for s in SUITE]):.2f} | "
+              + " | ".join(f"{per[s]:.2f}" for s in SUITE) + " |")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     sub = ap.add_subparsers(dest="cmd", required=True)
@@ -172,7 +205,12 @@ def main(argv=None):
     s.add_argument("-o", "--output", required=True)
     t = sub.add_parser("table")
     t.add_argument("record")
+    c = sub.add_parser("choose")
+    c.add_argument("records", nargs="+", help="score records of the same materials")
+    c.add_argument("--groups", nargs="+", required=True, help="comma-separated residual names chosen among")
     a = ap.parse_args(argv)
+    if a.cmd == "choose":
+        return choose(a)
     if a.cmd == "prepare":
         return prepare(a)
     if a.cmd == "table":
