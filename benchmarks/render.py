@@ -69,6 +69,9 @@ def main(argv=None) -> int:
     import numpy as np
 
     common.set_threads(args.threads)
+    from brdfkit.runtime import set_cpu_threads
+
+    set_cpu_threads(args.threads)  # the renderer's blocks of pixels (NumPy); torch's for the hyponet
     from brdfkit.io.embedding import Embedding
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
     from brdfkit.render.renderable import TableBRDF
@@ -110,23 +113,20 @@ def main(argv=None) -> int:
 
 
 def _pairs(rng, n):
-    """``n`` random direction pairs above the horizon, float32 ``(2, n, 3)``."""
+    """``n`` random direction pairs above the horizon, float32 ``(2, n, 3)`` (NumPy: what
+    the renderer hands a BRDF)."""
     import numpy as np
-    import torch
 
     v = rng.normal(size=(2, n, 3))
     v[..., 2] = np.abs(v[..., 2])
     v /= np.linalg.norm(v, axis=-1, keepdims=True)
-    return torch.tensor(v, dtype=torch.float32)
+    return v.astype(np.float32)
 
 
 def _evals(brdf, wi, wo):
     """``eval_dirs`` over all pairs in blocks of 262,144: the bound."""
-    import torch
-
-    with torch.no_grad():
-        for s in range(0, wi.shape[0], 1 << 18):
-            brdf.eval_dirs(wi[s:s + (1 << 18)], wo[s:s + (1 << 18)])
+    for s in range(0, wi.shape[0], 1 << 18):
+        brdf.eval_dirs(wi[s:s + (1 << 18)], wo[s:s + (1 << 18)])
 
 
 def _interleaved(fn, bound, repeat):
@@ -201,28 +201,25 @@ class _Analytic:
     """A synthetic material in closed form (no table)."""
 
     def __init__(self, material):
-        import torch
-
-        self.m, self.device, self.name = material, torch.device("cpu"), material.name
+        self.m, self.device, self.name = material, "cpu", material.name
 
     def eval_dirs(self, wi, wo):
-        import torch
+        import numpy as np
 
         from brdfkit.materials.synthetic import evaluate
 
-        return torch.from_numpy(evaluate(self.m, wi.double().numpy(), wo.double().numpy())).float()
+        return evaluate(self.m, np.asarray(wi, np.float64), np.asarray(wo, np.float64)).astype(np.float32)
 
 
 def _brute_force(material, normal, env, n=800):
     """Radiance at a sphere normal by a midpoint rule over an ``n x 2n`` lat-long grid."""
     import numpy as np
-    import torch
 
     from brdfkit.render.envmap import uv_to_direction
-    from brdfkit.render.nodes import _frames
+    from brdfkit.render.nodes import frames
     from brdfkit.materials.synthetic import evaluate
 
-    t, b = (a[0].numpy() for a in _frames(torch.tensor(normal[None], dtype=torch.float64)))
+    t, b = (a[0] for a in frames(np.asarray(normal, np.float64)[None]))
     wo = np.array([t[2], b[2], normal[2]])
     u = (np.arange(2 * n) + 0.5) / (2 * n)
     total = np.zeros(3)
@@ -231,7 +228,7 @@ def _brute_force(material, normal, env, n=800):
         dw = np.repeat(2 * np.pi ** 2 * np.sin(np.pi * vs) / (n * 2 * n), 2 * n)
         wi = np.stack([d @ t, d @ b, d @ normal], -1)
         f = evaluate(material, wi, np.broadcast_to(wo, wi.shape))
-        radiance = env.radiance(torch.from_numpy(d)).double().numpy()
+        radiance = env.radiance(d)
         total += (radiance * f * np.clip(wi[:, 2:3], 0, None) * dw[:, None]).sum(0)
     return total
 

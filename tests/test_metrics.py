@@ -140,3 +140,26 @@ def test_score_is_what_bench_and_the_metrics_command_report():
     assert got["brdf_log_rmse"] is None
     assert got["psnr"] == metrics.psnr(noisy, img) < metrics.PSNR_CAP
     assert got["ssim"] == metrics.ssim(noisy, img) and got["delta_e"] == metrics.delta_e_2000(noisy, img)
+
+
+@pytest.mark.parametrize("shape", [(64, 64, 3), (9, 13, 3)])
+def test_delta_e_and_ssim_are_colour_sciences_and_scikit_images(shape):
+    """Delta E 2000 and SSIM run in NumPy (no colour-science, no scikit-image import in a
+    metrics process): the libraries' values to 1e-9, on random display images."""
+    colour = pytest.importorskip("colour")
+    skimage_metrics = pytest.importorskip("skimage.metrics")
+    from brdfkit.evaluation import metrics
+
+    rng = np.random.default_rng(sum(shape))
+    a = rng.uniform(0, 1.2, shape)
+    b = np.clip(a + rng.normal(0, 0.05, shape), 0, None)
+    space, d65 = colour.RGB_COLOURSPACES["sRGB"], colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    lab = [colour.XYZ_to_Lab(colour.RGB_to_XYZ(metrics.display_linear(x), space, apply_cctf_decoding=False), d65)
+           for x in (a, b)]
+    np.testing.assert_allclose(metrics.delta_e_2000_map(a, b), colour.delta_E(*lab, method="CIE 2000"),
+                               rtol=0, atol=1e-9)
+    want, smap = skimage_metrics.structural_similarity(metrics.display_encode(a), metrics.display_encode(b),
+                                                       data_range=1.0, channel_axis=-1, full=True)
+    assert metrics.ssim(a, b) == pytest.approx(want, abs=1e-9)
+    mask = rng.uniform(size=shape[:2]) < 0.5
+    assert metrics.ssim(a, b, mask) == pytest.approx(smap.mean(-1)[mask].mean(), abs=1e-9)

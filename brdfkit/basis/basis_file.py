@@ -23,8 +23,8 @@ from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.errors import FormatError
 from brdfkit.geometry import N_CELLS, N_PHI_D, grid_cosine_weight
 from brdfkit.basis.model import EPS, PcaBasis
-from brdfkit.basis.storage import (GRAZING_FULL, INT8_BLOCK, check_half, compact, dequantize, expand, expansion,
-                                   quantize)
+from brdfkit.basis.storage import (GRAZING_FULL, INT8_BLOCK, Compact, check_half, compact, dequantize, expand,
+                                   expansion, quantize)
 
 __all__ = ["BASIS_FORMAT", "BASIS_VERSION", "basis_tensors", "is_basis_format", "save_basis", "load_basis",
            "read_basis", "storage_of"]
@@ -176,7 +176,7 @@ def read_basis(f, path: str, prefix: str = "") -> PcaBasis:
         raise FormatError(path, f"PCA basis metadata 'w_floor' must be in [0, 1), got {w_floor!r}")
     cells = cells.astype(np.int64)
     per_cell = [t["reference"].astype(np.float32), t["mean"].astype(np.float32)]
-    stored_cells = cells
+    stored_cells, packed = cells, None
     if comp.dtype == np.int8:
         scales = f.get_tensor(prefix + "component_scales")
 
@@ -192,14 +192,16 @@ def read_basis(f, path: str, prefix: str = "") -> PcaBasis:
             raise FormatError(path, "a half-phi_d PCA basis may hold odd phi_d cells only near the horizon "
                                     f"(cosine weight below {GRAZING_FULL})")
         how = expansion(cells)
+        packed = Compact(stored, per_cell[1], how)
         cells, per_cell = expand(cells, per_cell, how)
 
-        def rows(k, stored=stored, how=how):
-            return expand(stored_cells, [stored(k)], how)[1][0]
+        def rows(k, packed=packed, how=how):
+            return expand(stored_cells, [packed.rows(k)], how)[1][0]
     sigma = t["sigma"].astype(np.float32)
     if comp.dtype != np.int8 and stride != "2":
         return PcaBasis(cells, *per_cell, rows(comp.shape[0]), sigma, list(materials), w_floor)
     # Compact storage: a component is restored when first used (an embedding of 13 of 30
     # components restores 13: 0.3 s of a decode process, not 0.7).
-    return PcaBasis.deferred(cells, *per_cell, rows, sigma, list(materials), w_floor)
+    return PcaBasis.deferred(cells, *per_cell, rows, sigma, list(materials), w_floor,
+                             compact=packed)
 

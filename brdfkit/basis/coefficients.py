@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from brdfkit.errors import InputError, ModelMismatchError
+from brdfkit.render.renderable import DecodedBRDF
 
 __all__ = ["DEFAULT_SIZE", "DEFAULT_STEPS", "BasisBRDF", "basis_sizes", "check_coefficients", "encode_coefficients",
            "refinement_record"]
@@ -91,14 +92,16 @@ def encode_coefficients(basis, table, *, digest: str, size: int | None = None, s
     """
     from brdfkit.basis.refine_on_screen import DEFAULT_TRUST, refine_coefficients
     from brdfkit.io.embedding import Embedding
-    from brdfkit.render.objective import ObjectiveConfig
+    from brdfkit.render.objective import THREADS, ObjectiveConfig
+    from brdfkit.runtime import blas_threads
 
     if size is None:
         size = min(DEFAULT_SIZE, 3 * basis.n_components)
     part = basis.leading(_components(basis, int(size)))
-    c0 = part.project(table)
     steps = DEFAULT_STEPS if steps is None else int(steps)
-    c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps), trust=DEFAULT_TRUST)
+    with blas_threads(THREADS):  # the same sums whatever the machine's cores
+        c0 = part.project(table)
+        c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps), trust=DEFAULT_TRUST)
     measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
     record = refinement_record(rec) if steps else None
     return Embedding(np.asarray(c, np.float32).reshape(-1), "basis", digest, source, measured, refinement=record)
@@ -131,21 +134,15 @@ def check_coefficients(emb, basis, digest: str, name: str = "") -> np.ndarray:
     return emb.values.reshape(emb.size // 3, 3)
 
 
-class BasisBRDF:
-    """A basis embedding as a renderable BRDF (``eval_pairs``, ``eval_dirs``, ``to_table``).
-
-    A render evaluates the decode only at the cells its pairs reach
-    (:meth:`prepare_cells`, :mod:`brdfkit.render.cells`); without them, the whole table is
-    decoded once, on first use, and looked up as
-    :class:`brdfkit.render.renderable.TableBRDF` looks up any table.
-    """
+class BasisBRDF(DecodedBRDF):
+    """A basis embedding as a renderable BRDF (``eval_pairs``, ``eval_dirs``, ``to_table``):
+    a render decodes it only at the cells its pairs reach
+    (:class:`~brdfkit.render.renderable.DecodedBRDF`)."""
 
     def __init__(self, basis, coefficients, name: str = "embedding", device=None):
         self.basis = basis
         self.coefficients = np.asarray(coefficients, np.float32)
         self.name = name
-        self.device = device
-        self._rows = None
 
     def to_table(self) -> np.ndarray:
         """float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis's cells."""
@@ -155,34 +152,3 @@ class BasisBRDF:
         """``(cells, values)``: the decode at those of the flat MERL ``cells`` the basis
         covers, float64 ``(n, 3)``."""
         return self.basis.leading(self.coefficients.shape[0]).decode_at(self.coefficients, cells)
-
-    def prepare_cells(self, cells) -> None:
-        """Decode at ``cells`` only (the cells a render's pairs reach), for the lookups
-        that follow."""
-        from brdfkit.render.lookup import TableRows
-
-        at, values = self.at_cells(cells)
-        self._rows = TableRows.from_cells(at, values)
-
-    @property
-    def rows(self):
-        """The :class:`~brdfkit.render.lookup.TableRows` its lookups read (the whole table's
-        unless :meth:`prepare_cells` was called)."""
-        if self._rows is None:
-            from brdfkit.render.lookup import TableRows
-
-            self._rows = TableRows(self.to_table())
-        return self._rows
-
-    def eval_pairs(self, block):
-        """float32 ``(3, M)`` at a render's pairs (:class:`~brdfkit.render.pairs.PairBlock`)."""
-        return self.rows.lookup(block.coords)
-
-    def eval_dirs(self, wi, wo):
-        """BRDF ``(M, 3)`` float32 at local direction pairs (as :class:`~brdfkit.render.renderable.TableBRDF`)."""
-        from brdfkit.render.renderable import coords_of_dirs
-
-        coords, above = coords_of_dirs(wi, wo)
-        out = self.rows.lookup(coords)
-        out[:, ~above] = 0.0
-        return out.T

@@ -114,13 +114,18 @@ class PcaBasis:
     w_floor: float = 0.0
     _dense: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
     _rows: object = dataclasses.field(default=None, repr=False, compare=False)
+    _compact: object = dataclasses.field(default=None, repr=False, compare=False)
 
     @classmethod
-    def deferred(cls, cells, reference, mean, rows, sigma, materials=(), w_floor: float = 0.0) -> "PcaBasis":
+    def deferred(cls, cells, reference, mean, rows, sigma, materials=(), w_floor: float = 0.0,
+                 compact=None) -> "PcaBasis":
         """A basis whose components are restored from compact storage when first used:
         ``rows(k)`` gives the ``k`` leading ones, float32 ``(k, P)`` (:meth:`leading`
-        restores only those; :attr:`components` all of them)."""
-        basis = cls(cells, reference, mean, None, sigma, list(materials), w_floor, _rows=rows)
+        restores only those; :attr:`components` all of them). ``compact``: the
+        :class:`~brdfkit.basis.storage.Compact` storage they come from, when there is one:
+        :meth:`decode`, :meth:`decode_at` and :meth:`project` then work on it without
+        restoring the components at every cell."""
+        basis = cls(cells, reference, mean, None, sigma, list(materials), w_floor, _rows=rows, _compact=compact)
         del basis.__dict__["components"]  # restored by __getattr__ on first use
         return basis
 
@@ -148,8 +153,8 @@ class PcaBasis:
             if len(made) >= 4:
                 made.clear()
             if "components" not in self.__dict__ and self._rows is not None:
-                made[k] = PcaBasis(self.cells, self.reference, self.mean, self._rows(k), self.sigma[:k],
-                                   self.materials, self.w_floor)
+                made[k] = PcaBasis.deferred(self.cells, self.reference, self.mean, self._rows, self.sigma[:k],
+                                            self.materials, self.w_floor, self._compact)
             else:
                 made[k] = dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None,
                                               _rows=None)
@@ -223,8 +228,15 @@ class PcaBasis:
         """Dense table from coefficients ``(K, 3)``: float64 ``(90, 90, 180, 3)``, 1/sr,
         ``> 0`` (``>= 0`` with ``floor=0``: :func:`brdfkit.basis.mapping.from_mapped`),
         NaN off the basis cells."""
-        mapped = self.mean[:, None] + self.components.T @ np.asarray(coefficients, np.float32)
-        return self.decode_mapped(mapped, floor)
+        return self.decode_mapped(self.mapped_values(coefficients), floor)
+
+    def mapped_values(self, coefficients: np.ndarray) -> np.ndarray:
+        """The mapped values ``mean + U c`` at the basis's cells of coefficients
+        ``(K, 3)``: float32 ``(P, 3)`` (from compact storage without restoring the
+        components, when the basis has it)."""
+        if "components" not in self.__dict__ and self._compact is not None:
+            return self._compact.mapped(coefficients)
+        return self.mean[:, None] + self.components.T @ np.asarray(coefficients, np.float32)
 
     def decode_at(self, coefficients: np.ndarray, cells, floor: float = FLOOR) -> tuple:
         """:meth:`decode` at some cells only: ``(at, values)``, the flat MERL ``cells``
@@ -241,6 +253,8 @@ class PcaBasis:
     def rows_at(self, positions) -> np.ndarray:
         """The components at some of the basis's cells (positions among :attr:`cells`),
         float32 ``(K, n)``."""
+        if "components" not in self.__dict__ and self._compact is not None:
+            return self._compact.rows_at(self.n_components, positions)
         return self.components[:, positions]
 
     def decode_mapped(self, mapped: np.ndarray, floor: float = FLOOR) -> np.ndarray:
@@ -267,6 +281,10 @@ class PcaBasis:
         measures (no regulariser): the best this basis can do for that material."""
         mapped = self.mapped_table(table)
         ok = np.isfinite(mapped).all(axis=1)
+        if "components" not in self.__dict__ and self._compact is not None:
+            mapped -= self.mean[:, None]
+            ata, atb = self._compact.normal_equations(self.n_components, mapped, None if ok.all() else ok)
+            return np.linalg.solve(ata, atb)
         b = mapped[ok] - self.mean[ok, None]
         a = (self.components if ok.all() else self.components[:, ok]).astype(np.float64)
         # Normal equations (K x K): a tenth of lstsq's time over a million cells. Not

@@ -37,6 +37,7 @@ coefficients to the bit (on the same BLAS thread count).
 from __future__ import annotations
 
 import dataclasses
+import functools
 
 import numpy as np
 
@@ -68,9 +69,9 @@ class CellMap:
     cells
         int64 ``(U,)`` flat MERL indices of the reached cells the basis covers.
     mean, comp, weight, reference, bound
-        The basis at those cells, float64: the mean ``(U,)``, the components ``(K, U)``,
-        the mapping's weight and reference, and the decode's lower bound
-        (:func:`brdfkit.basis.mapping.lower_bound`), ``(U,)`` each.
+        The basis at those cells, float32 (the basis's own precision): the mean ``(U,)``,
+        the components ``(K, U)``, the mapping's weight and reference, and the decode's
+        lower bound (:func:`brdfkit.basis.mapping.lower_bound`), ``(U,)`` each.
     pixels
         int64 ``(n,)`` the image pixels the map's rows are, ascending.
     starts
@@ -97,19 +98,22 @@ class CellMap:
     vals: np.ndarray
     extra: object = None
 
-    def mapped(self, c, ch: int, extra=None):
-        """Mapped values ``(U,)`` of channel ``ch`` of coefficients ``c`` ``(K, 3)``
-        (``extra``: :attr:`extra` of ``c`` when made already)."""
-        out = np.asarray(c, np.float64)[:, ch] @ self.comp
+    def mapped(self, c, ch: int | None = None, extra=None):
+        """Mapped values ``(U,)`` of channel ``ch`` of coefficients ``c`` ``(K, 3)``, or
+        ``(3, U)`` of all three (``ch`` ``None``); float32 (``extra``: :attr:`extra` of
+        ``c`` when made already)."""
+        cc = np.asarray(c, np.float64)
+        out = (cc[:, ch] if ch is not None else cc.T).astype(np.float32) @ self.comp
         out += self.mean
         if self.extra is not None:
-            out += (self.extra(c) if extra is None else extra)[:, ch]
+            e = (self.extra(c) if extra is None else extra).T
+            out += e[ch] if ch is not None else e
         return out
 
     def rho(self, mapped):
-        """``(rho, d rho / d x')`` of mapped values ``(U,)``: the decode
-        (:func:`brdfkit.basis.mapping.from_mapped`, its default floor) and its derivative
-        (0 where the floor holds)."""
+        """``(rho, d rho / d x')`` of float32 mapped values ``(U,)`` or ``(3, U)``: the
+        decode (:func:`brdfkit.basis.mapping.from_mapped`, its default floor) and its
+        derivative (0 where the floor holds), float32."""
         x = np.expm1(mapped)
         e = x + 1.0
         x *= self.reference + EPS
@@ -123,17 +127,40 @@ class CellMap:
         return rho, e
 
     def apply(self, ch: int, x):
-        """The map of channel ``ch`` applied to per-cell values ``x`` ``(U,)`` or
-        ``(K, U)``: ``(n,)`` or ``(K, n)``."""
-        prod = x[..., self.cols]
-        prod *= self.vals[ch]
-        return np.add.reduceat(prod, self.starts, axis=-1)
+        """The map of channel ``ch`` applied to per-cell values ``x`` ``(U,)``: ``(n,)``
+        float64."""
+        prod = self.vals[ch] * x[self.cols]
+        return np.add.reduceat(prod, self.starts)
+
+    @functools.cached_property
+    def _padded(self):
+        """The entries laid out one row a pixel, padded to the longest row: their cells
+        ``(n, R)``, values ``(3, n, R)`` and the components there ``(n, R, K)`` (float32,
+        0 in the padding), so that a Jacobian is one batch of small matrix products."""
+        n = self.pixels.size
+        length = np.diff(np.append(self.starts, self.cols.size))
+        width = int(length.max()) if n else 0
+        row = np.repeat(np.arange(n), length)
+        pos = np.arange(self.cols.size) - np.repeat(self.starts, length)
+        cols = np.zeros((n, width), np.int64)
+        cols[row, pos] = self.cols
+        vals = np.zeros((3, n, width), np.float32)
+        vals[:, row, pos] = self.vals
+        comp = np.ascontiguousarray(self.comp.T)[cols]
+        comp[vals[0] == 0] = 0.0
+        return cols, vals, comp
+
+    def jacobian(self, ch: int, slope):
+        """``d (map of channel ch applied to rho) / d c`` ``(n, K)`` given ``d rho / d x'``
+        at the cells ``(U,)`` (the components are ``d x' / d c``)."""
+        cols, vals, comp = self._padded
+        w = vals[ch] * slope[cols]
+        return np.matmul(w[:, None, :].astype(np.float32), comp)[:, 0, :].astype(np.float64)
 
     def render(self, c):
-        """Image rows ``(n, 3)`` of coefficients ``c`` ``(K, 3)``."""
-        c = np.asarray(c, np.float64)
-        extra = None if self.extra is None else self.extra(c)
-        return np.stack([self.apply(ch, self.rho(self.mapped(c, ch, extra))[0]) for ch in range(3)], 1)
+        """Image rows ``(n, 3)`` float64 of coefficients ``c`` ``(K, 3)``."""
+        rho, _ = self.rho(self.mapped(c))
+        return np.stack([self.apply(ch, rho[ch]) for ch in range(3)], 1)
 
 
 def _corner_entries(screen, pairs, factor, basis_row):
@@ -176,10 +203,10 @@ def cell_map(basis, screen, pairs, factor=None, basis_row=None) -> CellMap:
     pos[used] = np.arange(used.size)
     pixels, starts = np.unique(pix, return_index=True)
     row = basis_row[used]
-    comp = basis.components[:, row].astype(np.float64)
     weight, reference = basis.cell_weight(used), basis.reference[row].astype(np.float64)
-    return CellMap(used, basis.mean[row].astype(np.float64), comp, weight, reference,
-                   lower_bound(reference, weight, FLOOR), pixels, starts, pos[cells], vals)
+    f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+    return CellMap(used, f32(basis.mean[row]), f32(basis.rows_at(row)), f32(weight), f32(reference),
+                   f32(lower_bound(reference, weight, FLOOR)), pixels, starts, pos[cells], vals)
 
 
 @dataclasses.dataclass
@@ -246,8 +273,8 @@ def prepare_screens(basis, table, config=None) -> Screens:
 
 
 class _Channel:
-    """One channel's least-squares problem over the fitted maps: its residuals and
-    Jacobian at coefficients ``c`` (:func:`solve_channels`)."""
+    """One channel's least-squares problem over the fitted maps: its residuals at
+    coefficients ``c`` and their Jacobian (:func:`solve_channels`)."""
 
     def __init__(self, maps, targets, ch, c0, tau):
         from brdfkit.render.display import display_encode
@@ -259,26 +286,30 @@ class _Channel:
         # A frozen correction (the only kind a fit takes): made once.
         self.extra = [None if m.extra is None else m.extra(c0) for m in maps]
 
-    def residuals(self, c, jacobian: bool):
-        """``(r, J)``: the stacked residuals (trust term last) and, when asked, their
-        Jacobian ``(R, K)`` in this channel's coefficients; ``c`` ``(K, 3)``."""
-        from brdfkit.render.display import display_encode, display_slope
+    def evaluate(self, c):
+        """``(r, state)``: the stacked residuals (trust term last) at ``c`` ``(K, 3)``, and
+        what :meth:`jacobian` needs of them."""
+        from brdfkit.render.display import display_encode
 
-        rs, js = [], []
+        rs, state = [], []
         for m, a, goal, extra in zip(self.maps, self.alpha, self.goal, self.extra):
             rho, slope = m.rho(m.mapped(c, self.ch, extra))
             img = m.apply(self.ch, rho)
             rs.append(a * (display_encode(img) - goal))
-            if jacobian:
-                js.append((a * display_slope(img))[:, None] * m.apply(self.ch, slope * m.comp).T)
-        t = np.sqrt(self.tau)
-        rs.append(t * (c[:, self.ch] - self.c0[:, self.ch]))
-        if jacobian:
-            js.append(t * np.eye(c.shape[0]))
-        return np.concatenate(rs), (np.concatenate(js) if jacobian else None)
+            state.append((img, slope))
+        rs.append(np.sqrt(self.tau) * (c[:, self.ch] - self.c0[:, self.ch]))
+        return np.concatenate(rs), state
+
+    def jacobian(self, state):
+        """The Jacobian ``(R, K)`` of the residuals in this channel's coefficients."""
+        from brdfkit.render.display import display_slope
+
+        js = [(a * display_slope(img))[:, None] * m.jacobian(self.ch, slope)
+              for m, a, (img, slope) in zip(self.maps, self.alpha, state)]
+        return np.concatenate(js + [np.sqrt(self.tau) * np.eye(self.c0.shape[0])])
 
 
-def solve_channels(maps, targets, c0, start=None, trust: float = DEFAULT_TRUST, cells: int = 1):
+def solve_channels(maps, targets, c0, trust: float = DEFAULT_TRUST, cells: int = 1):
     """The Levenberg-Marquardt step function of :func:`refine_coefficients` over fitted
     maps (:class:`CellMap`) and their targets: ``step(c, k) -> (c, done)``, one iteration
     for each of the three channels (each its own problem, with its own damping).
@@ -288,31 +319,32 @@ def solve_channels(maps, targets, c0, start=None, trust: float = DEFAULT_TRUST, 
     maps, targets
         The fitted maps and the table's render at their pixels.
     c0
-        ``(K, 3)`` the trust term's centre (the projection).
+        ``(K, 3)`` the start and the trust term's centre (the projection).
     trust, cells
         The trust term's weight and the basis's cell count ``P`` (``trust / 3 P`` a
         squared coefficient).
     """
-    chans = [_Channel(maps, targets, ch, np.asarray(c0, np.float64), trust / (3 * cells)) for ch in range(3)]
-    damping = [1e-3] * 3
-    done = [False] * 3
+    c0 = np.asarray(c0, np.float64)
+    chans = [_Channel(maps, targets, ch, c0, trust / (3 * cells)) for ch in range(3)]
+    damping, done = [1e-3] * 3, [False] * 3
+    at = [prob.evaluate(c0) for prob in chans]  # the residuals at each channel's current iterate
 
     def step(c, k):
         c = np.array(c, np.float64)
         for ch, prob in enumerate(chans):
             if done[ch]:
                 continue
-            r, jac = prob.residuals(c, True)
+            r, state = at[ch]
+            jac = prob.jacobian(state)
             cost, jtj, g = r @ r, jac.T @ jac, jac.T @ r
             scale = np.maximum(np.diag(jtj), 1e-30)
             for _ in range(8):  # raise the damping until the step lowers the cost
-                delta = -np.linalg.solve(jtj + damping[ch] * np.diag(scale), g)
                 trial = c.copy()
-                trial[:, ch] += delta
-                rt, _ = prob.residuals(trial, False)
+                trial[:, ch] -= np.linalg.solve(jtj + damping[ch] * np.diag(scale), g)
+                rt, st = prob.evaluate(trial)
                 if rt @ rt < cost:
                     done[ch] = cost - rt @ rt <= 1e-6 * cost
-                    c, damping[ch] = trial, max(damping[ch] / 3, 1e-7)
+                    c, at[ch], damping[ch] = trial, (rt, st), max(damping[ch] / 3, 1e-7)
                     break
                 damping[ch] *= 4
             else:

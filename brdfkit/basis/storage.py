@@ -31,7 +31,8 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.geometry import N_PHI_D, N_THETA_D, N_THETA_H, grid_cosine_weight
 
-__all__ = ["compact", "expand", "check_half", "quantize", "dequantize", "INT8_BLOCK", "GRAZING_FULL"]
+__all__ = ["compact", "expand", "expansion", "Compact", "check_half", "quantize", "dequantize", "INT8_BLOCK",
+           "GRAZING_FULL"]
 
 _HALF_MAX = 65504.0
 INT8_BLOCK = 256
@@ -87,11 +88,13 @@ def expansion(cells: np.ndarray) -> tuple:
     both = is_odd & (left >= 0) & (right >= 0)
     wa = np.where(both, 0.5, 1.0).astype(np.float32)
     wb = np.where(both, 0.5, 0.0).astype(np.float32)
-    stored_odd = np.searchsorted(cells, out_cells)
-    own = (stored_odd < cells.size) & (cells[np.minimum(stored_odd, cells.size - 1)] == out_cells) & is_odd
-    ia = np.where(own, stored_odd, ia)  # the grazing odd cells, as stored
-    ib = np.where(own, stored_odd, ib)
-    wa, wb = np.where(own, 1.0, wa).astype(np.float32), np.where(own, 0.0, wb).astype(np.float32)
+    # The grazing odd cells, as stored (a position table on the grid, not a search).
+    odd_pos = np.flatnonzero(odd)
+    at = np.full(N_THETA_H * N_THETA_D * N_PHI_D, -1, np.int64)
+    at[cells[odd_pos]] = odd_pos
+    stored = at[out_cells]
+    own = stored >= 0
+    ia[own], ib[own], wa[own], wb[own] = stored[own], stored[own], 1.0, 0.0
     return out_cells, ia, ib, wa, wb
 
 
@@ -144,3 +147,69 @@ def dequantize(q: np.ndarray, scale: np.ndarray) -> np.ndarray:
     if full < p:
         out[:, full:] *= scale[:, full // INT8_BLOCK, None]
     return out
+
+
+class Compact:
+    """A basis as stored at half the ``phi_d`` cells, used without restoring it whole:
+    its components at some cells, its decode and its least-squares projection, each
+    through the expansion (:func:`expansion`: a restored cell is ``wa stored[ia] + wb
+    stored[ib]``), which is linear, so that ``expand(mean + S^T c) = expand(mean) +
+    expand(S)^T c`` and ``A A^T = S diag(d) S^T + the neighbours' cross terms`` for the
+    restored components ``A = S E``.
+
+    Parameters
+    ----------
+    rows
+        ``rows(k) -> float32 (k, Ps)``: the ``k`` leading stored components.
+    mean
+        float32 ``(Ps,)`` the mean at the stored cells.
+    how
+        :func:`expansion` of the stored cells.
+    """
+
+    def __init__(self, rows, mean, how):
+        self.stored_rows, self.mean, self.how = rows, np.asarray(mean, np.float32), how
+        self._rows: dict = {}
+
+    def rows(self, k: int) -> np.ndarray:
+        """The ``k`` leading stored components, float32 ``(k, Ps)`` (kept)."""
+        if k not in self._rows:
+            self._rows = {k: self.stored_rows(k)}
+        return self._rows[k]
+
+    def rows_at(self, k: int, positions) -> np.ndarray:
+        """The ``k`` leading restored components at ``positions`` among the restored
+        cells, float32 ``(k, n)``."""
+        _, ia, ib, wa, wb = self.how
+        s = self.rows(k)
+        pos = np.asarray(positions)
+        return s[:, ia[pos]] * wa[pos] + s[:, ib[pos]] * wb[pos]
+
+    def mapped(self, coefficients) -> np.ndarray:
+        """The restored mapped values ``mean + A^T c`` ``(P, 3)`` float32 of coefficients
+        ``(k, 3)``."""
+        c = np.asarray(coefficients, np.float32)
+        stored = self.rows(c.shape[0]).T @ c
+        stored += self.mean[:, None]
+        _, ia, ib, wa, wb = self.how
+        return stored[ia] * wa[:, None] + stored[ib] * wb[:, None]
+
+    def normal_equations(self, k: int, b, ok=None):
+        """``(A A^T, A b)`` over the restored cells where ``ok`` (all by default), in
+        float64, for ``b`` ``(P, C)``: what a least-squares projection solves."""
+        _, ia, ib, wa, wb = self.how
+        s = self.rows(k).astype(np.float64)
+        ps = s.shape[1]
+        wa, wb = wa.astype(np.float64), wb.astype(np.float64)
+        if ok is not None:
+            wa, wb = np.where(ok, wa, 0.0), np.where(ok, wb, 0.0)
+            b = np.where(np.isfinite(b), b, 0.0)
+        v = np.stack([np.bincount(ia, wa * b[:, j], ps) + np.bincount(ib, wb * b[:, j], ps)
+                      for j in range(b.shape[1])], 1)
+        x = s * np.sqrt(np.bincount(ia, wa * wa, ps) + np.bincount(ib, wb * wb, ps))
+        ata = x @ x.T
+        both = (wb > 0) & (ia != ib)  # restored between two stored cells: their cross term
+        x = s[:, ia[both]] * (wa[both] * wb[both])
+        x = x @ s[:, ib[both]].T
+        ata += x + x.T
+        return ata, s @ v

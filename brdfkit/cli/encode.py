@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import click
 
 from brdfkit.console import ProgressBar, console
@@ -25,9 +27,9 @@ def _kind_names() -> list:
               help="Refine a table's latent on screen after the encoder's pass (--no-refine: the "
                    "paper's single pass).")
 @click.option("--steps", type=click.IntRange(min=0), default=None,
-              help="Most refinement steps per table [default: 80 for a basis embedding, 40 for a latent]; a "
-                   "latent's stops sooner when held-out pixels stop improving. The same input gives the same "
-                   "bytes, however busy the machine.")
+              help="Most refinement iterations per table [default: 8 Gauss-Newton iterations for a residual or "
+                   "basis embedding, 40 Adam steps for a latent]; fewer when held-out pixels stop improving. The "
+                   "same input gives the same bytes, however busy the machine.")
 @click.option("--kind", type=click.Choice(_kind_names()), default=None,
               help="What the numbers are: " + "; ".join(f"{k.name}: {k.summary}" for k in KINDS.values())
                    + ". Default: for a built-in, the first of these it ships a part for that offers --size; for a "
@@ -37,83 +39,79 @@ def _kind_names() -> list:
                    "3 x the basis's components; default 39); a hypernet embedding the network's latent size.")
 @click.option("--max-seconds", type=click.FloatRange(min=0, min_open=True), default=None,
               help="Also stop a latent's refinement after this many seconds (off by default: a cut result "
-                   "depends on the machine's speed; the output says when it cut).")
-def command(inputs, model_path, output_dir, refine, steps, kind, size, max_seconds):
+                   "depends on the machine's speed; the output says when it cut). A hypernet embedding's "
+                   "only: a basis or residual refinement is counted in iterations.")
+@click.option("--jobs", "-j", type=click.IntRange(min=1, max=256), default=1, show_default=True,
+              help="Processes encoding at once (each loads the model once; the same output bytes "
+                   "whatever the count).")
+def command(inputs, model_path, output_dir, refine, steps, kind, size, max_seconds, jobs):
     """Encode each BRDF (.binary MERL table, .bsdf RGL file or .csv sample set) into <stem>.emb.
 
     A table (MERL or RGL) is encoded from all its measured cells. With a built-in model
-    that ships a PCA basis (or a basis file) it becomes a basis embedding (--kind basis,
-    the default there): the coefficients of the basis's --size/3 leading components,
-    projected and refined for at most --steps steps [default: 80] on renders of the
-    objective scenes (docs/compression.md). Otherwise the hypernetwork's latent is refined
-    so [default: 40 steps] (docs/model.md). Either way a step is kept only where held-out
-    pixels agree. A sample set gets the hypernetwork encoder's pass. A bad input is
-    reported and skipped; the others are still encoded, and the exit code is 2 if any
-    failed.
+    it becomes, by default, the first kind the model ships a part for that offers --size:
+    a residual embedding (merl80-l40 at 9, 21, 39 numbers) or a basis embedding (--kind
+    basis): the coefficients of the basis's --size/3 leading components, projected and
+    refined by at most --steps Gauss-Newton iterations [default: 8] on renders of the
+    objective scenes (docs/compression.md). With a hypernetwork (--kind hypernet, or a
+    network file) the latent is refined by Adam steps [default: 40] (docs/model.md).
+    Either way an iterate is kept only where held-out pixels agree. A sample set gets the
+    hypernetwork encoder's pass. Many files are read one ahead of the encode, with the
+    model loaded once (--jobs N: in N processes). A bad input is reported and skipped;
+    the others are still encoded, and the exit code is 2 if any failed.
     """
-    import os
-
-    from brdfkit.api import encode
-    from brdfkit.atomic import refuse_overwrite_of_inputs
-    from brdfkit.errors import BrdfkitError, InputError
-    from brdfkit.io.embedding import write_embedding
+    from brdfkit.errors import InputError
     from brdfkit.embeddings import choose_decoder, get_kind, kind_of_part
+    from brdfkit.embeddings.batch import EncodeJob, encode_files
 
     tables = [p for p in inputs if not p.lower().endswith(".csv")]
-    # One decoder for the tables, loaded once; sample sets take the hypernetwork's latent.
+    samples = [p for p in inputs if p.lower().endswith(".csv")]
+    latent = kind_of_part("network").name
+    if samples and size is not None:
+        raise InputError(f"{samples[0]}: --size sets a table's embedding; a .csv sample set is encoded as the "
+                         f"hypernetwork's latent, of the model's size (encode the sample sets without --size)")
+    if samples and kind is not None and get_kind(kind).name != latent:
+        raise InputError(f"{samples[0]}: --kind {kind} is made from a table; a .csv sample set is encoded as a "
+                         f"{latent} latent (encode the sample sets without --kind)")
+    # The decoders are loaded (and a size checked) before any work; workers load their own.
     dec = choose_decoder(kind, model_path, size=size) if tables else None
-    lat = choose_decoder(kind_of_part("network").name, model_path) if len(tables) < len(inputs) else None
+    if samples:
+        choose_decoder(latent, model_path)
     if size is not None and dec is not None:
-        dec.check_size(size)  # before any work
-    if output_dir:
-        os.makedirs(output_dir, exist_ok=True)
+        dec.check_size(size)
+    if max_seconds is not None and dec is not None and not get_kind(dec.kind).wall_clock:
+        raise InputError(f"--max-seconds caps a hypernetwork latent's refinement; a {dec.kind} embedding's is "
+                         f"counted in iterations (--steps N)")
+    job = EncodeJob(model_path, kind, size, steps, refine, max_seconds, output_dir)
     out = console()
-    failures: list[str] = []
-    planned: dict[str, str] = {}
-    cut: list[str] = []
-    kinds: set[str] = set()
-    starts: set[str] = set()  # what each kind is before refinement (EmbeddingKind.start)
-    done = 0
-
-    def one(path: str) -> None:
-        stem = os.path.splitext(os.path.basename(path))[0]
-        target = os.path.join(output_dir if output_dir else os.path.dirname(path) or ".", stem + ".emb")
-        key = os.path.realpath(target)
-        if key in planned:
-            raise InputError(f"{path}: would write {target}, already written for {planned[key]}; "
-                             f"rename one of them")
-        samples = path.lower().endswith(".csv")
-        refuse_overwrite_of_inputs(target, [*inputs, (lat if samples else dec).path])
-        emb = encode(path, lat if samples else dec, size=None if samples else size, refine=refine, steps=steps,
-                     max_seconds=max_seconds)
-        write_embedding(target, emb)
-        planned[key] = path
-        kinds.add(f"{emb.kind} {emb.size} numbers, {(lat if samples else dec).label}")
-        starts.add(get_kind(emb.kind).start)
-        if emb.refinement and emb.refinement["stopped"] == "max_seconds":
-            cut.append(f"{stem} ({emb.refinement['steps']} steps)")
-
     if len(inputs) > 1:
         with ProgressBar("encoding", total=len(inputs), count=True, out=out) as bar:
-            for path in inputs:
-                bar.update(description=f"encoding {os.path.basename(path)}")
-                try:
-                    one(path)
-                    done += 1
-                except (BrdfkitError, OSError) as e:
-                    failures.append(str(e) if isinstance(e, BrdfkitError) else f"{path}: {e.strerror or e}")
-                bar.update(advance=1)
+            outcomes = encode_files(inputs, job, jobs=jobs, on_done=lambda o: bar.update(
+                advance=1, description=f"encoded {os.path.basename(o.path)}"))
     else:
-        one(inputs[0])
-        done = 1
-    where = output_dir if output_dir else "beside the inputs"
-    start = " or ".join(sorted(s for s in starts if s))
-    how = "refined on screen" if refine and steps != 0 else f"{start or 'no refinement'}, not refined"
-    out.print(f"encoded {done} of {len(inputs)} file{'s' if len(inputs) != 1 else ''} "
-              f"({'; '.join(sorted(kinds)) or 'none'}; {how}) into {where}", soft_wrap=True)
+        outcomes = encode_files(inputs, job)
+        if outcomes[0].error:
+            raise InputError(outcomes[0].error)
+    _report(out, outcomes, job)
+
+
+def _report(out, outcomes, job) -> None:
+    """The summary line, the note on cut refinements, the failures (exit 2)."""
+    from brdfkit.embeddings import get_kind
+
+    done = [o for o in outcomes if o.error is None]
+    kinds = sorted({f"{o.kind} {o.size} numbers, {o.label}" for o in done})
+    starts = " or ".join(sorted({get_kind(o.kind).start for o in done} - {""}))
+    how = "refined on screen" if job.refine and job.steps != 0 else f"{starts or 'no refinement'}, not refined"
+    where = job.output_dir if job.output_dir else "beside the inputs"
+    n = len(outcomes)
+    out.print(f"encoded {len(done)} of {n} file{'s' if n != 1 else ''} ({'; '.join(kinds) or 'none'}; {how}) "
+              f"into {where}", soft_wrap=True)
+    cut = [f"{os.path.splitext(os.path.basename(o.path))[0]} ({o.refinement['steps']} steps)" for o in done
+           if o.refinement and o.refinement["stopped"] == "max_seconds"]
     if cut:
         out.print(f"note: --max-seconds cut the refinement of {', '.join(cut)}: those embeddings depend on the "
                   f"machine's speed (replay one with --steps N)", soft_wrap=True)
+    failures = [o.error for o in outcomes if o.error is not None]
     if failures:
         for msg in failures:
             click.echo(f"brdfkit: error: {msg}", err=True)

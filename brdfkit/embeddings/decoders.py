@@ -193,5 +193,8 @@ def encode_with(decoder: Decoder, table: np.ndarray, *, source: str = "", size: 
     """
     size = decoder.default_size if size is None else size
     decoder.check_size(size)
+    if max_seconds is not None and not KINDS[decoder.kind].wall_clock:
+        raise InputError(f"--max-seconds caps a hypernetwork latent's refinement; a {decoder.kind} embedding's is "
+                         f"counted in iterations (--steps N)")
     return KINDS[decoder.kind].encode(decoder.obj, decoder.digest, table, source=source, size=size, steps=steps,
                                       max_seconds=max_seconds, refine=refine)

@@ -36,4 +36,4 @@ def _open(net, digest, emb, name, device):
 
 KIND = EmbeddingKind("hypernet", "a hypernetwork's latent, refined on renders (Gokbudak et al. 2024)", "network",
                      _load, lambda n: (int(n.cfg.latent_dim),), lambda n: int(n.cfg.latent_dim), _encode, _open,
-                     aliases=("latent",), start="encoder pass", torch=True)
+                     aliases=("latent",), start="encoder pass", torch=True, wall_clock=True)

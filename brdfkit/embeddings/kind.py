@@ -44,6 +44,9 @@ class EmbeddingKind:
     torch
         Its decoder runs in torch (the hypernetwork's): a command sizes torch's thread
         pool before loading one, and imports no torch for the other kinds.
+    wall_clock
+        Its refinement takes a wall-clock cap (``--max-seconds``); a kind whose
+        refinement is counted in iterations alone refuses one.
     """
 
     name: str
@@ -57,3 +60,4 @@ class EmbeddingKind:
     aliases: tuple = ()
     start: str = ""
     torch: bool = False
+    wall_clock: bool = False

@@ -18,8 +18,9 @@ Each image metric takes an optional boolean object ``mask`` ``(H, W)``: the mean
 the masked pixels only (for SSIM, the mean of the SSIM map over the mask). Without a mask
 the whole image counts.
 
-colour-science and scikit-image are imported inside the functions so that
-``import brdfkit`` stays light.
+Delta E 2000 and SSIM are computed in NumPy, as colour-science and scikit-image compute
+them (``tests/test_metrics.py`` compares them to 1e-9): scoring a pair imports neither
+(2.4 s of CPU time a ``brdfkit metrics`` process spent importing them).
 """
 
 from __future__ import annotations
@@ -239,20 +240,58 @@ def psnr(pred, ref, mask=None) -> float:
     return float("inf") if mse == 0.0 else float(10.0 * np.log10(1.0 / mse))
 
 
-def _lab(img_linear):
-    import colour
+# sRGB primaries and D65 (IEC 61966-2-1), the matrix colour-science's sRGB colourspace holds.
+_SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
+_D65_XY = (0.3127, 0.3290)  # CIE 1931 2 degree observer
+_D65_XYZ = np.array([_D65_XY[0] / _D65_XY[1], 1.0, (1 - _D65_XY[0] - _D65_XY[1]) / _D65_XY[1]])
 
-    xyz = colour.RGB_to_XYZ(img_linear, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_decoding=False)
-    d65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
-    return colour.XYZ_to_Lab(xyz, illuminant=d65)
+
+def _lab(img_linear):
+    """CIE L*a*b* (D65 white, ``Y = 1`` is ``L* = 100``) of linear sRGB ``(..., 3)``:
+    colour-science's ``RGB_to_XYZ`` (sRGB, no decoding) and ``XYZ_to_Lab``, in NumPy
+    (``tests/test_metrics.py`` compares them)."""
+    xyz = np.asarray(img_linear, np.float64) @ _SRGB_TO_XYZ.T
+    t = xyz / _D65_XYZ
+    f = np.where(t > (24 / 116) ** 3, np.cbrt(t), (841 / 108) * t + 16 / 116)
+    return np.stack([116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]), 200 * (f[..., 1] - f[..., 2])], -1)
+
+
+def _ciede2000(lab1, lab2):
+    """CIEDE2000 ``(...)`` of two CIE L*a*b* arrays ``(..., 3)`` (Sharma, Wu and Dalal 2005;
+    ``k_L = k_C = k_H = 1``), as colour-science's ``delta_E(method="CIE 2000")``."""
+    l1, a1, b1 = np.moveaxis(np.asarray(lab1, np.float64), -1, 0)
+    l2, a2, b2 = np.moveaxis(np.asarray(lab2, np.float64), -1, 0)
+    c_bar = (np.hypot(a1, b1) + np.hypot(a2, b2)) / 2
+    g = 0.5 * (1 - np.sqrt(c_bar ** 7 / (c_bar ** 7 + 25 ** 7)))
+    ap1, ap2 = (1 + g) * a1, (1 + g) * a2
+    cp1, cp2 = np.hypot(ap1, b1), np.hypot(ap2, b2)
+    h1 = np.where((b1 == 0) & (ap1 == 0), 0, np.degrees(np.arctan2(b1, ap1)) % 360)
+    h2 = np.where((b2 == 0) & (ap2 == 0), 0, np.degrees(np.arctan2(b2, ap2)) % 360)
+    dh, cc = h2 - h1, cp1 * cp2
+    dh = np.select([cc == 0, np.fabs(dh) <= 180, dh > 180, dh < -180], [0, dh, dh - 360, dh + 360])
+    d_hp = 2 * np.sqrt(cc) * np.sin(np.deg2rad(dh / 2))
+    sep, tot = np.fabs(h1 - h2), h1 + h2
+    h_bar = np.select([cc == 0, sep <= 180, (sep > 180) & (tot < 360), (sep > 180) & (tot >= 360)],
+                      [tot, tot / 2, (tot + 360) / 2, (tot - 360) / 2])
+    t = (1 - 0.17 * np.cos(np.deg2rad(h_bar - 30)) + 0.24 * np.cos(np.deg2rad(2 * h_bar))
+         + 0.32 * np.cos(np.deg2rad(3 * h_bar + 6)) - 0.20 * np.cos(np.deg2rad(4 * h_bar - 63)))
+    theta = 30 * np.exp(-(((h_bar - 275) / 25) ** 2))
+    cp_bar = (cp1 + cp2) / 2
+    r_c = 2 * np.sqrt(cp_bar ** 7 / (cp_bar ** 7 + 25 ** 7))
+    l_bar2 = ((l1 + l2) / 2 - 50) ** 2
+    s_l, s_c, s_h = 1 + 0.015 * l_bar2 / np.sqrt(20 + l_bar2), 1 + 0.045 * cp_bar, 1 + 0.015 * cp_bar * t
+    r_t = -np.sin(np.deg2rad(2 * theta)) * r_c
+    dl, dc, dhh = (l2 - l1) / s_l, (cp2 - cp1) / s_c, d_hp / s_h
+    return np.sqrt(dl ** 2 + dc ** 2 + dhh ** 2 + r_t * dc * dhh)
 
 
 def delta_e_2000(pred, ref, mask=None) -> float:
     """Mean CIEDE2000 colour difference (Sharma et al. 2005) per pixel.
 
     Linear sRGB times :data:`EXPOSURE`, clipped to ``[0, 1]``, -> CIE XYZ (sRGB primaries,
-    D65) -> CIE L*a*b* (D65 white, CIE 1931 2 degree observer) -> colour-science
-    ``delta_E(..., method="CIE 2000")``, mean over pixels (over ``mask`` if given).
+    D65) -> CIE L*a*b* (D65 white, CIE 1931 2 degree observer) -> CIEDE2000 (in NumPy, as
+    colour-science's ``delta_E(..., method="CIE 2000")``), mean over pixels (over ``mask``
+    if given).
 
     Returns
     -------
@@ -278,16 +317,14 @@ def delta_e_2000_map(pred, ref) -> np.ndarray:
     """Per-pixel CIEDE2000 of two linear-sRGB images ``(H, W, 3)``: ``(H, W)``, the values
     :func:`delta_e_2000` averages (same display encoding), e.g. for false-colour error
     images (:mod:`brdfkit.figures.comparison_sheet`)."""
-    import colour
-
     a, b, _ = _check_pair(pred, ref, None)
-    return colour.delta_E(_lab(display_linear(a)), _lab(display_linear(b)), method="CIE 2000")
+    return _ciede2000(_lab(display_linear(a)), _lab(display_linear(b)))
 
 
 def ssim(pred, ref, mask=None) -> float:
     """Structural similarity of display-encoded images (Wang et al. 2004).
 
-    scikit-image ``structural_similarity`` with ``data_range=1``, ``channel_axis=-1`` and
+    scikit-image's ``structural_similarity`` (in NumPy) with ``data_range=1``, ``channel_axis=-1`` and
     its default 7x7 uniform window; the SSIM map averaged over ``mask`` if given.
 
     Returns
@@ -302,16 +339,37 @@ def ssim(pred, ref, mask=None) -> float:
     >>> ssim(ref, ref)
     1.0
     """
-    from skimage.metrics import structural_similarity
-
     a, b, mask = _check_pair(pred, ref, mask)
     if min(a.shape[:2]) < 7:
         raise InputError(f"ssim: images of {a.shape[0]}x{a.shape[1]} pixels are smaller than the 7x7 window")
-    value, smap = structural_similarity(display_encode(a), display_encode(b), data_range=1.0,
-                                        channel_axis=-1, full=True)
-    value = value if mask is None else smap.mean(-1)[mask].mean()
+    smap = _ssim_map(display_encode(a), display_encode(b))
+    value = smap[3:-3, 3:-3].mean(axis=(0, 1)).mean() if mask is None else smap.mean(-1)[mask].mean()
     # the map's mean can round to 1 + 1e-16 for identical pixels
     return float(np.clip(value, -1.0, 1.0))
+
+
+def _box7(x):
+    """7 x 7 mean filter of ``(H, W, C)`` with ``scipy.ndimage``'s ``reflect`` edges
+    (``uniform_filter``), by cumulative sums along each axis."""
+    for axis in (0, 1):
+        p = np.pad(x, [(3, 3) if i == axis else (0, 0) for i in range(3)], mode="symmetric")
+        c = np.cumsum(p, axis=axis, dtype=np.float64)
+        c = np.concatenate([np.zeros_like(np.take(c, [0], axis=axis)), c], axis=axis)
+        n = x.shape[axis]
+        x = (np.take(c, np.arange(7, 7 + n), axis=axis) - np.take(c, np.arange(n), axis=axis)) / 7
+    return x
+
+
+def _ssim_map(x, y):
+    """The SSIM map ``(H, W, C)`` of two images in ``[0, 1]`` (scikit-image's
+    ``structural_similarity`` with ``data_range=1``, its 7 x 7 uniform window and sample
+    covariance, per channel), in NumPy."""
+    c1, c2, norm = 0.01 ** 2, 0.03 ** 2, 49 / 48
+    ux, uy = _box7(x), _box7(y)
+    vx = norm * (_box7(x * x) - ux * ux)
+    vy = norm * (_box7(y * y) - uy * uy)
+    vxy = norm * (_box7(x * y) - ux * uy)
+    return ((2 * ux * uy + c1) * (2 * vxy + c2)) / ((ux * ux + uy * uy + c1) * (vx + vy + c2))
 
 
 def image_metrics(pred, ref, mask=None) -> dict:

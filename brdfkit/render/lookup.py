@@ -38,7 +38,7 @@ __all__ = ["TableRows", "corners", "ROW_CELLS", "BLOCK"]
 ROW_CELLS = N_THETA_H * N_THETA_D * (N_PHI_D + 1)
 """Rows of a prepared table: the grid with each ``phi_d`` run's first cell repeated."""
 
-BLOCK = 1 << 15
+BLOCK = 1 << 13
 """Points per block of a lookup: the corners' rows and weights of one block stay in cache."""
 
 _STEP = (N_THETA_D * (N_PHI_D + 1), N_PHI_D + 1, 1)
@@ -64,20 +64,34 @@ def corners(coords):
     """Row numbers (prepared rows, :data:`ROW_CELLS`) and weights of the eight corners of
     grid coordinates ``coords`` ``(3, m)`` float32 (:func:`brdfkit.geometry.fractional_indices`):
     int64 ``(8, m)`` and float32 ``(8, m)``, in the plain lookup's order (``theta_h``
-    outermost) and with its weights ``(w_h w_d) w_p``."""
+    outermost) and with its weights ``(w_h w_d) w_p``. A NaN coordinate gives NaN weights
+    (so a NaN value) at valid rows."""
+    m = coords.shape[1]
     f = np.floor(coords)
     frac = coords - f
-    np.nan_to_num(f, copy=False)
-    i = f.astype(np.int64)
-    lo = [np.minimum(i[0], _TOP[0]) * _STEP[0], np.minimum(i[1], _TOP[1]) * _STEP[1], np.minimum(i[2], N_PHI_D - 1)]
-    hi = [np.minimum(i[0] + 1, _TOP[0]) * _STEP[0], np.minimum(i[1] + 1, _TOP[1]) * _STEP[1],
-          np.minimum(i[2] + 1, N_PHI_D)]
+    i = f.astype(np.int64)  # NaN: some integer, clipped below to a valid row
+    np.clip(i[0], 0, _TOP[0], out=i[0])
+    np.clip(i[1], 0, _TOP[1], out=i[1])
+    np.clip(i[2], 0, N_PHI_D - 1, out=i[2])
+    hi_h = np.minimum(i[0] + 1, _TOP[0])
+    hi_d = np.minimum(i[1] + 1, _TOP[1])
+    i[0] *= _STEP[0]
+    i[1] *= _STEP[1]
+    hi_h *= _STEP[0]
+    hi_d *= _STEP[1]
+    rows = np.empty((8, m), np.int64)
+    np.add(i[0], i[1], out=rows[0])
+    np.add(i[0], hi_d, out=rows[2])
+    np.add(hi_h, i[1], out=rows[4])
+    np.add(hi_h, hi_d, out=rows[6])
+    rows[0::2] += i[2]
+    np.add(rows[0::2], 1, out=rows[1::2])  # phi_d's upper corner: the next row (180: the repeated cell)
     one = 1 - frac
-    w = [(one[a], frac[a]) for a in range(3)]
-    hd = [[lo[0] + lo[1], lo[0] + hi[1]], [hi[0] + lo[1], hi[0] + hi[1]]]
-    whd = [[w[0][0] * w[1][0], w[0][0] * w[1][1]], [w[0][1] * w[1][0], w[0][1] * w[1][1]]]
-    rows = np.stack([hd[a][b] + (hi[2] if c else lo[2]) for a, b, c in _BITS])
-    weights = np.stack([whd[a][b] * w[2][c] for a, b, c in _BITS])
+    wh = (one[0] * one[1], one[0] * frac[1], frac[0] * one[1], frac[0] * frac[1])
+    weights = np.empty((8, m), np.float32)
+    for k in range(4):
+        np.multiply(wh[k], one[2], out=weights[2 * k])
+        np.multiply(wh[k], frac[2], out=weights[2 * k + 1])
     return rows, weights
 
 
@@ -135,10 +149,13 @@ class TableRows:
 
     def combine(self, g, weights, out):
         """Interpolate gathered corner rows ``g`` ``(8, m, W)`` with ``weights`` ``(8, m)``
-        into ``out`` ``(C, m)``: ``sum w v / sum w f``, 0 where no corner is measured."""
-        acc = g[0] * weights[0, :, None]
+        into ``out`` ``(C, m)``: ``sum w v / sum w f``, 0 where no corner is measured.
+        The corners are summed in order, as the plain lookup sums them."""
+        w = np.repeat(weights[:, :, None], g.shape[2], axis=2)  # contiguous: no strided broadcast
+        w *= g
+        acc = w[0]
         for k in range(1, 8):
-            acc += g[k] * weights[k, :, None]
+            acc += w[k]
         c, f = self.channels, self.flags
         wsum = acc[:, c:c + f].T
         wsum = wsum + (wsum == 0)  # no measured corner: every value is 0, so is the result

@@ -44,9 +44,10 @@ Spearman 0.966 (PSNR) / 0.959 (Delta E), the reference scene's own 0.930 / 0.908
 BRDF log RMSE 0.647 / 0.638."""
 
 THREADS = 1
-"""Torch threads of a refinement, fixed so that its result does not depend on the thread
-count a loaded machine would pick (two threads and one give other bits in the
-reductions)."""
+"""Threads of a refinement's arithmetic (torch's for a latent, NumPy's BLAS for a basis or
+residual embedding, :func:`brdfkit.runtime.blas_threads`), fixed so that its result does
+not depend on the thread count a loaded machine would pick (two threads and one give
+other bits in the reductions)."""
 
 
 @dataclasses.dataclass(frozen=True)

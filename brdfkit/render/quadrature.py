@@ -171,10 +171,37 @@ class ScenePairs:
         ``starts[i]`` on)."""
         if self.cached is not None:
             return self.cached[i]
+        if i in self._made:
+            return self._made[i]
         s = self.starts[i]
         pb = block_pairs(self._tq, self.normals[s:s + BLOCK_PIXELS], self._wo, self.directions)
         self._made[i] = pb
         return pb
+
+    def all_blocks(self) -> list | None:
+        """Every block, made now where not yet (on the threads); ``None`` when they would
+        not fit in :data:`PAIR_CACHE_BYTES` (then only those made are kept)."""
+        from brdfkit.runtime import thread_map
+
+        if self.cached is not None:
+            return self.cached
+        todo = [i for i in range(len(self.starts)) if i not in self._made]
+        size = sum(b.nbytes for b in self._made.values())
+        for i, pb in zip(todo, thread_map(self.block, todo)):
+            size += pb.nbytes
+            if size > PAIR_CACHE_BYTES:
+                self._made = {}
+                return None
+        return [self._made[i] for i in range(len(self.starts))]
+
+    def reached_cells(self):
+        """The flat MERL cells the pairs' trilinear corners reach (int64, ascending;
+        a table-independent property of the scene, kept with its pairs), or ``None`` when
+        the pairs do not fit in memory."""
+        if "_reached" not in self.__dict__:
+            blocks = self.all_blocks()
+            self._reached = None if blocks is None else reached_cells(blocks)
+        return self._reached
 
     def keep(self) -> None:
         """Keep the blocks made for the next render of this scene (all of them, within
@@ -184,6 +211,29 @@ class ScenePairs:
             if sum(b.nbytes for b in blocks) <= PAIR_CACHE_BYTES:
                 _PAIRS[(self.key, self.directions)] = blocks
         self._made = {}
+
+
+def reached_cells(blocks):
+    """The flat MERL cells the trilinear corners of some blocks' pairs reach (int64,
+    ascending): each pair's lowest corner marked on the grid (its ``phi_d`` runs of 181,
+    :mod:`brdfkit.render.lookup`), then the mark spread to the next cell along each axis
+    (clamped at the last ``theta_h`` and ``theta_d``)."""
+    from brdfkit.geometry import N_CELLS, N_PHI_D, N_THETA_D, N_THETA_H
+    from brdfkit.render.lookup import cell_of
+
+    mark = np.zeros((N_THETA_H, N_THETA_D, N_PHI_D + 1), bool)
+    for pb in blocks:
+        i = np.floor(pb.coords).astype(np.int64)
+        np.minimum(i[0], N_THETA_H - 1, out=i[0])
+        np.minimum(i[1], N_THETA_D - 1, out=i[1])
+        np.minimum(i[2], N_PHI_D - 1, out=i[2])
+        mark[i[0], i[1], i[2]] = True
+    mark[:, :, 1:] |= mark[:, :, :-1].copy()
+    mark[:, 1:] |= mark[:, :-1].copy()
+    mark[1:] |= mark[:-1].copy()
+    cells = np.zeros(N_CELLS, bool)
+    cells[cell_of(np.flatnonzero(mark))] = True
+    return np.flatnonzero(cells)
 
 
 def render_pixels(brdf, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature | None = None,
@@ -228,6 +278,12 @@ def _render_pixels(brdfs, normals, env, wo_world=(0.0, 0.0, 1.0), q: Quadrature 
     normals = np.asarray(normals, np.float64).reshape(-1, 3)
     total = normals.shape[0]
     pairs = ScenePairs(normals, env, wo_world, q, any(_needs_directions(b) for b in brdfs))
+    decoded = [b for b in brdfs if hasattr(b, "prepare_cells")]
+    if decoded:  # a decoder evaluated only at the cells the pairs reach (else at every cell)
+        cells = pairs.reached_cells()
+        if cells is not None:
+            for b in decoded:
+                b.prepare_cells(cells)
     passes = stack_tables(brdfs)
     outs = [np.zeros((3 * len(idx), total)) for _, idx in passes]
     evaluations, smin, smax = 0, math.inf, -math.inf

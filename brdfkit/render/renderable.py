@@ -25,7 +25,7 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.geometry import TABLE_SHAPE
 
-__all__ = ["TableBRDF", "TableStackBRDF", "stack_tables", "coords_of_dirs"]
+__all__ = ["TableBRDF", "TableStackBRDF", "DecodedBRDF", "stack_tables", "coords_of_dirs"]
 
 
 def coords_of_dirs(wi, wo):
@@ -77,6 +77,52 @@ class TableBRDF:
 
     def eval_dirs(self, wi, wo):
         """BRDF ``(M, 3)`` float32 at local direction pairs ``wi, wo`` ``(M, 3)``."""
+        coords, above = coords_of_dirs(wi, wo)
+        out = self.rows.lookup(coords)
+        out[:, ~above] = 0.0
+        return out.T
+
+
+class DecodedBRDF:
+    """A renderable BRDF that a decoder makes on the MERL grid (a basis or residual
+    embedding): evaluated, for a render, only at the cells its pairs reach.
+
+    A subclass gives ``to_table()`` (the whole table) and ``at_cells(cells) -> (at,
+    values)`` (the decode at those of ``cells`` it covers, ``(n, 3)``); a render calls
+    :meth:`prepare_cells` with the cells its pairs' trilinear corners reach
+    (:meth:`brdfkit.render.quadrature.ScenePairs.reached_cells`), and the lookups read
+    the decode there (:class:`~brdfkit.render.lookup.TableRows` holding only those cells),
+    the same values a lookup of the whole decoded table reads. Without it, the whole table
+    is decoded once, on first use.
+    """
+
+    name = "embedding"
+    device = "cpu"
+    _rows = None
+
+    def prepare_cells(self, cells) -> None:
+        """Decode at ``cells`` only (flat MERL indices), for the lookups that follow."""
+        from brdfkit.render.lookup import TableRows
+
+        at, values = self.at_cells(cells)
+        self._rows = TableRows.from_cells(at, values)
+
+    @property
+    def rows(self):
+        """The :class:`~brdfkit.render.lookup.TableRows` its lookups read (the whole table's
+        unless :meth:`prepare_cells` was called)."""
+        if self._rows is None:
+            from brdfkit.render.lookup import TableRows
+
+            self._rows = TableRows(self.to_table())
+        return self._rows
+
+    def eval_pairs(self, block):
+        """float32 ``(3, M)`` at a render's pairs (:class:`~brdfkit.render.pairs.PairBlock`)."""
+        return self.rows.lookup(block.coords)
+
+    def eval_dirs(self, wi, wo):
+        """BRDF ``(M, 3)`` float32 at local direction pairs, as :class:`TableBRDF` gives it."""
         coords, above = coords_of_dirs(wi, wo)
         out = self.rows.lookup(coords)
         out[:, ~above] = 0.0

@@ -117,17 +117,18 @@ def outside(rects, u, v):
 
 class EnvLookup:
     """:meth:`brdfkit.render.envmap.EnvMap.radiance` (Mitsuba's bilinear lookup) from
-    texture coordinates, float32: the map's texels as 16-byte rows ``(r, g, b, 0)`` with
-    its first column repeated after the last (the wrap in ``u``), four gathered a point."""
+    texture coordinates, float32: the map's three channels as planes with their first
+    column repeated after the last (the wrap in ``u``), four texels gathered a channel
+    (contiguous arithmetic: twice as fast as gathering 16-byte texels and weighting them
+    with a broadcast)."""
 
     def __init__(self, env):
         img = np.asarray(env.image, _F32)
         self.h, self.w = img.shape[:2]
-        rows = np.zeros((self.h, self.w + 1, 4), _F32)
-        rows[:, :self.w, :3] = img
-        rows[:, self.w, :3] = img[:, 0]
-        self.rows = rows.reshape(-1, 4)
-        self._c = self.rows.view(np.complex128).reshape(-1)
+        planes = np.zeros((3, self.h, self.w + 1), _F32)
+        planes[:, :, :self.w] = np.moveaxis(img, -1, 0)
+        planes[:, :, self.w] = planes[:, :, 0]
+        self.planes = planes.reshape(3, -1)
 
     def __call__(self, u, v):
         """float32 ``(3, M)`` radiance at texture coordinates ``u, v`` ``(M,)``."""
@@ -145,14 +146,13 @@ class EnvLookup:
         i = y0.astype(np.intp)
         i *= w + 1
         i += x0.astype(np.intp)
-        row = w + 1
-        g = self._c[np.concatenate([i, i + 1, i + row, i + row + 1])].view(_F32).reshape(4, -1, 4)
-        fx, fy = x[:, None], y[:, None]
-        top = g[0] * (1 - fx)
-        top += g[1] * fx
-        bottom = g[2] * (1 - fx)
-        bottom += g[3] * fx
-        top *= 1 - fy
-        bottom *= fy
-        top += bottom
-        return np.ascontiguousarray(top[:, :3].T)
+        ox, oy = 1 - x, 1 - y
+        weights = (ox * oy, x * oy, ox * y, x * y)
+        corners = (i, i + 1, i + (w + 1), i + (w + 2))
+        out = np.empty((3, x.shape[0]), _F32)
+        for c, plane in enumerate(self.planes):
+            o = plane[corners[0]] * weights[0]
+            for k in range(1, 4):
+                o += plane[corners[k]] * weights[k]
+            out[c] = o
+        return out

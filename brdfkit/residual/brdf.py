@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from brdfkit.errors import ModelMismatchError
+from brdfkit.render.renderable import DecodedBRDF
 
 __all__ = ["ResidualBRDF", "check_embedding"]
 
@@ -36,27 +37,22 @@ def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndar
     return emb.values.reshape(k, 3), gain
 
 
-class ResidualBRDF:
-    """A residual embedding as a renderable BRDF (``eval_dirs``, ``to_table``): decoded
-    once in NumPy on first use, then looked up as
-    :class:`brdfkit.render.renderable.TableBRDF` looks up any table."""
+class ResidualBRDF(DecodedBRDF):
+    """A residual embedding as a renderable BRDF (``eval_pairs``, ``eval_dirs``,
+    ``to_table``): decoded in NumPy, for a render only at the cells its pairs reach
+    (:class:`~brdfkit.render.renderable.DecodedBRDF`: the hyponet at those cells alone)."""
 
     def __init__(self, residual, coefficients, gain: float = 1.0, name: str = "embedding", device=None):
         self.residual = residual
         self.coefficients = np.asarray(coefficients, np.float32)
         self.gain = float(gain)
         self.name = name
-        self.device = device
-        self._table = None
 
     def to_table(self) -> np.ndarray:
         """float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis's cells."""
         return self.residual.decode(self.coefficients, self.gain)
 
-    def eval_dirs(self, wi, wo):
-        """BRDF ``(N, 3)`` float32 at local direction pairs."""
-        if self._table is None:
-            from brdfkit.render.renderable import TableBRDF
-
-            self._table = TableBRDF(self.to_table(), name=self.name, device=self.device)
-        return self._table.eval_dirs(wi, wo)
+    def at_cells(self, cells) -> tuple:
+        """``(cells, values)``: the decode at those of the flat MERL ``cells`` the basis
+        covers, float64 ``(n, 3)``."""
+        return self.residual.decode_at(self.coefficients, cells, self.gain)

@@ -145,15 +145,23 @@ def encode_residual(residual, table, *, digest: str, size: int, source: str = ""
         Kind ``"residual"``, the ``(K, 3)`` coefficients component-major, ``parts`` the
         residual's and its basis's digests, ``options`` ``{"correction": 0 or 1}``.
     """
+    from brdfkit.render.objective import THREADS
+    from brdfkit.runtime import blas_threads
+
+    if size % 3:
+        raise InputError(f"a residual embedding holds 3 numbers a component, not {size}")
+    residual.check_k(size // 3)
+    with blas_threads(THREADS):  # the same sums whatever the machine's cores
+        return _encode(residual, table, digest, size // 3, source, steps)
+
+
+def _encode(residual, table, digest: str, k: int, source: str, steps):
+    """:func:`encode_residual` of ``k`` components a channel (module docstring)."""
     from brdfkit.basis.coefficients import DEFAULT_STEPS, refinement_record
     from brdfkit.basis.refine_on_screen import DEFAULT_TRUST, heldout_error, prepare_screens, refine_coefficients
     from brdfkit.io.embedding import Embedding
     from brdfkit.render.objective import ObjectiveConfig
 
-    if size % 3:
-        raise InputError(f"a residual embedding holds 3 numbers a component, not {size}")
-    k = size // 3
-    residual.check_k(k)
     part = residual.basis.leading(k)
     steps = DEFAULT_STEPS if steps is None else int(steps)
     cfg = ObjectiveConfig(steps=steps)

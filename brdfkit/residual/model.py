@@ -113,11 +113,29 @@ class BasisResidual:
     def mapped(self, coefficients: np.ndarray, gain: float = 1.0) -> np.ndarray:
         """Mapped values ``(P, 3)`` at the basis's cells, the mean included."""
         c = np.asarray(coefficients, np.float32)
-        part = self.basis.leading(c.shape[0])
-        out = part.mean[:, None] + part.components.T @ c
+        out = self.basis.leading(c.shape[0]).mapped_values(c)
         if gain:
             out = out + np.float32(gain) * self.correction(c)
         return out
+
+    def decode_at(self, coefficients: np.ndarray, cells, gain: float = 1.0) -> tuple:
+        """:meth:`decode` at some cells only: ``(at, values)``, the flat MERL ``cells``
+        the basis covers (ascending) and the BRDF there, float64 ``(n, 3)``, 1/sr (the
+        hyponet evaluated at those cells alone)."""
+        from brdfkit.basis.mapping import from_mapped
+        from brdfkit.geometry import grid_hd
+
+        c = np.asarray(coefficients, np.float32)
+        part = self.basis.leading(c.shape[0])
+        cells = np.unique(np.asarray(cells, np.int64))
+        pos = np.searchsorted(part.cells, cells).clip(0, part.cells.size - 1)
+        hit = part.cells[pos] == cells
+        pos, at = pos[hit], cells[hit]
+        mapped = part.mean[pos, None] + part.rows_at(pos).T @ c
+        if gain:
+            mapped = mapped + np.float32(gain) * self.correction(c, np.ascontiguousarray(grid_hd()[at]))
+        ref = part.reference[pos, None].astype(np.float64)
+        return at, from_mapped(mapped, part.cell_weight(at)[:, None], ref)
 
     def decode(self, coefficients: np.ndarray, gain: float = 1.0) -> np.ndarray:
         """Dense table float64 ``(90, 90, 180, 3)``, 1/sr, ``> 0``, NaN off the basis's
