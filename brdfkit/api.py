@@ -102,9 +102,12 @@ def _decoder(kind: str | None, model, device, size: int | None = None):
         if kind is not None and get_kind(kind).name != model.kind:
             raise InputError(f"--kind {kind}: the given decoder is a {model.kind} one")
         return model
-    if not hasattr(model, "digest") or not hasattr(model, "cfg"):
+    from brdfkit.embeddings.parts import part_of
+
+    part = part_of(model)
+    if part is None or part.name != "network":
         raise InputError(f"model: expected a name, a path, a Decoder or a loaded hypernetwork, not a "
-                         f"{type(model).__name__}")
+                         f"{part.label if part else type(model).__name__}")
     from brdfkit.models.builtin import installed_bundles
 
     own = kind_of_part("network").name
@@ -122,13 +125,19 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
            refine: bool = True, max_seconds: float | None = None, source: str = "", device=None) -> Embedding:
     """Encode a material into an embedding (``brdfkit encode``).
 
-    A dense table becomes, by default, a *basis embedding* when the model is a built-in
-    that ships a PCA basis: the coefficients of the basis's leading components, the
-    table's projection refined on renders of the objective scenes
-    (:mod:`brdfkit.basis.coefficients`; it holds for materials outside the training set,
-    where a hypernetwork's latent does not). With ``kind="hypernet"`` (or a model that is a
-    hypernetwork file) it is the hypernetwork's latent: the set encoder's pass over all
-    measured cells (Gokbudak et al. 2024), refined on the same renders
+    A dense table becomes, with no ``kind``, an embedding of the first kind of
+    :data:`brdfkit.embeddings.KINDS` whose part the model ships and whose decoder offers
+    ``size``: a built-in with a basis residual (``merl80-l40``) makes a *residual
+    embedding* at the sizes its residual offers (the basis's coefficients and the weight of
+    the hypernetwork's correction, chosen per material; :mod:`brdfkit.residual.encoding`),
+    a built-in with a PCA basis, the default model (``merl-rgl-l40``) among them, a *basis
+    embedding* (the coefficients of the basis's leading components, the table's
+    projection refined on renders of the objective scenes; :mod:`brdfkit.basis.coefficients`),
+    and a built-in with a hypernetwork alone (``merl-rgl-l7``) the hypernetwork's latent;
+    a file makes the kind of the part it is. The basis and residual kinds hold for
+    materials outside the training set, where a hypernetwork's latent does not. With
+    ``kind="hypernet"`` it is the latent: the set encoder's pass over all measured cells
+    (Gokbudak et al. 2024), refined on the same renders
     (:func:`brdfkit.hypernet.refine_on_screen.compress_table`). Either way the same table
     gives the same embedding to the bit, whatever the machine's load. A sample set is
     encoded by the hypernetwork's encoder pass alone (``brdfkit sparse`` reconstructs
@@ -141,15 +150,15 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
         cells are used), a :class:`~brdfkit.io.samples.SampleSet` (any ``N >= 1``), or the
         path of a MERL ``.binary``, an RGL ``.bsdf`` or a ``.csv`` sample set.
     model
-        A built-in's name, a basis or hypernetwork file, a loaded hypernetwork
-        (:func:`load_model`), a :class:`~brdfkit.embeddings.Decoder`, or ``None``:
-        the default built-in.
+        A built-in's name, a basis, basis-residual or hypernetwork file, a loaded
+        hypernetwork (:func:`load_model`), a :class:`~brdfkit.embeddings.Decoder`, or
+        ``None``: the default built-in.
     kind
         ``"basis"``, ``"residual"``, ``"hypernet"`` or ``None`` (module text above;
         :data:`brdfkit.embeddings.KINDS`).
     size
-        Numbers per material (a basis embedding: ``3 K``, default 39; a latent: the
-        model's latent size).
+        Numbers per material (a basis or residual embedding: ``3 K``, default 39, a
+        residual the sizes its file offers; a latent: the model's latent size).
     steps
         Most refinement steps (``None``: the kind's default; 0: none).
     refine
@@ -247,17 +256,15 @@ def decode(embedding, model=None, *, source: str = "", device=None) -> np.ndarra
 
 
 def _method_of(model) -> str:
-    """The reconstruction method of a loaded model: a hypernetwork, a PCA basis (IPCA) or
-    a learnt prior."""
-    from brdfkit.basis.model import PcaBasis
+    """The reconstruction method of a loaded model: the one that takes its part (by its
+    class, :func:`brdfkit.embeddings.parts.part_of`)."""
+    from brdfkit.embeddings.parts import part_of
+    from brdfkit.methods.choice import method_of_part
 
-    if isinstance(model, PcaBasis):
-        return "ipca"
-    if hasattr(model, "digest") and hasattr(model, "cfg") and hasattr(model, "rho_ref"):
-        return "hypernet"
-    if hasattr(model, "basis") and hasattr(model, "net"):
-        return "prior"
-    raise InputError(f"model: expected a name, a path or a loaded model, not a {type(model).__name__}")
+    part = part_of(model)
+    if part is None:
+        raise InputError(f"model: expected a name, a path or a loaded model, not a {type(model).__name__}")
+    return method_of_part(part.name, "model")
 
 
 def sparse(samples, model=None, *, method: str = "auto", seed: int = 0, device=None, **options):

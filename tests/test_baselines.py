@@ -312,6 +312,10 @@ def test_cli_fit_basis_then_sparse(cli_files, capsys, monkeypatch):
     assert "note:" not in err
     basis = load_basis(d / "basis.safetensors")
     assert basis.materials == ["mat-0", "mat-1", "mat-2"] and basis.n_components == 5
+    from brdfkit.embeddings.parts import file_part
+    from brdfkit.training import FITTERS
+
+    assert file_part(d / "basis.safetensors").name == FITTERS["basis"].part  # the recipe's part is its file's
     # `fit --method ipca`, the old name, still trains the same basis, with a one-line note.
     code, _, err = run_cli(capsys, ["fit", "--method", "ipca", d / "data", "--exclude-list", d / "exclude.txt",
                                     "--components", 5, "-o", d / "basis-ipca.safetensors"])

@@ -536,6 +536,10 @@ def test_fit_prior_smoke(data, tables):
 
     out = data / "api.safetensors"
     assert fit_prior([data / "data"], out, progress=False, exclude=["nothing-such"], **TINY_FIT) == out
+    from brdfkit.embeddings.parts import file_part
+    from brdfkit.training import FITTERS
+
+    assert file_part(out).name == FITTERS["prior"].part  # the recipe's part is its file's
     model = load_prior(out)
     assert model.cfg == PriorConfig(n_components=2, latent_dim=4, width=8)
     assert model.basis.n_components == 2 and model.basis.materials == [f"mat-{i}" for i in range(4)]

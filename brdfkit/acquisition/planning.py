@@ -110,7 +110,8 @@ def plan_target(spec=None):
     """
     from brdfkit.atomic import check_input_file
     from brdfkit.basis import DEFAULT_LAMBDA, PcaBasis, load_basis
-    from brdfkit.methods.choice import file_method, resolve_for
+    from brdfkit.embeddings.parts import file_part, part_of
+    from brdfkit.methods.choice import resolve_for
     from brdfkit.models.builtin import default_bundle, is_path_spec
     from brdfkit.acquisition.optimal_design import Likelihood
 
@@ -125,7 +126,11 @@ def plan_target(spec=None):
         return spec  # a target this function made: loaded once, planned for many times
     if isinstance(spec, PcaBasis):
         return spec, "the given basis", ridge
-    if hasattr(spec, "basis") and hasattr(spec, "cfg"):
+    if not isinstance(spec, (str, os.PathLike)) and spec is not None:
+        found = part_of(spec)
+        if found is None or found.name != "prior":
+            raise InputError(f"planning needs a PCA basis or a learnt prior, not a "
+                             f"{found.label if found else type(spec).__name__}")
         return spec.basis, "the given learnt prior", Likelihood(spec.cfg.weight, spec.cfg.s2, spec.cfg.lam)
     if spec is None:
         entry = default_bundle()
@@ -138,10 +143,10 @@ def plan_target(spec=None):
     if not is_path_spec(spec):
         return prior(resolve_for("prior", spec), spec)
     check_input_file(spec)
-    kind = file_method(spec)
-    if kind == "ipca":
+    part = file_part(spec).name
+    if part == "basis":
         return load_basis(spec), os.path.basename(spec), ridge
-    if kind == "prior":
+    if part == "prior":
         return prior(spec, os.path.basename(spec))
     raise InputError(f"{spec}: not a PCA basis or a learnt-prior model file; planning needs a basis: a built-in "
                      f"name with a learnt prior, a learnt-prior file or a file from `brdfkit fit --method basis`")

@@ -244,22 +244,22 @@ def _compressor(cfg: BenchConfig, entry: str, what, device) -> tuple:
     ``basis-13 (39 numbers)`` (the projection onto the ``ipca`` basis's 13 leading
     components), ``basis-8 (24 numbers, basis8)`` (a method's own basis, whole)."""
     if entry == "embedding":
-        from brdfkit.embeddings import encode_with, load_decoder, open_embedding
+        from brdfkit.embeddings import encode_with, get_kind, load_decoder, open_embedding
+        from brdfkit.embeddings.parts import get_part
 
         path, kind, size = what
         dec = load_decoder(kind, path, device)
         stem = os.path.splitext(os.path.basename(path))[0]
-        trained = set(getattr(dec.obj, "materials", None) or getattr(dec.obj, "meta", {}).get("materials") or ())
+        trained = get_part(get_kind(kind).part).materials(dec.obj)
 
         def compress(table, name, dec=dec, size=size):
             return open_embedding(encode_with(dec, table, source=name, size=size), dec, name).to_table()
 
         return f"{kind}-{size} ({stem})", size, compress, trained
     if entry == "basis":  # the ipca basis's K leading components, projected
-        from brdfkit.basis.basis_file import load_basis
-        from brdfkit.models.builtin import resolve_basis
+        from brdfkit.embeddings.parts import load_part
 
-        basis = load_basis(resolve_basis(cfg.model_file("ipca"))).leading(what)
+        basis = load_part(cfg.model_file("ipca"), "basis").leading(what)
         return (f"basis-{what} ({3 * what} numbers)", 3 * what, lambda table, name: basis.decode(basis.project(table)),
                 set(basis.materials))
     method, path = what

@@ -15,8 +15,8 @@ from brdfkit.cli.common import model_option
 def command(embedding, model_path, output):
     """Decode EMBEDDING (.emb) with the decoder that made it into a MERL .binary table.
 
-    Without -m, the installed built-in part (basis or hypernetwork) whose digest the
-    embedding records is used.
+    Without -m, the installed built-in part (PCA basis, basis residual or hypernetwork)
+    whose digest the embedding records is used.
     Cells below the horizon are written as -1 (MERL's "not measured").
     """
     import os

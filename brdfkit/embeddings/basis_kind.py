@@ -8,13 +8,6 @@ from brdfkit.embeddings.kind import EmbeddingKind
 __all__ = ["KIND"]
 
 
-def _load(path, device):
-    from brdfkit.basis.basis_file import load_basis
-    from brdfkit.io.digest import cached_file_digest
-
-    return load_basis(path), cached_file_digest(path)
-
-
 def _sizes(basis):
     from brdfkit.basis.coefficients import basis_sizes
 
@@ -40,4 +33,4 @@ def _open(basis, digest, emb, name, device):
 
 
 KIND = EmbeddingKind("basis", "coefficients of a PCA basis, refined on renders (3 numbers a component)", "basis",
-                     _load, _sizes, _default_size, _encode, _open, start="projection")
+                     _sizes, _default_size, _encode, _open, start="projection")

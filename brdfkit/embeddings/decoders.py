@@ -82,7 +82,7 @@ def _file_kind(path: str, kind: str | None) -> str:
     first kind of that part (by the part its header records)."""
     from brdfkit.embeddings.parts import file_part
 
-    part = file_part(path)
+    part = file_part(path).name
     if kind is not None:
         if KINDS[kind].part != part:
             raise InputError(f"{path}: a {part} file, not the {KINDS[kind].part} a {kind} embedding needs "

@@ -9,13 +9,6 @@ from brdfkit.embeddings.kind import EmbeddingKind
 __all__ = ["KIND"]
 
 
-def _load(path, device):
-    from brdfkit.hypernet.network_file import load_network
-
-    net = load_network(path, device=device)
-    return net, net.digest
-
-
 def _encode(net, digest, table, *, source, size, steps, refine, max_seconds=None):
     from brdfkit.hypernet.encoding import encode_table
 
@@ -35,5 +28,5 @@ def _open(net, digest, emb, name, device):
 
 
 KIND = EmbeddingKind("hypernet", "a hypernetwork's latent, refined on renders (Gokbudak et al. 2024)", "network",
-                     _load, lambda n: (int(n.cfg.latent_dim),), lambda n: int(n.cfg.latent_dim), _encode, _open,
+                     lambda n: (int(n.cfg.latent_dim),), lambda n: int(n.cfg.latent_dim), _encode, _open,
                      aliases=("latent",), start="encoder pass", torch=True, wall_clock=True)

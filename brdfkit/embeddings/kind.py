@@ -20,12 +20,11 @@ class EmbeddingKind:
         Registry key (``brdfkit encode --kind``, the ``kind`` of an ``.emb``) and one line
         for help texts.
     part
-        The part of a model that decodes it (:data:`brdfkit.models.builtin.PARTS`): a
-        built-in name resolves to that part's file, and a file is of this kind when its
-        header says it is that part (:func:`brdfkit.methods.choice.file_part`).
-    load
-        ``load(path, device) -> (obj, digest)``: the loaded decoder and the digest
-        embeddings name it by.
+        The name of the part of a model that decodes it, in the part registry
+        (:data:`brdfkit.embeddings.parts.PARTS`): a built-in name resolves to that part's
+        file, a file is of this kind when its header says it is that part
+        (:func:`brdfkit.embeddings.parts.file_part`), and the decoder loads as that part
+        loads (:meth:`load`).
     sizes
         ``sizes(obj) -> sizes``: the numbers per material it offers (ascending).
     default_size
@@ -52,7 +51,6 @@ class EmbeddingKind:
     name: str
     summary: str
     part: str
-    load: Callable = dataclasses.field(repr=False)
     sizes: Callable = dataclasses.field(repr=False)
     default_size: Callable = dataclasses.field(repr=False)
     encode: Callable = dataclasses.field(repr=False)
@@ -61,3 +59,10 @@ class EmbeddingKind:
     start: str = ""
     torch: bool = False
     wall_clock: bool = False
+
+    def load(self, path, device=None):
+        """``(obj, digest)``: the decoder in the file ``path`` and the digest embeddings name
+        it by, loaded as its part loads (:meth:`brdfkit.embeddings.parts.ModelPart.load`)."""
+        from brdfkit.embeddings.parts import get_part
+
+        return get_part(self.part).load(path, device)

@@ -9,13 +9,6 @@ from brdfkit.embeddings.kind import EmbeddingKind
 __all__ = ["KIND"]
 
 
-def _load(path, device):
-    from brdfkit.io.digest import cached_file_digest
-    from brdfkit.residual.residual_file import load_residual
-
-    return load_residual(path), cached_file_digest(path)
-
-
 def _default_size(residual):
     from brdfkit.basis.coefficients import DEFAULT_SIZE
 
@@ -37,4 +30,4 @@ def _open(residual, digest, emb, name, device):
 
 
 KIND = EmbeddingKind("residual", "coefficients of a PCA basis plus a hypernetwork's correction, chosen per material "
-                     "(3 numbers a component)", "residual", _load, lambda r: r.sizes(), _default_size, _encode, _open)
+                     "(3 numbers a component)", "residual", lambda r: r.sizes(), _default_size, _encode, _open)

@@ -1,13 +1,16 @@
 """Which method and file a ``-m`` value means (``brdfkit sparse``, ``brdfkit bench``).
 
 A model (what ``-m`` takes) is a file or the name of a built-in bundle
-(:mod:`brdfkit.models.builtin`, ``docs/models.md``) of up to four parts: its
-hypernetwork (``network``), PCA basis (``basis``), learnt prior (``prior``) and basis
-residual (``residual``). A built-in name therefore names a different file for each method
-(:func:`resolve_for`); a path is the file as it is, its part told by the format its header
-records (:func:`brdfkit.embeddings.parts.file_part`). ``--method auto``, ``brdfkit sparse``'s default, picks the
-method too (:func:`choose`): a built-in's learnt prior when it has one (the better sparse
-reconstruction, ``docs/notes/generalisation.md``), else its hypernetwork; a file by its part.
+(:mod:`brdfkit.models.builtin`, ``docs/models.md``) of up to four parts (the part registry
+:data:`brdfkit.embeddings.parts.PARTS`): its hypernetwork (``network``), PCA basis
+(``basis``), learnt prior (``prior``) and basis residual (``residual``). Each method names
+the part it takes (:attr:`brdfkit.methods.Method.part`), so a built-in name names a
+different file for each method (:func:`resolve_for`); a path is the file as it is, its
+part told by the format its header records (:func:`brdfkit.embeddings.parts.file_part`),
+and a file of a part no method takes (a basis residual) is refused in one line.
+``--method auto``, ``brdfkit sparse``'s default, picks the method too (:func:`choose`): a
+built-in's learnt prior when it has one (the better sparse reconstruction,
+``docs/notes/generalisation.md``), else its hypernetwork; a file by its part.
 """
 
 from __future__ import annotations
@@ -15,14 +18,12 @@ from __future__ import annotations
 import dataclasses
 import os
 
-__all__ = ["AUTO", "METHOD_PARTS", "Choice", "resolve_for", "file_method", "choose"]
+from brdfkit.errors import InputError
+
+__all__ = ["AUTO", "Choice", "method_of_part", "resolve_for", "file_method", "choose"]
 
 AUTO = "auto"
 """The ``--method`` value that lets :func:`choose` pick the method."""
-
-METHOD_PARTS = {"hypernet": "network", "ipca": "basis", "prior": "prior"}
-"""The part of a built-in each method takes; a method not listed gets its ``-m`` value as
-it is (its loader says what it takes)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -36,28 +37,85 @@ class Choice:
     label: str | None
 
 
-def resolve_for(method: str, spec: str | os.PathLike) -> str:
-    """The model file of ``method`` that a ``-m`` value names: a path as it is; a
-    built-in name the part :data:`METHOD_PARTS` gives, checked against the manifest.
+def _part_of_method(method: str) -> str | None:
+    from brdfkit.methods import METHODS
+
+    m = METHODS.get(method)
+    return None if m is None else m.part
+
+
+def method_of_part(part: str, what: str = "") -> str:
+    """The method that takes part ``part`` (the first of :data:`brdfkit.methods.METHODS`
+    whose :attr:`~brdfkit.methods.Method.part` it is).
 
     Raises
     ------
     InputError
-        An unknown name, or a built-in without that part (one line).
+        No method takes that part (a basis residual): one line naming ``what`` (a file,
+        a loaded model) and the parts the methods take.
     """
-    from brdfkit.models.builtin import resolve_part
+    from brdfkit.embeddings.parts import get_part
+    from brdfkit.methods import METHODS
 
-    part = METHOD_PARTS.get(method)
-    return resolve_part(spec, part) if part else os.fspath(spec)
+    found = next((m.name for m in METHODS.values() if m.part == part), None)
+    if found is None:
+        takes = ", ".join(f"{m.name} a {get_part(m.part).label}" for m in METHODS.values() if m.part)
+        raise InputError(f"{what or 'model'}: a {get_part(part).label} file, which no sparse-reconstruction method "
+                         f"takes ({takes}; a {get_part(part).label} decodes embeddings: `brdfkit encode -m`)")
+    return found
+
+
+def resolve_for(method: str, spec: str | os.PathLike) -> str:
+    """The model file of ``method`` that a ``-m`` value names: a path as it is (refused in
+    one line when its header says it is another part than the method takes); a built-in
+    name the part the method takes, checked against the manifest.
+
+    Raises
+    ------
+    InputError
+        An unknown name, a built-in without that part, a file of another part (one line).
+    """
+    from brdfkit.models.builtin import is_path_spec, resolve_part
+
+    part = _part_of_method(method)
+    if not part:
+        return os.fspath(spec)
+    if is_path_spec(spec):
+        _check_file_part(os.fspath(spec), method, part)
+    return resolve_part(spec, part)
+
+
+def _check_file_part(path: str, method: str, part: str) -> None:
+    """Refuse a file whose header names another part than ``part``; a file whose header
+    names none is left to the method's loader, which says what it is."""
+    from brdfkit.embeddings.parts import get_part
+    from brdfkit.errors import FormatError
+    from brdfkit.io.tensorfile import open_safetensors
+    from brdfkit.models.parts import part_of_format
+
+    if not os.path.isfile(path):
+        return
+    try:
+        with open_safetensors(path) as f:
+            found = part_of_format((f.metadata() or {}).get("format"))
+    except (FormatError, InputError, OSError):
+        return
+    if found is not None and found.name != part:
+        raise InputError(f"{path}: a {found.label} file, not the {get_part(part).label} --method {method} takes")
 
 
 def file_method(path: str | os.PathLike) -> str:
-    """The method a model file is for (:func:`brdfkit.embeddings.parts.file_part`):
-    ``prior``, ``ipca`` (a basis), else ``hypernet``."""
+    """The method a model file is for: the one that takes its part
+    (:func:`brdfkit.embeddings.parts.file_part`, :func:`method_of_part`).
+
+    Raises
+    ------
+    InputError
+        A file of a part no method takes (a basis residual).
+    """
     from brdfkit.embeddings.parts import file_part
 
-    part = file_part(path)
-    return {"prior": "prior", "basis": "ipca"}.get(part, "hypernet")
+    return method_of_part(file_part(path).name, os.fspath(path))
 
 
 def _default_entry():
@@ -70,18 +128,19 @@ def choose(method: str, spec: str | os.PathLike | None) -> Choice:
     """The method and model file to run for ``--method`` ``method`` and ``-m`` ``spec``.
 
     ``method`` :data:`AUTO`: with no ``spec``, the default built-in's learnt prior when
-    it has one, else its hypernetwork; a built-in name likewise; a file by its format
+    it has one, else its hypernetwork; a built-in name likewise; a file by its part
     (:func:`file_method`). A named method takes the part of a built-in it uses
-    (:func:`resolve_for`); with no ``spec``, ``hypernet``, ``prior`` and ``ipca`` take the
-    default built-in's, the others none (their loader says what they need).
+    (:func:`resolve_for`); with no ``spec``, a method that takes a part takes the default
+    built-in's, the others none (their loader says what they need).
 
     Raises
     ------
     InputError
-        An unknown name, or a built-in without the part the method needs.
+        An unknown name, a built-in without the part the method needs, a file of a part
+        no method (or not this method) takes.
     """
     if spec is None:
-        if method != AUTO and method not in METHOD_PARTS:
+        if method != AUTO and not _part_of_method(method):
             return Choice(method, None, None)
         entry = _default_entry()
         if entry is None:

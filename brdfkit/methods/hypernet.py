@@ -20,9 +20,9 @@ DEFAULT_REFINE_STEPS = 300
 
 
 def _load(path, device):
-    from brdfkit.hypernet.packing import load_builtin
+    from brdfkit.embeddings.parts import load_part
 
-    return load_builtin(path, device=device)
+    return load_part(path, "network", device)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -70,5 +70,4 @@ def _reconstruct(samples, model, options, *, seed, device):
 
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",
                 "hypernetwork model (.safetensors from `brdfkit fit` or `brdfkit demo`)", options=HypernetOptions,
-                load_fn=_load, reconstruct_fn=_reconstruct,
-                bench_option="model")
+                part="network", load_fn=_load, reconstruct_fn=_reconstruct, bench_option="model")

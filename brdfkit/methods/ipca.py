@@ -37,11 +37,11 @@ class IpcaOptions(MethodOptions):
 
 
 def _load(path, device):
-    from brdfkit.basis.basis_file import load_basis
+    from brdfkit.embeddings.parts import get_part
     from brdfkit.models.builtin import is_builtin_part, resolve_basis
 
     path = resolve_basis(path)
-    basis = load_basis(path)
+    basis, _ = get_part("basis").load(path, device)
     # A built-in's basis has the components its learnt prior fits; the baseline is
     # Nielsen's 8 of them. A file of the user's is used whole.
     return basis.baseline() if is_builtin_part(path, "basis") else basis
@@ -65,5 +65,5 @@ def _describe(model, path):
 
 METHOD = Method("ipca", "PCA basis of log-mapped tables fitted by ridge regression (Nielsen et al. 2015)",
                 "PCA basis (.safetensors from `brdfkit fit --method basis`, or a built-in's name)",
-                options=IpcaOptions, load_fn=_load, reconstruct_fn=_reconstruct, compress_fn=_compress,
+                options=IpcaOptions, part="basis", load_fn=_load, reconstruct_fn=_reconstruct, compress_fn=_compress,
                 describe_fn=_describe, bench_option="ipca")

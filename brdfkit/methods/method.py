@@ -37,6 +37,11 @@ class Method:
         One line for help texts.
     model_kind
         What its model file is, for messages; ``""`` for a method that needs no model.
+    part
+        The part of a model it takes (a name of the part registry
+        :data:`brdfkit.embeddings.parts.PARTS`): a built-in's name resolves to that
+        part's file, and a model file given to ``--method auto`` runs the method of its
+        part; ``None`` for a method that takes no model.
     options
         Its :class:`MethodOptions` subclass (field defaults are the method's defaults).
     load_fn
@@ -62,6 +67,7 @@ class Method:
     summary: str
     model_kind: str
     options: type = MethodOptions
+    part: str | None = None
     load_fn: Callable | None = dataclasses.field(default=None, repr=False)
     reconstruct_fn: Callable | None = dataclasses.field(default=None, repr=False)
     compress_fn: Callable | None = dataclasses.field(default=None, repr=False)

@@ -35,10 +35,9 @@ class PriorOptions(MethodOptions):
 
 
 def _load(path, device):
-    from brdfkit.models.builtin import resolve_prior
-    from brdfkit.prior.prior_file import load_prior
+    from brdfkit.embeddings.parts import load_part
 
-    return load_prior(resolve_prior(path), device)
+    return load_part(path, "prior", device)
 
 
 def _reconstruct(samples, model, options, *, seed, device):
@@ -58,5 +57,5 @@ def _describe(model, path):
 METHOD = Method("prior", "PCA basis fitted around a learnt prior: a set encoder of the samples gives the "
                 "coefficients' prior mean (brdfkit's default, docs/notes/generalisation.md)",
                 "learnt-prior model (.safetensors from `brdfkit fit --method prior`, or a built-in name)",
-                options=PriorOptions, load_fn=_load, reconstruct_fn=_reconstruct,
+                options=PriorOptions, part="prior", load_fn=_load, reconstruct_fn=_reconstruct,
                 compress_fn=_compress, describe_fn=_describe)  # bench: --model-file prior=FILE

@@ -1,21 +1,10 @@
 """Built-in models: bundles of pretrained files shipped inside the package, by name.
 
 A *model* is what ``-m`` takes: a file, or the name of a built-in *bundle*. A bundle is a
-set of *parts*, each one file of the folder ``brdfkit/models/`` (or
-``$BRDFKIT_BUILTIN_MODELS``, for tests and for models kept elsewhere), listed in its
-``manifest.json`` (``docs/models.md``):
-
-============ ========================================================= =================
-part         what it is                                                its digest
-============ ========================================================= =================
-``network``  the hypernetwork (Gokbudak et al. 2024;                   its weights' SHA-256
-             :mod:`brdfkit.hypernet`)                                  (in the file's header)
-``basis``    the PCA basis (:mod:`brdfkit.basis`)                      the file's SHA-256
-``prior``    the learnt prior fitted with that basis                   its content's SHA-256
-             (:mod:`brdfkit.prior`)                                    (in the file's header)
-``residual`` the hypernetwork residual of that basis                   the file's SHA-256
-             (:mod:`brdfkit.residual`)
-============ ========================================================= =================
+set of *parts* (``network``, ``basis``, ``prior``, ``residual``: what each is as a file,
+and the digest that names it, is :data:`brdfkit.models.parts.PART_FILES`), each one file
+of the folder ``brdfkit/models/`` (or ``$BRDFKIT_BUILTIN_MODELS``, for tests and for
+models kept elsewhere), listed in its ``manifest.json`` (``docs/models.md``):
 
 ::
 
@@ -45,8 +34,9 @@ import re
 
 from brdfkit.atomic import atomic_open
 from brdfkit.errors import FormatError, InputError
+from brdfkit.models.parts import PART_FILES
 
-__all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "PARTS", "Part", "Bundle", "Manifest",
+__all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "Part", "Bundle", "Manifest",
            "models_folder", "read_manifest", "installed_bundles", "is_path_spec", "resolve_part", "resolve_network",
            "resolve_prior", "resolve_basis", "resolve_residual", "default_bundle", "find_by_digest", "is_builtin_part",
            "write_manifest"]
@@ -59,9 +49,6 @@ _READS = (1, 2)
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*\Z")
 _HEX64 = re.compile(r"[0-9a-f]{64}\Z")
 
-PARTS = {"network": "hypernetwork", "basis": "PCA basis", "prior": "learnt prior", "residual": "basis residual"}
-"""The parts a bundle may have, and what each is called in messages."""
-_HEADER_DIGEST = ("network", "prior")  # digests recorded in the file's header, not the file's own SHA-256
 
 
 @dataclasses.dataclass(frozen=True)
@@ -85,7 +72,7 @@ class Bundle:
     name
         Its name (``-m NAME``).
     parts
-        ``{part: Part}`` (:data:`PARTS`).
+        ``{part: Part}`` (:data:`brdfkit.models.parts.PART_FILES` names the parts).
     latent_dim
         Size of its hypernetwork's latent, or ``None`` without a network.
     materials, materials_list
@@ -117,7 +104,7 @@ class Bundle:
     installed: bool = False
 
     def part(self, name: str) -> Part | None:
-        """Its part ``name`` (:data:`PARTS`), or ``None``."""
+        """Its part ``name`` (:data:`brdfkit.models.parts.PART_FILES`), or ``None``."""
         return self.parts.get(name)
 
     def to_json(self) -> dict:
@@ -157,8 +144,8 @@ def _v1_parts(d) -> dict:
 
 
 def _part(folder: str, name: str, p, bad) -> Part:
-    if name not in PARTS:
-        raise bad(f"unknown part {name!r} (parts: {', '.join(PARTS)})")
+    if name not in PART_FILES:
+        raise bad(f"unknown part {name!r} (parts: {', '.join(PART_FILES)})")
     if not isinstance(p, dict):
         raise bad(f"part {name!r} must be an object")
     file, digest = p.get("file"), p.get("digest")
@@ -271,19 +258,11 @@ def is_path_spec(spec: str | os.PathLike) -> bool:
 
 def _checked(m: Bundle, part: str) -> str:
     """The path of an installed bundle's ``part`` file after checking it against the
-    digest the manifest records (the module's table)."""
+    digest the manifest records (by the part's rule, :class:`brdfkit.models.parts.PartFile`)."""
     p = m.parts[part]
     if not os.path.isfile(p.path):
         raise InputError(f"built-in model {m.name!r}: its file {p.file} is not installed")
-    if part in _HEADER_DIGEST:
-        from brdfkit.io.tensorfile import open_safetensors
-
-        with open_safetensors(p.path, framework="numpy", diagnose="brdfkit model file") as f:
-            recorded = (f.metadata() or {}).get("fingerprint")  # the header's key, kept since format 1
-    else:
-        from brdfkit.io.digest import cached_file_digest
-
-        recorded = cached_file_digest(p.path)
+    recorded = PART_FILES[part].recorded_digest(p.path)
     if recorded != p.digest:
         raise FormatError(p.path, f"built-in model {m.name!r}: the file's digest is {str(recorded)[:12]}, the "
                                   f"manifest's {p.digest[:12]}: the file is damaged or was replaced")
@@ -300,9 +279,9 @@ def _unknown(spec: str, installed: list[Bundle]) -> InputError:
 
 
 def resolve_part(spec: str | os.PathLike, part: str) -> str:
-    """The file of ``part`` (:data:`PARTS`) that a ``-m`` value names: a path as it is
-    (:func:`is_path_spec`), else that part of the installed built-in of that name, its
-    digest checked.
+    """The file of ``part`` (a name of :data:`brdfkit.models.parts.PART_FILES`) that a
+    ``-m`` value names: a path as it is (:func:`is_path_spec`), else that part of the
+    installed built-in of that name, its digest checked.
 
     Raises
     ------
@@ -319,8 +298,8 @@ def resolve_part(spec: str | os.PathLike, part: str) -> str:
         if m.name == spec:
             if m.part(part) is None:
                 having = ", ".join(e.name for e in installed if e.part(part)) or "none installed"
-                raise InputError(f"built-in model {m.name!r} ships no {PARTS[part]} (built-ins with one: {having}; "
-                                 f"`brdfkit models` lists them)")
+                raise InputError(f"built-in model {m.name!r} ships no {PART_FILES[part].label} (built-ins with one: "
+                                 f"{having}; `brdfkit models` lists them)")
             return _checked(m, part)
     raise _unknown(os.fspath(spec), installed)
 

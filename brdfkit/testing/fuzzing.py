@@ -14,7 +14,6 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import functools
-import importlib
 import json
 import os
 import shutil
@@ -160,52 +159,96 @@ def measurement_csv_seed() -> bytes:
     return ("# a comment\n" + head + "\n" + "\n".join(rows) + "\n").encode()
 
 
-def _reader(module: str, name: str, *args) -> Callable:
-    """``module.name(path, *args)`` as a parser's ``read``, its module imported on the first
-    call (importing this module imports no parser)."""
+# The parsers, each imported on its first call (importing this module imports no parser).
 
-    def read(path):
-        return getattr(importlib.import_module(module), name)(path, *args)
+def read_merl(path):
+    from brdfkit.io.merl import read_merl
 
-    read.__name__ = name
-    return read
+    return read_merl(path)
+
+
+def read_bsdf(path):
+    from brdfkit.io.rgl_bsdf import read_bsdf
+
+    return read_bsdf(path)
+
+
+def read_samples(path):
+    from brdfkit.io.samples import read_samples
+
+    return read_samples(path)
+
+
+def read_pbrt_brdf(path):
+    from brdfkit.io.pbrt_brdf import read_pbrt_brdf
+
+    return read_pbrt_brdf(path)
+
+
+def read_measurement_csv(path):
+    from brdfkit.io.sample_files import read_measurement_csv
+
+    return read_measurement_csv(path)
+
+
+def read_embedding(path):
+    from brdfkit.io.embedding import read_embedding
+
+    return read_embedding(path)
+
+
+def load_network(path):
+    from brdfkit.hypernet.network_file import load_network
+
+    return load_network(path, "cpu")
+
+
+def load_reference(path):
+    from brdfkit.hypernet.mapping import load_reference
+
+    return load_reference(path)
+
+
+def load_basis(path):
+    from brdfkit.basis import load_basis
+
+    return load_basis(path)
 
 
 PARSERS = {p.name: p for p in (
-    Parser("read_merl", _reader("brdfkit.io.merl", "read_merl"), ".binary", merl_seed),
-    Parser("read_bsdf", _reader("brdfkit.io.rgl_bsdf", "read_bsdf"), ".bsdf", bsdf_seed),
-    Parser("read_samples", _reader("brdfkit.io.samples", "read_samples"), ".csv", csv_seed),
-    Parser("read_pbrt_brdf", _reader("brdfkit.io.pbrt_brdf", "read_pbrt_brdf"), ".brdf", brdf_seed),
-    Parser("read_measurement_csv", _reader("brdfkit.io.sample_files", "read_measurement_csv"), ".csv",
-           measurement_csv_seed),
-    Parser("read_embedding", _reader("brdfkit.io.embedding", "read_embedding"), ".emb", embedding_seed),
-    Parser("load_network", _reader("brdfkit.hypernet.network_file", "load_network", "cpu"), ".safetensors",
-           model_seed, safetensors=True),
-    Parser("load_reference", _reader("brdfkit.hypernet.mapping", "load_reference"), ".safetensors",
-           reference_seed, safetensors=True),
-    Parser("load_basis", _reader("brdfkit.basis", "load_basis"), ".safetensors", ipca_seed, safetensors=True),
+    Parser("read_merl", read_merl, ".binary", merl_seed),
+    Parser("read_bsdf", read_bsdf, ".bsdf", bsdf_seed),
+    Parser("read_samples", read_samples, ".csv", csv_seed),
+    Parser("read_pbrt_brdf", read_pbrt_brdf, ".brdf", brdf_seed),
+    Parser("read_measurement_csv", read_measurement_csv, ".csv", measurement_csv_seed),
+    Parser("read_embedding", read_embedding, ".emb", embedding_seed),
+    Parser("load_network", load_network, ".safetensors", model_seed, safetensors=True),
+    Parser("load_reference", load_reference, ".safetensors", reference_seed, safetensors=True),
+    Parser("load_basis", load_basis, ".safetensors", ipca_seed, safetensors=True),
 )}
 
 
 def add_parser(parser: Parser) -> None:
-    """Register another parser (the renderer's EXR reader registers itself when present)."""
+    """Register another parser."""
     PARSERS[parser.name] = parser
 
 
-try:  # the renderer's image reader, once it exists
-    from brdfkit.render.image import read_exr as _read_exr_fn  # noqa: F401
-except ImportError:
-    pass
-else:
-    @functools.lru_cache(maxsize=None)
-    def exr_seed() -> bytes:
-        from brdfkit.render.image import write_exr
+@functools.lru_cache(maxsize=None)
+def exr_seed() -> bytes:
+    from brdfkit.render.image import write_exr
 
-        path = os.path.join(_seed_folder(), "img.exr")
-        write_exr(path, np.linspace(0, 2, 4 * 5 * 3, dtype=np.float32).reshape(4, 5, 3))
-        return _take(path)
+    path = os.path.join(_seed_folder(), "img.exr")
+    write_exr(path, np.linspace(0, 2, 4 * 5 * 3, dtype=np.float32).reshape(4, 5, 3))
+    return _take(path)
 
-    add_parser(Parser("read_exr", _reader("brdfkit.render.image", "read_exr"), ".exr", exr_seed))
+
+def read_exr(path):
+    from brdfkit.render.image import read_exr
+
+    return read_exr(path)
+
+
+add_parser(Parser("read_exr", read_exr, ".exr", exr_seed))
 
 
 # --- mutations -----------------------------------------------------------------------------

@@ -1,17 +1,21 @@
 """What ``brdfkit fit`` trains, by name (:data:`FITTERS`): each part of a model has one
 recipe that makes its file from MERL tables.
 
-============ =================================================== =========================
-name         what it trains                                      its file
-============ =================================================== =========================
-``hypernet`` the hypernetwork (Gokbudak et al. 2024;              a network file
+============ =================================================== ==========================
+name         what it trains                                      its file (``Fitter.part``)
+============ =================================================== ==========================
+``hypernet`` the hypernetwork (Gokbudak et al. 2024;              ``network``
              :mod:`brdfkit.hypernet.training`)
-``basis``    a PCA basis of log-mapped tables (Nielsen et al.     a basis file
+``basis``    a PCA basis of log-mapped tables (Nielsen et al.     ``basis``
              2015; :mod:`brdfkit.basis.fit`); ``ipca`` before
-``prior``    the learnt prior of a basis (:mod:`brdfkit.prior`)   a learnt-prior file
-``residual`` the hypernetwork residual of a basis                 a residual file
+``prior``    the learnt prior of a basis (:mod:`brdfkit.prior`)   ``prior``
+``residual`` the hypernetwork residual of a basis                 ``residual``
              (:mod:`brdfkit.residual.training`)
-============ =================================================== =========================
+============ =================================================== ==========================
+
+Each recipe names the part of a model its file is, in the part registry
+:data:`brdfkit.embeddings.parts.PARTS` (which says how the file loads and what digest
+names it).
 
 ``ipca`` remains the name of Nielsen et al.'s *reconstruction method*
 (``brdfkit sparse --method ipca``), which fits a basis to samples; ``brdfkit fit
@@ -39,6 +43,10 @@ class Fitter:
     ----------
     name, summary
         Registry key (``brdfkit fit --method``) and one line for help texts.
+    part
+        The part of a model its file is (a name of the part registry
+        :data:`brdfkit.embeddings.parts.PARTS`): what ``-m`` then takes it as, and what a
+        built-in's manifest lists it under.
     fit_fn
         ``fit_fn(data, output, *, exclude, progress, **options) -> output``.
     options
@@ -51,6 +59,7 @@ class Fitter:
 
     name: str
     summary: str
+    part: str
     fit_fn: Callable = dataclasses.field(repr=False)
     options: tuple | Callable | None = ()
     aliases: tuple = ()
@@ -99,11 +108,11 @@ def _residual(data, output, **kw):
 
 
 FITTERS: dict[str, Fitter] = {
-    "hypernet": Fitter("hypernet", "the hypernetwork (Gokbudak et al. 2024)", _hypernet, None),
-    "basis": Fitter("basis", "a PCA basis of log-mapped tables (Nielsen et al. 2015)", _basis,
+    "hypernet": Fitter("hypernet", "the hypernetwork (Gokbudak et al. 2024)", "network", _hypernet, None),
+    "basis": Fitter("basis", "a PCA basis of log-mapped tables (Nielsen et al. 2015)", "basis", _basis,
                     ("components", "half", "phi_stride", "w_floor", "int8"), aliases=("ipca",)),
-    "prior": Fitter("prior", "the learnt prior of a basis", _prior, _prior_options),
-    "residual": Fitter("residual", "the hypernetwork residual of a basis", _residual, None),
+    "prior": Fitter("prior", "the learnt prior of a basis", "prior", _prior, _prior_options),
+    "residual": Fitter("residual", "the hypernetwork residual of a basis", "residual", _residual, None),
 }
 """The recipes of ``brdfkit fit`` by name."""
 
