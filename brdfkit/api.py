@@ -61,7 +61,7 @@ def load_model(path: str | os.PathLike, device=None):
     return load_network(resolve_network(path), device)
 
 
-def _load_input(obj, source: str):
+def load_input(obj, source: str = ""):
     """A ``SampleSet`` or a dense table from what :func:`encode` accepts, and a source
     name for provenance."""
     from brdfkit.io.samples import SampleSet
@@ -194,7 +194,7 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
     """
     from brdfkit.embeddings import encode_with
 
-    data, name = _load_input(data, source)
+    data, name = load_input(data, source)
     if not isinstance(data, np.ndarray):
         from brdfkit.embeddings import get_kind, kind_of_part
 

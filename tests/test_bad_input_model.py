@@ -68,7 +68,7 @@ def test_bad_model_through_every_command(good, bad_models, tmp_path, capsys, com
 
 
 @pytest.mark.parametrize("name, message", [
-    ("model", "not a brdfkit PCA basis (format 'brdfkit-model', expected 'brdfkit-basis')"),
+    ("model", "a hypernetwork file, not the PCA basis --method ipca takes"),
     ("empty", "not a valid safetensors file (Error while deserializing header: header too small)"),
     ("pickle", "not a valid safetensors file (Error while deserializing header: "),
     ("truncated_header", "not a valid safetensors file (Error while deserializing header: "),

@@ -295,8 +295,14 @@ def test_interpolate_strip(files, two_embs, tmp_path, capsys):
         alone, _ = render(NeuralBRDF.from_embedding(m, emb), reference_scene(16))
         np.testing.assert_array_equal(img, alone)
     assert not np.array_equal(tiles[1][1], tiles[0][1]) and not np.array_equal(tiles[1][1], tiles[2][1])
-    for _, img in tiles:  # each render drawn pixel for pixel (matplotlib truncates to 8 bits)
-        assert _tile_at(png, np.floor(display_encode(img) * 255).astype(np.uint8))
+    from brdfkit.figures.canvas import antialias_silhouette
+
+    blends = [NeuralBRDF.from_embedding(m, emb) for emb in (a, b)]
+    for (_, img), drawn in zip(tiles[::2], antialias_silhouette(blends, [t[1] for t in tiles[::2]])):
+        # each end drawn pixel for pixel, its silhouette antialiased and its inside as
+        # rendered (matplotlib truncates to 8 bits)
+        assert np.any(drawn != img, axis=-1).mean() < 0.5  # the rim alone changed
+        assert _tile_at(png, np.floor(display_encode(drawn) * 255).astype(np.uint8))
 
 
 @pytest.mark.parametrize("args, message", [

@@ -197,7 +197,9 @@ def test_real_demo_end_to_end(shelf, monkeypatch, capsys, tmp_path):
     # What each kind of column holds: the basis's coefficients (80 steps in encode), or a latent.
     assert ("basis-K: the full table compressed, as brdfkit encode does by default, into K numbers, the "
             "coefficients of the PCA basis the model ships") in flat
-    assert "brdfkit encode takes at most 80 by default" in flat
+    from brdfkit.basis.coefficients import DEFAULT_STEPS
+
+    assert f"brdfkit encode takes at most {DEFAULT_STEPS} by default" in flat
     assert "K-D: the full table compressed into the hypernetwork's K-D latent" in flat
     assert "by a hypernetwork (" not in flat
     assert "in-sample (merl-rgl-l40, merl-rgl-l7): trained on all 151 MERL + RGL materials, these included" in flat

@@ -219,8 +219,8 @@ def test_a_new_kind_is_one_registry_entry(monkeypatch, tmp_path):
     def encode(obj, digest, table, *, source, size, steps, refine, max_seconds=None):
         return Embedding(np.nanmean(table.reshape(-1, 3), axis=0), "toy", digest, source)
 
-    toy = EmbeddingKind("toy", "mean albedo", "basis", lambda p, d: (None, "ab" * 32), lambda o: (3,),
-                        lambda o: 3, encode, lambda o, d, e, n, dev: Flat(e.values))
+    toy = EmbeddingKind("toy", "mean albedo", "basis", lambda o: (3,), lambda o: 3, encode,
+                        lambda o, d, e, n, dev: Flat(e.values))
     monkeypatch.setitem(registry.KINDS, "toy", toy)
     path = tmp_path / "toy.safetensors"
     from brdfkit.testing.examples import tiny_basis_file

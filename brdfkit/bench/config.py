@@ -368,7 +368,9 @@ def sample_seed(seed: int, n: int, name: str) -> int:
 
 def _plan_file(spec: str) -> str:
     """The file ``--plan-model`` names: a built-in's learnt prior (its basis and the
-    likelihood the plan is for, :func:`brdfkit.acquisition.planning.plan_target`), a path as it is."""
+    likelihood the plan is for, :func:`brdfkit.acquisition.planning.plan_target`), a path (a PCA
+    basis or a learnt prior) as it is."""
     from brdfkit.methods.choice import resolve_for
+    from brdfkit.models.builtin import is_path_spec
 
-    return resolve_for("prior", spec)
+    return os.fspath(spec) if is_path_spec(spec) else resolve_for("prior", spec)

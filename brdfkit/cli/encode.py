@@ -81,7 +81,9 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
     if max_seconds is not None and dec is not None and not get_kind(dec.kind).wall_clock:
         raise InputError(f"--max-seconds caps a hypernetwork latent's refinement; a {dec.kind} embedding's is "
                          f"counted in iterations (--steps N)")
-    job = EncodeJob(model_path, kind, size, steps, refine, max_seconds, output_dir)
+    from brdfkit.api import encode, load_input
+
+    job = EncodeJob(model_path, kind, size, steps, refine, max_seconds, output_dir, read=load_input, encode=encode)
     out = console()
     if len(inputs) > 1:
         with ProgressBar("encoding", total=len(inputs), count=True, out=out) as bar:

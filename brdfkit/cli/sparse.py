@@ -52,16 +52,13 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
 
     if method != _AUTO and not METHODS[method].needs_model and _model_from_env():
         model_path = None  # $BRDFKIT_MODEL names a model, not meant for this method
+    if method != _AUTO:  # the options a named method refuses, before its model is read
+        _refuse_options(method, emb_path, refine, refine_target)
     choice = choose(method, model_path)
     method, model_path = choice.method, choice.path
-    if emb_path and method != "hypernet":  # refused before the work (nbrdf's takes minutes)
-        what = "the learnt prior (method prior)" if method == "prior" else f"method {method!r}"
-        raise InputError(f"--emb: {what} makes no embedding; --method hypernet does")
+    _refuse_options(method, emb_path, refine, refine_target)
     given = {}
     if refine is not None or refine_target:
-        if method != "hypernet":
-            raise InputError(f"--refine/--refine-target apply to --method hypernet; method {method!r} "
-                             f"{'already fits its samples in closed form' if method == 'prior' else 'has no encoder'}")
         if refine is False and refine_target:
             raise InputError("--refine-target needs --refine, not --no-refine")
         if refine_target == "weights" and emb_path:
@@ -91,3 +88,16 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     if data.note:
         click.echo(f"{samples}: {data.note}", err=True)
     click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used}){how}", err=True)
+
+
+def _refuse_options(method: str, emb_path, refine, refine_target) -> None:
+    """The options that only the hypernetwork takes, refused for another method in one line
+    (before any work: nbrdf's takes minutes)."""
+    from brdfkit.errors import InputError
+
+    if emb_path and method != "hypernet":
+        what = "the learnt prior (method prior)" if method == "prior" else f"method {method!r}"
+        raise InputError(f"--emb: {what} makes no embedding; --method hypernet does")
+    if (refine is not None or refine_target) and method != "hypernet":
+        raise InputError(f"--refine/--refine-target apply to --method hypernet; method {method!r} "
+                         f"{'already fits its samples in closed form' if method == 'prior' else 'has no encoder'}")

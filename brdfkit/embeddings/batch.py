@@ -33,8 +33,12 @@ def target_of(path: str, output_dir: str | None) -> str:
 @dataclasses.dataclass(frozen=True)
 class EncodeJob:
     """What every file of a batch is encoded with: the ``-m`` value, ``--kind``, ``--size``,
-    ``--steps``, ``--refine`` and ``--max-seconds`` of ``brdfkit encode``, and the output
-    folder (``None``: beside each input)."""
+    ``--steps``, ``--refine`` and ``--max-seconds`` of ``brdfkit encode``, the output
+    folder (``None``: beside each input), and the two functions of the layer above that do
+    the work (module-level, so that a worker process receives them by name):
+    ``read(path, source)`` -> ``(data, source)`` and ``encode(data, decoder, **options)``
+    -> an :class:`~brdfkit.io.embedding.Embedding` (:func:`brdfkit.api.load_input`,
+    :func:`brdfkit.api.encode`)."""
 
     model: str | None = None
     kind: str | None = None
@@ -43,6 +47,8 @@ class EncodeJob:
     refine: bool = True
     max_seconds: float | None = None
     output_dir: str | None = None
+    read: object = None
+    encode: object = None
 
     def decoders(self, tables: bool, samples: bool) -> tuple:
         """``(for tables, for sample sets)``: the decoders (loaded once per process;
@@ -86,16 +92,8 @@ def plan_targets(paths, output_dir) -> tuple[list, list]:
     return plan, refused
 
 
-def _read(path: str):
-    """The data of an input: a dense table (MERL, RGL) or a sample set."""
-    from brdfkit.api import _load_input
-
-    return _load_input(path, "")
-
-
 def _encode_one(path, target, data, job: EncodeJob, decoders, inputs) -> Outcome:
     """Encode one read input and write its ``.emb`` (errors as the outcome's line)."""
-    from brdfkit.api import encode
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import BrdfkitError
     from brdfkit.io.embedding import write_embedding
@@ -106,7 +104,7 @@ def _encode_one(path, target, data, job: EncodeJob, decoders, inputs) -> Outcome
         if isinstance(data, BaseException):
             raise data
         refuse_overwrite_of_inputs(target, [*inputs, dec.path])
-        emb = encode(data[0], dec, size=None if samples else job.size, refine=job.refine, steps=job.steps,
+        emb = job.encode(data[0], dec, size=None if samples else job.size, refine=job.refine, steps=job.steps,
                      max_seconds=job.max_seconds, source=data[1] or os.path.basename(path))
         write_embedding(target, emb)
     except (BrdfkitError, OSError) as e:
@@ -114,11 +112,12 @@ def _encode_one(path, target, data, job: EncodeJob, decoders, inputs) -> Outcome
     return Outcome(path, target, emb.kind, emb.size, dec.label, emb.refinement)
 
 
-def _read_safely(path):
+def _read_safely(path, job: EncodeJob):
+    """The data of an input (a dense table or a sample set), or the error reading it."""
     from brdfkit.errors import BrdfkitError
 
     try:
-        return _read(path)
+        return job.read(path, "")
     except (BrdfkitError, OSError) as e:
         return e
 
@@ -129,10 +128,10 @@ def _serial(plan: list, job: EncodeJob, decoders, inputs, on_done):
 
     out = []
     with ThreadPoolExecutor(max_workers=1) as reader:
-        ahead = reader.submit(_read_safely, plan[0][1]) if plan else None
+        ahead = reader.submit(_read_safely, plan[0][1], job) if plan else None
         for n, (i, path, target) in enumerate(plan):
             data = ahead.result()
-            ahead = reader.submit(_read_safely, plan[n + 1][1]) if n + 1 < len(plan) else None
+            ahead = reader.submit(_read_safely, plan[n + 1][1], job) if n + 1 < len(plan) else None
             out.append((i, _encode_one(path, target, data, job, decoders, inputs)))
             if on_done is not None:
                 on_done(out[-1][1])
@@ -151,7 +150,7 @@ def _worker_init(job: EncodeJob, tables: bool, samples: bool, inputs) -> None:
 
 def _worker_one(item) -> tuple:
     i, path, target = item
-    return i, _encode_one(path, target, _read_safely(path), _WORKER["job"], _WORKER["decoders"], _WORKER["inputs"])
+    return i, _encode_one(path, target, _read_safely(path, _WORKER["job"]), _WORKER["job"], _WORKER["decoders"], _WORKER["inputs"])
 
 
 def encode_files(paths, job: EncodeJob, *, jobs: int = 1, on_done=None) -> list[Outcome]:
