@@ -370,3 +370,61 @@ def test_members_are_planned_a_size_each_and_configs_read_as_before():
     assert ResidualConfig.from_json(cfg.to_json()) == cfg
     with pytest.raises(ValueError, match="member"):
         ResidualConfig(3, 3, member=-1)
+
+
+@pytest.mark.slow
+def test_members_encode_choose_decode_blend_and_a_cut_training_writes_its_finished_networks(tmp_path_factory, tmp_path,
+                                                                                            capsys):
+    """A file of two members a size: encode records the member it chose (its gain option),
+    decode adds that member's correction, a blend of two members' embeddings decodes as the
+    blend of their corrections (the mapped space is linear in them), and the finished
+    networks of a training's checkpoint are written as the whole run wrote them."""
+    from brdfkit.residual.brdf import ResidualBRDF, check_embedding
+    from brdfkit.residual.model import gain_options
+    from brdfkit.residual.training import write_finished
+    from helpers_training import tiny_library
+
+    lib = tiny_library(tmp_path_factory)
+    basis = tmp_path / "basis.safetensors"
+    code, _, err = run_cli(capsys, ["fit", "--method", "basis", lib, "--components", "4", "-o", basis])
+    assert code == 0, err
+    res = tmp_path / "res.safetensors"
+    opts = ["-O", f"basis={basis}", "--steps", "4", "-O", "members=2", *TINY]
+    code, _, err = run_cli(capsys, ["fit", "--method", "residual", lib, *opts, "-o", res])
+    assert code == 0, err
+    r = load_residual(res)
+    assert [(c.k_min, c.member) for c, _ in r.nets] == [(2, 0), (2, 1), (4, 0), (4, 1)]
+    assert r.members(2) == (0, 1)
+    code, _, err = run_cli(capsys, ["encode", lib / "synth-000.binary", "-m", res, "--size", "6", "--steps", "2",
+                                    "-o", tmp_path / "e"])
+    assert code == 0, err
+    emb = read_embedding(tmp_path / "e" / "synth-000.emb")
+    c, g = check_embedding(emb, r, emb.decoder)
+    assert emb.options in (gain_options(None), gain_options(0), gain_options(1)) and set(g) <= {0, 1}
+    np.testing.assert_allclose(ResidualBRDF(r, c, g).to_table(), r.decode(c, g))
+
+    base = r.mapped(c, 0.0)
+    one, two = r.mapped(c, {0: 1.0}) - base, r.mapped(c, {1: 1.0}) - base
+    assert np.abs(one - two).max() > 1e-4  # two networks, two corrections
+    blend = r.mapped(c, {0: 0.25, 1: 0.75})
+    np.testing.assert_allclose(blend, base + 0.25 * one + 0.75 * two, atol=1e-5)
+    from brdfkit.io.embedding import Embedding
+
+    a = Embedding(emb.values, "residual", emb.decoder, "a", parts=emb.parts, options=gain_options(0))
+    b = Embedding(emb.values, "residual", emb.decoder, "b", parts=emb.parts, options=gain_options(1))
+    from brdfkit import api
+
+    mix = api.interpolate(a, b, 0.75)
+    assert check_embedding(mix, r, emb.decoder)[1] == {0: 0.25, 1: 0.75}
+
+    # the finished networks of the checkpoint (the last network's last checkpoint holds the
+    # three before it) are the whole run's first three, to the bit
+    import shutil
+
+    shutil.copyfile(str(res) + ".ckpt", tmp_path / "cut.safetensors.ckpt")
+    n = write_finished([lib], tmp_path / "cut.safetensors", basis=str(basis), steps=4, members=2,
+                       **dict(o.split("=", 1) for o in TINY[1::2]))
+    cut = load_residual(tmp_path / "cut.safetensors")
+    assert n == 3 and [cfg for cfg, _ in cut.nets] == [cfg for cfg, _ in r.nets[:3]]
+    for (_, s1), (_, s2) in zip(cut.nets, r.nets):
+        assert all(np.array_equal(s1[k], s2[k]) for k in s1)

@@ -10,9 +10,10 @@ from brdfkit.render.renderable import DecodedBRDF
 __all__ = ["ResidualBRDF", "check_embedding"]
 
 
-def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndarray, float]:
-    """The ``(K, 3)`` coefficients and correction weight of a residual embedding, checked
-    against the residual (its file's digest, its basis's, the sizes it decodes).
+def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndarray, dict]:
+    """The ``(K, 3)`` coefficients and correction gains ``{member: gain}``
+    (:func:`brdfkit.residual.model.gains`) of a residual embedding, checked against the
+    residual (its file's digest, its basis's, the sizes it decodes, its members).
 
     Raises
     ------
@@ -31,10 +32,18 @@ def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndar
     if emb.size % 3 or k not in residual.components:
         raise ModelMismatchError(f"{what} holds {emb.size} numbers; the residual decodes "
                                  f"{', '.join(str(3 * c) for c in residual.components)}")
-    gain = float((emb.options or {}).get("correction", 1.0))
-    if not 0.0 <= gain <= 1.0:
-        raise ModelMismatchError(f"{what}: correction {gain:g} is outside [0, 1] (a blend extrapolated too far)")
-    return emb.values.reshape(k, 3), gain
+    from brdfkit.residual.model import gains
+
+    try:
+        g = gains(emb.options)
+    except ValueError:
+        raise ModelMismatchError(f"{what}: its options {emb.options} are not correction gains") from None
+    for member, gain in g.items():
+        if not 0.0 <= gain <= 1.0:
+            raise ModelMismatchError(f"{what}: correction {gain:g} is outside [0, 1] (a blend extrapolated too far)")
+        if member not in residual.members(k):
+            raise ModelMismatchError(f"{what}: the residual has no member {member} for {emb.size} numbers")
+    return emb.values.reshape(k, 3), g
 
 
 class ResidualBRDF(DecodedBRDF):
@@ -42,10 +51,10 @@ class ResidualBRDF(DecodedBRDF):
     ``to_table``): decoded in NumPy, for a render only at the cells its pairs reach
     (:class:`~brdfkit.render.renderable.DecodedBRDF`: the hyponet at those cells alone)."""
 
-    def __init__(self, residual, coefficients, gain: float = 1.0, name: str = "embedding", device=None):
+    def __init__(self, residual, coefficients, gain=1.0, name: str = "embedding", device=None):
         self.residual = residual
         self.coefficients = np.asarray(coefficients, np.float32)
-        self.gain = float(gain)
+        self.gain = gain if isinstance(gain, dict) else float(gain)  # member 0's, or {member: gain}
         self.name = name
 
     def to_table(self) -> np.ndarray:

@@ -13,10 +13,16 @@ The encoder (:func:`encode_residual`) has the whole table, so it can afford to c
    then refined on the same renders with the correction held at its value there (the
    hyponet evaluated once at the cells the renders reach, not at every iteration), and
    kept only where the true decode, correction re-evaluated, renders better;
-3. of the basis embedding and the corrected one, the one with the lower render error on
+3. of the basis embedding and the corrected ones, the one with the lower render error on
    the objective scenes' held-out pixels: the basis alone (``correction`` 0) or the basis
    plus the correction (``correction`` 1). Where the correction does not help a
    material, it is not used.
+
+A file with several networks a size (*members*, ``brdfkit fit --method residual -O
+members=M``) gives step 2's projection and fitted candidates for each member; the best of
+them on the held-out pixels is refined, and the member chosen is recorded in the options
+(:func:`brdfkit.residual.model.gain_options`): the networks err on different materials, and
+the objective scenes see which one is right for a material (``docs/notes/compression.md``).
 
 Everything is NumPy, seeded and counted in iterations: the same table and files give the
 same bytes (on the same BLAS thread count), and no torch is imported.
@@ -38,26 +44,26 @@ FIT_CELLS = 16384
 65,536; 3 K unknowns a channel need far fewer)."""
 
 
-def correction_fn(residual, k: int):
-    """``extra(cells) -> (c -> (U, 3))``: the correction at flat MERL cells of
-    coefficients ``c`` ``(k, 3)`` (as :func:`~brdfkit.basis.refine_on_screen.refine_coefficients`
+def correction_fn(residual, k: int, member: int = 0):
+    """``extra(cells) -> (c -> (U, 3))``: member ``member``'s correction at flat MERL cells
+    of coefficients ``c`` ``(k, 3)`` (as :func:`~brdfkit.basis.refine_on_screen.refine_coefficients`
     and :meth:`~brdfkit.basis.refine_on_screen.Screens.with_extra` take it)."""
     from brdfkit.geometry import grid_hd
 
-    residual.check_k(k)
+    residual.net_for(k, member)
 
     def extra(cells):
         hd = np.ascontiguousarray(grid_hd()[cells])
-        return lambda c: residual.correction(c, hd).astype(np.float64)
+        return lambda c: residual.correction(c, hd, member).astype(np.float64)
 
     return extra
 
 
-def frozen_correction_fn(residual, k: int, c: np.ndarray):
+def frozen_correction_fn(residual, k: int, c: np.ndarray, member: int = 0):
     """``extra`` as :func:`correction_fn` gives it, the correction held at its value for
     coefficients ``c`` ``(k, 3)``: evaluated once a set of cells, constant in the
     coefficients."""
-    live = correction_fn(residual, k)
+    live = correction_fn(residual, k, member)
 
     def extra(cells):
         value = live(cells)(np.asarray(c, np.float64))
@@ -66,11 +72,12 @@ def frozen_correction_fn(residual, k: int, c: np.ndarray):
     return extra
 
 
-def fit_through(residual, mapped: np.ndarray, c0: np.ndarray, steps: int = FIT_STEPS, seed: int = 0) -> np.ndarray:
-    """Coefficients ``(K, 3)`` minimising the mapped error of basis plus correction at
-    :data:`FIT_CELLS` cells (``mapped`` ``(P, 3)``: the table's, the mean included; NaN
-    unmeasured), from ``c0``: at most ``steps`` Levenberg-Marquardt iterations a channel
-    (each channel's correction depends on its own coefficients alone)."""
+def fit_through(residual, mapped: np.ndarray, c0: np.ndarray, steps: int = FIT_STEPS, seed: int = 0,
+                member: int = 0) -> np.ndarray:
+    """Coefficients ``(K, 3)`` minimising the mapped error of basis plus member ``member``'s
+    correction at :data:`FIT_CELLS` cells (``mapped`` ``(P, 3)``: the table's, the mean
+    included; NaN unmeasured), from ``c0``: at most ``steps`` Levenberg-Marquardt
+    iterations a channel (each channel's correction depends on its own coefficients alone)."""
     from brdfkit.residual.network import evaluate_with_jacobian
 
     c0 = np.asarray(c0, np.float64)
@@ -80,7 +87,7 @@ def fit_through(residual, mapped: np.ndarray, c0: np.ndarray, steps: int = FIT_S
     idx = np.sort(np.random.default_rng(seed).choice(ok, size=min(FIT_CELLS, ok.size), replace=False))
     comp = part.components[:, idx].T.astype(np.float64)  # (C, K)
     hd = residual.cell_hd()[idx]
-    _, cfg, state = residual.net_for(k)
+    _, cfg, state = residual.net_for(k, member)
     sigma = part.sigma.astype(np.float64)
     out = c0.copy()
     for ch in range(3):
@@ -88,7 +95,7 @@ def fit_through(residual, mapped: np.ndarray, c0: np.ndarray, steps: int = FIT_S
 
         def resid(c, jacobian=True):
             if not jacobian:
-                return comp @ c + residual.correction_channel(c, hd) - target, None
+                return comp @ c + residual.correction_channel(c, hd, member) - target, None
             corr, jac = evaluate_with_jacobian(state, cfg, c / sigma, hd)
             return comp @ c + corr - target, comp + jac / sigma
 
@@ -143,7 +150,9 @@ def encode_residual(residual, table, *, digest: str, size: int, source: str = ""
     -------
     brdfkit.io.embedding.Embedding
         Kind ``"residual"``, the ``(K, 3)`` coefficients component-major, ``parts`` the
-        residual's and its basis's digests, ``options`` ``{"correction": 0 or 1}``.
+        residual's and its basis's digests, ``options`` the chosen member's gain
+        (:func:`brdfkit.residual.model.gain_options`: ``{"correction": 0 or 1}`` for
+        member 0).
     """
     from brdfkit.render.objective import THREADS
     from brdfkit.runtime import blas_threads
@@ -161,27 +170,32 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
     from brdfkit.basis.refine_on_screen import DEFAULT_TRUST, heldout_error, prepare_screens, refine_coefficients
     from brdfkit.io.embedding import Embedding
     from brdfkit.render.objective import ObjectiveConfig
+    from brdfkit.residual.model import gain_options
 
     part = residual.basis.leading(k)
     steps = DEFAULT_STEPS if steps is None else int(steps)
     cfg = ObjectiveConfig(steps=steps)
-    extra = correction_fn(residual, k)
     c0 = part.project(table)
-    c1 = fit_through(residual, part.mapped_table(table), c0)
+    mapped = part.mapped_table(table)
     screens = prepare_screens(part, table, cfg)  # one set of renders and maps for every candidate
     ca, rec_a = refine_coefficients(part, table, c0, cfg, trust=DEFAULT_TRUST, screens=screens)
     err_a = min(rec_a["heldout"]) if rec_a["heldout"] else heldout_error(part, table, ca, cfg, None, screens)
-    cands = [(err_a, ca, rec_a, 0)]
-    c2, rec_b = refine_coefficients(part, table, c1, cfg, trust=DEFAULT_TRUST, screens=screens,
-                                    extra=frozen_correction_fn(residual, k, c1))
+    cands = [(err_a, ca, rec_a, None)]
+    starts = []  # each member's projection (the study's best for half the materials at 9 numbers) and fit
+    for member in residual.members(k):
+        live = screens.with_extra(correction_fn(residual, k, member), fits=False)  # at the held-out cells
+        for c in (c0, fit_through(residual, mapped, c0, member=member)):
+            starts.append((live.held_error(c), c, member))
+    _, cs, best = min(starts, key=lambda x: x[0])
+    c2, rec_b = refine_coefficients(part, table, cs, cfg, trust=DEFAULT_TRUST, screens=screens,
+                                    extra=frozen_correction_fn(residual, k, cs, best))
     unrefined = dict(rec_b, best_step=0)
-    # The correction at the projection's own coefficients too: the study's best for half
-    # the materials at 9 numbers (docs/notes/compression.md).
-    live = screens.with_extra(extra, fits=False)  # the correction at the held-out cells, for each candidate
-    for c, rec in ((c0, unrefined), (c1, unrefined), *(((c2, rec_b),) if steps else ())):
-        cands.append((live.held_error(c), c, rec, 1))
-    err, c, rec, use = min(cands, key=lambda x: x[0])
+    cands += [(e, c, unrefined, m) for e, c, m in starts]
+    if steps:
+        live = screens.with_extra(correction_fn(residual, k, best), fits=False)
+        cands.append((live.held_error(c2), c2, rec_b, best))
+    err, c, rec, member = min(cands, key=lambda x: x[0])
     measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
     record = refinement_record(rec) if steps else None
     return Embedding(np.asarray(c, np.float32).reshape(-1), "residual", digest, source, measured, refinement=record,
-                     parts={"basis": residual.basis_digest, "residual": digest}, options={"correction": float(use)})
+                     parts={"basis": residual.basis_digest, "residual": digest}, options=gain_options(member))

@@ -30,7 +30,7 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["TRAIN_DEFAULTS", "fit_residual", "training_pairs"]
+__all__ = ["TRAIN_DEFAULTS", "fit_residual", "write_finished", "training_pairs"]
 
 TRAIN_DEFAULTS = {"steps": 8000, "batch": 24, "cells": 4096, "lr": 1e-3, "lr_end": 1.0, "mixup": 0.5,
                   "sizes": "9,21,39", "shared": False, "k_min": 1, "k_max": 13, "width": 32, "hidden": 64,
@@ -220,6 +220,44 @@ def fit_residual(data, output, *, basis=None, exclude=(), progress: bool = True,
     group.barrier()
     group.close()
     return os.fspath(output)
+
+
+def write_finished(data, output, *, basis=None, exclude=(), **options) -> int:
+    """Write the networks that the checkpoint ``output.ckpt`` of a cut training holds
+    finished, as a residual file ``output``: what :func:`fit_residual` would have written of
+    them (the networks are trained in turn, each from its own seed), the checkpoint kept so
+    that ``--resume`` still finishes the rest. The same arguments as the training's.
+
+    Returns
+    -------
+    int
+        The networks written (a size with fewer members than planned decodes with those).
+
+    Raises
+    ------
+    InputError
+        No checkpoint, one of other tables, basis or options, or no network finished.
+    """
+    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.io.digest import file_digest
+    from brdfkit.io.folders import collect_materials
+    from brdfkit.models.builtin import resolve_basis
+    from brdfkit.residual.network import ResidualConfig
+
+    opts = _options(options)
+    if basis is None:
+        raise InputError("the residual's basis is needed: basis=BASIS (a basis file or a built-in's name)")
+    bpath = resolve_basis(basis)
+    paths, names, _, _ = collect_materials(data, exclude)
+    refuse_overwrite_of_inputs(output, [*paths, bpath])
+    run = _Run(os.fspath(output) + ".ckpt", _identity(names, file_digest(bpath), opts), opts, None, lambda m: None)
+    done = run.resume()
+    if not done:
+        raise InputError(f"{run.ckpt}: no network finished yet")
+    cfgs = [ResidualConfig(lo, hi, opts["width"], opts["hidden"], m) for lo, hi, m in plan(opts)[:len(done)]]
+    meta_opts = {**opts, "networks_finished": f"{len(done)} of {len(plan(opts))}"}
+    _write(output, list(zip(cfgs, done)), bpath, meta_opts, names, 1, [_states_digest(done)])
+    return len(done)
 
 
 def _options(given: dict) -> dict:

@@ -10,7 +10,8 @@ RGL ``.bsdf``       its table at the MERL grid's directions, made reciprocal
                     instead evaluates the file conditioned on the view)
 ``.emb``            decoded to its table by its decoder (``-m``, or the installed
                     built-in part it names); with ``live``, a basis or residual
-                    embedding is its ``3 K`` numbers and the shader decodes it
+                    embedding (of at most 30 components a channel) is its ``3 K``
+                    numbers and the shader decodes it
 sample file         its samples, as points (``.csv``, ``.brdf``:
                     :func:`brdfkit.io.sample_files.read_sample_file`)
 =================== ===============================================================
@@ -92,7 +93,7 @@ def read_inputs(paths, model_path=None, live: bool = False, progress=None) -> li
     """
     from brdfkit.atomic import check_input_file
     from brdfkit.files.brdf_file import EmbeddingDecoders, read_table
-    from brdfkit.view.live import LIVE_KINDS, live_material
+    from brdfkit.view.live import LIVE_KINDS, MAX_COMPONENTS, live_material
 
     paths = [os.fspath(p) for p in paths]
     if not paths:
@@ -115,7 +116,7 @@ def read_inputs(paths, model_path=None, live: bool = False, progress=None) -> li
 
             emb = read_embedding(path)
             decoder = models.decoder(emb, path)
-            if decoder.kind in LIVE_KINDS:
+            if decoder.kind in LIVE_KINDS and emb.size // 3 <= MAX_COMPONENTS:
                 out.append(PageInput(label, path, "live", live=live_material(emb, decoder, path)))
                 continue
         out.append(PageInput(label, path, "table", table=read_table(path, models)))

@@ -28,12 +28,16 @@ from __future__ import annotations
 
 import numpy as np
 
+from brdfkit.errors import InputError
 from brdfkit.view.textures import blob, encode_planes
 
-__all__ = ["mapping_constants", "basis_data", "net_data", "live_material", "LIVE_KINDS"]
+__all__ = ["mapping_constants", "basis_data", "net_data", "live_material", "LIVE_KINDS", "MAX_COMPONENTS"]
 
 LIVE_KINDS = ("basis", "residual")
 """The embedding kinds a shader decodes."""
+MAX_COMPONENTS = 30
+"""The most components a shader decodes: the reference, the mean and the components, four
+a texture, in the eight textures ``brdfkit_decode.glsl`` declares."""
 
 
 def mapping_constants(w_floor: float) -> dict:
@@ -119,13 +123,22 @@ def live_material(emb, decoder, name: str) -> dict:
     if decoder.kind == "residual":
         from brdfkit.residual.brdf import check_embedding
 
-        coefficients, gain = check_embedding(emb, decoder.obj, decoder.digest, name)
-        _, cfg, state = decoder.obj.net_for(coefficients.shape[0])
+        coefficients, gains = check_embedding(emb, decoder.obj, decoder.digest, name)
+        if len(gains) > 1:  # a blend of two materials that chose different members
+            from brdfkit.errors import InputError
+
+            raise InputError(f"{name}: a blend of the corrections of members {', '.join(map(str, gains))}; "
+                             f"--live decodes one member's: view it without --live")
+        member, gain = next(iter(gains.items()), (0, 0.0))
+        _, cfg, state = decoder.obj.net_for(coefficients.shape[0], member)
         basis, net = decoder.obj.basis, (cfg, state)
     else:
         from brdfkit.basis.coefficients import check_coefficients
 
         coefficients, gain, basis, net = check_coefficients(emb, decoder.obj, decoder.digest, name), 0.0, decoder.obj, None
     c = np.asarray(coefficients, np.float32)
+    if c.shape[0] > MAX_COMPONENTS:
+        raise InputError(f"{name}: an embedding of {c.shape[0]} components per channel; the shader decodes at most "
+                         f"{MAX_COMPONENTS}")
     return {"kind": decoder.kind, "k": int(c.shape[0]), "coefficients": [float(x) for x in c.reshape(-1)],
             "gain": float(gain), "basis": basis, "net": net}
