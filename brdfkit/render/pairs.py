@@ -76,6 +76,8 @@ class Techniques:
         ct, st = np.cos(th), np.sin(th)
         self.b_x = -np.stack([ct * np.cos(ph), ct * np.sin(ph), -st], -1)
         self.b_y = -np.stack([-np.sin(ph), np.cos(ph), np.zeros_like(ph)], -1)
+        self.b_x32, self.b_y32 = self.b_x.astype(_F32), self.b_y.astype(_F32)
+        self.b_uh32 = self.b_uh.astype(_F32)[:, None]
         a = self.a64 = np.asarray(ns.light, np.float64).reshape(-1, 3)
         self.a = a.astype(_F32)
         self.a_rho = col(1 - outside(ns.rects, *uv(*a.T))) if len(a) else np.zeros((0, 1), _F32)
@@ -256,17 +258,18 @@ def block_pairs(tq: Techniques, normals, wo_world, directions: bool = False) -> 
     rw[:, :m_cb] = tq.env(u.reshape(-1)[idx[:m_cb]], v.reshape(-1)[idx[:m_cb]])
     rw[:, m_cb:] = tq.a_rad[:, node[m_cb:] - n_cb]
     rw *= w
-    wi = np.empty((3, idx.size), _F32)
-    wi[:, :m_c] = tq.c[node[:m_c]].T
-    wi[:, m_c:m_cb] = b_loc.reshape(3, -1)[:, idx[m_c:m_cb] - tq.n_c * p]
-    wi[:, m_cb:] = a_loc.reshape(3, -1)[:, idx[m_cb:] - n_cb * p]
-    wo_k = wo[:, pix]
-    coords = np.empty((3, idx.size), _F32)
-    _coords(wi[:, :m_c], wo_k[:, :m_c], coords[:, :m_c])
-    _coords_half(tq, node[m_c:m_cb] - tq.n_c, woh64.reshape(-1)[idx[m_c:m_cb] - tq.n_c * p],
-                 wo_k[:, m_c:m_cb], coords[:, m_c:m_cb])
-    _coords(wi[:, m_cb:], wo_k[:, m_cb:], coords[:, m_cb:])
-    keep = (wi, wo_k) if directions else (None, None)
+    # Grid coordinates on the (node, pixel) grid, then the kept pairs' gathered: no gather
+    # of directions (a C node's is per node, a pixel's wo per pixel).
+    grid = np.empty((3, tq.n_c + tq.n_b + tq.n_a, p), _F32)
+    wo_row = wo[:, None, :]
+    _coords(tq.c.T[:, :, None], wo_row, grid[:, :tq.n_c])
+    _coords_half(tq, woh64, wo, grid[:, tq.n_c:n_cb])
+    _coords(a_loc, wo_row, grid[:, n_cb:])
+    coords = grid.reshape(3, -1)[:, idx]
+    keep = (None, None)
+    if directions:
+        wi = np.concatenate([np.broadcast_to(tq.c.T[:, :, None], (3, tq.n_c, p)), b_loc, a_loc], 1)
+        keep = (wi.reshape(3, -1)[:, idx], wo[:, pix])
     return PairBlock(pix.astype(np.int32), coords, rw, p, scale, mass > 1e-3, *keep)
 
 
@@ -280,11 +283,12 @@ def _fold(phi, out_u):
 
 
 def _coords(wi, wo, out):
-    """Grid coordinates of pairs from their local directions ``(3, m)`` float32:
-    ``theta_h`` from ``wi + wo`` (atan2, accurate next to 0), ``theta_d`` as the half
-    angle between them (``atan2(|wi - wo|, |wi + wo|)``), ``phi_d`` as the azimuth of
-    ``wi`` about ``h`` (Rusinkiewicz's frame, without forming the rotations)."""
-    if wi.shape[1] == 0:
+    """Grid coordinates of pairs from their local directions, float32 ``(3, ...)``
+    broadcast together (a grid of nodes by pixels, or a list of pairs) into ``out``
+    ``(3, ...)``: ``theta_h`` from ``wi + wo`` (atan2, accurate next to 0), ``theta_d`` as
+    the half angle between them (``atan2(|wi - wo|, |wi + wo|)``), ``phi_d`` as the
+    azimuth of ``wi`` about ``h`` (Rusinkiewicz's frame, without forming the rotations)."""
+    if out[0].size == 0:
         return
     hx, hy, hz = wi[0] + wo[0], wi[1] + wo[1], wi[2] + wo[2]
     s2 = hx * hx
@@ -292,9 +296,9 @@ def _coords(wi, wo, out):
     l2 = hz * hz
     l2 += s2
     th = np.arctan2(np.sqrt(s2), hz)
-    dd = wi - wo
-    dd *= dd
-    d2 = dd.sum(0)
+    d2 = np.square(wi[0] - wo[0])
+    d2 += np.square(wi[1] - wo[1])
+    d2 += np.square(wi[2] - wo[2])
     length = np.sqrt(l2, out=l2)
     td = np.arctan2(np.sqrt(d2, out=d2), length)
     # d_y = wi . y' and d_x = wi . x', both times |H| s_H > 0.
@@ -309,17 +313,13 @@ def _coords(wi, wo, out):
     _grid(th, td, pd, out)
 
 
-def _coords_half(tq, node, woh64, wo, out):
-    """Grid coordinates of B pairs: ``u_h`` the ring's, ``theta_d = arccos(wo . h)``,
-    ``phi_d`` from ``wo`` and the node's frame."""
-    if node.size == 0:
-        return
+def _coords_half(tq, woh64, wo, out):
+    """Grid coordinates of the B nodes by pixels ``(3, N_B, P)``: ``u_h`` the ring's,
+    ``theta_d = arccos(wo . h)`` (float64 ``wo . h``), ``phi_d`` from ``wo`` and the
+    node's frame."""
     td = np.arccos(np.clip(woh64, -1.0, 1.0)).astype(_F32)
-    bx, by = tq.b_x.astype(_F32)[node].T, tq.b_y.astype(_F32)[node].T
-    dx = (bx * wo).sum(0)
-    dy = (by * wo).sum(0)
-    pd = np.arctan2(dy, dx)
-    out[0] = tq.b_uh[node]
+    pd = np.arctan2(tq.b_y32 @ wo, tq.b_x32 @ wo)
+    out[0] = tq.b_uh32
     np.clip(td, 0, _HALF_PI, out=td)
     np.multiply(td, _F32(90 / _HALF_PI), out=out[1])
     _fold(pd, out[2])

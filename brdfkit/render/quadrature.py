@@ -77,8 +77,9 @@ from brdfkit.render.scene import REFERENCE, Quadrature, Scene
 
 __all__ = ["NodeSet", "RenderStats", "ScenePairs", "clear_cache", "evaluate", "render", "render_many", "render_pixels"]
 
-# Pixels per block: (pixels x nodes) float32 temporaries of about 0.2 MB, in cache.
-BLOCK_PIXELS = 160
+# Pixels per block: (pixels x nodes) float32 temporaries of about 0.1 MB, the block's working set
+# and the environment's texture in a core's cache (64 measured 30% faster than 160 at 128 px).
+BLOCK_PIXELS = 64
 # Most bytes of BRDF-independent pairs kept for the next render of the same scene.
 PAIR_CACHE_BYTES = 1 << 30
 
