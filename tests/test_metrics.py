@@ -144,8 +144,9 @@ def test_score_is_what_bench_and_the_metrics_command_report():
 
 @pytest.mark.parametrize("shape", [(64, 64, 3), (9, 13, 3)])
 def test_delta_e_and_ssim_are_colour_sciences_and_scikit_images(shape):
-    """Delta E 2000 and SSIM run in NumPy (no colour-science, no scikit-image import in a
-    metrics process): the libraries' values to 1e-9, on random display images."""
+    """Delta E 2000 is colour-science's on the display images; SSIM runs in NumPy (no
+    scikit-image import in a metrics process): scikit-image's values to 1e-9, on random
+    display images."""
     colour = pytest.importorskip("colour")
     skimage_metrics = pytest.importorskip("skimage.metrics")
     from brdfkit.evaluation import metrics

@@ -18,9 +18,10 @@ Each image metric takes an optional boolean object ``mask`` ``(H, W)``: the mean
 the masked pixels only (for SSIM, the mean of the SSIM map over the mask). Without a mask
 the whole image counts.
 
-Delta E 2000 and SSIM are computed in NumPy, as colour-science and scikit-image compute
-them (``tests/test_metrics.py`` compares them to 1e-9): scoring a pair imports neither
-(2.4 s of CPU time a ``brdfkit metrics`` process spent importing them).
+Delta E 2000 is colour-science's (``RGB_to_XYZ``, ``XYZ_to_Lab``, ``delta_E(method="CIE
+2000")``), imported inside the functions that score colour, so that ``import brdfkit`` and
+the jobs that score no colour stay light. SSIM is computed in NumPy as scikit-image computes
+it (``tests/test_metrics.py`` compares them to 1e-9): scikit-image is not a dependency.
 """
 
 from __future__ import annotations
@@ -240,58 +241,22 @@ def psnr(pred, ref, mask=None) -> float:
     return float("inf") if mse == 0.0 else float(10.0 * np.log10(1.0 / mse))
 
 
-# sRGB primaries and D65 (IEC 61966-2-1), the matrix colour-science's sRGB colourspace holds.
-_SRGB_TO_XYZ = np.array([[0.4124, 0.3576, 0.1805], [0.2126, 0.7152, 0.0722], [0.0193, 0.1192, 0.9505]])
-_D65_XY = (0.3127, 0.3290)  # CIE 1931 2 degree observer
-_D65_XYZ = np.array([_D65_XY[0] / _D65_XY[1], 1.0, (1 - _D65_XY[0] - _D65_XY[1]) / _D65_XY[1]])
-
-
 def _lab(img_linear):
-    """CIE L*a*b* (D65 white, ``Y = 1`` is ``L* = 100``) of linear sRGB ``(..., 3)``:
-    colour-science's ``RGB_to_XYZ`` (sRGB, no decoding) and ``XYZ_to_Lab``, in NumPy
-    (``tests/test_metrics.py`` compares them)."""
-    xyz = np.asarray(img_linear, np.float64) @ _SRGB_TO_XYZ.T
-    t = xyz / _D65_XYZ
-    f = np.where(t > (24 / 116) ** 3, np.cbrt(t), (841 / 108) * t + 16 / 116)
-    return np.stack([116 * f[..., 1] - 16, 500 * (f[..., 0] - f[..., 1]), 200 * (f[..., 1] - f[..., 2])], -1)
+    """CIE L*a*b* (D65 white, CIE 1931 2 degree observer, ``Y = 1`` is ``L* = 100``) of
+    linear sRGB ``(..., 3)``, by colour-science (sRGB primaries, no decoding)."""
+    import colour
 
-
-def _ciede2000(lab1, lab2):
-    """CIEDE2000 ``(...)`` of two CIE L*a*b* arrays ``(..., 3)`` (Sharma, Wu and Dalal 2005;
-    ``k_L = k_C = k_H = 1``), as colour-science's ``delta_E(method="CIE 2000")``."""
-    l1, a1, b1 = np.moveaxis(np.asarray(lab1, np.float64), -1, 0)
-    l2, a2, b2 = np.moveaxis(np.asarray(lab2, np.float64), -1, 0)
-    c_bar = (np.hypot(a1, b1) + np.hypot(a2, b2)) / 2
-    g = 0.5 * (1 - np.sqrt(c_bar ** 7 / (c_bar ** 7 + 25 ** 7)))
-    ap1, ap2 = (1 + g) * a1, (1 + g) * a2
-    cp1, cp2 = np.hypot(ap1, b1), np.hypot(ap2, b2)
-    h1 = np.where((b1 == 0) & (ap1 == 0), 0, np.degrees(np.arctan2(b1, ap1)) % 360)
-    h2 = np.where((b2 == 0) & (ap2 == 0), 0, np.degrees(np.arctan2(b2, ap2)) % 360)
-    dh, cc = h2 - h1, cp1 * cp2
-    dh = np.select([cc == 0, np.fabs(dh) <= 180, dh > 180, dh < -180], [0, dh, dh - 360, dh + 360])
-    d_hp = 2 * np.sqrt(cc) * np.sin(np.deg2rad(dh / 2))
-    sep, tot = np.fabs(h1 - h2), h1 + h2
-    h_bar = np.select([cc == 0, sep <= 180, (sep > 180) & (tot < 360), (sep > 180) & (tot >= 360)],
-                      [tot, tot / 2, (tot + 360) / 2, (tot - 360) / 2])
-    t = (1 - 0.17 * np.cos(np.deg2rad(h_bar - 30)) + 0.24 * np.cos(np.deg2rad(2 * h_bar))
-         + 0.32 * np.cos(np.deg2rad(3 * h_bar + 6)) - 0.20 * np.cos(np.deg2rad(4 * h_bar - 63)))
-    theta = 30 * np.exp(-(((h_bar - 275) / 25) ** 2))
-    cp_bar = (cp1 + cp2) / 2
-    r_c = 2 * np.sqrt(cp_bar ** 7 / (cp_bar ** 7 + 25 ** 7))
-    l_bar2 = ((l1 + l2) / 2 - 50) ** 2
-    s_l, s_c, s_h = 1 + 0.015 * l_bar2 / np.sqrt(20 + l_bar2), 1 + 0.045 * cp_bar, 1 + 0.015 * cp_bar * t
-    r_t = -np.sin(np.deg2rad(2 * theta)) * r_c
-    dl, dc, dhh = (l2 - l1) / s_l, (cp2 - cp1) / s_c, d_hp / s_h
-    return np.sqrt(dl ** 2 + dc ** 2 + dhh ** 2 + r_t * dc * dhh)
+    xyz = colour.RGB_to_XYZ(img_linear, colour.RGB_COLOURSPACES["sRGB"], apply_cctf_decoding=False)
+    d65 = colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"]
+    return colour.XYZ_to_Lab(xyz, illuminant=d65)
 
 
 def delta_e_2000(pred, ref, mask=None) -> float:
     """Mean CIEDE2000 colour difference (Sharma et al. 2005) per pixel.
 
     Linear sRGB times :data:`EXPOSURE`, clipped to ``[0, 1]``, -> CIE XYZ (sRGB primaries,
-    D65) -> CIE L*a*b* (D65 white, CIE 1931 2 degree observer) -> CIEDE2000 (in NumPy, as
-    colour-science's ``delta_E(..., method="CIE 2000")``), mean over pixels (over ``mask``
-    if given).
+    D65) -> CIE L*a*b* (D65 white, CIE 1931 2 degree observer) -> colour-science's
+    ``delta_E(..., method="CIE 2000")``, mean over pixels (over ``mask`` if given).
 
     Returns
     -------
@@ -317,8 +282,10 @@ def delta_e_2000_map(pred, ref) -> np.ndarray:
     """Per-pixel CIEDE2000 of two linear-sRGB images ``(H, W, 3)``: ``(H, W)``, the values
     :func:`delta_e_2000` averages (same display encoding), e.g. for false-colour error
     images (:mod:`brdfkit.figures.comparison_sheet`)."""
+    import colour
+
     a, b, _ = _check_pair(pred, ref, None)
-    return _ciede2000(_lab(display_linear(a)), _lab(display_linear(b)))
+    return colour.delta_E(_lab(display_linear(a)), _lab(display_linear(b)), method="CIE 2000")
 
 
 def ssim(pred, ref, mask=None) -> float:
