@@ -38,8 +38,8 @@ _BASIS = ("brdfkit fit --method basis {data} --components 30 -O half=true -O phi
           "-o {basis}")
 _PRIOR = ("brdfkit fit --method prior {data} -O basis={basis} -O weight=energy -O s2=0.03 "
           "--steps 3000 --seed 0 -o {name}.safetensors")
-_RESIDUAL = ("brdfkit fit --method residual {data} -O basis={basis} --steps 8000 --seed 0 "
-             "-o {name}.safetensors")
+_RESIDUAL = ("brdfkit fit --method residual {data} -O basis={basis} --steps 4000 -O lr_end=0.05 -O members=4 "
+             "--seed 0 -o {name}.safetensors (member 0 of each size ships: --members NAME=0)")
 _MERL80 = "PROXIES/merl --exclude-list merl-test.txt"
 _ALL = "PROXIES/merl PROXIES/rgl"
 # The tuning's stages (brdfkit tune, docs/training.md): each a --resume of the last with
@@ -105,9 +105,15 @@ OFFERED: dict = {}
 on held-out materials; none given: every size it serves."""
 
 
+MEMBERS: dict = {}
+"""``{bundle: members}`` of a residual that ship (``--members NAME=0``): the built-ins' 60 MB
+cap holds one network a size for both built-ins (0.1 MB a network); none given: all."""
+
+
 def _pack_residual(src, dst, parts):
     """A residual re-saved for shipping: its heads in int8, its basis named as the bundle's
-    (the same file, by digest), the sizes it is offered at (:data:`OFFERED`)."""
+    (the same file, by digest), the sizes it is offered at (:data:`OFFERED`), the members
+    that ship (:data:`MEMBERS`)."""
     from brdfkit.basis.basis_file import load_basis
     from brdfkit.io.digest import file_digest
     from brdfkit.residual.residual_file import load_residual, save_residual
@@ -115,8 +121,12 @@ def _pack_residual(src, dst, parts):
     bpath = os.path.join(os.path.dirname(os.path.abspath(dst)), parts["basis"])
     res = load_residual(src, basis=(load_basis(bpath), file_digest(bpath)))
     bundle = next(m[0] for m in MODELS if m[1].get("residual") == os.path.basename(dst))
-    save_residual(dst, res.nets, basis_digest=res.basis_digest, basis_file=parts["basis"],
-                  offered=OFFERED.get(bundle, ()), meta=res.meta, storage="int8")
+    nets, meta = res.nets, dict(res.meta or {})
+    if bundle in MEMBERS:
+        nets = [(cfg, state) for cfg, state in nets if cfg.member in MEMBERS[bundle]]
+        meta["shipped_members"] = ",".join(map(str, MEMBERS[bundle]))
+    save_residual(dst, nets, basis_digest=res.basis_digest, basis_file=parts["basis"],
+                  offered=OFFERED.get(bundle, ()), meta=meta, storage="int8")
     return file_digest(dst)
 
 
@@ -239,6 +249,8 @@ def main():
                     help="only the bases and learnt priors of --src, the shipped hypernetworks kept as they are")
     ap.add_argument("--residuals-only", action="store_true",
                     help="only the residuals of --src, every other part kept as it is")
+    ap.add_argument("--members", nargs="*", default=[], metavar="NAME=MEMBERS",
+                    help="the members of a bundle's residual that ship, e.g. merl80-l40=0 (default: all)")
     ap.add_argument("--offered", nargs="*", default=[], metavar="NAME=SIZES",
                     help="the sizes a bundle's residual is offered at (where it won), e.g. merl80-l40=9,21,39")
     args = ap.parse_args()
@@ -248,6 +260,9 @@ def main():
     from brdfkit.models.builtin import write_manifest
     from brdfkit.hypernet.packing import manifest_entry
 
+    for item in args.members:
+        name, _, members = item.partition("=")
+        MEMBERS[name] = tuple(int(x) for x in members.split(",") if x)
     for item in args.offered:
         name, _, sizes = item.partition("=")
         OFFERED[name] = tuple(int(x) for x in sizes.split(",") if x)
