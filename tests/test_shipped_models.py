@@ -83,7 +83,7 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path, capsys, monkeypatch):
     assert r.returncode == 0, r.stderr
     embs = [f for f in os.listdir(tmp_path / "emb") if f.endswith(".emb")]
     assert len(embs) == 1
-    assert json.loads((tmp_path / "emb" / embs[0]).read_text())["kind"] == "basis"  # the default
+    assert json.loads((tmp_path / "emb" / embs[0]).read_text())["kind"] == "residual"  # the default
     r = _run(capsys, monkeypatch, "decode", os.path.join("emb", embs[0]), "-o", "dec.binary", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     from brdfkit.io.merl import read_merl
@@ -117,10 +117,10 @@ def test_builtin_basis_gives_the_prior_32_components_and_ipca_nielsens_8(shipped
 
 
 @pytest.mark.slow
-def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_count(shipped, tmp_path):
-    """Issue 29: a built-in with a basis encodes a table into its basis's coefficients
-    (39 numbers for 40-D), the same bytes on two torch threads and on one (the command
-    line's encode and decode of one: test_sparse_encode_decode_without_m)."""
+def test_default_encode_is_a_residual_embedding_with_the_same_bytes_on_any_thread_count(shipped, tmp_path):
+    """Issues 29 and 45: the default built-in encodes a table into its basis's coefficients
+    and its residual's correction (39 numbers), the same bytes on two torch threads and on
+    one (the command line's encode and decode of one: test_sparse_encode_decode_without_m)."""
     import torch
 
     from brdfkit.api import encode, load_model
@@ -128,7 +128,7 @@ def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_c
     from brdfkit.materials.synthetic import library, table
 
     ref = table(library(6, seed=3, stiff=False)[2])
-    model = load_model("merl-rgl-l40", device="cpu")  # ships no residual (yet): basis at every size
+    model = load_model("merl-rgl-l40", device="cpu")  # its bundle's residual encodes, at 39 numbers
     before, got = torch.get_num_threads(), []
     try:
         for threads in (2, 1):
@@ -139,7 +139,7 @@ def test_default_encode_is_a_basis_embedding_with_the_same_bytes_on_any_thread_c
         torch.set_num_threads(before)
     assert got[0] == got[1]
     doc = json.loads(got[0])
-    assert doc["size"] == 39 and doc["kind"] == "basis" and len(doc["decoder"]) == 64
+    assert doc["size"] == 39 and doc["kind"] == "residual" and len(doc["decoder"]) == 64
     assert doc["refinement"]["steps"] <= 10
 
 
@@ -154,5 +154,6 @@ def test_merl80_l40_encodes_a_residual_embedding_at_the_sizes_offered(shipped):
     assert (dec.kind, dec.sizes, dec.default_size) == ("residual", (9, 21, 39), 39)
     assert dec.obj.basis_digest == next(m for m in shipped.bundles if m.name == "merl80-l40").part("basis").digest
     assert choose_decoder(None, "merl80-l40", "cpu", 12).kind == "basis"
-    assert choose_decoder(None, "merl-rgl-l40", "cpu").kind == "basis"
+    assert choose_decoder(None, "merl-rgl-l40", "cpu").kind == "residual"  # the default's too (issue 45)
+    assert choose_decoder(None, "merl-rgl-l40", "cpu", 12).kind == "basis"
     assert resolve_part("merl80-l40", "residual").endswith("merl80-residual.safetensors")
