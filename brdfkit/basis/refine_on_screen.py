@@ -7,7 +7,7 @@ that error otherwise: a few cells near the specular peak and the grazing rim mak
 an image's light, and the display's tone curve weighs dark pixels more than bright ones.
 :func:`refine_coefficients` starts from the projection and lets the ``3 K`` coefficients
 minimise the render-aligned error of the objective scenes (:mod:`brdfkit.render.objective`:
-never a scene the results are judged in)
+never a scene the results are judged in)::
 
     F(c) = 1/S sum_s mean_{p, ch} (D(I_s(c))_p,ch - D(T_s)_p,ch)^2 + trust |c - c0|^2 / 3 P
 

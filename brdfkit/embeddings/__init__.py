@@ -3,23 +3,23 @@
 An embedding (:class:`brdfkit.io.embedding.Embedding`) is a material as ``size`` numbers
 of one kind, decoded by one file, its *decoder*, which it names by digest:
 
-============ ==================================================== =======================
-kind         what the numbers are                                 decoder (model part)
-============ ==================================================== =======================
-``residual`` coefficients of a PCA basis's leading components      a basis-residual file
-             plus the weight of a hypernetwork's correction,      (:mod:`brdfkit.residual`)
+============ ================================================= =========================
+kind         what the numbers are                              decoder (model part)
+============ ================================================= =========================
+``residual`` coefficients of a PCA basis's leading components  a basis-residual file
+             plus the weight of a hypernetwork's correction,   (:mod:`brdfkit.residual`)
              ``3 K`` numbers, chosen per material
-``basis``    coefficients of a PCA basis's leading components,     a basis file
-             ``3 K`` numbers, refined on renders                   (:mod:`brdfkit.basis`)
-``hypernet`` a hypernetwork's latent (Gokbudak et al. 2024),       a hypernetwork file
-             refined on renders (``latent`` before)                (:mod:`brdfkit.hypernet`)
-============ ==================================================== =======================
+``basis``    coefficients of a PCA basis's leading components, a basis file
+             ``3 K`` numbers, refined on renders               (:mod:`brdfkit.basis`)
+``hypernet`` a hypernetwork's latent (Gokbudak et al. 2024),   a hypernetwork file
+             refined on renders (``latent`` before)            (:mod:`brdfkit.hypernet`)
+============ ================================================= =========================
 
 With no kind asked for, ``encode`` takes the first of these (:data:`KINDS`' order) whose
 part a built-in ships and whose decoder offers the size asked for: a residual embedding
-with ``merl80-l40`` (at the sizes its residual offers), a basis embedding with the
-default model ``merl-rgl-l40``, a latent with ``merl-rgl-l7``; a model file gives the kind
-of the part it is.
+with the 40-D built-ins (``merl-rgl-l40``, the default, and ``merl80-l40``) at the sizes
+their residuals offer, a basis embedding with them at the other sizes, a latent with
+``merl-rgl-l7``; a model file gives the kind of the part it is.
 
 Each kind is one :class:`EmbeddingKind` in :data:`KINDS`, registered by name as
 :data:`brdfkit.methods.METHODS` registers the reconstruction methods; each names the part
