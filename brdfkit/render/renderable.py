@@ -40,7 +40,24 @@ def coords_of_dirs(wi, wo):
     return out, (wi[2] > 0) & (wo[2] > 0)
 
 
-class TableBRDF:
+class _Lookups:
+    """``eval_pairs`` and ``eval_dirs`` of a BRDF whose values are lookups of its ``rows``
+    (:class:`~brdfkit.render.lookup.TableRows`): a table's, or a decoder's."""
+
+    def eval_pairs(self, block):
+        """float32 ``(3, M)`` at a :class:`~brdfkit.render.pairs.PairBlock`'s pairs."""
+        return self.rows.lookup(block.coords)
+
+    def eval_dirs(self, wi, wo):
+        """BRDF ``(M, 3)`` float32 at local direction pairs ``wi, wo`` ``(M, 3)`` (0 below
+        the horizon)."""
+        coords, above = coords_of_dirs(wi, wo)
+        out = self.rows.lookup(coords)
+        out[:, ~above] = 0.0
+        return out.T
+
+
+class TableBRDF(_Lookups):
     """A dense ``(90, 90, 180, 3)`` BRDF table as a renderable BRDF.
 
     Parameters
@@ -71,19 +88,8 @@ class TableBRDF:
             self._rows = TableRows(self.table)
         return self._rows
 
-    def eval_pairs(self, block):
-        """float32 ``(3, M)`` at a :class:`~brdfkit.render.pairs.PairBlock`'s pairs."""
-        return self.rows.lookup(block.coords)
 
-    def eval_dirs(self, wi, wo):
-        """BRDF ``(M, 3)`` float32 at local direction pairs ``wi, wo`` ``(M, 3)``."""
-        coords, above = coords_of_dirs(wi, wo)
-        out = self.rows.lookup(coords)
-        out[:, ~above] = 0.0
-        return out.T
-
-
-class DecodedBRDF:
+class DecodedBRDF(_Lookups):
     """A renderable BRDF that a decoder makes on the MERL grid (a basis or residual
     embedding): evaluated, for a render, only at the cells its pairs reach.
 
@@ -116,17 +122,6 @@ class DecodedBRDF:
 
             self._rows = TableRows(self.to_table())
         return self._rows
-
-    def eval_pairs(self, block):
-        """float32 ``(3, M)`` at a render's pairs (:class:`~brdfkit.render.pairs.PairBlock`)."""
-        return self.rows.lookup(block.coords)
-
-    def eval_dirs(self, wi, wo):
-        """BRDF ``(M, 3)`` float32 at local direction pairs, as :class:`TableBRDF` gives it."""
-        coords, above = coords_of_dirs(wi, wo)
-        out = self.rows.lookup(coords)
-        out[:, ~above] = 0.0
-        return out.T
 
 
 class TableStackBRDF:

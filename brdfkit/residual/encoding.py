@@ -181,19 +181,18 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
     ca, rec_a = refine_coefficients(part, table, c0, cfg, trust=DEFAULT_TRUST, screens=screens)
     err_a = min(rec_a["heldout"]) if rec_a["heldout"] else heldout_error(part, table, ca, cfg, None, screens)
     cands = [(err_a, ca, rec_a, None)]
-    starts = []  # each member's projection (the study's best for half the materials at 9 numbers) and fit
+    starts, lives = [], {}  # each member's projection (the study's best for half the materials at 9 numbers) and fit
     for member in residual.members(k):
-        live = screens.with_extra(correction_fn(residual, k, member), fits=False)  # at the held-out cells
+        lives[member] = screens.with_extra(correction_fn(residual, k, member), fits=False)  # at the held-out cells
         for c in (c0, fit_through(residual, mapped, c0, member=member)):
-            starts.append((live.held_error(c), c, member))
+            starts.append((lives[member].held_error(c), c, member))
     _, cs, best = min(starts, key=lambda x: x[0])
     c2, rec_b = refine_coefficients(part, table, cs, cfg, trust=DEFAULT_TRUST, screens=screens,
                                     extra=frozen_correction_fn(residual, k, cs, best))
     unrefined = dict(rec_b, best_step=0)
     cands += [(e, c, unrefined, m) for e, c, m in starts]
     if steps:
-        live = screens.with_extra(correction_fn(residual, k, best), fits=False)
-        cands.append((live.held_error(c2), c2, rec_b, best))
+        cands.append((lives[best].held_error(c2), c2, rec_b, best))
     err, c, rec, member = min(cands, key=lambda x: x[0])
     measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
     record = refinement_record(rec) if steps else None

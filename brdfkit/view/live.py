@@ -125,8 +125,6 @@ def live_material(emb, decoder, name: str) -> dict:
 
         coefficients, gains = check_embedding(emb, decoder.obj, decoder.digest, name)
         if len(gains) > 1:  # a blend of two materials that chose different members
-            from brdfkit.errors import InputError
-
             raise InputError(f"{name}: a blend of the corrections of members {', '.join(map(str, gains))}; "
                              f"--live decodes one member's: view it without --live")
         member, gain = next(iter(gains.items()), (0, 0.0))
