@@ -4,8 +4,13 @@ the model loaded once, the next table read while the current one is encoded, and
 
 The work of one file is the same whatever the batch: its table, the decoder (loaded once
 per process), its encode (whose refinement runs on a fixed thread count,
-:data:`brdfkit.render.objective.THREADS`), its ``.emb`` written atomically. So an output's
-bytes do not depend on the batch, the order or ``jobs`` (``tests/test_encode_batch.py``).
+:data:`brdfkit.render.objective.THREADS`), its ``.emb`` written atomically. An output's
+bytes do not depend on ``jobs`` (``tests/test_torch_free.py``). Known defect, not yet
+traced: a table encoded after another in one process can differ in the last bits of its
+float32 coefficients from the same table encoded alone (teflon and violet-rubber of the
+20 MERL test proxies, after aluminium or the batch's other tables; after chrome-steel
+teflon was the same bytes), so some state a process keeps between tables still depends on
+the tables before.
 A process keeps what every table shares: the decoder, the objective scenes' pairs
 (:func:`brdfkit.render.screen.screen`) and, per basis, the held-out pixels' maps.
 
