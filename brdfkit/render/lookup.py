@@ -15,9 +15,10 @@ is one 16-byte gather:
 
 The interpolated value is ``sum_c w_c v_c / sum_c w_c f_c`` over the corners ``c``
 (weights ``w_h w_d w_p``, flags ``f``): the plain lookup's, to float32 rounding
-(``tests/test_render_lookup.py``). :func:`corners` gives the corners' row numbers and
-weights alone, which :mod:`brdfkit.render.cells` uses to evaluate a decoder only at the
-cells a render reaches.
+(``tests/test_lookup.py``). :func:`corners` gives the corners' row numbers and weights
+alone, with which a refinement evaluates a decoder only at the cells a render reaches
+(:mod:`brdfkit.basis.refine_on_screen`); :meth:`TableRows.from_cells` holds a decode at
+those cells alone (:meth:`brdfkit.render.renderable.DecodedBRDF.prepare_cells`).
 
 Examples
 --------
@@ -132,7 +133,7 @@ class TableRows:
     def from_cells(cls, cells, values, channels: int = 3) -> "TableRows":
         """Rows holding ``values`` ``(n, C)`` (finite) at flat MERL ``cells`` ``(n,)``,
         every other cell unmeasured: a decoder evaluated only where a render looks
-        (:mod:`brdfkit.render.cells`)."""
+        (:meth:`brdfkit.render.renderable.DecodedBRDF.prepare_cells`)."""
         width = -(-(channels + 1) // 4) * 4
         rows = np.zeros((ROW_CELLS, width), np.float32)
         r = row_of(cells)

@@ -57,15 +57,16 @@ class ObjectiveConfig:
     Attributes
     ----------
     steps
-        Most Adam steps (0: the start alone); fewer when the held-out error stops
-        improving (``patience``).
+        Most steps (0: the start alone): Adam steps on a latent, Gauss-Newton iterations
+        on a basis or residual embedding's coefficients; fewer when the held-out error
+        stops improving (``patience``).
     max_seconds
         A wall-clock cap on the steps, or ``None`` (the default: none). A run it cuts
         depends on the machine's speed and load; the result says so.
     lr
-        Adam's learning rate, or ``None``: the refiner's own default (the latent's
-        :data:`brdfkit.hypernet.refine_on_screen.DEFAULT_LR`, the basis's
-        :data:`brdfkit.basis.refine_on_screen.DEFAULT_LR`).
+        Adam's learning rate on a latent, or ``None``: its refiner's default
+        (:data:`brdfkit.hypernet.refine_on_screen.DEFAULT_LR`). The Gauss-Newton
+        refinement of a basis or residual embedding has none, and does not read it.
     pairs_per_pixel
         Pairs drawn per pixel for the fitted render (the full render has about 280).
     uniform_share
@@ -74,7 +75,8 @@ class ObjectiveConfig:
     holdout
         Share of the pixels held out to choose the result, in ``(0, 1)``.
     check_every, patience
-        Steps between held-out checks; checks without a gain before stopping.
+        Steps between held-out checks (Gauss-Newton checks after every iteration, and
+        does not read ``check_every``); checks without a gain before stopping.
     seed
         Draws the pairs and the held-out pixels.
     resolution

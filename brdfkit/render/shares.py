@@ -3,7 +3,7 @@ environment's radiance in the pair's direction (NumPy).
 
 * :func:`theta_terms`: the shares' factors that depend on ``theta_h`` alone (the
   half-vector rings' density, the cut at ``half_extent``, the hand-over to the light
-  nodes);
+  nodes), with :func:`ring_constants`, the rings' density law;
 * :func:`uv`, :func:`outside`: a world direction's texture coordinates, and one minus the
   light rectangles' ramp there (where the light nodes take over);
 * :class:`EnvLookup`: the environment's radiance at texture coordinates, Mitsuba's
@@ -19,7 +19,7 @@ import math
 
 import numpy as np
 
-__all__ = ["theta_terms", "uv", "outside", "EnvLookup"]
+__all__ = ["ring_constants", "theta_terms", "uv", "outside", "EnvLookup"]
 
 _F32 = np.float32
 _HALF_PI = math.pi / 2
@@ -35,6 +35,22 @@ def _smoothstep(x):
     return x
 
 
+def ring_constants(q) -> tuple[float, float]:
+    """``(e, c)``: ``8 pi dtheta/du`` of the half-vector rings ``theta = pi/2 (u / K)^p``
+    (:class:`brdfkit.render.nodes.NodeSet`), as a function of ``theta``, is ``c theta^e``.
+
+    Examples
+    --------
+    >>> from brdfkit.render.scene import QUADRATURE
+    >>> e, c = ring_constants(QUADRATURE)
+    >>> round(e, 6) == round((QUADRATURE.half_power - 1) / QUADRATURE.half_power, 6)
+    True
+    """
+    k, p = q.half_rings, q.half_power
+    e = (p - 1) / p
+    return e, 8 * math.pi * _HALF_PI * (p / k) * math.exp(-e * math.log(_HALF_PI))
+
+
 def theta_terms(q, th, light=True):
     """``(g, s_x, s_y)`` of ``theta_h`` (NumPy, any float dtype; ``s_y`` None unless
     ``light``): the share terms that depend on ``theta_h`` alone.
@@ -45,12 +61,9 @@ def theta_terms(q, th, light=True):
     at ``half_extent`` (``cut = 1 - s_x``) and ``s_y = 1 - beta`` (the hand-over to the
     light nodes between ``light_handover``).
     """
-    k, p = q.half_rings, q.half_power
     th = np.maximum(th, 1e-12)
     log_th = np.log(th)
-    # 8 pi dtheta/du of the rings theta = pi/2 (u / K)^p, as a function of theta: c th^e.
-    e = (p - 1) / p
-    c = 8 * math.pi * _HALF_PI * (p / k) * math.exp(-e * math.log(_HALF_PI))
+    e, c = ring_constants(q)
     s = np.sin(th)
     m = np.sqrt(s)
     m *= q.half_phi
