@@ -251,6 +251,24 @@ def test_export_refuses_what_it_cannot_decode(tmp_path, capsys):
     assert code == 2 and "a hypernet embedding has no GLSL decoder" in one_error_line(err)
 
 
+def test_a_silent_browser_ends_in_one_line_within_its_deadline(tmp_path, monkeypatch):
+    """A Chromium that starts and never answers (here a program that sleeps on the pipe)
+    is given up at the deadline, killed, and said in one line."""
+    import time
+
+    from brdfkit.view.browser import BrowserError, screenshot
+
+    silent = tmp_path / "chromium"
+    silent.write_text("#!/bin/sh\nexec sleep 600\n")
+    silent.chmod(0o755)
+    monkeypatch.setenv("BRDFKIT_CHROMIUM", str(silent))
+    t0 = time.monotonic()
+    with pytest.raises(BrowserError) as caught:
+        screenshot(tmp_path / "page.html", timeout=2)
+    assert time.monotonic() - t0 < 10 and "did not answer Target.createTarget within 2 s" in str(caught.value)
+    assert "\n" not in str(caught.value)
+
+
 @pytest.mark.realdata
 @pytest.mark.slow
 def test_a_page_of_rgls_own_file_and_a_cornell_file(tmp_path, capsys):

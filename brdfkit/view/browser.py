@@ -12,6 +12,10 @@ beyond the standard library). WebGL runs on SwiftShader, Chromium's CPU renderer
 :func:`screenshot` opens a page at a URL fragment, waits for ``document.title`` to read
 ``ready`` (or ``error``) and returns the screenshot as an 8-bit RGB array.
 
+Every exchange with Chromium has a deadline: a reply is waited for with ``select`` on the
+pipe, so a Chromium that hangs, or never answers, ends in one :class:`BrowserError` line
+when the deadline passes (and is killed), never in a wait without end.
+
 Examples
 --------
 >>> isinstance(INSTALL_ADVICE, str)
@@ -25,6 +29,7 @@ import io
 import json
 import os
 import pathlib
+import select
 import shutil
 import subprocess
 import tempfile
@@ -67,6 +72,7 @@ class _Pipe:
 
     def __init__(self, write_fd: int, read_fd: int):
         self.w, self.r, self.buf, self.n = write_fd, read_fd, b"", 0
+        self.stalled = False  # a deadline passed: the browser is not to be asked again
 
     def call(self, method: str, params: dict | None = None, session: str | None = None, timeout: float = 60.0):
         self.n += 1
@@ -77,8 +83,10 @@ class _Pipe:
         end = time.monotonic() + timeout
         while True:
             while b"\0" not in self.buf:
-                if time.monotonic() > end:
-                    raise BrowserError(f"Chromium did not answer {method} within {timeout:.0f} s")
+                left = end - time.monotonic()
+                if left <= 0 or not select.select([self.r], [], [], left)[0]:
+                    self.stalled = True
+                    raise BrowserError(f"Chromium did not answer {method} within {timeout:g} s")
                 chunk = os.read(self.r, 1 << 20)
                 if not chunk:
                     raise BrowserError("Chromium closed its pipe")
@@ -112,17 +120,18 @@ def _start(size: int):
 
 class Browser:
     """One headless Chromium with one page (a context manager): :meth:`open` a URL and
-    wait until the page is drawn, :meth:`capture` its top-left corner."""
+    wait until the page is drawn, :meth:`capture` its top-left corner. ``timeout``: the
+    seconds Chromium has to answer any one command (the start's included)."""
 
-    def __init__(self, size: int = 256):
-        self.size = int(size)
+    def __init__(self, size: int = 256, timeout: float = 60.0):
+        self.size, self.timeout = int(size), float(timeout)
         self.proc, self.pipe, self.profile, self.fds = _start(self.size)
         try:
-            target = self.pipe.call("Target.createTarget", {"url": "about:blank"})
-            self.session = self.pipe.call("Target.attachToTarget", {"targetId": target["targetId"],
-                                                                    "flatten": True})["sessionId"]
-            self.pipe.call("Emulation.setDeviceMetricsOverride", {"width": self.size, "height": self.size,
-                                                                  "deviceScaleFactor": 1, "mobile": False}, self.session)
+            target = self._call("Target.createTarget", {"url": "about:blank"}, None)
+            self.session = self._call("Target.attachToTarget", {"targetId": target["targetId"], "flatten": True},
+                                      None)["sessionId"]
+            self._call("Emulation.setDeviceMetricsOverride", {"width": self.size, "height": self.size,
+                                                              "deviceScaleFactor": 1, "mobile": False})
         except Exception:
             self.close()
             raise
@@ -133,11 +142,16 @@ class Browser:
     def __exit__(self, *exc):
         self.close()
 
-    def evaluate(self, expression: str, await_promise: bool = False):
+    def _call(self, method: str, params: dict | None = None, session: str | None = "page",
+              timeout: float | None = None):
+        return self.pipe.call(method, params, self.session if session == "page" else session,
+                              self.timeout if timeout is None else max(min(timeout, self.timeout), 0.001))
+
+    def evaluate(self, expression: str, await_promise: bool = False, timeout: float | None = None):
         """The value of a JavaScript expression in the page (a promise's, awaited, with
-        ``await_promise``)."""
-        r = self.pipe.call("Runtime.evaluate", {"expression": expression, "returnByValue": True,
-                                                "awaitPromise": bool(await_promise)}, self.session)
+        ``await_promise``), within ``timeout`` seconds (default and at most the browser's)."""
+        r = self._call("Runtime.evaluate", {"expression": expression, "returnByValue": True,
+                                            "awaitPromise": bool(await_promise)}, timeout=timeout)
         if "exceptionDetails" in r:
             raise BrowserError(f"the page's JavaScript: {r['exceptionDetails'].get('text')}")
         return r.get("result", {}).get("value")
@@ -146,37 +160,41 @@ class Browser:
         """Load ``url`` and wait until ``document.title`` is ``ready``; seconds taken.
         :class:`BrowserError` with the page's message if it says ``error``."""
         t0 = time.monotonic()
-        self.pipe.call("Page.navigate", {"url": "about:blank"}, self.session)
-        self.pipe.call("Page.navigate", {"url": url}, self.session)
-        while True:
-            title = self.evaluate("document.title")
+        left = lambda: timeout - (time.monotonic() - t0)  # noqa: E731
+        self._call("Page.navigate", {"url": "about:blank"}, timeout=left())
+        self._call("Page.navigate", {"url": url}, timeout=left())
+        title = None
+        while left() > 0:
+            title = self.evaluate("document.title", timeout=left())
             if title == "ready":
                 return time.monotonic() - t0
             if title == "error":
-                raise BrowserError(f"{url}: the page says: {self.evaluate('window.brdfkitError')}")
-            if time.monotonic() - t0 > timeout:
-                raise BrowserError(f"{url}: not drawn within {timeout:.0f} s (title {title!r})")
+                error = str(self.evaluate("window.brdfkitError", timeout=max(left(), 5.0))).splitlines()[0]
+                raise BrowserError(f"{url}: the page says: {error}")
             time.sleep(0.05)
+        raise BrowserError(f"{url}: not drawn within {timeout:g} s (title {title!r})")
 
     def capture(self, size: int | None = None) -> np.ndarray:
         """uint8 ``(S, S, 3)``: the page's top-left ``S x S`` pixels."""
         from PIL import Image
 
         s = int(size or self.size)
-        shot = self.pipe.call("Page.captureScreenshot", {"format": "png", "clip": {"x": 0, "y": 0, "width": s,
-                                                                                   "height": s, "scale": 1}},
-                              self.session)
+        shot = self._call("Page.captureScreenshot", {"format": "png", "clip": {"x": 0, "y": 0, "width": s,
+                                                                               "height": s, "scale": 1}})
         return np.asarray(Image.open(io.BytesIO(base64.b64decode(shot["data"]))).convert("RGB"))
 
     def close(self):
         try:
-            if self.proc.poll() is None:
+            if self.proc.poll() is None and self.pipe.stalled:
+                self.proc.kill()
+                self.proc.wait(10)
+            elif self.proc.poll() is None:
                 try:
-                    self.pipe.call("Browser.close", timeout=10)
+                    self._call("Browser.close", session=None, timeout=10)
                 except (BrowserError, OSError):
                     pass
                 try:
-                    self.proc.wait(10)
+                    self.proc.wait(min(10.0, self.timeout))
                 except subprocess.TimeoutExpired:
                     self.proc.kill()
                     self.proc.wait(10)
@@ -192,11 +210,13 @@ class Browser:
 def screenshot(page, fragment: str = "still=reference", size: int = 256, browser: Browser | None = None,
                timeout: float = 120.0) -> np.ndarray:
     """The screenshot of ``page`` (a file) opened at ``#fragment`` with ``size=`` added:
-    uint8 ``(size, size, 3)``. ``browser``: one already open (several pages, one start)."""
+    uint8 ``(size, size, 3)``. ``browser``: one already open (several pages, one start).
+    ``timeout``: the seconds the page has to draw, and a new browser to answer each
+    command; :class:`BrowserError` once past."""
     url = pathlib.Path(os.path.abspath(os.fspath(page))).as_uri() + f"#{fragment}&size={int(size)}"
     if browser is not None:
         browser.open(url, timeout)
         return browser.capture(size)
-    with Browser(size) as b:
+    with Browser(size, min(timeout, 60.0)) as b:
         b.open(url, timeout)
         return b.capture(size)
