@@ -1,8 +1,9 @@
-"""``brdfkit view`` and ``brdfkit export`` without a browser: the page's quadrature (its
-shader transliterated to NumPy) against the renderer's pixels, the tables' float16
-textures, the live basis and network records restored as the page restores them, the GLSL
-export's uniforms, the page's size and the commands' bad input. The browser's own pictures
-are ``tests/test_view_browser.py``."""
+"""``brdfkit view`` and ``brdfkit export`` without a browser: the tables' float16
+textures, what the page's data holds (the renderer's own quadrature constants, brdfkit's
+colours), the layouts the decoder's shader is given, its GLSL files assembled by what each
+requires, the page's size, the export's folder and the commands' bad input, and a browser
+that hangs. What the page draws is ``tests/test_view_browser.py``'s (headless Chromium):
+no test here computes what a shader computes."""
 
 from __future__ import annotations
 
@@ -13,21 +14,9 @@ import numpy as np
 import pytest
 
 from conftest import one_error_line, run_cli
-from helpers_view import blob_bytes, projected_embedding, shade_like_the_page, shipped_models, table_brdf  # noqa: F401
+from helpers_view import blob_bytes, page_json, projected_embedding, shipped_models  # noqa: F401
 
 from brdfkit.testing.examples import lambertian_table
-
-
-def _normals():
-    """Normals that see the sun's and the window's highlights, the horizon, and others."""
-    from brdfkit.render.envmap import SUN_UV, uv_to_direction
-
-    sun = uv_to_direction(*SUN_UV)
-    rng = np.random.default_rng(1)
-    n = rng.normal(size=(6, 3))
-    n[:, 2] = np.abs(n[:, 2]) + 0.05
-    n = np.vstack([n, sun + [0, 0, 1], [0.0, 0.0, 1.0], [0.99, 0.0, 0.14], [0.3, -0.6, 0.2]])
-    return n / np.linalg.norm(n, axis=1, keepdims=True)
 
 
 def _glossy_table():
@@ -36,29 +25,21 @@ def _glossy_table():
     return table(Material("glossy", "dielectric", 0.05, albedo=(0.2, 0.1, 0.05)))
 
 
-@pytest.mark.parametrize("make", [lambertian_table, _glossy_table], ids=["diffuse", "glossy"])
-def test_the_pages_quadrature_is_the_renderers(make):
-    """The page's shader (in NumPy: ``helpers_view.shade_like_the_page``) gives the
-    renderer's pixels to float32 rounding, near the sun's highlight too."""
+def test_the_pages_quadrature_is_the_renderers_own():
+    """The node texture holds the renderer's per-node constants, as it rounds them."""
     from brdfkit.render.envmap import reference_envmap
-    from brdfkit.render.quadrature import render_pixels
-    from brdfkit.render.renderable import TableBRDF
+    from brdfkit.render.nodes import NodeSet
+    from brdfkit.render.pairs import Techniques
+    from brdfkit.render.scene import QUADRATURE
     from brdfkit.view.quadrature_data import scene_quadrature
 
-    table, env, data = make(), reference_envmap(), scene_quadrature()
-    normals = _normals()
-    ref = render_pixels(TableBRDF(table, device="cpu"), normals, env)
-    page = np.stack([shade_like_the_page(table_brdf(table), n, data, env) for n in normals])
-    assert np.allclose(page, ref, rtol=2e-5, atol=1e-7 * ref.max()), np.abs(page - ref).max()
-
-
-def test_the_normalisation_table_is_the_renderers():
-    from brdfkit.render import nodes
-    from brdfkit.render.scene import QUADRATURE
-    from brdfkit.view.quadrature_data import half_share_integral
-
-    table = getattr(nodes, "half_share_table", None) or getattr(nodes, "_half_share_table")
-    assert np.allclose(half_share_integral(QUADRATURE)[1], table(QUADRATURE)[1], rtol=1e-12, atol=1e-15)
+    data, env = scene_quadrature(), reference_envmap()
+    tq = Techniques(NodeSet(QUADRATURE, env), env)
+    nodes, (nc, nb, na) = data["nodes"], data["counts"]
+    assert np.array_equal(nodes[1, :nb, 3], tq.b_g[:, 0]) and np.array_equal(nodes[2, :nb, 3], tq.b_w4[:, 0])
+    assert np.array_equal(nodes[4, :na, 1:], tq.a_rad.T) and np.array_equal(nodes[0, :nc, 3], tq.c_dc[:, 0])
+    assert np.array_equal(nodes[5, :data["uniforms"]["u_ib_count"], 0], tq.i_b[1].astype(np.float32))
+    assert data["uniforms"]["u_counts"] == [nc, nb, na] and data["uniforms"]["u_rect_count"] == len(tq.rects)
 
 
 def test_a_table_travels_as_float16_with_its_unmeasured_cells():
@@ -107,101 +88,104 @@ def test_sample_rows_place_in_plane_samples_on_the_lobe():
 
 def test_the_mapping_constants_are_the_bases():
     from brdfkit.basis import mapping
+    from brdfkit.testing.examples import tiny_basis
     from brdfkit.view.live import mapping_constants
 
-    m = mapping_constants(0.005)
-    assert (m["tiny"], m["w_tiny"], m["eps"], m["cap"]) == pytest.approx(
-        (mapping._TINY, mapping._W_TINY, mapping.EPS, mapping.CAP), rel=1e-9)
-
-
-def _restore(record):
-    """The basis slots (reference, mean, components) over the basis's cells, as
-    ``live.js`` restores them (``BasisSlots``)."""
-    n = 90 * 90 * 180
-    cells = np.flatnonzero(np.unpackbits(np.frombuffer(blob_bytes(record["cell_mask"]), np.uint8))[:n])
-    k = record["k"]
-    if record["storage"] == "float32":
-        return cells, np.frombuffer(blob_bytes(record["values"]), np.float32).reshape(k + 2, -1)
-    stored = np.unpackbits(np.frombuffer(blob_bytes(record["stored_mask"]), np.uint8))[:n].astype(bool)
-    pos = np.full(n, -1)
-    pos[stored] = np.arange(stored.sum())
-    p, own = cells % 180, pos[cells]
-    left, right = pos[cells - p + np.maximum(p - 1, 0)], pos[cells - p + (p + 1) % 180]
-    both = (left >= 0) & (right >= 0)
-
-    def expand(v):
-        half = np.float32(0.5)
-        mean = v[np.maximum(left, 0)] * half + v[np.maximum(right, 0)] * half
-        return np.where(own >= 0, v[np.maximum(own, 0)], np.where(both, mean, v[np.where(left >= 0, left, right)]))
-
-    q = np.frombuffer(blob_bytes(record["components"]), np.int8).reshape(k, -1)
-    scales = np.frombuffer(blob_bytes(record["scales"]), np.float32).reshape(k, -1)
-    comps = q.astype(np.float32) * np.repeat(scales, record["block"], axis=1)[:, :q.shape[1]]
-    half = [np.frombuffer(blob_bytes(record[s]), np.float16).astype(np.float32) for s in ("reference", "mean")]
-    return cells, np.stack([expand(a) for a in (*half, *comps)])
-
-
-def test_a_tiny_basis_travels_in_float32():
-    from brdfkit.testing.examples import tiny_basis
-    from brdfkit.view.live import basis_data
-
     basis = tiny_basis(4)
-    rec = basis_data(basis, 3, compress=False)
-    cells, slots = _restore(rec)
-    part = basis.leading(3)
-    assert rec["storage"] == "float32" and np.array_equal(cells, part.cells)
-    assert np.array_equal(slots, np.vstack([part.reference, part.mean, part.components]))
+    m = mapping_constants(basis)
+    assert (m["tiny"], m["w_tiny"], m["eps"], m["cap"], m["w_floor"]) == pytest.approx(
+        (mapping._TINY, mapping._W_TINY, mapping.EPS, mapping.CAP, basis.w_floor), rel=1e-9)
 
 
-def test_a_shipped_basis_travels_in_its_own_storage(shipped_models):
-    """The built-in's half-phi_d int8 basis, restored as the page restores it, is the
-    basis brdfkit decodes with (to float32 rounding), in a third of the bytes."""
-    from brdfkit.basis.basis_file import load_basis
-    from brdfkit.models.builtin import resolve_basis
-    from brdfkit.view.live import basis_data
-
-    part = load_basis(resolve_basis("merl80-l40")).leading(5)
-    rec = basis_data(part, 5)
-    cells, slots = _restore(rec)
-    assert rec["storage"] == "compact" and np.array_equal(cells, part.cells)
-    want = np.vstack([part.reference, part.mean, part.components])
-    assert np.allclose(slots, want, rtol=1e-6, atol=1e-6 * np.abs(want).max())
-
-
-def _hyponet_like_the_shader(net: np.ndarray, width: int, hd: np.ndarray) -> np.ndarray:
-    """``brdfkit_hyponet`` of ``assets/brdfkit_decode.glsl`` in NumPy, from ``brdfkit_net``."""
-    v = np.asarray(net, np.float64).reshape(-1)
-    w1 = v[:6 * width].reshape(6, width)
-    b1 = v[6 * width:7 * width]
-    w2 = v[7 * width:7 * width + width * width].reshape(width, width)
-    b2 = v[(7 + width) * width:(8 + width) * width]
-    w3 = v[(8 + width) * width:(9 + width) * width]
-    b3 = v[(9 + width) * width]
-    h = np.maximum(np.maximum(hd @ w1 + b1, 0) @ w2 + b2, 0)
-    return h @ w3 + b3
-
-
-def test_the_exported_hyponet_is_the_residuals(shipped_models):
-    """``material.json``'s ``brdfkit_net`` of each channel, run as the shader runs it, gives
-    the residual's own correction at the grid's cells."""
+def test_a_materials_defines_name_every_layout_of_the_decoder(shipped_models):
+    """``material_uniforms`` gives the shader each mapping constant's index, the textures'
+    sum and, for a residual, the hyponet's offsets, where its tensors sit."""
     from brdfkit.embeddings.decoders import load_decoder
-    from brdfkit.geometry import grid_hd
     from brdfkit.models.builtin import resolve_part
-    from brdfkit.view.export import material_uniforms
-    from brdfkit.view.live import live_material
+    from brdfkit.residual.network import hyponet_weights, net_input
+    from brdfkit.view.live import hyponet_layout, live_material, mapping_constants, material_uniforms
 
     emb = projected_embedding(_glossy_table(), "merl80-l40", "residual", k=7)
     dec = load_decoder("residual", resolve_part("merl80-l40", "residual"))
     mat = live_material(emb, dec, "glossy")
     info = material_uniforms(mat)
-    width = info["defines"]["BRDFKIT_WIDTH"]
-    hd = grid_hd()[dec.obj.basis.cells[::997]]
-    want = dec.obj.correction(np.asarray(mat["coefficients"]).reshape(7, 3), hd)
-    got = np.stack([_hyponet_like_the_shader(info["uniforms"]["brdfkit_net"][ch], width, hd.astype(np.float64))
-                    for ch in range(3)], 1)
-    assert np.allclose(got, want, rtol=1e-4, atol=1e-5), np.abs(got - want).max()
-    coef = info["uniforms"]["brdfkit_coefficients"][1]
-    assert len(coef) == 4 * info["defines"]["BRDFKIT_TEXTURES"] and coef[:2] == [0.0, 1.0]
+    d, constants = info["defines"], mapping_constants(mat["basis"])
+    assert [info["uniforms"]["brdfkit_mapping"][d[f"BRDFKIT_MAPPING_{n.upper()}"]] for n in constants] == \
+        list(constants.values()) and d["BRDFKIT_MAPPING_SIZE"] == len(constants)
+    assert d["BRDFKIT_TEXTURES"] == 3 and d["BRDFKIT_TAPS"] == "BRDFKIT_TAP(0) + BRDFKIT_TAP(1) + BRDFKIT_TAP(2)"
+    cfg, state = mat["net"]
+    layout = hyponet_layout(cfg.width)
+    assert {k: d[f"BRDFKIT_NET_{k.upper()}"] for k in layout} == layout and d["BRDFKIT_WIDTH"] == 4 * layout["row"]
+    c = np.asarray(mat["coefficients"]).reshape(7, 3)
+    w1, b1, w2, b2, w3, b3 = (w[2] for w in hyponet_weights(state, cfg, net_input((c / mat["basis"].sigma[:7, None]).T,
+                                                                                  cfg.k_max)))
+    net = np.asarray(info["channels"][2]["brdfkit_net"], np.float32).reshape(-1, 4)
+    row = lambda name, i=0: net[layout[name] + i * layout["row"]:][:layout["row"]].reshape(-1)[:cfg.width]  # noqa: E731
+    assert np.array_equal(row("w1", 5), w1[5]) and np.array_equal(row("w2", cfg.width - 1), w2[-1])
+    assert np.array_equal(row("b2"), b2) and np.array_equal(row("w3"), w3[:, 0]) and net[layout["b3"], 0] == b3[0]
+    assert net.shape[0] == layout["size"] and info["channels"][2]["brdfkit_coefficients"][2:9] == \
+        [float(x) for x in c[:, 2].astype(np.float32)]
+
+
+def test_basis_textures_hold_the_slots_by_the_layout():
+    from brdfkit.testing.examples import tiny_basis
+    from brdfkit.view.live import basis_data, basis_textures, slot_layout
+
+    basis = tiny_basis(4)
+    part = basis.leading(3)
+    tex = [t.reshape(-1, 4) for t in basis_textures(basis, 3)]
+    assert slot_layout(3) == [[0, 1, 2, 3], [4]] and len(tex) == 2
+    off = np.setdiff1d(np.arange(tex[0].shape[0]), part.cells)
+    assert np.array_equal(tex[0][part.cells, 0], part.reference.astype(np.float32)) and (tex[0][off, 0] == -1).all()
+    assert np.array_equal(tex[1][part.cells, 0], part.components[2].astype(np.float32)) and (tex[1][:, 1:] == 0).all()
+    rec = basis_data(basis, 3, compress=False)
+    assert rec["storage"] == "float32" and rec["layout"] == slot_layout(3) and rec["fill"][:2] == [-1.0, 0.0]
+    values = np.frombuffer(blob_bytes(rec["values"]), np.float32).reshape(5, -1)
+    assert np.array_equal(values[1], part.mean.astype(np.float32))
+
+
+def test_a_shipped_basis_travels_in_its_own_storage(shipped_models):
+    """The built-in's half-phi_d int8 basis goes to the page as stored, a third of the
+    bytes of float32 (the page restores it: ``live.js``, drawn by the browser test)."""
+    from brdfkit.basis.basis_file import load_basis
+    from brdfkit.models.builtin import resolve_basis
+    from brdfkit.view.live import basis_data
+
+    part = load_basis(resolve_basis("merl80-l40")).leading(5)
+    rec = basis_data(part, 5, compress=False)
+    assert rec["storage"] == "compact"
+    assert sum(rec[k]["bytes"] for k in ("reference", "mean", "components")) < 7 * 4 * part.cells.size / 3
+
+
+def test_glsl_files_state_what_they_need():
+    """Each program is its files in the order they require each other, each once; the
+    export ships every file its two shaders need."""
+    from brdfkit.view.export import _shader_files
+    from brdfkit.view.page import PROGRAMS, SHADERS, glsl_files, glsl_program
+
+    assert glsl_files("render.frag") == ["brdfkit_grid.glsl", "brdfkit_eval.glsl", "brdfkit_frame.glsl",
+                                         "quadrature.glsl", "render.frag"]
+    assert set(_shader_files()) == {"brdfkit_grid.glsl", "brdfkit_eval.glsl", "brdfkit_decode.glsl",
+                                    "brdfkit_bake.frag"}
+    assert {f for p in PROGRAMS.values() for f in glsl_files(p)} == set(SHADERS)
+    assert "#pragma brdfkit" not in glsl_program("render.frag")
+    with pytest.raises(ValueError, match="require each other: a.glsl -> b.glsl -> a.glsl"):
+        glsl_files("a.glsl", {"a.glsl": "#pragma brdfkit require(b.glsl)\n", "b.glsl": "#pragma brdfkit require(a.glsl)"})
+
+
+def test_the_pages_colours_are_brdfkits():
+    """The Delta E view's colours are matplotlib's inferno as ``brdfkit compare`` draws it,
+    the lobes' ``brdfkit plot``'s."""
+    import matplotlib
+
+    from brdfkit.figures.brdf_plot import COLOURS, THETA_O_DEG
+    from brdfkit.view.page import _display_record, _lobe_record
+
+    display, lobe = _display_record(), _lobe_record()
+    lut = np.asarray(display["inferno"], np.uint8).reshape(-1, 4)
+    assert np.array_equal(lut, matplotlib.colormaps["inferno"](np.arange(256), bytes=True))
+    assert display["lines"] == list(COLOURS) and np.array_equal(lobe["theta_o"], THETA_O_DEG)
+    assert lobe["uniforms"]["u_theta_o"] == [-89.5, 0.5]
 
 
 def test_view_writes_a_page_and_says_its_size(tmp_path, capsys):
@@ -216,7 +200,7 @@ def test_view_writes_a_page_and_says_its_size(tmp_path, capsys):
     size = (tmp_path / "p.html").stat().st_size
     assert f"{size:,} bytes" in err and "a (table)" in err and "points: s" in err
     html = (tmp_path / "p.html").read_text()
-    data = json.loads(html.split('<script id="brdfkit-data" type="application/json">')[1].split("</script>")[0])
+    data = page_json(html)
     assert [m["label"] for m in data["materials"]] == ["a"] and data["samples"][0]["count"] == 2
     assert "http://" not in html and "https://" not in html and "<script src" not in html  # nothing from a network
 
@@ -249,6 +233,30 @@ def test_export_refuses_what_it_cannot_decode(tmp_path, capsys):
     write_embedding(tmp_path / "h.emb", Embedding(np.zeros(7), "hypernet", "ab" * 32, "x"))
     code, _, err = run_cli(capsys, ["export", tmp_path / "h.emb", "--glsl", tmp_path / "out"])
     assert code == 2 and "a hypernet embedding has no GLSL decoder" in one_error_line(err)
+
+
+def test_export_refuses_a_folder_that_holds_files_unless_forced(tmp_path, capsys, shipped_models):
+    """Nothing of the user's is written over: a folder with a file in it is refused in
+    one line before anything is written; with ``--force`` the export's files go in beside it."""
+    from brdfkit.io.embedding import write_embedding
+
+    write_embedding(tmp_path / "g.emb", projected_embedding(_glossy_table(), "merl80-l40", "basis", k=5))
+    folder = tmp_path / "out"
+    folder.mkdir()
+    (folder / "README.md").write_text("mine")
+    code, _, err = run_cli(capsys, ["export", tmp_path / "g.emb", "--glsl", folder])
+    assert code == 2 and "holds files" in one_error_line(err) and "--force" in err
+    assert [p.name for p in folder.iterdir()] == ["README.md"] and (folder / "README.md").read_text() == "mine"
+    code, _, err = run_cli(capsys, ["export", tmp_path / "g.emb", "--glsl", folder, "--force"])
+    assert code == 0, err
+    doc = json.loads((folder / "material.json").read_text())
+    assert doc["format"] == "brdfkit-glsl-material" and doc["version"] == 2 and doc["size"] == 15
+    assert doc["defines"]["BRDFKIT_TEXTURES"] == 2 and len(doc["channels"]) == 3
+    assert all((folder / t["file"]).stat().st_size == 180 * 90 * 90 * 16 for t in doc["textures"])
+    readme = (folder / "README.md").read_text()
+    assert "brdfkit_eval" in readme and "#define BRDFKIT_TAPS BRDFKIT_TAP(0) + BRDFKIT_TAP(1)" in readme
+    code, _, err = run_cli(capsys, ["export", tmp_path / "g.emb", "--glsl", tmp_path / "new" / "deeper"])
+    assert code == 0, err
 
 
 def test_a_silent_browser_ends_in_one_line_within_its_deadline(tmp_path, monkeypatch):
@@ -286,7 +294,7 @@ def test_a_page_of_rgls_own_file_and_a_cornell_file(tmp_path, capsys):
     code, _, err = run_cli(capsys, ["view", rgl, cornell, "-o", tmp_path / "p.html"])
     assert code == 0, err
     html = (tmp_path / "p.html").read_text()
-    data = json.loads(html.split('<script id="brdfkit-data" type="application/json">')[1].split("</script>")[0])
+    data = page_json(html)
     half, scale = table_texture(read_bsdf_table(rgl))
     assert data["materials"][0]["scale"] == 1.0 / scale
     assert np.array_equal(np.frombuffer(blob_bytes(data["materials"][0]["table"]), np.float16), half.reshape(-1))

@@ -3,9 +3,12 @@
 
 It holds, as JSON in the page: the reference scene's quadrature
 (:func:`brdfkit.view.quadrature_data.scene_quadrature`) and environment, each material's
-table as a float16 3D texture (:mod:`brdfkit.view.textures`) or, live, its numbers and
-their basis and network (:mod:`brdfkit.view.live`), and the sample files' points; and
-the package's assets (``brdfkit/view/assets``): the HTML, the JavaScript and the GLSL.
+table as a float16 3D texture (:mod:`brdfkit.view.textures`) or, live, its basis and the
+defines and uniforms its decoder takes (:mod:`brdfkit.view.live`), the sample files'
+points, and every constant the page's scripts and shaders use that brdfkit defines (the
+display encoding, the colour maps, the lobe plot's samples); and the package's assets
+(``brdfkit/view/assets``): the HTML, the JavaScript and the GLSL, each fragment shader
+assembled from the files it requires (:func:`glsl_program`).
 The page's size is about 8.75 MB a table written with ``compress=False`` (11.7 MB of
 base64), less with gzip (which the browser's ``DecompressionStream`` undoes).
 
@@ -21,29 +24,72 @@ from __future__ import annotations
 import functools
 import json
 import os
+import re
 from importlib import resources
 
 import numpy as np
 
 from brdfkit.view.textures import blob, encode_planes, table_texture
 
-__all__ = ["ASSETS", "SCRIPTS", "SHADERS", "asset", "page_data", "page_html", "write_page", "write_inputs"]
+__all__ = ["ASSETS", "SCRIPTS", "SHADERS", "PROGRAMS", "GLSL_HEADER", "LOBE", "asset", "glsl_files", "glsl_program",
+           "page_data", "page_html", "write_page", "write_inputs"]
 
-SCRIPTS = ("blobs.js", "gl.js", "live.js", "plots.js", "viewer.js")
-"""The page's JavaScript, in order."""
-SHADERS = {"eval": "brdfkit_eval.glsl", "quadrature": "quadrature.glsl", "render": "render.frag",
-           "probe": "probe.frag", "display": "display.frag", "decode": "brdfkit_decode.glsl",
-           "bake": "brdfkit_bake.frag"}
-"""The page's GLSL sources by the name ``viewer.js`` knows them by."""
-ASSETS = ("page.html", *SCRIPTS, *SHADERS.values())
 LOBE = {"decades": 6.0, "sample_tolerance": 2.5}
 """The lobe plot's settings: ``brdfkit plot``'s decades, and how far (degrees) a sample
 may lie from the plotted plane and ``theta_i`` to show as a point."""
+
+SCRIPTS = ("blobs.js", "gl.js", "live.js", "plots.js", "viewer.js")
+"""The page's JavaScript, in order."""
+PROGRAMS = {"render": "render.frag", "probe": "probe.frag", "display": "display.frag", "bake": "brdfkit_bake.frag"}
+"""The page's fragment shaders by the name ``viewer.js`` knows them by; each with the GLSL
+files it requires (:func:`glsl_program`)."""
+SHADERS = ("brdfkit_grid.glsl", "brdfkit_eval.glsl", "brdfkit_decode.glsl", "brdfkit_bake.frag", "brdfkit_frame.glsl",
+           "quadrature.glsl", "render.frag", "probe.frag", "display.frag")
+"""The package's GLSL files."""
+GLSL_HEADER = ("#version 300 es\nprecision highp float;\nprecision highp int;\nprecision highp sampler2D;\n"
+               "precision highp sampler3D;\n")
+"""What every fragment shader of the page starts with, before its defines (GLSL ES 3.00:
+WebGL2)."""
+ASSETS = ("page.html", *SCRIPTS, *SHADERS)
+_REQUIRE = re.compile(r"^#pragma brdfkit require\(([\w.]+)\)[ \t]*$", re.M)
 
 
 def asset(name: str) -> str:
     """The text of one of the package's page assets (:data:`ASSETS`)."""
     return resources.files("brdfkit.view").joinpath("assets", name).read_text(encoding="utf-8")
+
+
+def glsl_files(name: str, sources: dict | None = None) -> list[str]:
+    """The GLSL files a program's file ``name`` needs, in the order they go, each once, and
+    ``name`` last: a file says what it needs itself, with a line ``#pragma brdfkit
+    require(FILE)`` (GLSL ignores a pragma it does not know). ``sources``: text by file
+    name instead of the package's.
+
+    Examples
+    --------
+    >>> glsl_files("brdfkit_bake.frag")
+    ['brdfkit_grid.glsl', 'brdfkit_decode.glsl', 'brdfkit_bake.frag']
+    """
+    order: list[str] = []
+
+    def visit(f, path):
+        if f in path:
+            raise ValueError(f"GLSL files require each other: {' -> '.join(path + (f,))}")
+        if f not in order:
+            for needed in _REQUIRE.findall((sources or {}).get(f) or asset(f)):
+                visit(needed, path + (f,))
+            order.append(f)
+
+    visit(name, ())
+    return order
+
+
+def glsl_program(name: str, sources: dict | None = None) -> str:
+    """The source of the fragment shader ``name`` (a file of :data:`PROGRAMS`): the files it
+    needs (:func:`glsl_files`) joined, without their ``require`` lines; what goes after
+    :data:`GLSL_HEADER` and the defines."""
+    text = [(sources or {}).get(f) or asset(f) for f in glsl_files(name, sources)]
+    return "\n".join(_REQUIRE.sub("", t) for t in text)
 
 
 @functools.lru_cache(maxsize=1)
@@ -57,38 +103,62 @@ def _quadrature() -> dict:
 def _scene_record(compress: bool) -> dict:
     from brdfkit.render.envmap import SUN_UV, uv_to_direction
     from brdfkit.render.scene import REFERENCE
+    from brdfkit.view.quadrature_data import MAX_RECTS
 
     q = _quadrature()
     env = np.ascontiguousarray(q["env"], np.float32)
     return {"nodes": blob(np.ascontiguousarray(q["nodes"]).tobytes(), compress), "node_width": q["nodes"].shape[1],
-            "counts": list(q["counts"]), "rects": [list(r) for r in q["rects"]], "constants": q["constants"],
+            "uniforms": q["uniforms"], "defines": {"Q_MAX_RECTS": MAX_RECTS},
             "env": blob(env.tobytes(), compress), "env_size": [env.shape[1], env.shape[0]],
-            "view_half_width": q["view_half_width"], "resolution": REFERENCE.resolution,
-            "sun": [float(x) for x in uv_to_direction(*SUN_UV)]}
+            "resolution": REFERENCE.resolution, "sun": [float(x) for x in uv_to_direction(*SUN_UV)]}
 
 
-def _live_records(inputs, compress: bool) -> tuple[dict | None, dict]:
-    """``({"bases", "nets"}, {id(input): (basis index, net index)})`` of the live inputs:
-    one record per basis (with the most components any of its materials uses) and per
-    network."""
-    from brdfkit.view.live import basis_data, net_data
+def _display_record() -> dict:
+    """What ``display.frag`` and ``plots.js`` take from brdfkit: the display encoding's
+    exposure (:mod:`brdfkit.render.display`), colour-science's sRGB -> XYZ matrix and D65
+    white (as :func:`brdfkit.evaluation.metrics.delta_e_2000_map` converts), matplotlib's
+    inferno (``brdfkit compare``'s Delta E colours: 256 entries, 8-bit) and the line
+    colours of ``brdfkit plot``."""
+    import colour
+    import matplotlib
+
+    from brdfkit.figures.brdf_plot import COLOURS
+    from brdfkit.render.display import EXPOSURE
+
+    srgb = colour.RGB_COLOURSPACES["sRGB"]
+    white = colour.xy_to_XYZ(colour.CCS_ILLUMINANTS["CIE 1931 2 Degree Standard Observer"]["D65"])
+    lut = matplotlib.colormaps["inferno"](np.arange(256), bytes=True)
+    return {"exposure": float(EXPOSURE), "inferno": lut.reshape(-1).tolist(), "lines": list(COLOURS),
+            "uniforms": {"u_rgb_to_xyz": np.asarray(srgb.matrix_RGB_to_XYZ, np.float64).T.reshape(-1).tolist(),
+                         "u_white": [float(x) for x in white]}}
+
+
+def _lobe_record() -> dict:
+    """The lobe plot's settings: ``brdfkit plot``'s ``theta_o`` samples (degrees) and
+    luminance weights, its decades, and how far (degrees) a sample may lie from the plotted
+    plane and ``theta_i`` to show as a point."""
+    from brdfkit.figures.brdf_plot import LUMINANCE, THETA_O_DEG
+
+    return {**LOBE, "theta_o": [float(x) for x in THETA_O_DEG], "luminance": [float(x) for x in LUMINANCE],
+            "uniforms": {"u_theta_o": [float(THETA_O_DEG[0]), float(THETA_O_DEG[1] - THETA_O_DEG[0])]}}
+
+
+def _live_records(inputs, compress: bool) -> tuple[list | None, dict]:
+    """``(bases, {id(input): basis index})`` of the live inputs: one record per basis (with
+    the most components any of its materials uses)."""
+    from brdfkit.view.live import basis_data
 
     live = [i for i in inputs if i.kind == "live"]
     if not live:
         return None, {}
-    bases, nets, where = {}, {}, {}
+    bases = {}
     for i in live:
         b = i.live["basis"]
         entry = bases.setdefault(id(b), [b, 0])
         entry[1] = max(entry[1], i.live["k"])
-        if i.live["net"] is not None:
-            nets.setdefault(id(i.live["net"][1]), i.live["net"])
-    order_b, order_n = list(bases), list(nets)
-    for i in live:
-        net = i.live["net"]
-        where[id(i)] = (order_b.index(id(i.live["basis"])), None if net is None else order_n.index(id(net[1])))
-    return ({"bases": [basis_data(b, k, compress) for b, k in bases.values()],
-             "nets": [net_data(cfg, state, compress) for cfg, state in nets.values()]}, where)
+    order = list(bases)
+    return ([basis_data(b, k, compress) for b, k in bases.values()],
+            {id(i): order.index(id(i.live["basis"])) for i in live})
 
 
 def page_data(inputs, compress: bool = True) -> dict:
@@ -96,23 +166,23 @@ def page_data(inputs, compress: bool = True) -> dict:
     from importlib.metadata import version
 
     from brdfkit.view.inputs import sample_rows
+    from brdfkit.view.live import material_uniforms
 
-    live, where = _live_records(inputs, compress)
+    bases, where = _live_records(inputs, compress)
     materials, samples = [], []
     for i in inputs:
         if i.kind == "samples":
             rows = sample_rows(i.samples)
             samples.append({"label": i.label, "count": int(rows.shape[0]), "points": blob(rows.tobytes(), compress)})
         elif i.kind == "live":
-            b, n = where[id(i)]
             materials.append({"label": i.label, "kind": "live", "embedding": i.live["kind"], "k": i.live["k"],
-                              "coefficients": i.live["coefficients"], "gain": i.live["gain"], "basis": b, "net": n})
+                              "basis": where[id(i)], **material_uniforms(i.live)})
         else:
             half, scale = table_texture(i.table, i.path)
             materials.append({"label": i.label, "kind": "table", "scale": 1.0 / scale,
                               "table": blob(encode_planes(half), compress, planes=True)})
     return {"version": version("brdfkit"), "scene": _scene_record(compress), "materials": materials, "samples": samples,
-            "live": live, "lobe": LOBE}
+            "bases": bases, "display": _display_record(), "lobe": _lobe_record()}
 
 
 def _json(value) -> str:
@@ -121,19 +191,18 @@ def _json(value) -> str:
 
 
 def page_html(data: dict, shaders: dict | None = None) -> str:
-    """The page's HTML for its :func:`page_data`; ``shaders``: GLSL sources by name to use
+    """The page's HTML for its :func:`page_data`; ``shaders``: GLSL text by file name to use
     instead of the package's (``brdfkit export`` writes its page with its own files)."""
     from html import escape
 
-    sources = {name: asset(f) for name, f in SHADERS.items()}
-    sources.update(shaders or {})
+    programs = {name: glsl_program(f, shaders) for name, f in PROGRAMS.items()}
     labels = ", ".join(m["label"] for m in data["materials"])
     script = "\n".join(asset(f) for f in SCRIPTS)
     if "</script" in script.lower():
         raise ValueError("a page script holds '</script'")
     return (asset("page.html").replace("{{VERSION}}", escape(data["version"]))
             .replace("{{TITLE}}", escape(f"brdfkit view: {labels}"))
-            .replace("{{SHADERS}}", _json(sources)).replace("{{SCRIPT}}", script)
+            .replace("{{SHADERS}}", _json({"header": GLSL_HEADER, "programs": programs})).replace("{{SCRIPT}}", script)
             .replace("{{DATA}}", _json(data)))
 
 
@@ -157,7 +226,7 @@ def write_page(paths, output, *, model_path=None, live: bool = False, compress: 
     progress
         Optional ``progress(message)``.
     shaders
-        GLSL sources by name instead of the package's (:func:`page_html`).
+        GLSL text by file name instead of the package's (:func:`page_html`).
 
     Returns
     -------

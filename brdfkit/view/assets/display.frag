@@ -1,13 +1,17 @@
 // A tile as the screen shows it (brdfkit.render.display: radiance times the exposure,
 // clipped to [0, 1], sRGB OETF), or its CIEDE2000 difference from the reference tile
 // (brdfkit.evaluation.metrics.delta_e_2000_map: display-linear sRGB -> XYZ -> L*a*b*, D65)
-// in the inferno colours of `brdfkit compare`, 0 to u_de_max.
+// in the inferno colours of `brdfkit compare`, 0 to u_de_max. The exposure's base, the
+// matrix, the white and the colour map are brdfkit's (brdfkit.view.page writes them).
 uniform highp sampler2D u_image;
 uniform highp sampler2D u_reference;
+uniform highp sampler2D u_inferno;  // matplotlib's inferno: 256 x 1, 8-bit
 uniform int u_view;            // 0: the image, 1: Delta E 2000 against the reference
 uniform float u_exposure;
 uniform float u_de_max;
 uniform vec2 u_origin;
+uniform mat3 u_rgb_to_xyz;     // linear sRGB -> CIE XYZ (colour-science's sRGB)
+uniform vec3 u_white;          // CIE XYZ of D65
 out vec4 frag;
 
 vec3 display_linear(vec3 x) { return clamp(x * u_exposure, 0.0, 1.0); }
@@ -23,8 +27,7 @@ float lab_f(float t) {
 }
 
 vec3 lab(vec3 rgb) {
-  const mat3 M = mat3(0.4124, 0.2126, 0.0193, 0.3576, 0.7152, 0.1192, 0.1805, 0.0722, 0.9505);
-  vec3 xyz = M * rgb / vec3(0.3127 / 0.3290, 1.0, (1.0 - 0.3127 - 0.3290) / 0.3290);
+  vec3 xyz = u_rgb_to_xyz * rgb / u_white;
   vec3 f = vec3(lab_f(xyz.x), lab_f(xyz.y), lab_f(xyz.z));
   return vec3(116.0 * f.y - 16.0, 500.0 * (f.x - f.y), 200.0 * (f.y - f.z));
 }
@@ -70,14 +73,11 @@ float delta_e_2000(vec3 l1, vec3 l2) {
   return sqrt(max(x * x + y * y + z * z + rt * y * z, 0.0));
 }
 
+// The colour of t in [0, 1] as matplotlib's Colormap picks it: entry floor(256 t), the
+// last for t = 1.
 vec3 inferno(float t) {
-  const vec3 c[9] = vec3[9](vec3(0.0015, 0.0005, 0.0139), vec3(0.1293, 0.0473, 0.2908),
-    vec3(0.3415, 0.0623, 0.4294), vec3(0.5409, 0.1347, 0.4151), vec3(0.7357, 0.2159, 0.3302),
-    vec3(0.8943, 0.3534, 0.1936), vec3(0.9784, 0.5579, 0.0349), vec3(0.9746, 0.7977, 0.2063),
-    vec3(0.9884, 0.9984, 0.6449));
-  float x = clamp(t, 0.0, 1.0) * 8.0;
-  int i = min(int(floor(x)), 7);
-  return mix(c[i], c[i + 1], x - float(i));
+  int i = min(int(floor(clamp(t, 0.0, 1.0) * 256.0)), 255);
+  return texelFetch(u_inferno, ivec2(i, 0), 0).rgb;
 }
 
 void main() {

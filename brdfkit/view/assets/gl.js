@@ -1,13 +1,11 @@
 // WebGL2 helpers: programs assembled from the page's GLSL sources, textures, framebuffers.
 'use strict';
 
-const GLSL_HEADER = '#version 300 es\nprecision highp float;\nprecision highp int;\n' +
-  'precision highp sampler2D;\nprecision highp sampler3D;\n';
-
-function compileProgram(gl, parts, defines) {
+// A program of the page: its fragment shader's source (brdfkit.view.page.glsl_program)
+// after the page's header (brdfkit.view.page.GLSL_HEADER) and the defines.
+function compileProgram(gl, header, source, defines) {
   const vs = '#version 300 es\nin vec2 a_pos;\nvoid main() { gl_Position = vec4(a_pos, 0.0, 1.0); }\n';
-  const head = GLSL_HEADER + Object.entries(defines || {}).map(([k, v]) => `#define ${k} ${v}\n`).join('');
-  const fs = head + parts.join('\n');
+  const fs = header + Object.entries(defines || {}).map(([k, v]) => `#define ${k} ${v}\n`).join('') + source;
   const program = gl.createProgram();
   for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
     const sh = gl.createShader(type);
@@ -21,14 +19,34 @@ function compileProgram(gl, parts, defines) {
   gl.bindAttribLocation(program, 0, 'a_pos');
   gl.linkProgram(program);
   if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error('program: ' + gl.getProgramInfoLog(program));
-  const uniforms = {};
+  const uniforms = {}, types = {};
   const n = gl.getProgramParameter(program, gl.ACTIVE_UNIFORMS);
   for (let i = 0; i < n; i++) {
     const info = gl.getActiveUniform(program, i);
     const name = info.name.replace(/\[0\]$/, '');
     uniforms[name] = gl.getUniformLocation(program, info.name);
+    types[name] = info.type;
   }
-  return { program, uniforms };
+  return { program, uniforms, types };
+}
+
+// Uniforms brdfkit wrote into the page, by name: a number or the flat values of a vector,
+// matrix or array, set as the program declares it (a name it does not use is left out, as
+// a compiler leaves out what a shader does not read).
+function setUniforms(gl, p, values) {
+  const setters = {
+    [gl.FLOAT]: (l, v) => gl.uniform1fv(l, v), [gl.FLOAT_VEC2]: (l, v) => gl.uniform2fv(l, v),
+    [gl.FLOAT_VEC3]: (l, v) => gl.uniform3fv(l, v), [gl.FLOAT_VEC4]: (l, v) => gl.uniform4fv(l, v),
+    [gl.INT]: (l, v) => gl.uniform1iv(l, v), [gl.INT_VEC3]: (l, v) => gl.uniform3iv(l, v),
+    [gl.FLOAT_MAT3]: (l, v) => gl.uniformMatrix3fv(l, false, v),
+  };
+  for (const [name, value] of Object.entries(values)) {
+    if (!(name in p.uniforms)) continue;
+    const set = setters[p.types[name]];
+    if (!set) throw new Error(`uniform ${name}: a type the page does not set`);
+    const flat = Array.isArray(value) ? value : [value];
+    set(p.uniforms[name], p.types[name] === gl.INT || p.types[name] === gl.INT_VEC3 ? Int32Array.from(flat) : Float32Array.from(flat));
+  }
 }
 
 function fullScreenTriangle(gl) {
@@ -82,6 +100,11 @@ function bindTexture(gl, unit, target, tex, location) {
   if (location) gl.uniform1i(location, unit);
 }
 
+// The next frame, or 16 ms, whichever comes first: a page that no one shows (Chromium's
+// own --headless --screenshot) runs no animation frames, but its timers run.
 function nextFrame() {
-  return new Promise((resolve) => requestAnimationFrame(() => resolve()));
+  return new Promise((resolve) => {
+    requestAnimationFrame(() => resolve());
+    setTimeout(resolve, 16);
+  });
 }

@@ -1,7 +1,6 @@
-// Live embeddings (brdfkit view --live): the basis as textures, the residual's
-// hypernetwork in JavaScript (3K numbers -> the hyponet's weights, one channel at a time)
-// and the decode on the GPU (brdfkit_decode.glsl), baked into the table texture that
-// brdfkit_eval reads.
+// Live embeddings (brdfkit view --live): the basis as textures and the decode on the GPU
+// (brdfkit_decode.glsl, with the defines and uniforms brdfkit wrote for each material),
+// baked into the table texture that brdfkit_eval reads.
 'use strict';
 
 const CELLS = 90 * 90 * 180;
@@ -40,16 +39,18 @@ class BasisSlots {
 }
 
 class LiveDecoder {
-  constructor(gl, live, shaders, vao) {
+  // bases: the page's basis records (brdfkit.view.live.basis_data); program(defines): the
+  // bake shader compiled with a material's defines.
+  constructor(gl, bases, program, vao) {
     this.gl = gl;
-    this.live = live;
-    this.shaders = shaders;
+    this.records = bases;
+    this.compile = program;
     this.vao = vao;
     this.bases = new Map();
     this.programs = new Map();
-    this.nets = new Map();
   }
 
+  // The basis's slots over its cells, in slot order (reference, mean, components).
   async slots(b) {
     const arrays = [];
     const half = async (blob) => Float32Array.from(asUint16(await blobBytes(blob)), halfToFloat);
@@ -71,97 +72,46 @@ class LiveDecoder {
     return { cells, arrays };
   }
 
+  // The basis's textures: texture t holds the slots b.layout[t], each b.fill off the cells
+  // (brdfkit.view.live.basis_textures).
   async basis(index) {
     if (this.bases.has(index)) return this.bases.get(index);
-    const gl = this.gl, b = this.live.bases[index];
+    const gl = this.gl, b = this.records[index];
     const { cells, arrays } = await this.slots(b);
-    const count = Math.ceil((b.k + 2) / 4), textures = [];
-    for (let t = 0; t < count; t++) {
+    const textures = b.layout.map((slots) => {
       const texels = new Float32Array(CELLS * 4);
-      if (t === 0) for (let i = 0; i < CELLS; i++) texels[4 * i] = -1;
-      for (let s = 4 * t; s < Math.min(4 * t + 4, b.k + 2); s++) {
-        const a = arrays[s];
-        cells.forEach((c, j) => { texels[4 * c + (s - 4 * t)] = a[j]; });
-      }
-      textures.push(texture3D(gl, gl.RGBA32F, gl.RGBA, gl.FLOAT, texels));
-    }
-    const out = { b, textures };
-    this.bases.set(index, out);
-    return out;
-  }
-
-  // The hyponet's weights for one channel's coefficients in training standard deviations
-  // (brdfkit.residual.network.net_input and hyponet_weights), packed as brdfkit_net.
-  async hyponet(index, cNorm) {
-    const n = this.live.nets[index];
-    if (!this.nets.has(index)) {
-      const t = {};
-      for (const [name, blob] of Object.entries(n.tensors)) t[name] = asFloat32(await blobBytes(blob));
-      this.nets.set(index, t);
-    }
-    const t = this.nets.get(index), kmax = n.k_max, hidden = n.hidden, w = n.width;
-    const z = new Float64Array(2 * kmax);
-    cNorm.forEach((c, i) => { z[i] = c; z[kmax + i] = 1; });
-    const layer = (weight, bias, x, rows, cols) => {
-      const y = new Float64Array(rows);
-      for (let r = 0; r < rows; r++) {
-        let a = bias[r];
-        for (let c = 0; c < cols; c++) a += weight[r * cols + c] * x[c];
-        y[r] = Math.max(a, 0);
-      }
-      return y;
-    };
-    const h = layer(t['body.2.weight'], t['body.2.bias'], layer(t['body.0.weight'], t['body.0.bias'], z, hidden, 2 * kmax), hidden, hidden);
-    const total = t['head.bias'].length, flat = new Float64Array(total), head = t['head.weight'];
-    for (let r = 0; r < total; r++) {
-      let a = t['head.bias'][r];
-      for (let c = 0; c < hidden; c++) a += head[r * hidden + c] * h[c];
-      flat[r] = a;
-    }
-    const parts = [], sizes = [6 * w, w, w * w, w, w, 1];
-    let at = 0;
-    sizes.forEach((size, i) => {
-      const base = t[`base.${i}`];
-      parts.push(Float64Array.from(base, (v, j) => v + flat[at + j]));
-      at += size;
+      slots.forEach((s, channel) => {
+        if (b.fill[s] !== 0) for (let i = 0; i < CELLS; i++) texels[4 * i + channel] = b.fill[s];
+        cells.forEach((c, j) => { texels[4 * c + channel] = arrays[s][j]; });
+      });
+      return texture3D(gl, gl.RGBA32F, gl.RGBA, gl.FLOAT, texels);
     });
-    return packHyponet(parts, w);
+    this.bases.set(index, textures);
+    return textures;
   }
 
-  program(textures, width) {
-    const key = `${textures}/${width}`;
-    if (!this.programs.has(key)) {
-      this.programs.set(key, compileProgram(this.gl, [this.shaders.decode, this.shaders.bake],
-        { BRDFKIT_TEXTURES: textures, BRDFKIT_WIDTH: width }));
-    }
+  program(defines) {
+    const key = JSON.stringify(defines);
+    if (!this.programs.has(key)) this.programs.set(key, this.compile(defines));
     return this.programs.get(key);
   }
 
+  // The material's table, decoded by brdfkit_decode.glsl with the defines and uniforms
+  // brdfkit wrote for it (brdfkit.view.live.material_uniforms), one channel a pass.
   async bake(m) {
-    const gl = this.gl, base = await this.basis(m.basis), b = base.b, k = m.k;
-    const net = m.net === null ? null : this.live.nets[m.net];
-    const width = net ? 4 * Math.ceil(net.width / 4) : 0;
-    const p = this.program(base.textures.length, width), u = p.uniforms;
+    const gl = this.gl, textures = await this.basis(m.basis);
+    const p = this.program(m.defines), u = p.uniforms, count = m.defines.BRDFKIT_TEXTURES;
     const tex = texture3D(gl, gl.RGBA32F, gl.RGBA, gl.FLOAT, null);
     const fbo = gl.createFramebuffer();
     gl.useProgram(p.program);
     gl.bindVertexArray(this.vao);
     gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
     gl.viewport(0, 0, 180, 90);
-    base.textures.forEach((t, i) => bindTexture(gl, i, gl.TEXTURE_3D, t, u[`brdfkit_basis${i}`]));
-    gl.uniform4f(u.brdfkit_mapping, b.eps, b.floor, b.cap, b.w_floor);
-    gl.uniform2f(u.brdfkit_tiny, b.tiny, b.w_tiny);
-    gl.uniform1f(u.brdfkit_gain, net ? m.gain : 0.0);
+    textures.slice(0, count).forEach((t, i) => bindTexture(gl, i, gl.TEXTURE_3D, t));
+    gl.uniform1iv(u.brdfkit_basis, Int32Array.from({ length: count }, (_, i) => i));
+    setUniforms(gl, p, m.uniforms);
     for (let ch = 0; ch < 3; ch++) {
-      const coef = new Float32Array(4 * base.textures.length);
-      coef[1] = 1;
-      for (let j = 0; j < k; j++) coef[2 + j] = m.coefficients[3 * j + ch];
-      gl.uniform4fv(u.brdfkit_coefficients, coef);
-      if (net && m.gain !== 0) {
-        const cNorm = [];
-        for (let j = 0; j < k; j++) cNorm.push(m.coefficients[3 * j + ch] / b.sigma[j]);
-        gl.uniform4fv(u.brdfkit_net, await this.hyponet(m.net, cNorm));
-      }
+      setUniforms(gl, p, m.channels[ch]);
       gl.colorMask(ch === 0, ch === 1, ch === 2, false);
       for (let layer = 0; layer < 90; layer++) {
         gl.framebufferTextureLayer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, tex, 0, layer);
@@ -175,19 +125,4 @@ class LiveDecoder {
     gl.deleteFramebuffer(fbo);
     return tex;
   }
-}
-
-// brdfkit_net's layout: w1 (6 rows of W), b1, w2 (W rows of W), b2, w3, b3, each row padded
-// to a multiple of 4 (the padding's weights 0).
-function packHyponet([w1, b1, w2, b2, w3, b3], w) {
-  const w4 = Math.ceil(w / 4), wp = 4 * w4;
-  const out = new Float32Array(4 * (9 * w4 + wp * w4 + 1));
-  const row = (src, off, at) => { for (let j = 0; j < w; j++) out[at + j] = src[off + j]; };
-  for (let i = 0; i < 6; i++) row(w1, i * w, 4 * i * w4);
-  row(b1, 0, 4 * 6 * w4);
-  for (let i = 0; i < w; i++) row(w2, i * w, 4 * (7 * w4 + i * w4));
-  row(b2, 0, 4 * (7 * w4 + wp * w4));
-  row(w3, 0, 4 * (8 * w4 + wp * w4));
-  out[4 * (9 * w4 + wp * w4)] = b3[0];
-  return out;
 }

@@ -1,15 +1,12 @@
 // The page's 2D plots: the in-plane lobe of `brdfkit plot` (brdfkit.figures.brdf_plot),
-// the Delta E colour scale, and the sample files' points.
+// the Delta E colour scale, and the sample files' points; their colours are brdfkit's
+// (the page's data.display: brdfkit plot's line colours, matplotlib's inferno).
 'use strict';
 
-const INFERNO = [[0.0015, 0.0005, 0.0139], [0.1293, 0.0473, 0.2908], [0.3415, 0.0623, 0.4294],
-  [0.5409, 0.1347, 0.4151], [0.7357, 0.2159, 0.3302], [0.8943, 0.3534, 0.1936], [0.9784, 0.5579, 0.0349],
-  [0.9746, 0.7977, 0.2063], [0.9884, 0.9984, 0.6449]];
-
-function inferno(t) {
-  const x = Math.max(0, Math.min(1, t)) * 8, i = Math.min(7, Math.floor(x)), f = x - i;
-  const c = INFERNO[i].map((a, k) => a + f * (INFERNO[i + 1][k] - a));
-  return `rgb(${c.map((a) => Math.round(255 * a)).join(',')})`;
+// The inferno colour of t in [0, 1], picked as display.frag picks it.
+function inferno(t, display) {
+  const lut = display.inferno, n = lut.length / 4, i = Math.min(n - 1, Math.floor(Math.max(0, Math.min(1, t)) * n));
+  return `rgb(${lut[4 * i]},${lut[4 * i + 1]},${lut[4 * i + 2]})`;
 }
 
 // Radius of a value on a log10 scale from lo to hi (decades), 0 below lo.
@@ -17,7 +14,8 @@ function logRadius(value, lo, hi) {
   return value > 0 ? Math.max(0, Math.min(1, (Math.log10(value) - lo) / (hi - lo))) : 0;
 }
 
-function drawLobe(canvas, lobes, thetaI, what, samples, settings) {
+function drawLobe(canvas, lobes, thetaI, what, samples, settings, display) {
+  const colours = display.lines;
   const ctx = canvas.getContext('2d'), w = canvas.width, h = canvas.height;
   const cx = w / 2, cy = h - 22, radius = Math.min(w / 2 - 12, h - 40);
   ctx.clearRect(0, 0, w, h);
@@ -54,13 +52,13 @@ function drawLobe(canvas, lobes, thetaI, what, samples, settings) {
   ctx.lineTo(cx, cy);
   ctx.stroke();
   lobes.forEach((l, j) => {
-    ctx.strokeStyle = COLOURS[j % COLOURS.length];
+    ctx.strokeStyle = colours[j % colours.length];
     ctx.lineWidth = 1.5;
-    ctx.setLineDash(j < COLOURS.length ? [] : [5, 3]);
+    ctx.setLineDash(j < colours.length ? [] : [5, 3]);
     ctx.beginPath();
     let pen = false;
     l.values.forEach((v, i) => {
-      const to = ((-89.5 + 0.5 * i) * Math.PI) / 180, r = radius * logRadius(v, lo, hi);
+      const to = (settings.theta_o[i] * Math.PI) / 180, r = radius * logRadius(v, lo, hi);
       const x = cx + r * Math.sin(to), y = cy - r * Math.cos(to);
       if (v > 0 && pen) ctx.lineTo(x, y); else if (v > 0) ctx.moveTo(x, y);
       pen = v > 0;
@@ -68,12 +66,12 @@ function drawLobe(canvas, lobes, thetaI, what, samples, settings) {
     ctx.stroke();
   });
   ctx.setLineDash([]);
-  drawLobeSamples(ctx, samples, thetaI, cx, cy, radius, lo, hi, settings);
+  drawLobeSamples(ctx, samples, thetaI, cx, cy, radius, lo, hi, settings, colours);
   ctx.fillStyle = '#222';
   ctx.font = '11px sans-serif';
   ctx.fillText(`theta_i ${(thetaI * 180 / Math.PI).toFixed(1)} deg (${what}); luminance, 1/sr, log10`, 6, 13);
   lobes.forEach((l, j) => {
-    ctx.fillStyle = COLOURS[j % COLOURS.length];
+    ctx.fillStyle = colours[j % colours.length];
     ctx.fillText(l.label, 6, 28 + 13 * j);
   });
   document.getElementById('lobe-title').textContent = 'In-plane lobe (brdfkit plot)';
@@ -82,11 +80,11 @@ function drawLobe(canvas, lobes, thetaI, what, samples, settings) {
 // Samples within settings.sample_tolerance degrees of the plane of incidence at theta_i:
 // points at their theta_o (float32 rows: theta_h, theta_d, luminance, theta_i, theta_o,
 // off-plane angle; degrees).
-function drawLobeSamples(ctx, samples, thetaI, cx, cy, radius, lo, hi, settings) {
+function drawLobeSamples(ctx, samples, thetaI, cx, cy, radius, lo, hi, settings, colours) {
   const ti = thetaI * 180 / Math.PI, tol = settings.sample_tolerance;
   (samples || []).forEach((s, j) => {
     if (!s.rows) return;
-    ctx.fillStyle = COLOURS[(j + 4) % COLOURS.length];
+    ctx.fillStyle = colours[(j + 4) % colours.length];
     const r = s.rows;
     for (let i = 0; i < r.length; i += 6) {
       if (Math.abs(r[i + 3] - ti) > tol || r[i + 5] > tol) continue;
@@ -98,10 +96,10 @@ function drawLobeSamples(ctx, samples, thetaI, cx, cy, radius, lo, hi, settings)
   });
 }
 
-function drawScale(canvas, top) {
+function drawScale(canvas, top, display) {
   const ctx = canvas.getContext('2d'), w = canvas.width, h = canvas.height;
   for (let x = 0; x < w; x++) {
-    ctx.fillStyle = inferno(x / (w - 1));
+    ctx.fillStyle = inferno(x / (w - 1), display);
     ctx.fillRect(x, 0, 1, h);
   }
   const label = canvas.parentElement.querySelector('span') || document.createElement('span');
@@ -111,7 +109,7 @@ function drawScale(canvas, top) {
 
 // A sample file: its samples at (theta_d, theta_h) on the MERL grid's axes (theta_h on its
 // square-root spacing), coloured by log10 luminance.
-async function drawSamplePanels(root, samples) {
+async function drawSamplePanels(root, samples, display) {
   for (const [j, s] of (samples || []).entries()) {
     s.rows = asFloat32(await blobBytes(s.points));
     const panel = document.createElement('div');
@@ -132,7 +130,7 @@ async function drawSamplePanels(root, samples) {
     ctx.strokeRect(m, m, size, size);
     for (let i = 0; i < r.length; i += 6) {
       const x = m + size * r[i + 1] / 90, y = m + size * (1 - Math.sqrt(r[i] / 90));
-      ctx.fillStyle = r[i + 2] > 0 ? inferno((Math.log10(r[i + 2]) - lo) / Math.max(hi - lo, 1e-6)) : '#888';
+      ctx.fillStyle = r[i + 2] > 0 ? inferno((Math.log10(r[i + 2]) - lo) / Math.max(hi - lo, 1e-6), display) : '#888';
       ctx.beginPath();
       ctx.arc(x, y, 2.5, 0, 2 * Math.PI);
       ctx.fill();

@@ -1,7 +1,11 @@
 // The reference scene's environment light at one pixel, as `brdfkit render` integrates it
 // (brdfkit.render.quadrature and brdfkit.render.pairs): the same cosine (C), half-vector (B)
-// and light (A) nodes, the same shares between them and the same per-pixel normalisation,
-// in float32. Node constants: brdfkit.view.quadrature_data (u_nodes rows 0-5).
+// and light (A) nodes, the same shares between them (brdfkit.render.shares) and the same
+// per-pixel normalisation, in float32. The node constants (u_nodes rows 0-5) and every
+// uniform here are the renderer's, written by brdfkit.view.quadrature_data; Q_MAX_RECTS
+// (a define) is its MAX_RECTS.
+#pragma brdfkit require(brdfkit_eval.glsl)
+#pragma brdfkit require(brdfkit_frame.glsl)
 uniform highp sampler2D u_nodes;
 uniform highp sampler2D u_env;
 uniform ivec3 u_counts;        // N_C, N_B, N_A
@@ -10,15 +14,15 @@ uniform vec4 u_share;          // 1 / half_extent, log(handover lo), 1 / (log hi
 uniform float u_share_power;
 uniform int u_ib_count;
 uniform int u_rect_count;
-uniform vec4 u_rect[4];        // u0, u1, v0, v1
-uniform vec2 u_ramp[4];        // ramp_u, ramp_v
+uniform vec4 u_rect[Q_MAX_RECTS];  // u0, u1, v0, v1
+uniform vec2 u_ramp[Q_MAX_RECTS];  // ramp_u, ramp_v
 
 float q_smooth(float x) {
   x = clamp(x, 0.0, 1.0);
   return x * x * (3.0 - 2.0 * x);
 }
 
-// (g, s_x, s_y) of theta_h: brdfkit.render.pairs.theta_terms.
+// (g, s_x, s_y) of theta_h: brdfkit.render.shares.theta_terms.
 vec3 q_theta_terms(float th) {
   th = max(th, 1e-12);
   float lt = log(th);
@@ -38,15 +42,16 @@ float q_ratio(float dc, float woh, float g) {
   return u_share_power == 1.0 ? r : pow(r, u_share_power);
 }
 
+// Texture coordinates of a world direction (brdfkit.render.shares.uv).
 vec2 q_uv(vec3 d) {
   float u = brdfkit_atan2(d.x, -d.z) / (2.0 * BRDFKIT_PI);
   return vec2(u - floor(u), acos(clamp(d.y, -1.0, 1.0)) / BRDFKIT_PI);
 }
 
-// 1 - rho: 0 inside a light rectangle, 1 away from them.
+// 1 - rho: 0 inside a light rectangle, 1 away from them (brdfkit.render.shares.outside).
 float q_outside(vec2 uv) {
   float out_ = 1.0;
-  for (int i = 0; i < 4; i++) {
+  for (int i = 0; i < Q_MAX_RECTS; i++) {
     if (i >= u_rect_count) break;
     vec4 r = u_rect[i];
     vec2 ramp = u_ramp[i];
@@ -67,7 +72,8 @@ float q_outside(vec2 uv) {
   return out_;
 }
 
-// Radiance of the environment at texture coordinates, bilinear as Mitsuba's envmap.
+// Radiance of the environment at texture coordinates, bilinear as Mitsuba's envmap
+// (brdfkit.render.shares.EnvLookup).
 vec3 q_env(vec2 uv) {
   ivec2 size = textureSize(u_env, 0);
   float w = float(size.x);
@@ -93,12 +99,8 @@ float q_ib(float cos_o) {
 
 // Outgoing radiance towards the camera (world +z) at a point of world normal n.
 vec3 quadrature_shade(vec3 n) {
-  float s = n.z >= 0.0 ? 1.0 : -1.0;
-  float a = -1.0 / (s + n.z);
-  float b = n.x * n.y * a;
-  vec3 t = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
-  vec3 bt = vec3(b, s + n.y * n.y * a, -n.y);
-  mat3 to_world = mat3(t, bt, n);
+  mat3 to_world = brdfkit_frame(n);
+  vec3 t = to_world[0], bt = to_world[1];
   vec3 wo = vec3(t.z, bt.z, n.z);
   const vec3 wo_world = vec3(0.0, 0.0, 1.0);
   float dc = u_share.w;
@@ -115,7 +117,7 @@ vec3 quadrature_shade(vec3 n) {
     float w = geo * (r + tt.y + cut * tt.z);
     mass_a += w;
     mass_3 += geo * cut * tt.z;
-    if (w > 0.0) sum_a += q.yzw * w * brdf(l, wo);
+    if (w > 0.0) sum_a += q.yzw * w * brdfkit_eval(l, wo);
   }
   for (int i = 0; i < u_counts.y; i++) {
     vec4 p = texelFetch(u_nodes, ivec2(i, 1), 0);
@@ -128,7 +130,7 @@ vec3 quadrature_shade(vec3 n) {
     vec2 uv = q_uv(2.0 * woh * (to_world * p.xyz) - wo_world);
     w *= q_outside(uv) * q.y + q.z;
     mass_b += w;
-    if (w > 0.0) sum_b += q_env(uv) * w * brdf(vec3((2.0 * woh * p.xy - wo.xy), cos_b), wo);
+    if (w > 0.0) sum_b += q_env(uv) * w * brdfkit_eval(vec3(2.0 * woh * p.xy - wo.xy, cos_b), wo);
   }
   for (int i = 0; i < u_counts.x; i++) {
     vec4 p = texelFetch(u_nodes, ivec2(i, 0), 0);
@@ -137,7 +139,7 @@ vec3 quadrature_shade(vec3 n) {
     vec2 uv = q_uv(to_world * p.xyz);
     float share = (r + tt.y) / (1.0 + r) * q_outside(uv);
     mass_c += share;
-    if (share > 0.0) sum_c += q_env(uv) * share * brdf(p.xyz, wo);
+    if (share > 0.0) sum_c += q_env(uv) * share * brdfkit_eval(p.xyz, wo);
   }
   float nc = float(u_counts.x);
   mass_c /= nc;

@@ -1,6 +1,7 @@
 // One tile of the reference scene: the unit sphere under the orthographic camera on +z
 // (brdfkit.render.scene), one sample at each pixel centre, linear radiance out (alpha 0:
 // background). Lit by the scene's environment (quadrature.glsl) or by one directional light.
+#pragma brdfkit require(quadrature.glsl)
 uniform float u_size;          // pixels across the tile
 uniform vec2 u_origin;         // the tile's lower left corner in the framebuffer
 uniform float u_view_half_width;
@@ -23,14 +24,9 @@ void main() {
   if (u_light_mode == 0) {
     radiance = quadrature_shade(n);
   } else {
-    float s = n.z >= 0.0 ? 1.0 : -1.0;
-    float a = -1.0 / (s + n.z);
-    float b = n.x * n.y * a;
-    vec3 t = vec3(1.0 + s * n.x * n.x * a, s * b, -s * n.x);
-    vec3 bt = vec3(b, s + n.y * n.y * a, -n.y);
-    vec3 wi = vec3(dot(t, u_light), dot(bt, u_light), dot(n, u_light));
-    vec3 wo = vec3(t.z, bt.z, n.z);
-    radiance = wi.z > 0.0 ? u_irradiance * wi.z * brdf(wi, wo) : vec3(0.0);
+    mat3 to_local = transpose(brdfkit_frame(n));
+    vec3 wi = to_local * u_light, wo = to_local * vec3(0.0, 0.0, 1.0);
+    radiance = wi.z > 0.0 ? u_irradiance * wi.z * brdfkit_eval(wi, wo) : vec3(0.0);
   }
   frag = vec4(radiance, 1.0);
 }

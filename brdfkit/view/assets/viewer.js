@@ -4,7 +4,6 @@
 // with the lobe plot and the sample files' points (plots.js).
 'use strict';
 
-const COLOURS = ['#1f77b4', '#d62728', '#2ca02c', '#ff7f0e', '#9467bd', '#8c564b', '#e377c2', '#17becf'];
 const GAP = 8;
 
 function hashOptions() {
@@ -33,22 +32,11 @@ async function loadScene(gl, s) {
   };
 }
 
-function setSceneUniforms(gl, u, scene, size) {
-  const s = scene.data, c = s.constants;
-  bindTexture(gl, 1, gl.TEXTURE_2D, scene.nodes, u.u_nodes);
-  bindTexture(gl, 2, gl.TEXTURE_2D, scene.env, u.u_env);
-  gl.uniform3i(u.u_counts, s.counts[0], s.counts[1], s.counts[2]);
-  gl.uniform4f(u.u_ring, c.ring_e, c.ring_c, c.half_phi, c.half_phi_min);
-  gl.uniform4f(u.u_share, 1 / c.half_extent, c.handover_lo, 1 / (c.handover_hi - c.handover_lo), c.d_c);
-  gl.uniform1f(u.u_share_power, c.share_power);
-  gl.uniform1i(u.u_ib_count, c.ib_count);
-  gl.uniform1i(u.u_rect_count, s.rects.length);
-  const rects = new Float32Array(16), ramps = new Float32Array(8);
-  s.rects.slice(0, 4).forEach((r, i) => { rects.set(r.slice(0, 4), 4 * i); ramps.set(r.slice(4, 6), 2 * i); });
-  gl.uniform4fv(u.u_rect, rects);
-  gl.uniform2fv(u.u_ramp, ramps);
-  gl.uniform1f(u.u_size, size);
-  gl.uniform1f(u.u_view_half_width, s.view_half_width);
+function setSceneUniforms(gl, p, scene, size) {
+  bindTexture(gl, 1, gl.TEXTURE_2D, scene.nodes, p.uniforms.u_nodes);
+  bindTexture(gl, 2, gl.TEXTURE_2D, scene.env, p.uniforms.u_env);
+  setUniforms(gl, p, scene.data.uniforms);
+  gl.uniform1f(p.uniforms.u_size, size);
 }
 
 class Viewer {
@@ -81,12 +69,14 @@ class Viewer {
   async load() {
     const gl = this.gl, d = this.data;
     this.scene = await loadScene(gl, d.scene);
-    const brdf = 'vec3 brdf(vec3 wi, vec3 wo) { return brdfkit_eval(wi, wo); }\n';
-    this.render = compileProgram(gl, [this.shaders.eval, brdf, this.shaders.quadrature, this.shaders.render]);
-    this.probe = compileProgram(gl, [this.shaders.eval, brdf, this.shaders.probe]);
-    this.display = compileProgram(gl, [this.shaders.display]);
+    const program = (name, defines) => compileProgram(gl, this.shaders.header, this.shaders.programs[name], defines);
+    this.render = program('render', d.scene.defines);
+    this.probe = program('probe');
+    this.display = program('display');
+    const lut = d.display.inferno;
+    this.inferno = texture2D(gl, gl.RGBA8, gl.RGBA, gl.UNSIGNED_BYTE, lut.length / 4, 1, Uint8Array.from(lut));
     const wanted = this.wantedMaterials();
-    const live = this.live = d.live ? new LiveDecoder(gl, d.live, this.shaders, this.vao) : null;
+    const live = this.live = d.bases ? new LiveDecoder(gl, d.bases, (defines) => program('bake', defines), this.vao) : null;
     for (const [i, m] of d.materials.entries()) {
       if (!wanted.has(i)) { this.materials.push(null); continue; }
       say(`loading ${m.label} (${i + 1} of ${d.materials.length})`);
@@ -99,7 +89,7 @@ class Viewer {
       }
       this.materials.push({ info: m, tex, scale, target: floatTarget(gl, this.size, this.size), index: i });
     }
-    this.probeTarget = floatTarget(gl, 359, 1);
+    this.probeTarget = floatTarget(gl, d.lobe.theta_o.length, 1);
   }
 
   wantedMaterials() {
@@ -137,7 +127,7 @@ class Viewer {
     gl.viewport(0, 0, this.size, this.size);
     gl.enable(gl.SCISSOR_TEST);
     gl.scissor(0, y0, this.size, y1 - y0);
-    setSceneUniforms(gl, u, this.scene, this.size);
+    setSceneUniforms(gl, p, this.scene, this.size);
     bindTexture(gl, 0, gl.TEXTURE_3D, m.tex, u.brdfkit_table);
     gl.uniform1f(u.brdfkit_scale, m.scale);
     gl.uniform2f(u.u_origin, 0, 0);
@@ -187,8 +177,10 @@ class Viewer {
     gl.clear(gl.COLOR_BUFFER_BIT);
     gl.useProgram(p.program);
     gl.bindVertexArray(this.vao);
-    gl.uniform1f(u.u_exposure, this.exposure);
+    gl.uniform1f(u.u_exposure, this.exposure * this.data.display.exposure);
     gl.uniform1f(u.u_de_max, this.deMax);
+    setUniforms(gl, p, this.data.display.uniforms);
+    bindTexture(gl, 2, gl.TEXTURE_2D, this.inferno, u.u_inferno);
     const ref = this.materials[0] || tiles[0].m;
     const draw = (m, x, y, view) => {
       gl.viewport(x, y, size, size);
@@ -222,20 +214,22 @@ class Viewer {
   }
 
   lobeValues(thetaI) {
-    const gl = this.gl, p = this.probe, u = p.uniforms, out = [];
+    const gl = this.gl, p = this.probe, u = p.uniforms, out = [], lobe = this.data.lobe;
+    const n = lobe.theta_o.length, y = lobe.luminance;
     gl.useProgram(p.program);
     gl.bindVertexArray(this.vao);
     gl.bindFramebuffer(gl.FRAMEBUFFER, this.probeTarget.fbo);
-    gl.viewport(0, 0, 359, 1);
+    gl.viewport(0, 0, n, 1);
     gl.uniform1f(u.u_theta_i, thetaI);
-    const px = new Float32Array(359 * 4);
+    setUniforms(gl, p, lobe.uniforms);
+    const px = new Float32Array(n * 4);
     for (const m of this.materials.filter(Boolean)) {
       bindTexture(gl, 0, gl.TEXTURE_3D, m.tex, u.brdfkit_table);
       gl.uniform1f(u.brdfkit_scale, m.scale);
       gl.drawArrays(gl.TRIANGLES, 0, 3);
-      gl.readPixels(0, 0, 359, 1, gl.RGBA, gl.FLOAT, px);
-      const lum = new Float64Array(359);
-      for (let i = 0; i < 359; i++) lum[i] = 0.2126 * px[4 * i] + 0.7152 * px[4 * i + 1] + 0.0722 * px[4 * i + 2];
+      gl.readPixels(0, 0, n, 1, gl.RGBA, gl.FLOAT, px);
+      const lum = new Float64Array(n);
+      for (let i = 0; i < n; i++) lum[i] = y[0] * px[4 * i] + y[1] * px[4 * i + 1] + y[2] * px[4 * i + 2];
       out.push({ label: m.info.label, values: lum });
     }
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
@@ -250,7 +244,8 @@ class Viewer {
   updateLobe() {
     const ti = Math.min(this.thetaI(), (89.5 * Math.PI) / 180);
     const what = this.lightMode === 1 ? 'the light' : 'the sun';
-    drawLobe(document.getElementById('lobe'), this.lobeValues(ti), ti, what, this.data.samples, this.data.lobe);
+    drawLobe(document.getElementById('lobe'), this.lobeValues(ti), ti, what, this.data.samples, this.data.lobe,
+             this.data.display);
   }
 
   pointerLight(ev) {
@@ -260,7 +255,7 @@ class Viewer {
     if (y >= size) return null;
     const lx = x - Math.floor(x / (size + GAP)) * (size + GAP);
     if (lx >= size) return null;
-    const vhw = this.data.scene.view_half_width;
+    const vhw = this.data.scene.uniforms.u_view_half_width;
     const px = (lx / size * 2 - 1) * vhw, py = -(y / size * 2 - 1) * vhw, r2 = px * px + py * py;
     if (r2 < 1) return [px, py, Math.sqrt(1 - r2)];
     const r = Math.sqrt(r2);
@@ -286,12 +281,12 @@ function wireControls(v) {
   const redraw = () => {
     v.difference = diff.checked;
     v.deMax = parseFloat(deMax.value);
-    drawScale(document.getElementById('scale-bar'), v.deMax);
+    drawScale(document.getElementById('scale-bar'), v.deMax, v.data.display);
     v.composite();
   };
   diff.addEventListener('change', redraw);
   deMax.addEventListener('change', redraw);
-  drawScale(document.getElementById('scale-bar'), v.deMax);
+  drawScale(document.getElementById('scale-bar'), v.deMax, v.data.display);
   const canvas = v.gl.canvas;
   let dragging = false;
   const move = (ev) => {
@@ -324,7 +319,7 @@ async function main() {
   const t1 = performance.now();
   if (!v.still) {
     wireControls(v);
-    await drawSamplePanels(document.getElementById('samples'), data.samples);
+    await drawSamplePanels(document.getElementById('samples'), data.samples, data.display);
   }
   await v.renderAll();
   window.brdfkitTimes = { load: t1 - t0, render: performance.now() - t1 };
