@@ -22,8 +22,9 @@ its own layer and the layers above it in this table, inside functions too
                                              ``.bsdf``, sample and direction CSVs,
                                              ``.emb``, the checked safetensors reader
 4    ``materials/``, ``models/``             materials brdfkit makes (GGX, stiff cases,
-                                             NBRDF networks); the built-in models: bundles
-                                             of parts, the manifest, names to files
+                                             NBRDF networks); the part registry
+                                             (``PARTS``), the built-in models: bundles of
+                                             parts, the manifest, names to files
 5    ``render/``                             the reference scene, quadrature, the scene
                                              suite, the render-aligned error, the display
                                              encoding, Mitsuba 3's ``brdfkit`` BSDF
@@ -33,7 +34,7 @@ its own layer and the layers above it in this table, inside functions too
 7    ``prior/``, ``residual/``               the learnt prior of a basis; the hypernetwork
                                              residual of a basis
 8    ``embeddings/``                         embedding kinds by name (``KINDS``), decoders,
-                                             a model's parts, blends
+                                             blends
 9    ``methods/``                            sparse-reconstruction methods by name
                                              (``METHODS``) and the choice a ``-m`` value
                                              makes

@@ -102,7 +102,7 @@ def _decoder(kind: str | None, model, device, size: int | None = None):
         if kind is not None and get_kind(kind).name != model.kind:
             raise InputError(f"--kind {kind}: the given decoder is a {model.kind} one")
         return model
-    from brdfkit.embeddings.parts import part_of
+    from brdfkit.models.parts import part_of
 
     part = part_of(model)
     if part is None or part.name != "network":
@@ -257,8 +257,8 @@ def decode(embedding, model=None, *, source: str = "", device=None) -> np.ndarra
 
 def _method_of(model) -> str:
     """The reconstruction method of a loaded model: the one that takes its part (by its
-    class, :func:`brdfkit.embeddings.parts.part_of`)."""
-    from brdfkit.embeddings.parts import part_of
+    class, :func:`brdfkit.models.parts.part_of`)."""
+    from brdfkit.models.parts import part_of
     from brdfkit.methods.choice import method_of_part
 
     part = part_of(model)

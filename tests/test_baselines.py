@@ -312,7 +312,7 @@ def test_cli_fit_basis_then_sparse(cli_files, capsys, monkeypatch):
     assert "note:" not in err
     basis = load_basis(d / "basis.safetensors")
     assert basis.materials == ["mat-0", "mat-1", "mat-2"] and basis.n_components == 5
-    from brdfkit.embeddings.parts import file_part
+    from brdfkit.models.parts import file_part
     from brdfkit.training import FITTERS
 
     assert file_part(d / "basis.safetensors").name == FITTERS["basis"].part  # the recipe's part is its file's

@@ -176,8 +176,8 @@ def test_listing_and_resolution(installed):
     assert a.latent_dim == TINY_CONFIG["latent_dim"] and a.materials == 1 and a.steps == 0
     assert a.validation == {40: 0.3, 400: 0.2} and a.command == "brdfkit fit (tiny-a)"
     assert list(a.parts) == ["network"] and a.part("basis") is None and a.part("prior") is None
-    assert a.part("network") == builtin.Part("tiny-a.safetensors", str(folder / "tiny-a.safetensors"),
-                                             a.part("network").digest)
+    assert a.part("network") == builtin.PartEntry("tiny-a.safetensors", str(folder / "tiny-a.safetensors"),
+                                                  a.part("network").digest)
     assert builtin.resolve_network("tiny-b") == str(folder / "tiny-b.safetensors")
     assert builtin.resolve_part("tiny-b", "network") == str(folder / "tiny-b.safetensors")
     assert builtin.default_bundle() == a

@@ -1,17 +1,16 @@
-"""The part registry (``brdfkit.embeddings.parts.PARTS`` over ``brdfkit.models.parts.PART_FILES``):
-the one place a model's parts are defined, which the embedding kinds, the reconstruction
-methods and ``brdfkit fit``'s recipes refer to; files and loaded objects told apart by
-their header format and their class; a file of a part a job does not take refused in one
-line."""
+"""The part registry (``brdfkit.models.parts.PARTS``): the one place a model's parts are
+defined (file, digest rule, loader, class), which the manifest, the embedding kinds, the
+reconstruction methods and ``brdfkit fit``'s recipes refer to; files and loaded objects
+told apart by their header format and their class; the digest a part loads with is its
+rule's; a file of a part a job does not take refused in one line."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from brdfkit.embeddings.parts import PARTS, file_part, get_part, part_of
 from brdfkit.errors import InputError
-from brdfkit.models.parts import PART_FILES, part_of_format
+from brdfkit.models.parts import HEADER_DIGEST_KEY, PARTS, file_part, get_part, part_of, part_of_format
 
 from conftest import run_cli
 
@@ -21,8 +20,8 @@ def test_every_registry_refers_to_the_parts():
     from brdfkit.methods import METHODS
     from brdfkit.training import FITTERS
 
-    assert list(PARTS) == list(PART_FILES) == ["network", "basis", "prior", "residual"]
-    assert all(p.file is PART_FILES[n] and p.name == n for n, p in PARTS.items())
+    assert list(PARTS) == ["network", "basis", "prior", "residual"]
+    assert all(p.name == n for n, p in PARTS.items())
     assert {k: v.part for k, v in KINDS.items()} == {"residual": "residual", "basis": "basis", "hypernet": "network"}
     assert {k: v.part for k, v in METHODS.items()} == {"hypernet": "network", "ipca": "basis", "nbrdf": None,
                                                        "prior": "prior"}
@@ -40,14 +39,14 @@ def test_the_formats_and_classes_are_the_part_packages_own():
     from brdfkit.prior.prior_file import PRIOR_FORMAT
     from brdfkit.residual.residual_file import RESIDUAL_FORMAT
 
-    assert PART_FILES["network"].formats[0] == MODEL_FORMAT
-    assert PART_FILES["basis"].formats[0] == BASIS_FORMAT
-    assert all(is_basis_format(f) for f in PART_FILES["basis"].formats) and not is_basis_format(PRIOR_FORMAT)
-    assert PART_FILES["prior"].formats == (PRIOR_FORMAT,) and PART_FILES["residual"].formats == (RESIDUAL_FORMAT,)
-    assert [p.digest for p in PART_FILES.values()] == ["header", "file", "header", "file"]
-    for part in PARTS.values():
-        assert part.type_fn().__module__ == part.type_module
-    assert part_of_format(None) is None and part_of_format("brdfkit-ipca") is PART_FILES["basis"]
+    assert PARTS["network"].formats[0] == MODEL_FORMAT
+    assert PARTS["basis"].formats[0] == BASIS_FORMAT
+    assert all(is_basis_format(f) for f in PARTS["basis"].formats) and not is_basis_format(PRIOR_FORMAT)
+    assert PARTS["prior"].formats == (PRIOR_FORMAT,) and PARTS["residual"].formats == (RESIDUAL_FORMAT,)
+    assert [p.digest for p in PARTS.values()] == ["header", "file", "header", "file"]
+    for part in PARTS.values():  # the class it names lives where it says (is_loaded looks there)
+        assert part.type().__module__ == part.cls.split(":")[0]
+    assert part_of_format(None) is None and part_of_format("brdfkit-ipca") is PARTS["basis"]
 
 
 def _prior_file(path, basis):
@@ -66,7 +65,7 @@ def _residual_header(path):
     """A file whose header says it is a basis residual (what telling parts apart reads)."""
     from brdfkit.io.tensorfile import write_safetensors
 
-    write_safetensors(path, {"x": np.zeros(1, np.float32)}, {"format": PART_FILES["residual"].formats[0],
+    write_safetensors(path, {"x": np.zeros(1, np.float32)}, {"format": PARTS["residual"].formats[0],
                                                              "version": "1"})
     return path
 
@@ -90,7 +89,13 @@ def test_files_by_their_header_and_objects_by_their_class(tmp_path):
     for name, obj in loaded.items():
         assert part_of(obj) is PARTS[name]
         obj2, digest = PARTS[name].load(tmp_path / f"{name[0]}.safetensors", "cpu")
-        assert type(obj2) is type(obj) and digest == PART_FILES[name].recorded_digest(tmp_path / f"{name[0]}.safetensors")
+        assert type(obj2) is type(obj) and digest == PARTS[name].recorded_digest(tmp_path / f"{name[0]}.safetensors")
+    # a header digest, under its one key, is the one the file's loader checks its content against
+    from brdfkit.io.tensorfile import open_safetensors
+
+    for name, path in (("network", net_path), ("prior", prior_path)):
+        with open_safetensors(str(path)) as f:
+            assert f.metadata()[HEADER_DIGEST_KEY] == loaded[name].digest == PARTS[name].load(path, "cpu")[1]
     assert PARTS["prior"].materials(loaded["prior"]) == {"a", "b"}
     assert part_of(object()) is None and part_of(loaded["basis"].components) is None
 

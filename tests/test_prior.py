@@ -536,7 +536,7 @@ def test_fit_prior_smoke(data, tables):
 
     out = data / "api.safetensors"
     assert fit_prior([data / "data"], out, progress=False, exclude=["nothing-such"], **TINY_FIT) == out
-    from brdfkit.embeddings.parts import file_part
+    from brdfkit.models.parts import file_part
     from brdfkit.training import FITTERS
 
     assert file_part(out).name == FITTERS["prior"].part  # the recipe's part is its file's

@@ -110,7 +110,7 @@ def plan_target(spec=None):
     """
     from brdfkit.atomic import check_input_file
     from brdfkit.basis import DEFAULT_LAMBDA, PcaBasis, load_basis
-    from brdfkit.embeddings.parts import file_part, part_of
+    from brdfkit.models.parts import file_part, part_of
     from brdfkit.methods.choice import resolve_for
     from brdfkit.models.builtin import default_bundle, is_path_spec
     from brdfkit.acquisition.optimal_design import Likelihood

@@ -245,7 +245,7 @@ def _compressor(cfg: BenchConfig, entry: str, what, device) -> tuple:
     components), ``basis-8 (24 numbers, basis8)`` (a method's own basis, whole)."""
     if entry == "embedding":
         from brdfkit.embeddings import encode_with, get_kind, load_decoder, open_embedding
-        from brdfkit.embeddings.parts import get_part
+        from brdfkit.models.parts import get_part
 
         path, kind, size = what
         dec = load_decoder(kind, path, device)
@@ -257,7 +257,7 @@ def _compressor(cfg: BenchConfig, entry: str, what, device) -> tuple:
 
         return f"{kind}-{size} ({stem})", size, compress, trained
     if entry == "basis":  # the ipca basis's K leading components, projected
-        from brdfkit.embeddings.parts import load_part
+        from brdfkit.models.parts import load_part
 
         basis = load_part(cfg.model_file("ipca"), "basis").leading(what)
         return (f"basis-{what} ({3 * what} numbers)", 3 * what, lambda table, name: basis.decode(basis.project(table)),

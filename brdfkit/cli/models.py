@@ -134,7 +134,7 @@ def command(as_json, check):
 def _check(m) -> None:
     """Load each part of bundle ``m``: resolving checks a file's digest against the
     manifest, loading its weights against the digest it records (FormatError if not)."""
-    from brdfkit.embeddings.parts import load_part
+    from brdfkit.models.parts import load_part
 
     for name in m.parts:
         load_part(m.name, name)

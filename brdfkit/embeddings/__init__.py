@@ -23,13 +23,11 @@ their residuals offer, a basis embedding with them at the other sizes, a latent 
 
 Each kind is one :class:`EmbeddingKind` in :data:`KINDS`, registered by name as
 :data:`brdfkit.methods.METHODS` registers the reconstruction methods; each names the part
-of a model that decodes it in the part registry :data:`brdfkit.embeddings.parts.PARTS`.
+of a model that decodes it in the part registry :data:`brdfkit.models.parts.PARTS`.
 Modules:
 
 * :mod:`~brdfkit.embeddings.kind`: :class:`EmbeddingKind`;
 * :mod:`~brdfkit.embeddings.registry`: :data:`KINDS`, one module per kind beside it;
-* :mod:`~brdfkit.embeddings.parts`: the part registry :data:`~brdfkit.embeddings.parts.PARTS`
-  (each part's file and loader), which part a file or a loaded object is, a part loaded;
 * :mod:`~brdfkit.embeddings.decoders`: the decoder ``encode`` uses and the one an
   embedding needs;
 * :mod:`~brdfkit.embeddings.blend`: two embeddings blended (``brdfkit interpolate``).

@@ -80,7 +80,7 @@ def load_decoder(kind: str, path: str | os.PathLike, device=None, label: str = "
 def _file_kind(path: str, kind: str | None) -> str:
     """The kind a model file decodes: ``kind`` when the file is that kind's part, else the
     first kind of that part (by the part its header records)."""
-    from brdfkit.embeddings.parts import file_part
+    from brdfkit.models.parts import file_part
 
     part = file_part(path).name
     if kind is not None:

@@ -21,9 +21,9 @@ class EmbeddingKind:
         for help texts.
     part
         The name of the part of a model that decodes it, in the part registry
-        (:data:`brdfkit.embeddings.parts.PARTS`): a built-in name resolves to that part's
+        (:data:`brdfkit.models.parts.PARTS`): a built-in name resolves to that part's
         file, a file is of this kind when its header says it is that part
-        (:func:`brdfkit.embeddings.parts.file_part`), and the decoder loads as that part
+        (:func:`brdfkit.models.parts.file_part`), and the decoder loads as that part
         loads (:meth:`load`).
     sizes
         ``sizes(obj) -> sizes``: the numbers per material it offers (ascending).
@@ -62,7 +62,7 @@ class EmbeddingKind:
 
     def load(self, path, device=None):
         """``(obj, digest)``: the decoder in the file ``path`` and the digest embeddings name
-        it by, loaded as its part loads (:meth:`brdfkit.embeddings.parts.ModelPart.load`)."""
-        from brdfkit.embeddings.parts import get_part
+        it by, loaded as its part loads (:meth:`brdfkit.models.parts.Part.load`)."""
+        from brdfkit.models.parts import get_part
 
         return get_part(self.part).load(path, device)

@@ -36,6 +36,7 @@ from brdfkit.errors import FormatError
 from brdfkit.geometry import TABLE_SHAPE
 from brdfkit.hypernet.mapping import mapping_record
 from brdfkit.io.tensorfile import check_format, open_safetensors
+from brdfkit.models.parts import HEADER_DIGEST_KEY
 from brdfkit.hypernet import network_storage as storage
 from brdfkit.hypernet.loaded import LoadedNetwork
 
@@ -144,7 +145,7 @@ def save_network(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict |
         "format": MODEL_FORMAT,
         "version": "1",
         "config": net.cfg.to_json(),
-        "fingerprint": net_digest,  # the header's key since format 1
+        HEADER_DIGEST_KEY: net_digest,
         "mapping": json.dumps(mapping or mapping_record(), sort_keys=True),
         "meta": json.dumps(meta or {}, sort_keys=True, default=str),
     }
@@ -327,7 +328,7 @@ def load_network(path: str | os.PathLike, device=None) -> LoadedNetwork:
         raise FormatError(path, f"model config cannot be built ({e})") from None
     net.load_state_dict({k: v.float() for k, v in state.items()})
     digest = weights_digest(net)
-    recorded = md.get("fingerprint")
+    recorded = md.get(HEADER_DIGEST_KEY)
     if recorded != digest:
         raise FormatError(path, f"weights do not match the recorded digest "
                                 f"({str(recorded)[:12]} recorded, {digest[:12]} computed): "

@@ -2,11 +2,11 @@
 
 A model (what ``-m`` takes) is a file or the name of a built-in bundle
 (:mod:`brdfkit.models.builtin`, ``docs/models.md``) of up to four parts (the part registry
-:data:`brdfkit.embeddings.parts.PARTS`): its hypernetwork (``network``), PCA basis
+:data:`brdfkit.models.parts.PARTS`): its hypernetwork (``network``), PCA basis
 (``basis``), learnt prior (``prior``) and basis residual (``residual``). Each method names
 the part it takes (:attr:`brdfkit.methods.Method.part`), so a built-in name names a
 different file for each method (:func:`resolve_for`); a path is the file as it is, its
-part told by the format its header records (:func:`brdfkit.embeddings.parts.file_part`),
+part told by the format its header records (:func:`brdfkit.models.parts.file_part`),
 and a file of a part no method takes (a basis residual) is refused in one line.
 ``--method auto``, ``brdfkit sparse``'s default, picks the method too (:func:`choose`): a
 built-in's learnt prior when it has one (the better sparse reconstruction,
@@ -54,8 +54,8 @@ def method_of_part(part: str, what: str = "") -> str:
         No method takes that part (a basis residual): one line naming ``what`` (a file,
         a loaded model) and the parts the methods take.
     """
-    from brdfkit.embeddings.parts import get_part
     from brdfkit.methods import METHODS
+    from brdfkit.models.parts import get_part
 
     found = next((m.name for m in METHODS.values() if m.part == part), None)
     if found is None:
@@ -88,10 +88,9 @@ def resolve_for(method: str, spec: str | os.PathLike) -> str:
 def _check_file_part(path: str, method: str, part: str) -> None:
     """Refuse a file whose header names another part than ``part``; a file whose header
     names none is left to the method's loader, which says what it is."""
-    from brdfkit.embeddings.parts import get_part
     from brdfkit.errors import FormatError
     from brdfkit.io.tensorfile import open_safetensors
-    from brdfkit.models.parts import part_of_format
+    from brdfkit.models.parts import get_part, part_of_format
 
     if not os.path.isfile(path):
         return
@@ -106,14 +105,14 @@ def _check_file_part(path: str, method: str, part: str) -> None:
 
 def file_method(path: str | os.PathLike) -> str:
     """The method a model file is for: the one that takes its part
-    (:func:`brdfkit.embeddings.parts.file_part`, :func:`method_of_part`).
+    (:func:`brdfkit.models.parts.file_part`, :func:`method_of_part`).
 
     Raises
     ------
     InputError
         A file of a part no method takes (a basis residual).
     """
-    from brdfkit.embeddings.parts import file_part
+    from brdfkit.models.parts import file_part
 
     return method_of_part(file_part(path).name, os.fspath(path))
 

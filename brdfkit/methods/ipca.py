@@ -37,7 +37,7 @@ class IpcaOptions(MethodOptions):
 
 
 def _load(path, device):
-    from brdfkit.embeddings.parts import get_part
+    from brdfkit.models.parts import get_part
     from brdfkit.models.builtin import is_builtin_part, resolve_basis
 
     path = resolve_basis(path)

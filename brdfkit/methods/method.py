@@ -39,7 +39,7 @@ class Method:
         What its model file is, for messages; ``""`` for a method that needs no model.
     part
         The part of a model it takes (a name of the part registry
-        :data:`brdfkit.embeddings.parts.PARTS`): a built-in's name resolves to that
+        :data:`brdfkit.models.parts.PARTS`): a built-in's name resolves to that
         part's file, and a model file given to ``--method auto`` runs the method of its
         part; ``None`` for a method that takes no model.
     options

@@ -2,7 +2,7 @@
 
 A *model* is what ``-m`` takes: a file, or the name of a built-in *bundle*. A bundle is a
 set of *parts* (``network``, ``basis``, ``prior``, ``residual``: what each is as a file,
-and the digest that names it, is :data:`brdfkit.models.parts.PART_FILES`), each one file
+and the digest that names it, is :data:`brdfkit.models.parts.PARTS`), each one file
 of the folder ``brdfkit/models/`` (or ``$BRDFKIT_BUILTIN_MODELS``, for tests and for
 models kept elsewhere), listed in its ``manifest.json`` (``docs/models.md``):
 
@@ -34,9 +34,9 @@ import re
 
 from brdfkit.atomic import atomic_open
 from brdfkit.errors import FormatError, InputError
-from brdfkit.models.parts import PART_FILES
+from brdfkit.models.parts import PARTS
 
-__all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "Part", "Bundle", "Manifest",
+__all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "PartEntry", "Bundle", "Manifest",
            "models_folder", "read_manifest", "installed_bundles", "is_path_spec", "resolve_part", "resolve_network",
            "resolve_prior", "resolve_basis", "resolve_residual", "default_bundle", "find_by_digest", "is_builtin_part",
            "write_manifest"]
@@ -48,14 +48,16 @@ MANIFEST_VERSION = 2
 _READS = (1, 2)
 _NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9._-]*\Z")
 _HEX64 = re.compile(r"[0-9a-f]{64}\Z")
+_V1_DIGEST = "fingerprint"  # version 1's name of a digest: keys fingerprint, basis_fingerprint, prior_fingerprint
 
 
 
 @dataclasses.dataclass(frozen=True)
-class Part:
-    """One part of a bundle: its ``file`` name in the folder, full ``path``, ``digest``
-    (64 hex digits: see the module's table) and its own held-out figures ``renders``
-    (as :attr:`Bundle.renders`; ``{}``: none)."""
+class PartEntry:
+    """The manifest's entry of one part of a bundle: its ``file`` name in the folder, full
+    ``path``, ``digest`` (64 hex digits: see the module's table) and its own held-out
+    figures ``renders`` (as :attr:`Bundle.renders`; ``{}``: none). What the part is, is
+    :data:`brdfkit.models.parts.PARTS`."""
 
     file: str
     path: str
@@ -72,7 +74,7 @@ class Bundle:
     name
         Its name (``-m NAME``).
     parts
-        ``{part: Part}`` (:data:`brdfkit.models.parts.PART_FILES` names the parts).
+        ``{part: PartEntry}`` (:data:`brdfkit.models.parts.PARTS` names the parts).
     latent_dim
         Size of its hypernetwork's latent, or ``None`` without a network.
     materials, materials_list
@@ -103,8 +105,8 @@ class Bundle:
     default: bool = False
     installed: bool = False
 
-    def part(self, name: str) -> Part | None:
-        """Its part ``name`` (:data:`brdfkit.models.parts.PART_FILES`), or ``None``."""
+    def part(self, name: str) -> PartEntry | None:
+        """Its part ``name`` (:data:`brdfkit.models.parts.PARTS`), or ``None``."""
         return self.parts.get(name)
 
     def to_json(self) -> dict:
@@ -136,16 +138,16 @@ def models_folder() -> str:
 
 def _v1_parts(d) -> dict:
     """A version 1 entry's parts, in version 2's shape."""
-    parts = {"network": {"file": d.get("file"), "digest": d.get("fingerprint")}}
+    parts = {"network": {"file": d.get("file"), "digest": d.get(_V1_DIGEST)}}
     for key in ("prior", "basis"):
-        if d.get(key) is not None or d.get(f"{key}_fingerprint") is not None:
-            parts[key] = {"file": d.get(key), "digest": d.get(f"{key}_fingerprint")}
+        if d.get(key) is not None or d.get(f"{key}_{_V1_DIGEST}") is not None:
+            parts[key] = {"file": d.get(key), "digest": d.get(f"{key}_{_V1_DIGEST}")}
     return parts
 
 
-def _part(folder: str, name: str, p, bad) -> Part:
-    if name not in PART_FILES:
-        raise bad(f"unknown part {name!r} (parts: {', '.join(PART_FILES)})")
+def _part(folder: str, name: str, p, bad) -> PartEntry:
+    if name not in PARTS:
+        raise bad(f"unknown part {name!r} (parts: {', '.join(PARTS)})")
     if not isinstance(p, dict):
         raise bad(f"part {name!r} must be an object")
     file, digest = p.get("file"), p.get("digest")
@@ -153,7 +155,7 @@ def _part(folder: str, name: str, p, bad) -> Part:
         raise bad(f"part {name!r}: 'file' must be a .safetensors file name in the folder")
     if not isinstance(digest, str) or not _HEX64.match(digest):
         raise bad(f"part {name!r}: 'digest' must be 64 lowercase hex digits")
-    return Part(file, os.path.join(folder, file), digest, _renders(p.get("renders"), bad))
+    return PartEntry(file, os.path.join(folder, file), digest, _renders(p.get("renders"), bad))
 
 
 def _entry(where: str, folder: str, d, default: str | None, version: int) -> Bundle:
@@ -258,11 +260,11 @@ def is_path_spec(spec: str | os.PathLike) -> bool:
 
 def _checked(m: Bundle, part: str) -> str:
     """The path of an installed bundle's ``part`` file after checking it against the
-    digest the manifest records (by the part's rule, :class:`brdfkit.models.parts.PartFile`)."""
+    digest the manifest records (by the part's rule, :meth:`brdfkit.models.parts.Part.recorded_digest`)."""
     p = m.parts[part]
     if not os.path.isfile(p.path):
         raise InputError(f"built-in model {m.name!r}: its file {p.file} is not installed")
-    recorded = PART_FILES[part].recorded_digest(p.path)
+    recorded = PARTS[part].recorded_digest(p.path)
     if recorded != p.digest:
         raise FormatError(p.path, f"built-in model {m.name!r}: the file's digest is {str(recorded)[:12]}, the "
                                   f"manifest's {p.digest[:12]}: the file is damaged or was replaced")
@@ -279,7 +281,7 @@ def _unknown(spec: str, installed: list[Bundle]) -> InputError:
 
 
 def resolve_part(spec: str | os.PathLike, part: str) -> str:
-    """The file of ``part`` (a name of :data:`brdfkit.models.parts.PART_FILES`) that a
+    """The file of ``part`` (a name of :data:`brdfkit.models.parts.PARTS`) that a
     ``-m`` value names: a path as it is (:func:`is_path_spec`), else that part of the
     installed built-in of that name, its digest checked.
 
@@ -298,7 +300,7 @@ def resolve_part(spec: str | os.PathLike, part: str) -> str:
         if m.name == spec:
             if m.part(part) is None:
                 having = ", ".join(e.name for e in installed if e.part(part)) or "none installed"
-                raise InputError(f"built-in model {m.name!r} ships no {PART_FILES[part].label} (built-ins with one: "
+                raise InputError(f"built-in model {m.name!r} ships no {PARTS[part].label} (built-ins with one: "
                                  f"{having}; `brdfkit models` lists them)")
             return _checked(m, part)
     raise _unknown(os.fspath(spec), installed)

@@ -14,7 +14,7 @@ name         what it trains                                      its file (``Fit
 ============ =================================================== ==========================
 
 Each recipe names the part of a model its file is, in the part registry
-:data:`brdfkit.embeddings.parts.PARTS` (which says how the file loads and what digest
+:data:`brdfkit.models.parts.PARTS` (which says how the file loads and what digest
 names it).
 
 ``ipca`` remains the name of Nielsen et al.'s *reconstruction method*
@@ -45,7 +45,7 @@ class Fitter:
         Registry key (``brdfkit fit --method``) and one line for help texts.
     part
         The part of a model its file is (a name of the part registry
-        :data:`brdfkit.embeddings.parts.PARTS`): what ``-m`` then takes it as, and what a
+        :data:`brdfkit.models.parts.PARTS`): what ``-m`` then takes it as, and what a
         built-in's manifest lists it under.
     fit_fn
         ``fit_fn(data, output, *, exclude, progress, **options) -> output``.
