@@ -123,6 +123,21 @@ def test_a_basis_fitted_twice_is_the_same_bytes(trained, tmp_path):
     assert (tmp_path / "b.safetensors").read_bytes() == basis.read_bytes()
 
 
+@pytest.mark.parametrize("option, words", [("foo", "-O 'foo': expected KEY=VALUE"),
+                                            ("colour=red", "fit --method residual takes -O")])
+def test_the_checkpoint_tool_refuses_bad_options_in_one_line(tmp_path, capsys, option, words):
+    """``tools/residual_checkpoint.py`` reads ``-O`` as ``brdfkit fit`` does: one line, exit 2."""
+    import importlib.util
+
+    path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), "tools", "residual_checkpoint.py")
+    spec = importlib.util.spec_from_file_location("residual_checkpoint", path)
+    tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(tool)
+    code = tool.main([str(tmp_path), "-o", str(tmp_path / "r.safetensors"), "-O", "basis=b.safetensors", "-O", option])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.strip().splitlines()) == 1 and words in err, err
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("opt", ["-O", "--minutes"])
 def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt, capsys):

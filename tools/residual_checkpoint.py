@@ -20,6 +20,7 @@ import sys
 
 
 def main(argv=None) -> int:
+    from brdfkit.cli.common import parse_option
     from brdfkit.errors import BrdfkitError
     from brdfkit.io.folders import read_exclude_list
     from brdfkit.residual.training import write_finished
@@ -32,12 +33,13 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int)
     ap.add_argument("--exclude-list")
     args = ap.parse_args(argv)
-    opts = dict(o.split("=", 1) for o in args.options)
-    for key in ("steps", "seed"):
-        if getattr(args, key) is not None:
-            opts[key] = getattr(args, key)
-    exclude = read_exclude_list(args.exclude_list) if args.exclude_list else ()
     try:
+        # -O read as brdfkit fit reads it, so that the checkpoint's identity is the training's
+        opts = dict(parse_option(o) for o in args.options)
+        for key in ("steps", "seed"):
+            if getattr(args, key) is not None:
+                opts[key] = getattr(args, key)
+        exclude = read_exclude_list(args.exclude_list) if args.exclude_list else ()
         n = write_finished(args.data, args.output, exclude=exclude, **opts)
     except BrdfkitError as e:
         print(f"residual_checkpoint: error: {e}", file=sys.stderr)

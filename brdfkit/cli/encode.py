@@ -24,8 +24,9 @@ def _kind_names() -> list:
 @click.option("-o", "--output-dir", type=click.Path(file_okay=False), default=None,
               help="Folder for the .emb files (created if missing); default: beside each input.")
 @click.option("--refine/--no-refine", default=True, show_default=True,
-              help="Refine a table's latent on screen after the encoder's pass (--no-refine: the "
-                   "paper's single pass).")
+              help="Refine a table's embedding on renders after its first estimate (Gauss-Newton on a basis or "
+                   "residual embedding's coefficients, Adam on a latent; --no-refine: the projection onto the "
+                   "basis, or the paper's single encoder pass).")
 @click.option("--steps", type=click.IntRange(min=0), default=None,
               help="Most refinement iterations per table [default: 8 Gauss-Newton iterations for a residual or "
                    "basis embedding, 40 Adam steps for a latent]; fewer when held-out pixels stop improving. The "
@@ -49,11 +50,12 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
 
     A table (MERL or RGL) is encoded from all its measured cells. With a built-in model
     it becomes, by default, the first kind the model ships a part for that offers --size:
-    a residual embedding (merl80-l40 at 9, 21, 39 numbers) or a basis embedding (--kind
-    basis): the coefficients of the basis's --size/3 leading components, projected and
-    refined by at most --steps Gauss-Newton iterations [default: 8] on renders of the
-    objective scenes (docs/compression.md). With a hypernetwork (--kind hypernet, or a
-    network file) the latent is refined by Adam steps [default: 40] (docs/model.md).
+    a residual embedding (merl-rgl-l40, the default, and merl80-l40: at 9, 21, 39
+    numbers; `brdfkit models`) or a basis embedding (--kind basis): the coefficients of
+    the basis's --size/3 leading components, projected and refined by at most --steps
+    Gauss-Newton iterations [default: 8] on renders of the objective scenes
+    (docs/compression.md). With a hypernetwork (--kind hypernet, or a network file) the
+    latent is refined by Adam steps [default: 40] (docs/model.md).
     Either way an iterate is kept only where held-out pixels agree. A sample set gets the
     hypernetwork encoder's pass. Many files are read one ahead of the encode, with the
     model loaded once (--jobs N: in N processes). A bad input is reported and skipped;
