@@ -90,7 +90,7 @@ def load_input(obj, source: str = ""):
 
 
 def _decoder(kind: str | None, model, device, size: int | None = None):
-    """The :class:`~brdfkit.embeddings.Decoder` ``encode`` uses: ``model`` a name, a path
+    """The :class:`~brdfkit.embeddings.decoders.Decoder` ``encode`` uses: ``model`` a name, a path
     or ``None`` (:func:`~brdfkit.embeddings.choose_decoder`), a decoder as it is, or a
     loaded hypernetwork (for an installed built-in's network, the decoder its name gives
     for ``kind`` and ``size``; else the network itself)."""
@@ -126,7 +126,7 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
     """Encode a material into an embedding (``brdfkit encode``).
 
     A dense table becomes, with no ``kind``, an embedding of the first kind of
-    :data:`brdfkit.embeddings.KINDS` whose part the model ships and whose decoder offers
+    :data:`brdfkit.embeddings.registry.KINDS` whose part the model ships and whose decoder offers
     ``size``: a built-in with a basis residual (``merl80-l40``) makes a *residual
     embedding* at the sizes its residual offers (the basis's coefficients and the weight of
     the hypernetwork's correction, chosen per material; :mod:`brdfkit.residual.encoding`),
@@ -151,11 +151,11 @@ def encode(data, model=None, *, kind: str | None = None, size: int | None = None
         path of a MERL ``.binary``, an RGL ``.bsdf`` or a ``.csv`` sample set.
     model
         A built-in's name, a basis, basis-residual or hypernetwork file, a loaded
-        hypernetwork (:func:`load_model`), a :class:`~brdfkit.embeddings.Decoder`, or
+        hypernetwork (:func:`load_model`), a :class:`~brdfkit.embeddings.decoders.Decoder`, or
         ``None``: the default built-in.
     kind
         ``"basis"``, ``"residual"``, ``"hypernet"`` or ``None`` (module text above;
-        :data:`brdfkit.embeddings.KINDS`).
+        :data:`brdfkit.embeddings.registry.KINDS`).
     size
         Numbers per material (a basis or residual embedding: ``3 K``, default 39, a
         residual the sizes its file offers; a latent: the model's latent size).
@@ -219,7 +219,7 @@ def decode(embedding, model=None, *, source: str = "", device=None) -> np.ndarra
         :class:`Embedding` or the path of an ``.emb`` file.
     model
         The decoder that made it: a built-in's name, a file, a loaded hypernetwork or a
-        :class:`~brdfkit.embeddings.Decoder`; ``None``: the installed built-in part
+        :class:`~brdfkit.embeddings.decoders.Decoder`; ``None``: the installed built-in part
         whose digest the embedding records (another decoder:
         :class:`~brdfkit.errors.ModelMismatchError`).
     source

@@ -42,6 +42,8 @@ class ProgressBar:
     out
         Rich console to draw on (default :func:`console`).
 
+    Notes
+    -----
     Use as a context manager, or :meth:`start` / :meth:`stop`; ``bar(done, total)`` is
     the ``progress(done, total)`` callback the renderers take.
     """

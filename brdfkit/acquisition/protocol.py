@@ -1,6 +1,6 @@
 """The sampling protocol of the benchmarks: which N samples of a material draw ``d`` is.
 
-``brdfkit bench`` (:mod:`brdfkit.bench.worker`) and ``benchmarks/eval_sparse.py`` take
+``brdfkit bench`` (``brdfkit.bench.worker``) and ``benchmarks/eval_sparse.py`` take
 their samples from :meth:`SamplingProtocol.samples`, with the same arguments (the table,
 the material's name, ``N``, the draw index), so that their figures for the same
 material, ``N`` and draw come from the same samples (``docs/bench.md``, "Sampling").

@@ -5,7 +5,7 @@ A *decoder* is a loaded part of a model that turns an embedding's numbers into a
 :func:`decoder_for` finds an embedding's own, by the ``-m`` value given or by the digest
 the embedding records among the installed built-ins
 (:func:`brdfkit.models.builtin.find_by_digest`). Loaded decoders are kept per process.
-Nothing here names a kind: each kind's entry in :data:`brdfkit.embeddings.KINDS` says
+Nothing here names a kind: each kind's entry in :data:`brdfkit.embeddings.registry.KINDS` says
 what its part is and how it loads, encodes and opens.
 """
 

@@ -1,5 +1,5 @@
 """What an embedding kind is: :class:`EmbeddingKind`, one entry of
-:data:`brdfkit.embeddings.KINDS`."""
+:data:`brdfkit.embeddings.registry.KINDS`."""
 
 from __future__ import annotations
 

@@ -281,7 +281,7 @@ def delta_e_2000(pred, ref, mask=None) -> float:
 def delta_e_2000_map(pred, ref) -> np.ndarray:
     """Per-pixel CIEDE2000 of two linear-sRGB images ``(H, W, 3)``: ``(H, W)``, the values
     :func:`delta_e_2000` averages (same display encoding), e.g. for false-colour error
-    images (:mod:`brdfkit.figures.comparison_sheet`)."""
+    images (``brdfkit.figures.comparison_sheet``)."""
     import colour
 
     a, b, _ = _check_pair(pred, ref, None)

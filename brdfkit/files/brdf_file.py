@@ -14,7 +14,7 @@ suffix      type          opened as
 ``.emb``    ``embedding`` what its decoder makes of it: a basis embedding's closed form
                           (:class:`brdfkit.basis.coefficients.BasisBRDF`), a latent's
                           hyponet (:class:`brdfkit.hypernet.neural_brdf.NeuralBRDF`);
-                          :func:`brdfkit.embeddings.open_embedding`
+                          :func:`brdfkit.embeddings.decoders.open_embedding`
 =========== ============= ================================================================
 
 :func:`read_table` gives any of them as a dense table (what ``plot``, ``metrics`` and
@@ -80,16 +80,16 @@ class EmbeddingDecoders:
     ----------
     model_path
         A ``-m`` value (a built-in's name or a decoder file): each embedding takes the part
-        of its kind it names (:func:`brdfkit.embeddings.decoder_for`); ``None``: the
+        of its kind it names (:func:`brdfkit.embeddings.decoders.decoder_for`); ``None``: the
         installed built-in part whose digest the embedding records.
     model
-        An already loaded decoder (a :class:`~brdfkit.embeddings.Decoder`, or a
+        An already loaded decoder (a :class:`~brdfkit.embeddings.decoders.Decoder`, or a
         :class:`~brdfkit.hypernet.loaded.LoadedNetwork` for latents), instead of ``model_path``.
     device
         Torch device of a hypernetwork (default: CUDA if available, else CPU).
     before_load
         Called once, before the first decoder that runs in torch is loaded (a hypernetwork's,
-        :attr:`brdfkit.embeddings.EmbeddingKind.torch`): ``brdfkit render`` and ``metrics``
+        :attr:`brdfkit.embeddings.kind.EmbeddingKind.torch`): ``brdfkit render`` and ``metrics``
         size torch's thread pool there, and import no torch for the other kinds.
     """
 
@@ -100,7 +100,7 @@ class EmbeddingDecoders:
         self._before_load = before_load
 
     def decoder(self, emb, name: str = ""):
-        """The :class:`~brdfkit.embeddings.Decoder` of embedding ``emb`` (checked)."""
+        """The :class:`~brdfkit.embeddings.decoders.Decoder` of embedding ``emb`` (checked)."""
         from brdfkit.embeddings import Decoder, decoder_for, get_kind
 
         given = self._given

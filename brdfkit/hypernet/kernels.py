@@ -34,12 +34,12 @@ from brdfkit.hypernet.network import IN_FEATURES, OUT_FEATURES
 __all__ = ["DECODE_BLOCK", "ENCODE_CHUNK", "encoder_layers", "encode_mean", "decoder_layers",
            "hyponet_weights", "fold_hyponet", "hyponet_buffers", "hyponet_block", "hyponet_mapped"]
 
-# Cells per hyponet block in the dense decode: (60 x block) float32 activations (1 MB)
-# stay in a core's L2 cache (docs/model.md has the measurements).
 DECODE_BLOCK = 4096
-# Samples per encoder chunk: bounds memory, and (chunk x 128) float32 activations (2 MB)
-# near the L2 cache halve the CPU time of a dense encode against 65,536 (docs/model.md).
+"""Cells per hyponet block in the dense decode: (60 x block) float32 activations (1 MB)
+stay in a core's L2 cache (``docs/model.md`` has the measurements)."""
 ENCODE_CHUNK = 4096
+"""Samples per encoder chunk: bounds memory, and (chunk x 128) float32 activations (2 MB)
+near the L2 cache halve the CPU time of a dense encode against 65,536 (``docs/model.md``)."""
 
 
 def encoder_layers(model):

@@ -5,7 +5,7 @@ coefficients of a PCA basis (``"basis"``, :mod:`brdfkit.basis`), the same correc
 hypernetwork residual (``"residual"``, :mod:`brdfkit.residual`) or a hypernetwork's latent
 (``"hypernet"``, Gokbudak et al. 2024). With the part of a model that made it (its
 *decoder*) it decodes into the material's BRDF; the kinds and their decoders are
-registered by name in :data:`brdfkit.embeddings.KINDS`. On disk it is a small,
+registered by name in :data:`brdfkit.embeddings.registry.KINDS`. On disk it is a small,
 self-describing JSON document (``docs/formats.md``, "Embedding files")::
 
     {"format": "brdfkit-embedding", "version": 2, "kind": "basis", "size": 39,
@@ -60,7 +60,7 @@ class Embedding:
         basis's ``K`` leading components, component-major (``size = 3 K``); for a latent,
         the hypernetwork's latent vector.
     kind
-        ``"basis"``, ``"residual"`` or ``"hypernet"`` (:data:`brdfkit.embeddings.KINDS`).
+        ``"basis"``, ``"residual"`` or ``"hypernet"`` (:data:`brdfkit.embeddings.registry.KINDS`).
     decoder
         SHA-256 hex digest of the decoder: the bytes of the basis or residual file, or the
         weights of the hypernetwork (:func:`brdfkit.hypernet.network_file.weights_digest`).

@@ -58,7 +58,7 @@ class Method:
         (latent dimension, components) and the training materials' names of a model, for
         the compression benchmark.
     bench_option
-        The ``brdfkit bench`` option (and :class:`brdfkit.bench.BenchConfig` field) that
+        The ``brdfkit bench`` option (and ``brdfkit.bench.BenchConfig`` field) that
         names its model file; ``None`` when it needs no model, or takes it by
         ``--model-file METHOD=FILE`` only (a new method needs no new bench field).
     """

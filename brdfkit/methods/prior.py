@@ -5,7 +5,7 @@ the built-in models (``docs/notes/generalisation.md`` says why it is not the pap
 This module registers the method (:data:`METHOD`); the learnt prior itself lives in
 :mod:`brdfkit.prior`:
 
-- :mod:`brdfkit.prior.model`: the network and the closed-form fit
+- ``brdfkit.prior.model``: the network and the closed-form fit
   (:class:`~brdfkit.prior.model.PriorModel`, :func:`~brdfkit.prior.model.solve`);
 - :mod:`brdfkit.prior.fit`: its training, ``brdfkit fit --method prior``;
 - :mod:`brdfkit.prior.training_data`: what the training fits on (the basis, the cells,

@@ -22,7 +22,7 @@ digest names a file is :meth:`Part.recorded_digest`, the rule's one implementati
 :class:`Part` is also how the part loads, the class of what it loads and where that
 records its training materials. Everything else refers to it: the built-in manifest
 (:mod:`brdfkit.models.builtin`: the parts of a bundle and their digests), the embedding
-kinds (:data:`brdfkit.embeddings.KINDS`: each names the part that decodes it), the
+kinds (:data:`brdfkit.embeddings.registry.KINDS`: each names the part that decodes it), the
 reconstruction methods (:data:`brdfkit.methods.METHODS`: ``Method.part``, so a file of
 another part is refused in one line) and ``brdfkit fit``'s recipes
 (:data:`brdfkit.training.FITTERS`).

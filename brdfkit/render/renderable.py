@@ -25,7 +25,7 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.geometry import TABLE_SHAPE
 
-__all__ = ["TableBRDF", "TableStackBRDF", "DecodedBRDF", "stack_tables", "coords_of_dirs"]
+__all__ = ["RowLookups", "TableBRDF", "TableStackBRDF", "DecodedBRDF", "stack_tables", "coords_of_dirs"]
 
 
 def coords_of_dirs(wi, wo):
@@ -40,7 +40,7 @@ def coords_of_dirs(wi, wo):
     return out, (wi[2] > 0) & (wo[2] > 0)
 
 
-class _Lookups:
+class RowLookups:
     """``eval_pairs`` and ``eval_dirs`` of a BRDF whose values are lookups of its ``rows``
     (:class:`~brdfkit.render.lookup.TableRows`): a table's, or a decoder's."""
 
@@ -57,7 +57,7 @@ class _Lookups:
         return out.T
 
 
-class TableBRDF(_Lookups):
+class TableBRDF(RowLookups):
     """A dense ``(90, 90, 180, 3)`` BRDF table as a renderable BRDF.
 
     Parameters
@@ -89,7 +89,7 @@ class TableBRDF(_Lookups):
         return self._rows
 
 
-class DecodedBRDF(_Lookups):
+class DecodedBRDF(RowLookups):
     """A renderable BRDF that a decoder makes on the MERL grid (a basis or residual
     embedding): evaluated, for a render, only at the cells its pairs reach.
 

@@ -22,7 +22,7 @@ names it).
 --method ipca`` still trains a basis, with a note.
 
 May import: every package of a model part; nothing imports it but the front
-(:mod:`brdfkit.api`, :mod:`brdfkit.cli`).
+(:mod:`brdfkit.api`, ``brdfkit.cli``).
 """
 
 from __future__ import annotations

@@ -39,7 +39,7 @@ import numpy as np
 
 from brdfkit.errors import BrdfkitError
 
-__all__ = ["find_chromium", "screenshot", "INSTALL_ADVICE", "BrowserError", "FLAGS"]
+__all__ = ["find_chromium", "screenshot", "Browser", "INSTALL_ADVICE", "BrowserError", "FLAGS"]
 
 INSTALL_ADVICE = ("headless Chromium is needed: apt-get install chromium (Debian, Ubuntu), or set "
                   "$BRDFKIT_CHROMIUM to a Chromium or Chrome executable")

@@ -67,10 +67,10 @@ def steps_for_budget(seconds_left: float, probe, save, restore, *, done: int = 0
 
 
 def fit_steps_from_budget(run, probe, dist, show) -> None:
-    """Turn a training run's ``budget`` (:class:`brdfkit.hypernet.training.loop._Run`) into
-    its ``steps``: :func:`steps_for_budget` on ``probe()`` (one step of the run), the run's
-    weights, optimiser and counters saved and restored around it; every process takes
-    rank 0's count."""
+    """Turn a training run's ``budget`` (the private ``_Run`` of
+    :mod:`brdfkit.hypernet.training.loop`) into its ``steps``: :func:`steps_for_budget` on
+    ``probe()`` (one step of the run), the run's weights, optimiser and counters saved and
+    restored around it; every process takes rank 0's count."""
     import copy
 
     import torch
