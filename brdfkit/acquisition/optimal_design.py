@@ -84,16 +84,15 @@ def _gaussian_draws(basis, draws: int, seed: int) -> np.ndarray:
     return np.vstack([np.zeros((1, basis.n_components)), z]) * basis.sigma.astype(np.float64)[None, :]
 
 
-def _rho(tab: np.ndarray, w: np.ndarray, c: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _rho(tab: np.ndarray, w: np.ndarray, c: np.ndarray, mapping) -> tuple[np.ndarray, np.ndarray]:
     """BRDF ``rho`` (1/sr, ``>= 0``) and ``d rho / d mapped`` of coefficients ``c (D, K)``
     at rows ``tab (M, K + 2)`` (``[reference, mean, components]``) with cosine weights
-    ``w (M,)``: ``(D, M)`` each (the inverse mapping of :meth:`PcaBasis.decode`)."""
-    from brdfkit.basis.mapping import EPS, from_mapped
-
+    ``w (M,)``: ``(D, M)`` each (the inverse of the basis's ``mapping``, as
+    :meth:`PcaBasis.decode` takes it)."""
     ref, mean, comp = tab[:, 0], tab[:, 1], tab[:, 2:]
     m = mean[None, :] + c @ comp.T
-    rho = from_mapped(m, w, ref, floor=0.0)  # the criterion's published form
-    return rho, np.where(rho > 0, np.exp(m) * (ref + EPS)[None, :] / w, 0.0)
+    rho = mapping.from_mapped(m, w, ref, floor=0.0)  # the criterion's published form
+    return rho, np.where(rho > 0, mapping.rho_slope(rho, w, ref), 0.0)
 
 
 def _array(x, dtype):
@@ -185,7 +184,7 @@ def _render_metric(basis, draws, seed, scenes, device) -> np.ndarray:
         to_pixels = [scipy.sparse.csr_matrix((rw[:, ch], (pix, np.arange(pix.size))), shape=(sc.pixels, pix.size))
                      for ch in range(3)]
         for c in cs:
-            rho, drho = _rho(tab, w, c[None, :])
+            rho, drho = _rho(tab, w, c[None, :], basis.mapping)
             slope = display_slope(np.stack([m @ rho[0] for m in to_pixels], -1))
             dcomp = drho[0][:, None] * comp  # d rho / d z at each pair
             for ch in range(3):
@@ -199,7 +198,6 @@ def cell_precision(basis, cells: np.ndarray, likelihood: Likelihood, draws: int 
     """The precision ``q (P,)`` of a sample at each of ``cells`` (flat MERL indices the
     basis covers), averaged over the Gaussian draws (module docstring)."""
     from brdfkit.geometry import cell_angles, cos_theta_i
-    from brdfkit.basis import EPS
 
     q = np.full(len(cells), 1.0 / likelihood.lam)
     if likelihood.weight is None:
@@ -212,8 +210,8 @@ def cell_precision(basis, cells: np.ndarray, likelihood: Likelihood, draws: int 
     acc = np.zeros(len(cells))
     cs = _gaussian_draws(basis, draws, seed)
     for c in cs:
-        rho, _ = _rho(tab, w, c[None, :])
-        g = cos * (rho[0] + EPS / w) / (1 + rho[0] * cos)
+        rho, _ = _rho(tab, w, c[None, :], basis.mapping)
+        g = cos * basis.mapping.rho_slope(rho[0], w, tab[:, 0]) / (1 + rho[0] * cos)
         acc += g ** p
     return q + acc / len(cs) / likelihood.s2
 

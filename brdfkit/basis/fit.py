@@ -18,7 +18,7 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight
 from brdfkit.basis.basis_file import save_basis
-from brdfkit.basis.mapping import to_mapped
+from brdfkit.basis.mapping import NIELSEN, LogMapping
 from brdfkit.basis.model import DEFAULT_COMPONENTS, PcaBasis
 
 __all__ = ["fit_basis", "fit_basis_files"]
@@ -36,7 +36,8 @@ def _load_table(item) -> tuple[np.ndarray, str | None]:
 
 
 def fit_basis(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
-             names: Sequence[str] | None = None, chunk: int = 1 << 16, w_floor: float = 0.0) -> PcaBasis:
+             names: Sequence[str] | None = None, chunk: int = 1 << 16, w_floor: float = 0.0,
+             mapping: LogMapping = NIELSEN) -> PcaBasis:
     """Fit the PCA basis to training tables.
 
     Parameters
@@ -55,6 +56,9 @@ def fit_basis(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
     w_floor
         Lower bound of the mapping's cosine weight (:class:`PcaBasis`; 0, Nielsen's,
         by default), in ``[0, 1)``.
+    mapping
+        The log mapping (:class:`~brdfkit.basis.mapping.LogMapping`; Nielsen's by
+        default).
 
     Returns
     -------
@@ -101,7 +105,7 @@ def fit_basis(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
         else:
             reference[s:s + chunk] = np.median(block, axis=0)
         ref = reference[s:s + chunk]
-        to_mapped(block, np.float32(1.0), ref, out=block)  # block holds weighted values already
+        mapping.to_mapped(block, np.float32(1.0), ref, out=block)  # block holds weighted values already
         np.nan_to_num(block, copy=False, nan=0.0)  # a missing value counts as the reference
         mean[s:s + chunk] = block.mean(axis=0, dtype=np.float64)
         block -= mean[s:s + chunk]
@@ -121,19 +125,22 @@ def fit_basis(tables_or_paths: Iterable, n_components: int = DEFAULT_COMPONENTS,
         components[:, s:s + chunk] = proj @ data[:, s:s + chunk]
     del data
     sigma = np.sqrt(evals / max(rows - 1, 1)).astype(np.float32)
-    return PcaBasis(cand.astype(np.int64), reference, mean, components, sigma, materials, w_floor)
+    return PcaBasis(cand.astype(np.int64), reference, mean, components, sigma, materials, w_floor, mapping)
 
 
 def fit_basis_files(data, output, *, exclude=(), progress: bool = True,
                    components: int = DEFAULT_COMPONENTS, half: bool = False, phi_stride: int = 1,
-                   w_floor: float = 0.0, int8: bool = False) -> str:
+                   w_floor: float = 0.0, int8: bool = False, eps_share: float = 0.0, deflate: bool = False) -> str:
     """Fit a basis to the MERL tables ``data`` (files or folders, as
     :func:`brdfkit.io.folders.collect_materials` reads them) less the materials named in
     ``exclude``, and save it to ``output`` (``brdfkit fit --method basis``; ``half`` and
     ``phi_stride``, ``-O half=true -O phi_stride=2``, store it as the package ships
     bases, :func:`~.basis_file.basis_tensors`; ``w_floor``, ``-O w_floor=0.05``, bounds the mapping's
     weight, :class:`PcaBasis`; ``int8``, ``-O int8=true`` with ``half``, stores the components in
-    int8, :func:`~.storage.quantize`). Returns ``output``."""
+    int8, :func:`~.storage.quantize`; ``deflate``, ``-O deflate=true`` with ``int8``, deflates them
+    losslessly, :func:`~.storage.pack_rows`; ``eps_share``, ``-O eps_share=0.1``, the mapping's
+    resolution share at grazing cells, :class:`~brdfkit.basis.mapping.LogMapping`).
+    Returns ``output``."""
     import sys
 
     from brdfkit.io.folders import collect_materials
@@ -141,12 +148,18 @@ def fit_basis_files(data, output, *, exclude=(), progress: bool = True,
     paths, names, _, unknown = collect_materials(data, exclude)
     if unknown:
         print(f"brdfkit: warning: excluded name(s) matched no input: {', '.join(unknown)}", file=sys.stderr)
-    if not isinstance(half, bool) or phi_stride not in (1, 2) or isinstance(w_floor, bool) \
-            or not isinstance(w_floor, (int, float)) or not 0 <= w_floor < 1 or not isinstance(int8, bool) \
-            or (int8 and not half):
-        raise InputError(f"--method basis: options half (true/false), phi_stride (1 or 2), w_floor (in [0, 1)) and "
-                         f"int8 (true/false, with half=true), got {half!r}, {phi_stride!r}, {w_floor!r} and {int8!r}")
-    save_basis(output, fit_basis(paths, components, names=names, w_floor=w_floor), half=half, phi_stride=phi_stride,
-              int8=int8)
+    if not isinstance(half, bool) or phi_stride not in (1, 2) or not _fraction(w_floor) or not isinstance(int8, bool) \
+            or (int8 and not half) or not _fraction(eps_share) or not isinstance(deflate, bool) or (deflate and not int8):
+        raise InputError(f"--method basis: options half (true/false), phi_stride (1 or 2), w_floor (in [0, 1)), "
+                         f"int8 (true/false, with half=true), deflate (true/false, with int8=true) and eps_share "
+                         f"(in [0, 1)), got {half!r}, {phi_stride!r}, {w_floor!r}, {int8!r}, {deflate!r} and "
+                         f"{eps_share!r}")
+    basis = fit_basis(paths, components, names=names, w_floor=w_floor, mapping=LogMapping(float(eps_share)))
+    save_basis(output, basis, half=half, phi_stride=phi_stride, int8=int8, deflate=deflate)
     print(f"wrote PCA basis ({components} components, {len(names)} materials) to {output}", file=sys.stderr)
     return output
+
+
+def _fraction(x) -> bool:
+    """Whether ``x`` is a number in ``[0, 1)`` (not a bool)."""
+    return not isinstance(x, bool) and isinstance(x, (int, float)) and 0 <= x < 1

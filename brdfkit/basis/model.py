@@ -64,7 +64,7 @@ import dataclasses
 
 import numpy as np
 
-from brdfkit.basis.mapping import EPS, FLOOR, from_mapped, to_mapped
+from brdfkit.basis.mapping import EPS, FLOOR, NIELSEN, LogMapping
 from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE, N_CELLS, grid_cosine_weight, io_from_half_diff
 from brdfkit.geometry.trilinear import lookup_trilinear
@@ -103,6 +103,9 @@ class PcaBasis:
         Names of the training materials.
     w_floor
         Lower bound of the mapping's cosine weight (module docstring; 0: Nielsen's).
+    mapping
+        The log mapping (:class:`~brdfkit.basis.mapping.LogMapping`: Nielsen's, or one
+        that resolves the grazing cells).
     """
 
     cells: np.ndarray
@@ -112,20 +115,22 @@ class PcaBasis:
     sigma: np.ndarray
     materials: list = dataclasses.field(default_factory=list)
     w_floor: float = 0.0
+    mapping: LogMapping = NIELSEN
     _dense: np.ndarray | None = dataclasses.field(default=None, repr=False, compare=False)
     _rows: object = dataclasses.field(default=None, repr=False, compare=False)
     _compact: object = dataclasses.field(default=None, repr=False, compare=False)
 
     @classmethod
     def deferred(cls, cells, reference, mean, rows, sigma, materials=(), w_floor: float = 0.0,
-                 compact=None) -> "PcaBasis":
+                 compact=None, mapping: LogMapping = NIELSEN) -> "PcaBasis":
         """A basis whose components are restored from compact storage when first used:
         ``rows(k)`` gives the ``k`` leading ones, float32 ``(k, P)`` (:meth:`leading`
         restores only those; :attr:`components` all of them). ``compact``: the
         :class:`~brdfkit.basis.storage.Compact` storage they come from, when there is one:
         :meth:`decode`, :meth:`decode_at` and :meth:`project` then work on it without
         restoring the components at every cell."""
-        basis = cls(cells, reference, mean, None, sigma, list(materials), w_floor, _rows=rows, _compact=compact)
+        basis = cls(cells, reference, mean, None, sigma, list(materials), w_floor, mapping, _rows=rows,
+                    _compact=compact)
         del basis.__dict__["components"]  # restored by __getattr__ on first use
         return basis
 
@@ -152,9 +157,12 @@ class PcaBasis:
         if k not in made:
             if len(made) >= 4:
                 made.clear()
-            if "components" not in self.__dict__ and self._rows is not None:
+            # A compact basis's leading bases are compact too, whether or not its full
+            # components were restored by an earlier use: the arithmetic, and so the
+            # bytes, of a table's encode must not depend on what the process did before.
+            if self._rows is not None:
                 made[k] = PcaBasis.deferred(self.cells, self.reference, self.mean, self._rows, self.sigma[:k],
-                                            self.materials, self.w_floor, self._compact)
+                                            self.materials, self.w_floor, self._compact, self.mapping)
             else:
                 made[k] = dataclasses.replace(self, components=self.components[:k], sigma=self.sigma[:k], _dense=None,
                                               _rows=None)
@@ -218,7 +226,7 @@ class PcaBasis:
             raise InputError(f"{samples.source or 'samples'}: {what}")
         at, w = at[use], w[use]
         ref, mean, comp = at[:, 0], at[:, 1], at[:, 2:]
-        b = to_mapped(np.asarray(samples.rgb, np.float64)[use], w[:, None], ref[:, None]) - mean[:, None]
+        b = self.mapping.to_mapped(np.asarray(samples.rgb, np.float64)[use], w[:, None], ref[:, None]) - mean[:, None]
         a = comp * self.sigma.astype(np.float64)[None, :]
         lhs = a.T @ a + lam * np.eye(self.n_components)
         z = np.linalg.lstsq(lhs, a.T @ b, rcond=None)[0] if lam == 0 else np.linalg.solve(lhs, a.T @ b)
@@ -234,7 +242,7 @@ class PcaBasis:
         """The mapped values ``mean + U c`` at the basis's cells of coefficients
         ``(K, 3)``: float32 ``(P, 3)`` (from compact storage without restoring the
         components, when the basis has it)."""
-        if "components" not in self.__dict__ and self._compact is not None:
+        if self._compact is not None:
             return self._compact.mapped(coefficients)
         return self.mean[:, None] + self.components.T @ np.asarray(coefficients, np.float32)
 
@@ -248,12 +256,12 @@ class PcaBasis:
         pos, at = pos[hit], cells[hit]
         mapped = self.mean[pos, None] + self.rows_at(pos).T @ np.asarray(coefficients, np.float32)
         ref = self.reference[pos, None].astype(np.float64)
-        return at, from_mapped(mapped, self.cell_weight(at)[:, None], ref, floor)
+        return at, self.mapping.from_mapped(mapped, self.cell_weight(at)[:, None], ref, floor)
 
     def rows_at(self, positions) -> np.ndarray:
         """The components at some of the basis's cells (positions among :attr:`cells`),
         float32 ``(K, n)``."""
-        if "components" not in self.__dict__ and self._compact is not None:
+        if self._compact is not None:
             return self._compact.rows_at(self.n_components, positions)
         return self.components[:, positions]
 
@@ -262,15 +270,15 @@ class PcaBasis:
         included): float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis cells
         (:func:`brdfkit.basis.mapping.from_mapped`)."""
         out = np.full((N_CELLS, 3), np.nan)
-        out[self.cells] = from_mapped(mapped, self.cell_weight()[:, None], self.reference[:, None].astype(np.float64),
-                                      floor)
+        out[self.cells] = self.mapping.from_mapped(mapped, self.cell_weight()[:, None],
+                                                   self.reference[:, None].astype(np.float64), floor)
         return out.reshape(GRID_SHAPE + (3,))
 
     def mapped_table(self, table: np.ndarray) -> np.ndarray:
         """A dense table's mapped values at the basis's cells, ``(P, 3)`` float64, NaN
         where the table is unmeasured (:func:`brdfkit.basis.mapping.to_mapped`)."""
         flat = np.asarray(table, np.float64).reshape(N_CELLS, 3)[self.cells]
-        return to_mapped(flat, self.cell_weight()[:, None], self.reference[:, None].astype(np.float64))
+        return self.mapping.to_mapped(flat, self.cell_weight()[:, None], self.reference[:, None].astype(np.float64))
 
     def reconstruct(self, samples, lam: float | None = None, floor: float = FLOOR) -> np.ndarray:
         """Dense table fitted to a sample set (see :meth:`coefficients`, :meth:`decode`)."""
@@ -281,7 +289,7 @@ class PcaBasis:
         measures (no regulariser): the best this basis can do for that material."""
         mapped = self.mapped_table(table)
         ok = np.isfinite(mapped).all(axis=1)
-        if "components" not in self.__dict__ and self._compact is not None:
+        if self._compact is not None:
             mapped -= self.mean[:, None]
             ata, atb = self._compact.normal_equations(self.n_components, mapped, None if ok.all() else ok)
             return np.linalg.solve(ata, atb)

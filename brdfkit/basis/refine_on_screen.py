@@ -41,7 +41,7 @@ import functools
 
 import numpy as np
 
-from brdfkit.basis.mapping import EPS, FLOOR, lower_bound
+from brdfkit.basis.mapping import EPS, FLOOR, Z_MAX
 from brdfkit.geometry import N_CELLS
 
 __all__ = ["DEFAULT_TRUST", "DEFAULT_ITERATIONS", "CellMap", "Screens", "cell_map", "prepare_screens",
@@ -71,7 +71,7 @@ class CellMap:
     mean, comp, weight, reference, bound
         The basis at those cells, float32 (the basis's own precision): the mean ``(U,)``,
         the components ``(K, U)``, the mapping's weight and reference, and the decode's
-        lower bound (:func:`brdfkit.basis.mapping.lower_bound`), ``(U,)`` each.
+        lower bound (:meth:`brdfkit.basis.mapping.LogMapping.lower_bound`), ``(U,)`` each.
     pixels
         int64 ``(n,)`` the image pixels the map's rows are, ascending.
     starts
@@ -84,6 +84,9 @@ class CellMap:
     extra
         ``None``, or ``extra(c) -> (U, 3)``: mapped values added to the basis's (a
         residual's correction, :mod:`brdfkit.residual.encoding`).
+    resolution, scale
+        The mapping's ``e`` and ``s`` at those cells (:meth:`~brdfkit.basis.mapping.LogMapping.resolution`),
+        float32 ``(U,)``; ``None`` for Nielsen's mapping (``eps`` and 1).
     """
 
     cells: np.ndarray
@@ -97,6 +100,8 @@ class CellMap:
     cols: np.ndarray
     vals: np.ndarray
     extra: object = None
+    resolution: np.ndarray | None = None
+    scale: np.ndarray | None = None
 
     def mapped(self, c, ch: int | None = None, extra=None):
         """Mapped values ``(U,)`` of channel ``ch`` of coefficients ``c`` ``(K, 3)``, or
@@ -114,15 +119,18 @@ class CellMap:
         """``(rho, d rho / d x')`` of float32 mapped values ``(U,)`` or ``(3, U)``: the
         decode (:func:`brdfkit.basis.mapping.from_mapped`, its default floor) and its
         derivative (0 where the floor holds), float32."""
+        if self.scale is not None:
+            mapped = np.minimum(mapped / self.scale, np.float32(Z_MAX))
         x = np.expm1(mapped)
         e = x + 1.0
-        x *= self.reference + EPS
+        res = EPS if self.resolution is None else self.resolution
+        x *= self.reference + res
         x += self.reference
         above = x > self.bound
         rho = np.where(above, x, self.bound)
         rho /= self.weight
-        e *= self.reference + EPS
-        e /= self.weight
+        e *= self.reference + res
+        e /= self.weight if self.scale is None else self.weight * self.scale
         e[~above] = 0.0
         return rho, e
 
@@ -205,8 +213,11 @@ def cell_map(basis, screen, pairs, factor=None, basis_row=None) -> CellMap:
     row = basis_row[used]
     weight, reference = basis.cell_weight(used), basis.reference[row].astype(np.float64)
     f32 = lambda a: np.ascontiguousarray(a, np.float32)  # noqa: E731
+    mapping = basis.mapping
+    res, scale = (None, None) if not mapping.share else (f32(a) for a in mapping.resolution(reference))
     return CellMap(used, f32(basis.mean[row]), f32(basis.rows_at(row)), f32(weight), f32(reference),
-                   f32(lower_bound(reference, weight, FLOOR)), pixels, starts, pos[cells], vals)
+                   f32(mapping.lower_bound(reference, weight, FLOOR)), pixels, starts, pos[cells], vals,
+                   resolution=res, scale=scale)
 
 
 @dataclasses.dataclass

@@ -51,7 +51,7 @@ from brdfkit.errors import InputError
 from brdfkit.geometry import GRID_SHAPE
 from brdfkit.geometry.trilinear import lookup_trilinear
 from brdfkit.basis import PcaBasis
-from brdfkit.basis.mapping import EPS, to_mapped
+from brdfkit.basis.mapping import EPS, NIELSEN
 
 __all__ = ["PriorConfig", "PriorModel", "PriorWeights", "prior_net", "solve", "sample_rows", "N_REF",
            "SPREAD_LOG_BOUND"]
@@ -219,7 +219,7 @@ class PriorWeights:
         return raw[:, :3] * sigma[:, None], sd, z, raw
 
 
-def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str = "metric"):
+def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str = "metric", mapping=NIELSEN):
     """The closed-form fit of the module docstring, batched: on torch tensors (the
     training) or NumPy arrays (a reconstruction), the same operations in the same dtypes.
 
@@ -239,6 +239,9 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
         ``(B, 3, K)`` prior mean, or ``None`` (zero).
     weight
         ``"metric"`` (``g^2``) or ``"energy"`` (``g``), as :class:`PriorConfig` says.
+    mapping
+        The basis's log mapping (:class:`~brdfkit.basis.mapping.LogMapping`; ``g``
+        linearises through its slope ``d rho / d x'``).
 
     Returns
     -------
@@ -250,15 +253,17 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
         import torch as xp
 
         f64, f32 = (lambda a: a.double()), (lambda a: a.float())
-        b = to_mapped(rho, w[..., None], tab[..., 0:1]) - tab[..., 1:2]
+        b = mapping.to_mapped(rho, w[..., None], tab[..., 0:1]) - tab[..., 1:2]
     else:
         xp = np
         f64, f32 = (lambda a: np.asarray(a, np.float64)), (lambda a: np.asarray(a, np.float32))
         # in the inputs' own dtype, as the torch branch maps (to_mapped's NumPy default is float64)
-        b = to_mapped(rho, w[..., None], tab[..., 0:1], out=np.empty(np.shape(rho), np.asarray(rho).dtype))
+        b = mapping.to_mapped(rho, w[..., None], tab[..., 0:1], out=np.empty(np.shape(rho), np.asarray(rho).dtype))
         b -= tab[..., 1:2]
     comp = f64(tab[..., 2:])
-    g = cos[..., None] * (rho + EPS / w[..., None]) / (1 + rho * cos[..., None])
+    # the metric's slope through the mapping's: d ln(1 + rho cos) / d x'
+    slope = rho + EPS / w[..., None] if not mapping.share else mapping.rho_slope(rho, w[..., None], tab[..., 0:1])
+    g = cos[..., None] * slope / (1 + rho * cos[..., None])
     q = f64((g if weight == "energy" else g ** 2) / s2 + 1.0 / lam)
     sig = f64(sigma) if sigma.ndim == 3 else f64(sigma)[:, None]  # (B, 3 or 1, K)
     lhs = xp.einsum("bck,bcj,bcl->blkj", comp, comp, q)
@@ -326,11 +331,12 @@ class PriorModel:
         T = lambda a: np.ascontiguousarray(a, np.float32)[None]  # noqa: E731
         sig = T(self.basis.sigma)
         rows = (T(tab), T(rho), T(w), T(cos))
-        c, b = solve(*rows, sig, self.cfg.s2, self.cfg.lam, weight=self.cfg.weight)
+        c, b = solve(*rows, sig, self.cfg.s2, self.cfg.lam, weight=self.cfg.weight, mapping=self.basis.mapping)
         if use_prior:
             resid = b - np.einsum("bck,blk->bcl", rows[0][..., 2:], c)
             mu, sd, _, _ = PriorWeights.of(self.net, self.cfg)(T(hd), resid, c, sig, int(ok.sum()))
-            c, _ = solve(*rows, sd, self.cfg.s2, self.cfg.lam, mu=mu, weight=self.cfg.weight)
+            c, _ = solve(*rows, sd, self.cfg.s2, self.cfg.lam, mu=mu, weight=self.cfg.weight,
+                         mapping=self.basis.mapping)
         if not np.isfinite(c).all():
             raise InputError(f"{samples.source or 'samples'}: the fit did not give finite coefficients")
         return c[0].astype(np.float64).T

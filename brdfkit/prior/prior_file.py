@@ -48,12 +48,12 @@ def _content_digest(net_digest: str, basis_digest: str, config: str) -> str:
 
 
 def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False, phi_stride: int = 1,
-               int8: bool = False, basis_file: str | None = None) -> str:
+               int8: bool = False, deflate: bool = False, basis_file: str | None = None) -> str:
     """Write ``model`` atomically; returns its digest.
 
     Parameters
     ----------
-    half, phi_stride, int8
+    half, phi_stride, int8, deflate
         How the basis is stored (:func:`~brdfkit.basis.basis_file.basis_tensors`); the network stays float32
         (it is 60k numbers).
     basis_file
@@ -68,8 +68,8 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             "config": json.dumps(model.cfg.record(), sort_keys=True)}
     meta.update({k: json.dumps(v) for k, v in model.meta.items()})
     if basis_file is None:
-        btens, bmeta = basis_tensors(model.basis, half=half, phi_stride=phi_stride, int8=int8, prefix="basis.",
-                                     where=path)
+        btens, bmeta = basis_tensors(model.basis, half=half, phi_stride=phi_stride, int8=int8, deflate=deflate,
+                                     prefix="basis.", where=path)
         tensors = {**net, **btens}
         meta.update(bmeta)
         basis_digest = _digest(btens)
@@ -78,13 +78,13 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
             raise InputError(f"basis_file {basis_file!r}: give a bare file name (it lives beside the model)")
         where = os.path.join(os.path.dirname(os.path.abspath(path)), basis_file)
         if not os.path.exists(where):
-            save_basis(where, model.basis, half=half, phi_stride=phi_stride, int8=int8)
+            save_basis(where, model.basis, half=half, phi_stride=phi_stride, int8=int8, deflate=deflate)
         else:  # shared with another model: it must be this model's basis as stored
             other = load_basis(where)
             same = (np.array_equal(other.cells, model.basis.cells)
                     and np.array_equal(other.components, model.basis.components))
             if not same and (half or phi_stride != 1):  # the file holds it rounded: compare as stored
-                how = dict(half=half, phi_stride=phi_stride, int8=int8)
+                how = dict(half=half, phi_stride=phi_stride, int8=int8, deflate=deflate)
                 same = _digest(basis_tensors(other, **how)[0]) == _digest(basis_tensors(model.basis, **how)[0])
             if not same:
                 raise InputError(f"{where}: holds another basis than this model's")

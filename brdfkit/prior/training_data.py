@@ -59,7 +59,7 @@ def main_basis(basis, components, paths, names, say):
         full = load_basis(bpath)
         components = full.n_components
     else:
-        storage = {"half": False, "phi_stride": 1, "int8": False}
+        storage = {"half": False, "phi_stride": 1, "int8": False, "deflate": False}
         say(f"fitting the {components}-component basis to {len(paths)} materials")
         full = fit_basis(paths, components, names=names)  # Nielsen's mapping (w_floor 0): give -O basis= for another
     return full, storage, components
@@ -110,7 +110,7 @@ def fold_bases(paths, fold_of, folds, full, cells, components, storage, say):
     for f in range(folds):
         say(f"fitting the basis of fold {f + 1} of {folds}")
         keep = [p for p, fo in zip(paths, fold_of) if fo != f]
-        fb = _as_stored(fit_basis(keep, components, w_floor=full.w_floor), storage)
+        fb = _as_stored(fit_basis(keep, components, w_floor=full.w_floor, mapping=full.mapping), storage)
         tab = fb.lookup_table()[cells].astype(np.float64)
         if not np.isfinite(tab).all():
             tab = np.nan_to_num(tab)  # a cell only the held-out fold measured: the reference
@@ -146,6 +146,8 @@ class TrainingTensors:
         int64 ``(M,)`` each material's fold.
     members
         Per fold, int64 indices of its materials.
+    mapping
+        The basis's log mapping (:class:`~brdfkit.basis.mapping.LogMapping`).
     """
 
     values: object
@@ -157,6 +159,7 @@ class TrainingTensors:
     fold_sig: object
     mat_fold: object
     members: list
+    mapping: object = None
 
     @property
     def n_materials(self) -> int:
@@ -188,4 +191,4 @@ def to_device(values, cells, full, fold_of, folds, tabs, sigmas, dev) -> Trainin
     cdf = (cdf / cdf[-1]).to(dev)
     mat_fold = torch.from_numpy(fold_of).to(dev)
     members = [torch.from_numpy(np.flatnonzero(fold_of == f)).to(dev) for f in range(folds)]
-    return TrainingTensors(values, hd_all, w_all, cos_all, cdf, fold_tab, fold_sig, mat_fold, members)
+    return TrainingTensors(values, hd_all, w_all, cos_all, cdf, fold_tab, fold_sig, mat_fold, members, full.mapping)

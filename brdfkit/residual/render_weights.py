@@ -72,7 +72,6 @@ def render_weights(basis, table, maps) -> np.ndarray:
 
     ``maps``: :func:`scene_maps` of the basis.
     """
-    from brdfkit.basis.mapping import EPS
     from brdfkit.render.display import display_slope
 
     g = np.zeros((basis.cells.size, 3))
@@ -82,8 +81,7 @@ def render_weights(basis, table, maps) -> np.ndarray:
         for ch in range(3):
             np.add.at(g[:, ch], at, squares[ch] @ d2[:, ch])
     rho = np.asarray(table, np.float64).reshape(-1, 3)[basis.cells]
-    w = basis.cell_weight()[:, None]
-    g *= ((np.clip(rho, 0.0, None) * w + EPS) / w) ** 2
+    g *= basis.mapping.rho_slope(rho, basis.cell_weight()[:, None], basis.reference[:, None]) ** 2
     g[~np.isfinite(rho)] = 0.0
     mean = g.mean(axis=0)
     return (g / np.where(mean > 0, mean, 1.0)).astype(np.float32)

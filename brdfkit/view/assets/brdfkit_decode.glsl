@@ -68,8 +68,19 @@ float brdfkit_cell(ivec3 cell) {
   float w = max(u - v, 0.0) * max(u + v, 0.0);
   // Every cell of a basis has w > 0 (in float64): where float32 rounds it to 0, the floor.
   w = max(max(w, brdfkit_mapping[BRDFKIT_MAPPING_W_FLOOR]), 1e-30);
-  float x = (exp(mapped) - 1.0) * (ref + eps) + ref;
-  float bound = min(brdfkit_mapping[BRDFKIT_MAPPING_FLOOR] * ref, brdfkit_mapping[BRDFKIT_MAPPING_CAP])
-              + brdfkit_mapping[BRDFKIT_MAPPING_TINY] * min(w / brdfkit_mapping[BRDFKIT_MAPPING_W_TINY], 1.0);
+  float share = brdfkit_mapping[BRDFKIT_MAPPING_SHARE];
+  float near = min(w / brdfkit_mapping[BRDFKIT_MAPPING_W_TINY], 1.0);
+  if (share == 0.0) {  // Nielsen's mapping
+    float x = (exp(mapped) - 1.0) * (ref + eps) + ref;
+    float bound = min(brdfkit_mapping[BRDFKIT_MAPPING_FLOOR] * ref, brdfkit_mapping[BRDFKIT_MAPPING_CAP])
+                + brdfkit_mapping[BRDFKIT_MAPPING_TINY] * near;
+    return max(x, bound) / w;
+  }
+  // A mapping that resolves grazing cells (brdfkit.basis.mapping.LogMapping).
+  float e = clamp(ref * max(ref / eps, share), brdfkit_mapping[BRDFKIT_MAPPING_E_MIN], eps);
+  float s = (ref + e) / (ref + eps);
+  float x = (exp(min(mapped / s, brdfkit_mapping[BRDFKIT_MAPPING_Z_MAX])) - 1.0) * (ref + e) + ref;
+  float bound = min(brdfkit_mapping[BRDFKIT_MAPPING_SHARE_FLOOR] * ref, brdfkit_mapping[BRDFKIT_MAPPING_CAP])
+              + brdfkit_mapping[BRDFKIT_MAPPING_E_MIN] * near;
   return max(x, bound) / w;
 }
