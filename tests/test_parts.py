@@ -24,9 +24,9 @@ def test_every_registry_refers_to_the_parts():
     assert all(p.name == n for n, p in PARTS.items())
     assert {k: v.part for k, v in KINDS.items()} == {"residual": "residual", "basis": "basis", "hypernet": "network"}
     assert {k: v.part for k, v in METHODS.items()} == {"hypernet": "network", "ipca": "basis", "nbrdf": None,
-                                                       "prior": "prior"}
+                                                       "prior": "prior", "residual": "residual"}
     assert {k: v.part for k, v in FITTERS.items()} == {"hypernet": "network", "basis": "basis", "prior": "prior",
-                                                       "residual": "residual"}
+                                                       "residual": "residual", "correction": "residual"}
     with pytest.raises(InputError, match="unknown model part 'weights'; parts: network, basis, prior, residual"):
         get_part("weights")
 
@@ -100,9 +100,10 @@ def test_files_by_their_header_and_objects_by_their_class(tmp_path):
     assert part_of(object()) is None and part_of(loaded["basis"].components) is None
 
 
-def test_sparse_refuses_a_file_of_a_part_no_method_takes(tmp_path, capsys):
-    """A basis residual given to `sparse -m` is refused in one line (it used to reach the
-    hypernetwork's loader), as is a file of another part than --method takes."""
+def test_sparse_refuses_a_file_of_another_part_than_its_method_takes(tmp_path, capsys):
+    """A basis residual given to `sparse -m` goes to the method that takes residuals, whose
+    loader refuses a file that lies in one line; a file of another part than --method
+    takes is refused in one line."""
     from brdfkit.acquisition.sampling import draw_samples
     from brdfkit.io.samples import write_samples
     from brdfkit.testing.examples import lambertian_table, tiny_basis_file
@@ -111,8 +112,7 @@ def test_sparse_refuses_a_file_of_a_part_no_method_takes(tmp_path, capsys):
     residual = _residual_header(tmp_path / "r.safetensors")
     basis = tiny_basis_file(tmp_path / "b.safetensors")
     for args, message in (
-            ([residual], "r.safetensors: a basis residual file, which no sparse-reconstruction method takes "
-                         "(hypernet a hypernetwork, ipca a PCA basis, prior a learnt prior;"),
+            ([residual], "r.safetensors"),
             ([basis, "--method", "hypernet"], "b.safetensors: a PCA basis file, not the hypernetwork --method "
                                               "hypernet takes"),
             ([residual, "--method", "prior"], "r.safetensors: a basis residual file, not the learnt prior --method "

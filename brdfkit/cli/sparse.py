@@ -5,7 +5,7 @@ from __future__ import annotations
 import click
 
 from brdfkit.methods import METHODS
-from brdfkit.cli.common import model_option, require_model
+from brdfkit.cli.common import model_option, parse_option, require_model
 
 _AUTO = "auto"  # brdfkit.methods.choice.AUTO, not imported here: --help stays light
 
@@ -22,25 +22,31 @@ def _model_from_env() -> bool:
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
               help="Output dense MERL .binary table.")
 @click.option("--emb", "emb_path", type=click.Path(dir_okay=False), default=None,
-              help="Also write the embedding (.emb) (hypernet only).")
+              help="Also write the embedding (.emb): a residual embedding (method residual) or a latent "
+                   "(method hypernet).")
 @click.option("--method", type=click.Choice([_AUTO] + sorted(METHODS)), default=_AUTO, show_default=True,
-              help="Reconstruction method; auto: a built-in's learnt prior when it has one, else its "
-                   "hypernetwork; a model file's own method.")
+              help="Reconstruction method; auto: a built-in's learnt prior with the correction its residual "
+                   "holds for it (residual), else its learnt prior, else its hypernetwork; a model file's own "
+                   "method.")
+@click.option("-O", "--option", "method_options", multiple=True, metavar="KEY=VALUE",
+              help="A method's option: residual's correction=auto|on|off and prior=FILE; prior's use_prior=false; "
+                   "ipca's lam=0.1.")
 @click.option("--refine/--no-refine", default=None,
               help="Method hypernet: refine the encoded material on its samples, early-stopped on "
                    "held-out ones (docs/notes/generalisation.md) [default: refine].")
 @click.option("--refine-target", type=click.Choice(["latent", "weights"]), default=None,
               help="What --refine fits: the latent only, or then the hyponet's weights too "
                    "[default: weights; latent with --emb, since refined weights have no embedding].")
-def command(samples, model_path, output, emb_path, method, refine, refine_target):
+def command(samples, model_path, output, emb_path, method, method_options, refine, refine_target):
     """Reconstruct a dense MERL table from the sample set SAMPLES (.csv or .brdf).
 
     Make a sample set with `brdfkit sample`, or bring an instrument's: a pbrt-v2 /
     Cornell .brdf file, or a CSV with angles in radians or degrees and RGB or one
     column per wavelength (converted to linear sRGB); the formats are in docs/formats.md.
     Cells below the horizon are written as -1. Without -m the default built-in model is
-    used (`brdfkit models`): its learnt prior (method prior) when it has one, else its
-    hypernetwork. The message line says which method and model ran.
+    used (`brdfkit models`): its learnt prior's fit decoded through the basis plus the
+    hypernetwork correction trained on such fits (method residual), kept where held-out
+    samples say it helps. The message line says which method and model ran.
     """
     from brdfkit.api import sparse
     from brdfkit.atomic import refuse_overwrite_of_inputs
@@ -57,7 +63,7 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     choice = choose(method, model_path)
     method, model_path = choice.method, choice.path
     _refuse_options(method, emb_path, refine, refine_target)
-    given = {}
+    given = dict(parse_option(o) for o in method_options)
     if refine is not None or refine_target:
         if refine is False and refine_target:
             raise InputError("--refine-target needs --refine, not --no-refine")
@@ -69,7 +75,7 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
             given["refine_target"] = refine_target
     if method == "hypernet" and emb_path and "refine_target" not in given:
         given["refine_target"] = "latent"  # the embedding written must decode to the table written
-    if model_path is None and method in ("hypernet", "prior"):
+    if model_path is None and method in ("hypernet", "prior", "residual"):
         require_model(None)  # nothing installed: the "no model given" error, with its advice
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
@@ -85,6 +91,8 @@ def command(samples, model_path, output, emb_path, method, refine, refine_target
     how = ""
     if method == "hypernet":
         how = f"; refined on the samples ({options.refine_target})" if options.refine else "; not refined"
+    if method == "residual":
+        how = "; the correction kept" if emb.options.get("correction") else "; the basis alone (held-out choice)"
     if data.note:
         click.echo(f"{samples}: {data.note}", err=True)
     click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used}){how}", err=True)
@@ -95,9 +103,9 @@ def _refuse_options(method: str, emb_path, refine, refine_target) -> None:
     (before any work: nbrdf's takes minutes)."""
     from brdfkit.errors import InputError
 
-    if emb_path and method != "hypernet":
+    if emb_path and method not in ("hypernet", "residual"):
         what = "the learnt prior (method prior)" if method == "prior" else f"method {method!r}"
-        raise InputError(f"--emb: {what} makes no embedding; --method hypernet does")
+        raise InputError(f"--emb: {what} makes no embedding; --method residual and hypernet do")
     if (refine is not None or refine_target) and method != "hypernet":
         raise InputError(f"--refine/--refine-target apply to --method hypernet; method {method!r} "
                          f"{'already fits its samples in closed form' if method == 'prior' else 'has no encoder'}")

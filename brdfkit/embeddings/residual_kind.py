@@ -23,10 +23,10 @@ def _encode(residual, digest, table, *, source, size, steps, refine, max_seconds
 
 
 def _open(residual, digest, emb, name, device):
-    from brdfkit.residual.brdf import ResidualBRDF, check_embedding
+    from brdfkit.residual.brdf import ResidualBRDF, check_embedding, sample_count
 
     c, gain = check_embedding(emb, residual, digest, name)
-    return ResidualBRDF(residual, c, gain, name=name or "embedding", device=device)
+    return ResidualBRDF(residual, c, gain, name=name or "embedding", device=device, count=sample_count(emb))
 
 
 KIND = EmbeddingKind("residual", "coefficients of a PCA basis plus a hypernetwork's correction, chosen per material "

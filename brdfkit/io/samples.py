@@ -75,6 +75,12 @@ class SampleSet:
         pd[pd >= np.pi] = 0.0  # -1e-17 % pi rounds to pi itself
         return hd_vectors(self.theta_h, self.theta_d, pd)
 
+    def subset(self, keep) -> "SampleSet":
+        """The samples where the boolean mask ``keep (N,)`` is true (or at the indices
+        ``keep``), in order, with the same source and note."""
+        return SampleSet(self.theta_h[keep], self.theta_d[keep], self.phi_d[keep], self.rgb[keep], self.source,
+                         self.note)
+
     def measured(self) -> np.ndarray:
         """``(N,)`` bool: the samples with a value. A NaN value is an unmeasured sample
         (MERL's convention), not a black one, and the fits leave it out."""

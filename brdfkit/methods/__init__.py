@@ -14,6 +14,9 @@ name         method                                                      ``-m`` 
 ``prior``    the basis fitted around a learnt prior: a set encoder of the   learnt-prior
              samples predicts the coefficients' prior mean (:mod:`.prior`;   file
              :mod:`brdfkit.prior`)
+``residual`` the learnt prior's fit plus the basis's hypernetwork          basis residual
+             correction trained on such fits, kept where held-out samples   file
+             say it helps (:mod:`.residual`; :mod:`brdfkit.prior.corrected`)
 ============ =========================================================== ==============
 
 Every method has the same interface (:class:`~.method.Method`), so ``brdfkit sparse``,
@@ -45,7 +48,7 @@ of a ``-m`` value (:mod:`.choice`) reads the built-ins' manifest.
 from __future__ import annotations
 
 from brdfkit.errors import InputError
-from brdfkit.methods import hypernet, ipca, nbrdf, prior
+from brdfkit.methods import hypernet, ipca, nbrdf, prior, residual
 from brdfkit.methods.method import Method, MethodOptions
 
 __all__ = ["Method", "MethodOptions", "METHODS", "get_method", "reconstruct"]
@@ -55,6 +58,7 @@ METHODS: dict[str, Method] = {
     "ipca": ipca.METHOD,
     "nbrdf": nbrdf.METHOD,
     "prior": prior.METHOD,
+    "residual": residual.METHOD,
 }
 """The reconstruction methods by name."""
 

@@ -9,8 +9,10 @@ different file for each method (:func:`resolve_for`); a path is the file as it i
 part told by the format its header records (:func:`brdfkit.models.parts.file_part`),
 and a file of a part no method takes (a basis residual) is refused in one line.
 ``--method auto``, ``brdfkit sparse``'s default, picks the method too (:func:`choose`): a
-built-in's learnt prior when it has one (the better sparse reconstruction,
-``docs/notes/generalisation.md``), else its hypernetwork; a file by its part.
+built-in's learnt prior with the correction its residual holds for it when it has both
+(``residual``, ``docs/reconstruct.md``), else its learnt prior (the better sparse
+reconstruction than the paper's decoder, ``docs/notes/generalisation.md``), else its
+hypernetwork; a file by its part.
 """
 
 from __future__ import annotations
@@ -117,6 +119,18 @@ def file_method(path: str | os.PathLike) -> str:
     return method_of_part(file_part(path).name, os.fspath(path))
 
 
+def _auto_method(entry) -> str:
+    """``--method auto``'s method for a built-in bundle: ``residual`` when its residual
+    holds a network trained on its learnt prior's sparse fits, else ``prior`` when it has
+    a learnt prior, else ``hypernet``."""
+    if entry.part("prior") and entry.part("residual"):
+        from brdfkit.residual.residual_file import serves_sparse
+
+        if serves_sparse(entry.parts["residual"].path):
+            return "residual"
+    return "prior" if entry.part("prior") else "hypernet"
+
+
 def _default_entry():
     from brdfkit.models.builtin import default_bundle
 
@@ -145,7 +159,7 @@ def choose(method: str, spec: str | os.PathLike | None) -> Choice:
         if entry is None:
             return Choice("hypernet" if method == AUTO else method, None, None)
         if method == AUTO:
-            method = "prior" if entry.part("prior") else "hypernet"
+            method = _auto_method(entry)
         return Choice(method, resolve_for(method, entry.name), f"{entry.name}, the default built-in")
     from brdfkit.models.builtin import installed_bundles, is_path_spec, resolve_network
 
@@ -157,5 +171,5 @@ def choose(method: str, spec: str | os.PathLike | None) -> Choice:
     entry = next((m for m in installed_bundles() if m.name == spec), None)
     if entry is None:
         resolve_network(spec)  # raises the unknown-name error listing the installed ones
-    method = "prior" if entry.part("prior") else "hypernet"
+    method = _auto_method(entry)
     return Choice(method, resolve_for(method, spec), spec)

@@ -38,7 +38,6 @@ import numpy as np
 
 from brdfkit.errors import InputError
 from brdfkit.basis import DEFAULT_COMPONENTS
-from brdfkit.basis.mapping import from_mapped, to_mapped
 from brdfkit.prior.model import PriorConfig, PriorModel, prior_net, solve
 from brdfkit.prior.training_data import TrainingTensors, fold_bases, main_basis, to_device, training_cells
 
@@ -126,40 +125,82 @@ def _mixup(d: TrainingTensors, folds_b, c_pos, q_pos, crho, qrho, mixup, g, dev)
     for rho, pos in ((crho, c_pos), (qrho, q_pos)):
         w = w_all[pos][..., None]
         other = values[partner[:, None], pos]
-        # A blend in the mapped space (any reference cancels: 0 here).
-        rho.copy_(from_mapped(t * to_mapped(rho, w, 0.0) + (1 - t) * to_mapped(other, w, 0.0), w, 0.0, floor=0.0))
+        # A blend in the mapped space, where the reference cancels (the fold's, as the
+        # mapping's resolution depends on it).
+        ref = d.fold_tab[folds_b[:, None], pos][..., 0:1]
+        m = d.mapping
+        rho.copy_(m.from_mapped(t * m.to_mapped(rho, w, ref) + (1 - t) * m.to_mapped(other, w, ref), w, ref, floor=0.0))
 
 
-def _batch_loss(d: TrainingTensors, net, cfg: PriorConfig, recipe: _Recipe, g, dev):
-    """One batch drawn with ``g`` (context size, materials, context and query cells,
-    mixup) and its losses: ``(loss, reg)``, the metric's mean square at the query cells
-    after the two closed-form fits (the basis's prior, then the network's), and the
-    penalty on the head's output and the latent."""
+@dataclasses.dataclass
+class Batch:
+    """One training batch (:func:`draw_batch`): ``B`` materials (their indices ``mats``
+    and folds ``folds``), each with ``n`` context samples at cell positions ``c_pos``
+    (values ``crho``) and query cells ``q_pos`` (values ``qrho``), mixed already."""
+
+    n: int
+    mats: object
+    folds: object
+    c_pos: object
+    q_pos: object
+    crho: object
+    qrho: object
+
+
+def draw_batch(d: TrainingTensors, g, dev, batch_materials: int, query_size: int, context_min: int, context_max: int,
+               mixup: float) -> Batch:
+    """A batch drawn with ``g``: one context size ``N`` log-uniform in ``[context_min,
+    context_max]``, the materials, their context cells (uniform Rusinkiewicz angles) and
+    query cells (uniform over the cells), mixed with probability ``mixup``
+    (:func:`_mixup`). The learnt prior's training and its correction's
+    (:mod:`brdfkit.prior.correction`) draw alike."""
     import torch
 
     P = d.n_cells
-    values, w_all, cos_all = d.values, d.weight, d.cos
-    batch_materials, query_size = recipe.batch_materials, recipe.query_size
     rand = functools.partial(_rand, g, dev)
-    n_ctx = int(round(math.exp(math.log(recipe.context_min)
-                               + float(rand()) * math.log(recipe.context_max / recipe.context_min))))
+    n_ctx = int(round(math.exp(math.log(context_min) + float(rand()) * math.log(context_max / context_min))))
     mats = torch.randint(0, d.n_materials, (batch_materials,), generator=g, device=dev)
     folds_b = d.mat_fold[mats]
     c_pos = torch.searchsorted(d.cdf, rand(batch_materials, n_ctx, dtype=torch.float64)).clamp_(max=P - 1)
     q_pos = torch.randint(0, P, (batch_materials, query_size), generator=g, device=dev)
-    crho, qrho = values[mats[:, None], c_pos], values[mats[:, None], q_pos]
-    if recipe.mixup > 0:
-        _mixup(d, folds_b, c_pos, q_pos, crho, qrho, recipe.mixup, g, dev)
-    ctab, qtab, sig = d.fold_tab[folds_b[:, None], c_pos], d.fold_tab[folds_b[:, None], q_pos], d.fold_sig[folds_b]
-    rows = (ctab, crho, w_all[c_pos], cos_all[c_pos])
-    c, b = solve(*rows, sig, cfg.s2, cfg.lam, weight=cfg.weight)
+    crho, qrho = d.values[mats[:, None], c_pos], d.values[mats[:, None], q_pos]
+    if mixup > 0:
+        _mixup(d, folds_b, c_pos, q_pos, crho, qrho, mixup, g, dev)
+    return Batch(n_ctx, mats, folds_b, c_pos, q_pos, crho, qrho)
+
+
+def context_fit(d: TrainingTensors, net, cfg: PriorConfig, bt: Batch):
+    """The coefficients ``(B, 3, K)`` of the batch's contexts, fitted as a reconstruction
+    fits them (:meth:`PriorModel.coefficients`: the plain closed form, the network's
+    prior, the closed form again), each material with its fold's basis; also the
+    network's raw output and latent (what the prior's training penalises)."""
+    import torch
+
+    ctab, sig = d.fold_tab[bt.folds[:, None], bt.c_pos], d.fold_sig[bt.folds]
+    rows = (ctab, bt.crho, d.weight[bt.c_pos], d.cos[bt.c_pos])
+    c, b = solve(*rows, sig, cfg.s2, cfg.lam, weight=cfg.weight, mapping=d.mapping)
     with torch.no_grad():
         resid = b - torch.einsum("bck,blk->bcl", ctab[..., 2:], c)
-    mu, sd, z, dc = net(d.hd[c_pos], resid, c, sig, n_ctx)
-    c, _ = solve(*rows, sd, cfg.s2, cfg.lam, mu=mu, weight=cfg.weight)
+    mu, sd, z, dc = net(d.hd[bt.c_pos], resid, c, sig, bt.n)
+    c, _ = solve(*rows, sd, cfg.s2, cfg.lam, mu=mu, weight=cfg.weight, mapping=d.mapping)
+    return c, dc, z
+
+
+def _batch_loss(d: TrainingTensors, net, cfg: PriorConfig, recipe: _Recipe, g, dev):
+    """One batch drawn with ``g`` (:func:`draw_batch`) and its losses: ``(loss, reg)``,
+    the metric's mean square at the query cells after the two closed-form fits (the
+    basis's prior, then the network's), and the penalty on the head's output and the
+    latent."""
+    import torch
+
+    bt = draw_batch(d, g, dev, recipe.batch_materials, recipe.query_size, recipe.context_min, recipe.context_max,
+                    recipe.mixup)
+    c, dc, z = context_fit(d, net, cfg, bt)
+    q_pos, qrho, w_all, cos_all = bt.q_pos, bt.qrho, d.weight, d.cos
+    qtab = d.fold_tab[bt.folds[:, None], q_pos]
     ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
     mapped = mean + torch.einsum("bqk,blk->bql", comp, c)
-    x = from_mapped(mapped.clamp(max=30), w_all[q_pos][..., None], ref, floor=0.0)
+    x = d.mapping.from_mapped(mapped.clamp(max=30), w_all[q_pos][..., None], ref, floor=0.0)
     qc = cos_all[q_pos][..., None]
     loss = ((torch.log1p(x * qc) - torch.log1p(qrho * qc)) ** 2).mean()
     reg = recipe.lambda_w * (dc ** 2).mean() + recipe.lambda_z * (z ** 2).mean()

@@ -7,13 +7,14 @@ import numpy as np
 from brdfkit.errors import ModelMismatchError
 from brdfkit.render.renderable import DecodedBRDF
 
-__all__ = ["ResidualBRDF", "check_embedding"]
+__all__ = ["ResidualBRDF", "check_embedding", "sample_count"]
 
 
 def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndarray, dict]:
     """The ``(K, 3)`` coefficients and correction gains ``{member: gain}``
     (:func:`brdfkit.residual.model.gains`) of a residual embedding, checked against the
-    residual (its file's digest, its basis's, the sizes it decodes, its members).
+    residual (its file's digest, its basis's, the sizes it decodes, its members); the
+    sample count of a sparse fit is :func:`sample_count`.
 
     Raises
     ------
@@ -46,22 +47,31 @@ def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndar
     return emb.values.reshape(k, 3), g
 
 
+def sample_count(emb) -> float | None:
+    """The sample count a sparse reconstruction's embedding records (``options``
+    ``samples``: its correction network takes it), or ``None``."""
+    count = (emb.options or {}).get("samples")
+    return None if count is None else float(count)
+
+
 class ResidualBRDF(DecodedBRDF):
     """A residual embedding as a renderable BRDF (``eval_pairs``, ``eval_dirs``,
     ``to_table``): decoded in NumPy, for a render only at the cells its pairs reach
     (:class:`~brdfkit.render.renderable.DecodedBRDF`: the hyponet at those cells alone)."""
 
-    def __init__(self, residual, coefficients, gain=1.0, name: str = "embedding", device=None):
+    def __init__(self, residual, coefficients, gain=1.0, name: str = "embedding", device=None,
+                 count: float | None = None):
         self.residual = residual
         self.coefficients = np.asarray(coefficients, np.float32)
         self.gain = gain if isinstance(gain, dict) else float(gain)  # member 0's, or {member: gain}
         self.name = name
+        self.count = count  # a sparse fit's sample count (its correction network takes it)
 
     def to_table(self) -> np.ndarray:
         """float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis's cells."""
-        return self.residual.decode(self.coefficients, self.gain)
+        return self.residual.decode(self.coefficients, self.gain, self.count)
 
     def at_cells(self, cells) -> tuple:
         """``(cells, values)``: the decode at those of the flat MERL ``cells`` the basis
         covers, float64 ``(n, 3)``."""
-        return self.residual.decode_at(self.coefficients, cells, self.gain)
+        return self.residual.decode_at(self.coefficients, cells, self.gain, self.count)

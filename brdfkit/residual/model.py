@@ -68,6 +68,16 @@ def _cell_hd(cells_key: bytes, n: int) -> np.ndarray:
     return np.ascontiguousarray(grid_hd()[cells])
 
 
+def _count(cfg, count):
+    """The count a network takes (``None`` for one that takes none); one that takes it
+    and is given none is refused."""
+    if not cfg.count:
+        return None
+    if count is None:
+        raise InputError("this residual network decodes a sparse fit: the embedding names no sample count")
+    return count
+
+
 def _as_gains(gain) -> dict:
     """``{member: gain}`` of a gain (member 0's) or of such a dict, the zero gains left out."""
     g = gain if isinstance(gain, dict) else {0: float(gain)}
@@ -110,8 +120,10 @@ class BasisResidual:
 
     def sizes(self) -> tuple:
         """Sizes ``encode`` offers (ascending): ``3 K`` for each ``K`` it decodes, less those
-        its file does not offer."""
-        served = tuple(3 * k for k in self.components)
+        its file does not offer and those of a network of sparse fits (which takes a sample
+        count, :mod:`brdfkit.prior.correction`)."""
+        sparse = {k for cfg, _ in self.nets if cfg.count for k in range(cfg.k_min, cfg.k_max + 1)}
+        served = tuple(3 * k for k in self.components if k not in sparse)
         return tuple(s for s in served if s in self.offered) if self.offered else served
 
     def check_k(self, k: int) -> None:
@@ -141,44 +153,48 @@ class BasisResidual:
         cells = np.ascontiguousarray(self.basis.cells, dtype=np.int64)
         return _cell_hd(cells.tobytes(), cells.size)
 
-    def correction(self, coefficients: np.ndarray, hd: np.ndarray | None = None, member=0) -> np.ndarray:
+    def correction(self, coefficients: np.ndarray, hd: np.ndarray | None = None, member=0,
+                   count: int | None = None) -> np.ndarray:
         """The mapped correction ``(N, 3)`` float32 of coefficients ``(K, 3)`` at HD
         vectors ``hd (N, 6)`` (default: every cell of the basis), of one member or of the
-        gains ``{member: gain}`` (:func:`gains`) summed."""
+        gains ``{member: gain}`` (:func:`gains`) summed; ``count``: the sample count of a
+        sparse fit, for a network that takes it (:class:`ResidualConfig`)."""
         if isinstance(member, dict):
-            parts = [np.float32(g) * self.correction(coefficients, hd, m) for m, g in member.items()]
+            parts = [np.float32(g) * self.correction(coefficients, hd, m, count) for m, g in member.items()]
             return sum(parts[1:], parts[0]) if parts else None
         c = np.asarray(coefficients, np.float64)
         _, cfg, state = self.net_for(c.shape[0], member)
-        z = net_input((c / self.basis.sigma[:c.shape[0], None].astype(np.float64)).T, cfg.k_max)
+        z = net_input((c / self.basis.sigma[:c.shape[0], None].astype(np.float64)).T, cfg.k_max,
+                      _count(cfg, count))
         hd = self.cell_hd() if hd is None else hd
         weights = hyponet_weights(state, cfg, z)
         return np.stack([evaluate(weights, hd, ch) for ch in range(3)], axis=1)
 
-    def correction_channel(self, coefficients: np.ndarray, hd: np.ndarray, member: int = 0) -> np.ndarray:
+    def correction_channel(self, coefficients: np.ndarray, hd: np.ndarray, member: int = 0,
+                           count: int | None = None) -> np.ndarray:
         """One channel's mapped correction ``(N,)`` float32 of its coefficients ``(K,)`` at
         HD vectors ``hd (N, 6)`` (each channel's correction depends on its own
         coefficients alone)."""
         c = np.asarray(coefficients, np.float64)
         _, cfg, state = self.net_for(c.shape[0], member)
-        z = net_input((c / self.basis.sigma[:c.shape[0]].astype(np.float64))[None], cfg.k_max)
+        z = net_input((c / self.basis.sigma[:c.shape[0]].astype(np.float64))[None], cfg.k_max, _count(cfg, count))
         return evaluate(hyponet_weights(state, cfg, z), hd, 0)
 
-    def mapped(self, coefficients: np.ndarray, gain=1.0) -> np.ndarray:
+    def mapped(self, coefficients: np.ndarray, gain=1.0, count: int | None = None) -> np.ndarray:
         """Mapped values ``(P, 3)`` at the basis's cells, the mean included; ``gain`` member
-        0's gain, or the gains ``{member: gain}`` (:func:`gains`)."""
+        0's gain, or the gains ``{member: gain}`` (:func:`gains`); ``count`` the sample
+        count of a sparse fit (a network that takes it)."""
         c = np.asarray(coefficients, np.float32)
         out = self.basis.leading(c.shape[0]).mapped_values(c)
         g = _as_gains(gain)
         if g:
-            out = out + self.correction(c, None, g)
+            out = out + self.correction(c, None, g, count)
         return out
 
-    def decode_at(self, coefficients: np.ndarray, cells, gain=1.0) -> tuple:
+    def decode_at(self, coefficients: np.ndarray, cells, gain=1.0, count: int | None = None) -> tuple:
         """:meth:`decode` at some cells only: ``(at, values)``, the flat MERL ``cells``
         the basis covers (ascending) and the BRDF there, float64 ``(n, 3)``, 1/sr (the
         hyponet evaluated at those cells alone)."""
-        from brdfkit.basis.mapping import from_mapped
         from brdfkit.geometry import grid_hd
 
         c = np.asarray(coefficients, np.float32)
@@ -190,11 +206,11 @@ class BasisResidual:
         mapped = part.mean[pos, None] + part.rows_at(pos).T @ c
         g = _as_gains(gain)
         if g:
-            mapped = mapped + self.correction(c, np.ascontiguousarray(grid_hd()[at]), g)
+            mapped = mapped + self.correction(c, np.ascontiguousarray(grid_hd()[at]), g, count)
         ref = part.reference[pos, None].astype(np.float64)
-        return at, from_mapped(mapped, part.cell_weight(at)[:, None], ref)
+        return at, part.mapping.from_mapped(mapped, part.cell_weight(at)[:, None], ref)
 
-    def decode(self, coefficients: np.ndarray, gain=1.0) -> np.ndarray:
+    def decode(self, coefficients: np.ndarray, gain=1.0, count: int | None = None) -> np.ndarray:
         """Dense table float64 ``(90, 90, 180, 3)``, 1/sr, ``> 0``, NaN off the basis's
         cells."""
-        return self.basis.decode_mapped(self.mapped(coefficients, gain))
+        return self.basis.decode_mapped(self.mapped(coefficients, gain, count))

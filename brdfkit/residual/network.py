@@ -5,8 +5,11 @@ coefficients instead of a learnt latent).
 For one colour channel of a material, the input is its ``K`` coefficients in training
 standard deviations (``c_k / sigma_k``), padded with zeros to ``k_max`` and followed by a
 mask of ``K`` ones (so one network serves every size ``K <= k_max``):
-``z = [c_1/s_1 ... c_K/s_K, 0 ... 0, 1 ... 1, 0 ... 0]``, ``2 k_max`` numbers. A body
-``2 k_max -> hidden -> hidden`` (ReLU) and a linear head give the change of the hyponet's
+``z = [c_1/s_1 ... c_K/s_K, 0 ... 0, 1 ... 1, 0 ... 0]``, ``2 k_max`` numbers. A network
+trained on coefficients fitted from ``N`` samples (a sparse reconstruction's,
+:mod:`brdfkit.prior.correction`) takes the count too, ``ln N / ln 4000`` after them
+(``ResidualConfig.count``): how far the coefficients can be trusted. A body
+``2 k_max (+ 1) -> hidden -> hidden`` (ReLU) and a linear head give the change of the hyponet's
 weights from a learnt base; the hyponet ``6 -> width -> width -> 1`` (ReLU) maps a cell's
 Rusinkiewicz HD vector (:func:`brdfkit.geometry.hd_vectors`) to the correction of that
 channel's mapped value. The head's rows of the last layer start at zero and so does the
@@ -28,7 +31,10 @@ import json
 import numpy as np
 
 __all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "net_input", "hyponet_weights", "evaluate",
-           "evaluate_with_jacobian"]
+           "evaluate_with_jacobian", "COUNT_REF"]
+
+COUNT_REF = 4000
+"""The sample count a network's count input is scaled by (``ln N / ln COUNT_REF``)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -48,6 +54,9 @@ class ResidualConfig:
         Which of the networks that serve the same sizes this is (0, 1, ...): a file may hold
         several *members* a size, and ``encode`` keeps per material the one that renders the
         objective scenes best (``docs/notes/compression.md``).
+    count
+        Whether it takes the sample count of a sparse fit as an input (module
+        docstring): a network of a sparse reconstruction, not of ``encode``.
     """
 
     k_min: int = 1
@@ -55,6 +64,7 @@ class ResidualConfig:
     width: int = 32
     hidden: int = 64
     member: int = 0
+    count: bool = False
 
     def __post_init__(self):
         for name in ("k_min", "k_max", "width", "hidden"):
@@ -65,11 +75,19 @@ class ResidualConfig:
             raise ValueError(f"residual config: member must be a whole number >= 0, not {self.member!r}")
         if self.k_min > self.k_max:
             raise ValueError(f"residual config: k_min {self.k_min} > k_max {self.k_max}")
+        if not isinstance(self.count, bool):
+            raise ValueError(f"residual config: count must be true or false, not {self.count!r}")
+
+    @property
+    def inputs(self) -> int:
+        """The network's input size: ``2 k_max``, and the count (:attr:`count`)."""
+        return 2 * self.k_max + int(self.count)
 
     def to_json(self) -> str:
         d = dataclasses.asdict(self)
-        if not d["member"]:  # files of one network a size read and write as before members existed
-            del d["member"]
+        for key in ("member", "count"):  # files from before these fields read and write as they were
+            if not d[key]:
+                del d[key]
         return json.dumps(d, sort_keys=True)
 
     @classmethod
@@ -86,20 +104,25 @@ def hyponet_shapes(width: int) -> list:
     return [(6, width), (width,), (width, width), (width,), (width, 1), (1,)]
 
 
-def net_input(c_norm: np.ndarray, k_max: int) -> np.ndarray:
+def net_input(c_norm: np.ndarray, k_max: int, count: float | None = None) -> np.ndarray:
     """The input ``(B, 2 k_max)`` float32 of coefficients in training standard deviations
-    ``(B, K)``: padded to ``k_max``, the mask of the ``K`` given after them.
+    ``(B, K)``: padded to ``k_max``, the mask of the ``K`` given after them; with a sample
+    ``count``, ``(B, 2 k_max + 1)``, its ``ln count / ln COUNT_REF`` last.
 
     Examples
     --------
     >>> net_input(np.array([[1.0, 2.0]]), 3).tolist()
     [[1.0, 2.0, 0.0, 1.0, 1.0, 0.0]]
+    >>> net_input(np.array([[1.0, 2.0]]), 2, count=4000).tolist()
+    [[1.0, 2.0, 1.0, 1.0, 1.0]]
     """
     c_norm = np.asarray(c_norm, np.float32)
     b, k = c_norm.shape
-    z = np.zeros((b, 2 * k_max), np.float32)
+    z = np.zeros((b, 2 * k_max + (count is not None)), np.float32)
     z[:, :k] = c_norm
     z[:, k_max:k_max + k] = 1.0
+    if count is not None:
+        z[:, -1] = np.log(max(float(count), 1.0)) / np.log(COUNT_REF)
     return z
 
 
@@ -135,11 +158,12 @@ def evaluate(weights: list, hd: np.ndarray, row: int, chunk: int = 16384) -> np.
     return out
 
 
-def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray, hd: np.ndarray):
+def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray, hd: np.ndarray,
+                           count: int | None = None):
     """The correction of one channel at HD vectors ``hd (N, 6)`` and its derivative in
     that channel's normalised coefficients ``c_norm (K,)`` (``c_k / sigma_k``), by forward
     mode through :func:`hyponet_weights` and :func:`evaluate` (float32, the ``K``
-    directions at once).
+    directions at once); ``count``: the sample count, for a network that takes it.
 
     Returns
     -------
@@ -164,7 +188,7 @@ def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray,
     True
     """
     k = int(np.asarray(c_norm).shape[0])
-    z = net_input(np.asarray(c_norm)[None], cfg.k_max)[0]
+    z = net_input(np.asarray(c_norm)[None], cfg.k_max, count if cfg.count else None)[0]
     w0, b0 = state["body.0.weight"], state["body.0.bias"]
     a1 = w0 @ z + b0
     m1 = (a1 > 0).astype(np.float32)
@@ -203,7 +227,7 @@ def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray,
 def ResidualNet(cfg: ResidualConfig):
     """The torch module of the network (made on call: torch is imported only here).
 
-    ``forward(z, hd)``: ``z (B, 2 k_max)`` inputs (:func:`net_input`), ``hd`` the HD
+    ``forward(z, hd)``: ``z (B, cfg.inputs)`` inputs (:func:`net_input`), ``hd`` the HD
     vectors ``(B, C, 6)`` (per row) or ``(C, 6)`` (shared); returns the corrections
     ``(B, C)``.
     """
@@ -215,7 +239,7 @@ def ResidualNet(cfg: ResidualConfig):
             self.cfg = cfg
             shapes = hyponet_shapes(cfg.width)
             self.sizes = [int(np.prod(s)) for s in shapes]
-            self.body = torch.nn.Sequential(torch.nn.Linear(2 * cfg.k_max, cfg.hidden), torch.nn.ReLU(),
+            self.body = torch.nn.Sequential(torch.nn.Linear(cfg.inputs, cfg.hidden), torch.nn.ReLU(),
                                             torch.nn.Linear(cfg.hidden, cfg.hidden), torch.nn.ReLU())
             self.head = torch.nn.Linear(cfg.hidden, sum(self.sizes))
             base = []

@@ -23,7 +23,8 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.residual.model import BasisResidual
 from brdfkit.residual.network import ResidualConfig, hyponet_shapes
 
-__all__ = ["RESIDUAL_FORMAT", "RESIDUAL_VERSION", "STORAGES", "save_residual", "load_residual", "read_header"]
+__all__ = ["RESIDUAL_FORMAT", "RESIDUAL_VERSION", "STORAGES", "save_residual", "load_residual", "read_header",
+           "serves_sparse"]
 
 RESIDUAL_FORMAT = "brdfkit-residual"
 RESIDUAL_VERSION = "1"
@@ -85,6 +86,15 @@ def save_residual(path: str | os.PathLike, nets: list, *, basis_digest: str, bas
               "meta": json.dumps(meta or {}, sort_keys=True, default=str)}
     with atomic_path(path) as tmp:
         write_safetensors(tmp, tensors, header)
+
+
+def serves_sparse(path: str | os.PathLike) -> bool:
+    """Whether a residual file holds a network trained on sparse fits (one that takes the
+    sample count, ``brdfkit fit --method correction``), by its header alone."""
+    try:
+        return any(d.get("count") for d in json.loads(read_header(path).get("configs", "[]")))
+    except (FormatError, InputError, OSError, ValueError, AttributeError):
+        return False
 
 
 def read_header(path: str | os.PathLike) -> dict:
@@ -169,7 +179,7 @@ def _net_state(path: str, raw: dict, i: int, cfg: ResidualConfig) -> dict:
     from brdfkit.basis.storage import dequantize
 
     total = sum(int(np.prod(s)) for s in hyponet_shapes(cfg.width))
-    want = {"body.0.weight": (cfg.hidden, 2 * cfg.k_max), "body.0.bias": (cfg.hidden,),
+    want = {"body.0.weight": (cfg.hidden, cfg.inputs), "body.0.bias": (cfg.hidden,),
             "body.2.weight": (cfg.hidden, cfg.hidden), "body.2.bias": (cfg.hidden,),
             "head.weight": (total, cfg.hidden), "head.bias": (total,),
             **{f"base.{j}": s for j, s in enumerate(hyponet_shapes(cfg.width))}}

@@ -1,17 +1,19 @@
 """What ``brdfkit fit`` trains, by name (:data:`FITTERS`): each part of a model has one
 recipe that makes its file from MERL tables.
 
-============ =================================================== ==========================
-name         what it trains                                      its file (``Fitter.part``)
-============ =================================================== ==========================
-``hypernet`` the hypernetwork (Gokbudak et al. 2024;              ``network``
-             :mod:`brdfkit.hypernet.training`)
-``basis``    a PCA basis of log-mapped tables (Nielsen et al.     ``basis``
-             2015; :mod:`brdfkit.basis.fit`); ``ipca`` before
-``prior``    the learnt prior of a basis (:mod:`brdfkit.prior`)   ``prior``
-``residual`` the hypernetwork residual of a basis                 ``residual``
-             (:mod:`brdfkit.residual.training`)
-============ =================================================== ==========================
+============== =================================================== ==========================
+name           what it trains                                      its file (``Fitter.part``)
+============== =================================================== ==========================
+``hypernet``   the hypernetwork (Gokbudak et al. 2024;              ``network``
+               :mod:`brdfkit.hypernet.training`)
+``basis``      a PCA basis of log-mapped tables (Nielsen et al.     ``basis``
+               2015; :mod:`brdfkit.basis.fit`); ``ipca`` before
+``prior``      the learnt prior of a basis (:mod:`brdfkit.prior`)   ``prior``
+``residual``   the hypernetwork residual of a basis                 ``residual``
+               (:mod:`brdfkit.residual.training`)
+``correction`` the hypernetwork correction of a learnt prior's      ``residual``
+               sparse fits (:mod:`brdfkit.prior.correction`)
+============== =================================================== ==========================
 
 Each recipe names the part of a model its file is, in the part registry
 :data:`brdfkit.models.parts.PARTS` (which says how the file loads and what digest
@@ -107,12 +109,21 @@ def _residual(data, output, **kw):
     return fit_residual(data, output, **kw)
 
 
+def _correction(data, output, **kw):
+    from brdfkit.prior.correction import fit_correction
+
+    return fit_correction(data, output, **kw)
+
+
 FITTERS: dict[str, Fitter] = {
     "hypernet": Fitter("hypernet", "the hypernetwork (Gokbudak et al. 2024)", "network", _hypernet, None),
     "basis": Fitter("basis", "a PCA basis of log-mapped tables (Nielsen et al. 2015)", "basis", _basis,
-                    ("components", "half", "phi_stride", "w_floor", "int8"), aliases=("ipca",)),
+                    ("components", "half", "phi_stride", "w_floor", "int8", "deflate", "eps_share"),
+                    aliases=("ipca",)),
     "prior": Fitter("prior", "the learnt prior of a basis", "prior", _prior, _prior_options),
     "residual": Fitter("residual", "the hypernetwork residual of a basis", "residual", _residual, None),
+    "correction": Fitter("correction", "the hypernetwork correction of a learnt prior's sparse fits", "residual",
+                         _correction, None),
 }
 """The recipes of ``brdfkit fit`` by name."""
 

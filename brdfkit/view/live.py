@@ -56,18 +56,22 @@ def mapping_constants(basis) -> dict:
     ``basis`` (:class:`~brdfkit.basis.model.PcaBasis`), by name, in the order of the
     shader's ``brdfkit_mapping`` array: ``eps``, ``floor``, ``cap``, ``tiny`` and
     ``w_tiny`` (the bound ``min(floor x_ref, cap) + tiny min(w / w_tiny, 1)``, read off
-    :func:`~brdfkit.basis.mapping.lower_bound` itself), and the basis's ``w_floor``.
+    :func:`~brdfkit.basis.mapping.lower_bound` itself), the basis's ``w_floor``, and its
+    mapping's resolution ``share`` (0: Nielsen's mapping) with what a mapping with a share
+    decodes by (:class:`~brdfkit.basis.mapping.LogMapping`: ``share_floor``, ``e_min``
+    and ``z_max``).
 
     A constant added here is a define ``BRDFKIT_MAPPING_<NAME>`` (its index) of the
     shader's, which reads it as ``brdfkit_mapping[BRDFKIT_MAPPING_<NAME>]``.
     """
-    from brdfkit.basis.mapping import CAP, EPS, FLOOR, lower_bound
+    from brdfkit.basis.mapping import E_MIN, CAP, EPS, FLOOR, SHARE_FLOOR, Z_MAX, lower_bound
 
     tiny = float(lower_bound(np.float64(0.0), np.float64(1.0)))
     w = 1e-6  # far below w_tiny: the bound's absolute part is tiny w / w_tiny there
     w_tiny = tiny * w / float(lower_bound(np.float64(0.0), np.float64(w)))
     return {"eps": float(EPS), "floor": float(FLOOR), "cap": float(CAP), "tiny": tiny, "w_tiny": w_tiny,
-            "w_floor": float(basis.w_floor)}
+            "w_floor": float(basis.w_floor), "share": float(basis.mapping.share), "share_floor": float(SHARE_FLOOR),
+            "e_min": float(E_MIN), "z_max": float(Z_MAX)}
 
 
 def slot_layout(k: int) -> list[list[int]]:
@@ -178,7 +182,8 @@ def material_uniforms(material: dict) -> dict:
 
         cfg, state = net
         layout = hyponet_layout(cfg.width)
-        z = net_input((c / np.asarray(basis.sigma[:k], np.float64)[:, None]).T, cfg.k_max)
+        count = material.get("count") if cfg.count else None  # a sparse fit's network takes its sample count
+        z = net_input((c / np.asarray(basis.sigma[:k], np.float64)[:, None]).T, cfg.k_max, count)
         weights = hyponet_weights(state, cfg, z)
         for ch in range(3):
             channels[ch]["brdfkit_net"] = pack_hyponet(weights, ch, layout)
@@ -240,19 +245,25 @@ def basis_data(basis, k: int, compress: bool = True) -> dict:
 
 def live_material(emb, decoder, name: str) -> dict:
     """What the shader needs of one embedding besides its basis:
-    ``{"kind", "k", "coefficients" (3 K, component-major), "gain", "basis", "net"}``
-    (``basis``: the decoder's basis object, ``net``: ``(cfg, state)`` or ``None``),
+    ``{"kind", "k", "coefficients" (3 K, component-major), "gain", "basis", "net", "count"}``
+    (``basis``: the decoder's basis object, ``net``: ``(cfg, state)`` or ``None``,
+    ``count``: a sparse fit's sample count, or ``None``),
     checked against its decoder as ``brdfkit decode`` checks it."""
+    count = None
     if decoder.kind == "residual":
-        from brdfkit.residual.brdf import check_embedding
+        from brdfkit.residual.brdf import check_embedding, sample_count
 
         coefficients, gains = check_embedding(emb, decoder.obj, decoder.digest, name)
+        count = sample_count(emb)
         if len(gains) > 1:  # a blend of two materials that chose different members
             raise InputError(f"{name}: a blend of the corrections of members {', '.join(map(str, gains))}; "
                              f"--live decodes one member's: view it without --live")
         member, gain = next(iter(gains.items()), (0, 0.0))
         _, cfg, state = decoder.obj.net_for(coefficients.shape[0], member)
         basis, net = decoder.obj.basis, (cfg, state)
+        if cfg.count and count is None and gain:
+            raise InputError(f"{name}: its correction network decodes a sparse fit, and the embedding names no "
+                             f"sample count")
     else:
         from brdfkit.basis.coefficients import check_coefficients
 
@@ -262,4 +273,4 @@ def live_material(emb, decoder, name: str) -> dict:
         raise InputError(f"{name}: an embedding of {c.shape[0]} components per channel; the shader decodes at most "
                          f"{MAX_COMPONENTS}")
     return {"kind": decoder.kind, "k": int(c.shape[0]), "coefficients": [float(x) for x in c.reshape(-1)],
-            "gain": float(gain), "basis": basis, "net": net}
+            "gain": float(gain), "basis": basis, "net": net, "count": count}
