@@ -216,50 +216,19 @@ def thread_map(fn, items, threads: int | None = None):
         yield from pool.map(fn, items)
 
 
-def _openblas():
-    """NumPy's OpenBLAS as a ``ctypes`` library with its thread-count functions
-    ``(get, set)``, or ``None`` where they cannot be found (another BLAS)."""
-    if "openblas" not in _CPU_THREADS_BLAS:
-        found = None
-        try:
-            import ctypes
-            import glob
-
-            import numpy as np
-
-            for path in sorted(glob.glob(os.path.join(os.path.dirname(np.__file__) + ".libs", "*openblas*"))):
-                lib = ctypes.CDLL(path)  # the library NumPy loaded already: the same handle
-                for prefix, suffix in (("scipy_openblas", "64_"), ("scipy_openblas", ""), ("openblas", "64_"),
-                                       ("openblas", "")):
-                    get, set_ = f"{prefix}_get_num_threads{suffix}", f"{prefix}_set_num_threads{suffix}"
-                    if hasattr(lib, get) and hasattr(lib, set_):
-                        found = (getattr(lib, get), getattr(lib, set_))
-                        break
-                if found:
-                    break
-        except (OSError, ImportError):
-            found = None
-        _CPU_THREADS_BLAS["openblas"] = found
-    return _CPU_THREADS_BLAS["openblas"]
-
-
-_CPU_THREADS_BLAS: dict = {}
-
-
 @contextlib.contextmanager
 def blas_threads(threads: int | None):
-    """Run the block with NumPy's BLAS (OpenBLAS) on ``threads`` threads, restoring the
-    count after (``None``, or a BLAS whose count cannot be set: as it is). What a result
-    that must not depend on the machine's cores runs under (an encode's refinement: a
-    product split over threads may sum in another order)."""
-    fns = _openblas() if threads is not None else None
-    if fns is None:
+    """Run the block with NumPy's BLAS on ``threads`` threads, restoring the count after
+    (``None``: as it is). What a result that must not depend on the machine's cores runs
+    under (an encode's arithmetic: a product split over threads may sum in another order).
+
+    The BLAS is found by :mod:`threadpoolctl`, which knows OpenBLAS, MKL, BLIS and the
+    others whatever the NumPy build (every BLAS loaded in the process is set)."""
+    if threads is None:
         yield
         return
-    get, set_ = fns
-    old = int(get())
-    set_(int(threads))
-    try:
+    import numpy  # noqa: F401  (loads NumPy's BLAS, so that threadpoolctl sees it)
+    from threadpoolctl import threadpool_limits
+
+    with threadpool_limits(limits=int(threads), user_api="blas"):
         yield
-    finally:
-        set_(old)

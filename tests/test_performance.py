@@ -55,6 +55,26 @@ def test_a_finished_command_does_not_hold_threads_back(monkeypatch):
     assert threads.idle_cores() == 1
 
 
+def test_blas_threads_sets_numpys_blas_and_restores_it():
+    """``blas_threads(n)`` sets every BLAS NumPy loaded (found by threadpoolctl, whatever
+    the build) for the block, and gives the count back after; ``None`` leaves it."""
+    from threadpoolctl import threadpool_info
+
+    from brdfkit.runtime import blas_threads
+
+    def counts():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    before = counts()
+    assert before, "threadpoolctl finds no BLAS in NumPy"
+    other = 2 if before[0] == 1 else 1
+    with blas_threads(other):
+        assert counts() == [other] * len(before)
+        with blas_threads(None):
+            assert counts() == [other] * len(before)
+    assert counts() == before
+
+
 def test_running_others_reads_this_machine():
     from brdfkit import runtime as threads
 
