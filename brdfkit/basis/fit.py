@@ -1,4 +1,4 @@
-"""Fitting the PCA basis of :mod:`.model` to training tables (``brdfkit fit --method basis``).
+"""Fitting the PCA basis of :mod:`brdfkit.basis.model` to training tables (``brdfkit fit --method basis``).
 
 PCA over the cells measured by at least one training table (a training table missing a
 cell counts as the reference there, ``x' = 0``); the ``3 M x P`` matrix is centred and

@@ -21,6 +21,7 @@ import numpy as np
 
 from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.io.digest import file_digest
+from brdfkit.models.parts import HEADER_DIGEST_KEY
 from brdfkit.errors import FormatError, InputError
 from brdfkit.basis import basis_tensors, load_basis, read_basis, save_basis, storage_of
 from brdfkit.prior.model import PriorConfig, PriorModel, PriorWeights
@@ -92,7 +93,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
         basis_digest = file_digest(where)
         meta.update(basis_file=basis_file, basis_digest=basis_digest)
     digest = _content_digest(_digest(net), basis_digest, meta["config"])
-    meta["fingerprint"] = digest
+    meta[HEADER_DIGEST_KEY] = digest
     with atomic_path(path) as tmp:
         write_safetensors(tmp, tensors, meta)
     return digest
@@ -154,7 +155,7 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
         else:
             basis = read_basis(f, path, prefix="basis.")
             basis_digest = _digest({k: f.get_tensor(k) for k in f.keys() if k.startswith("basis.")})
-    if _content_digest(_digest(net_t), basis_digest, meta["config"]) != meta.get("fingerprint"):
+    if _content_digest(_digest(net_t), basis_digest, meta["config"]) != meta.get(HEADER_DIGEST_KEY):
         raise FormatError(path, "the weights or the config do not match the recorded digest: "
                                 "the file is damaged")
     if basis.n_components != cfg.n_components:
@@ -173,7 +174,7 @@ def load_prior(path: str | os.PathLike, device=None) -> PriorModel:
                 record[k] = json.loads(v)
             except ValueError:
                 record[k] = v
-    return PriorModel(basis, net, cfg, record, meta["fingerprint"])
+    return PriorModel(basis, net, cfg, record, meta[HEADER_DIGEST_KEY])
 
 
 def pack_prior(src: str | os.PathLike, dst: str | os.PathLike, basis_file: str) -> str:

@@ -8,7 +8,7 @@ every size it was trained for. ``docs/compression.md`` reports what it gains ove
 basis alone and over a full-precision PCA of equal size, on materials it never saw.
 
 * :mod:`~brdfkit.residual.network`: the network (torch for training, NumPy for decoding);
-* :mod:`~brdfkit.residual.model`: :class:`BasisResidual`, a basis and its residual, decoded;
+* :mod:`brdfkit.residual.model`: :class:`BasisResidual`, a basis and its residual, decoded;
 * :mod:`~brdfkit.residual.residual_file`: its file (format ``brdfkit-residual``), which
   records the digest of the basis it corrects;
 * :mod:`~brdfkit.residual.training`: ``brdfkit fit --method residual`` (seeded, resumable,
