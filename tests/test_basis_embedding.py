@@ -189,3 +189,58 @@ def test_bench_takes_model_kind_size_entries(tmp_path, basis_and_table):
     with pytest.raises(InputError, match="--size 9: hypernet embeddings of t.safetensors hold 7 numbers"):
         BenchConfig(output=str(tmp_path / "o"), compression_models=(f"{model}:hypernet-9",),
                     compression_data=str(tmp_path)).resolved()
+
+
+def test_one_levenberg_marquardt_converges_stops_by_its_rule_and_never_raises_the_cost():
+    """The one solver every kind's encode uses (``brdfkit.basis.least_squares``): it reaches
+    Rosenbrock's minimum, solves a linear problem as least squares does with the cost
+    falling at every step taken, and at a minimum takes no step (``TRIES`` trials, then
+    done)."""
+    from brdfkit.basis.least_squares import TRIES, LevenbergMarquardt, levenberg_marquardt
+
+    def rosenbrock(x):
+        return np.array([10.0 * (x[1] - x[0] ** 2), 1.0 - x[0]]), None
+
+    x = levenberg_marquardt(rosenbrock, lambda x, _: np.array([[-20.0 * x[0], 10.0], [-1.0, 0.0]]),
+                            np.array([-1.2, 1.0]), steps=200)
+    np.testing.assert_allclose(x, [1.0, 1.0], atol=1e-6)
+    rng = np.random.default_rng(0)
+    a, b = rng.standard_normal((40, 5)), rng.standard_normal(40)
+    calls = []
+
+    def linear(x):
+        calls.append(1)
+        return a @ x - b, None
+
+    lm = LevenbergMarquardt(linear, lambda x, _: a, np.zeros(5))
+    costs = [lm.cost]
+    while not lm.step():
+        costs.append(lm.cost)
+    costs.append(lm.cost)
+    assert all(later <= before for before, later in zip(costs, costs[1:])) and lm.iterations <= 10
+    np.testing.assert_allclose(lm.x, np.linalg.lstsq(a, b, rcond=None)[0], atol=1e-6)
+    xs = rng.standard_normal(5)
+    b[:] = a @ xs  # a zero residual at xs: no trial can lower the cost there
+    at_min = LevenbergMarquardt(linear, lambda x, _: a, xs)
+    calls.clear()
+    assert at_min.cost == 0.0 and at_min.step() and at_min.iterations == 0 and len(calls) == TRIES
+    assert at_min.step() and len(calls) == TRIES  # done: nothing more evaluated
+
+
+def test_the_refinement_gives_the_same_bytes_on_one_thread_or_two(basis_and_table):
+    """The channels are fixed pieces of work: the refinement's coefficients and record do
+    not depend on how many threads run them."""
+    from brdfkit.runtime import set_cpu_threads
+    from brdfkit import runtime
+
+    basis, held = basis_and_table
+    c0 = basis.project(held)
+    cfg = ObjectiveConfig(steps=4, resolution=12)
+    out = []
+    try:
+        for threads in (1, 2):
+            set_cpu_threads(threads)
+            out.append(refine_coefficients(basis, held, c0, cfg))
+    finally:
+        runtime._CPU_THREADS.clear()
+    assert out[0][0].tobytes() == out[1][0].tobytes() and out[0][1] == out[1][1]

@@ -151,7 +151,8 @@ def test_fit_refuses_bad_options_in_one_line(trained, tmp_path, opt, capsys):
 @pytest.mark.slow
 def test_encode_decode_blend_through_the_residual_kind(trained, tmp_path, capsys):
     """``encode`` with a residual file makes a ``residual`` embedding that records both
-    parts' digests, the same bytes every time (a process of its own and this one);
+    parts' digests, the same bytes every time (a process of its own on one thread, and this
+    one on two);
     ``decode`` reads it back without torch's help; a blend of two stays a valid, positive
     material."""
     from brdfkit.io.digest import file_digest
@@ -162,7 +163,13 @@ def test_encode_decode_blend_through_the_residual_kind(trained, tmp_path, capsys
     r = run_brdfkit(["encode", lib / "synth-000.binary", lib / "synth-001.binary", *opts, "-o", tmp_path / "a"],
                     env=quiet_env(), timeout=300)
     assert r.returncode == 0, r.stderr
-    code, _, err = run_cli(capsys, ["encode", lib / "synth-000.binary", *opts, "-o", tmp_path / "b"])
+    from brdfkit import runtime
+
+    runtime.set_cpu_threads(2)  # the process above runs on one (quiet_env): fixed pieces, the same bytes
+    try:
+        code, _, err = run_cli(capsys, ["encode", lib / "synth-000.binary", *opts, "-o", tmp_path / "b"])
+    finally:
+        runtime._CPU_THREADS.clear()
     assert code == 0, err
     assert (tmp_path / "a" / "synth-000.emb").read_bytes() == (tmp_path / "b" / "synth-000.emb").read_bytes()
     emb = read_embedding(tmp_path / "a" / "synth-000.emb")

@@ -17,6 +17,9 @@ One module per concept, in the order data flows:
   ``phi_d`` cell);
 * :mod:`~brdfkit.basis.basis_file`: the basis file (format ``brdfkit-basis``):
   :func:`save_basis`, :func:`load_basis`;
+* :mod:`~brdfkit.basis.least_squares`: Levenberg-Marquardt, the one solver of every
+  encode's small least-squares problems (the refinement on renders, a residual's fit
+  through its correction);
 * :mod:`~brdfkit.basis.refine_on_screen`: a table's coefficients refined on renders of
   the objective scenes (:mod:`brdfkit.render.objective`);
 * :mod:`~brdfkit.basis.coefficients`: a table as a basis embedding and a basis embedding

@@ -22,16 +22,18 @@ table (``I = M rho``, ``M`` the scene's pairs as a sparse map from the cells the
 the pixels), the basis is linear in the mapped space (``x' = mean + U c``), and each
 channel's image depends on that channel's coefficients alone; so each channel is a
 least-squares problem of ``K`` unknowns whose Jacobian is the product
-``D'(I) M diag(rho'(x')) U`` at the reached cells. A Levenberg-Marquardt step
-(Marquardt's scaling of the damping) solves it in a few iterations, each a handful of
-sparse products; the 80 Adam steps it replaced ran 308 renders and reached a higher
-objective (``docs/compression.md``).
+``D'(I) M diag(rho'(x')) U`` at the reached cells. Levenberg-Marquardt
+(:mod:`brdfkit.basis.least_squares`, the one solver of every kind's encode) solves it in a
+few iterations, each a handful of sparse products; the 80 Adam steps it replaced ran 308
+renders and reached a higher objective (``docs/compression.md``). The three channels are
+fixed pieces of work, run on as many threads as :func:`brdfkit.runtime.thread_map` has.
 
 The decode is evaluated only at the cells whose trilinear corners the scenes' pairs
 reach, as the renderer's lookup of a decoded table would read them (the same corners,
 weights and renormalisation over measured cells): no dense table is decoded. Everything
 is NumPy, in float64, counted in iterations: the same table and basis give the same
-coefficients to the bit (on the same BLAS thread count).
+coefficients to the bit, on any number of threads (an encode holds NumPy's BLAS to one,
+:data:`brdfkit.render.objective.THREADS`).
 """
 
 from __future__ import annotations
@@ -297,21 +299,23 @@ class _Channel:
         # A frozen correction (the only kind a fit takes): made once.
         self.extra = [None if m.extra is None else m.extra(c0) for m in maps]
 
-    def evaluate(self, c):
-        """``(r, state)``: the stacked residuals (trust term last) at ``c`` ``(K, 3)``, and
-        what :meth:`jacobian` needs of them."""
+    def evaluate(self, x):
+        """``(r, state)``: the stacked residuals (trust term last) at this channel's
+        coefficients ``x`` ``(K,)``, and what :meth:`jacobian` needs of them."""
         from brdfkit.render.display import display_encode
 
+        c = np.zeros_like(self.c0)
+        c[:, self.ch] = x
         rs, state = [], []
         for m, a, goal, extra in zip(self.maps, self.alpha, self.goal, self.extra):
             rho, slope = m.rho(m.mapped(c, self.ch, extra))
             img = m.apply(self.ch, rho)
             rs.append(a * (display_encode(img) - goal))
             state.append((img, slope))
-        rs.append(np.sqrt(self.tau) * (c[:, self.ch] - self.c0[:, self.ch]))
+        rs.append(np.sqrt(self.tau) * (x - self.c0[:, self.ch]))
         return np.concatenate(rs), state
 
-    def jacobian(self, state):
+    def jacobian(self, x, state):
         """The Jacobian ``(R, K)`` of the residuals in this channel's coefficients."""
         from brdfkit.render.display import display_slope
 
@@ -323,7 +327,10 @@ class _Channel:
 def solve_channels(maps, targets, c0, trust: float = DEFAULT_TRUST, cells: int = 1):
     """The Levenberg-Marquardt step function of :func:`refine_coefficients` over fitted
     maps (:class:`CellMap`) and their targets: ``step(c, k) -> (c, done)``, one iteration
-    for each of the three channels (each its own problem, with its own damping).
+    (:class:`~brdfkit.basis.least_squares.LevenbergMarquardt`) for each of the three
+    channels, each its own problem, with its own damping; the channels are fixed pieces
+    of work, run on :func:`brdfkit.runtime.thread_map`'s threads (the same bytes on any
+    number of them).
 
     Parameters
     ----------
@@ -335,32 +342,17 @@ def solve_channels(maps, targets, c0, trust: float = DEFAULT_TRUST, cells: int =
         The trust term's weight and the basis's cell count ``P`` (``trust / 3 P`` a
         squared coefficient).
     """
+    from brdfkit.basis.least_squares import LevenbergMarquardt
+    from brdfkit.runtime import thread_map
+
     c0 = np.asarray(c0, np.float64)
+
     chans = [_Channel(maps, targets, ch, c0, trust / (3 * cells)) for ch in range(3)]
-    damping, done = [1e-3] * 3, [False] * 3
-    at = [prob.evaluate(c0) for prob in chans]  # the residuals at each channel's current iterate
+    solvers = list(thread_map(lambda p: LevenbergMarquardt(p.evaluate, p.jacobian, c0[:, p.ch]), chans))
 
     def step(c, k):
-        c = np.array(c, np.float64)
-        for ch, prob in enumerate(chans):
-            if done[ch]:
-                continue
-            r, state = at[ch]
-            jac = prob.jacobian(state)
-            cost, jtj, g = r @ r, jac.T @ jac, jac.T @ r
-            scale = np.maximum(np.diag(jtj), 1e-30)
-            for _ in range(8):  # raise the damping until the step lowers the cost
-                trial = c.copy()
-                trial[:, ch] -= np.linalg.solve(jtj + damping[ch] * np.diag(scale), g)
-                rt, st = prob.evaluate(trial)
-                if rt @ rt < cost:
-                    done[ch] = cost - rt @ rt <= 1e-6 * cost
-                    c, at[ch], damping[ch] = trial, (rt, st), max(damping[ch] / 3, 1e-7)
-                    break
-                damping[ch] *= 4
-            else:
-                done[ch] = True
-        return c, all(done)
+        list(thread_map(lambda lm: lm.step(), [lm for lm in solvers if not lm.done]))
+        return np.stack([lm.x for lm in solvers], axis=1), all(lm.done for lm in solvers)
 
     return step
 

@@ -7,9 +7,11 @@ The encoder (:func:`encode_residual`) has the whole table, so it can afford to c
    objective scenes (never a judged one): the basis embedding
    (:mod:`brdfkit.basis.coefficients`);
 2. the projection's coefficients with the correction; coefficients fitted again through
-   the correction: Gauss-Newton on the mapped error of :data:`FIT_CELLS` cells drawn once
-   (at most :data:`FIT_STEPS` iterations; the correction's derivative by forward mode
-   through its NumPy network, :func:`brdfkit.residual.network.evaluate_with_jacobian`);
+   the correction: Levenberg-Marquardt (:mod:`brdfkit.basis.least_squares`, the solver
+   of the refinement too) on the mapped error of :data:`FIT_CELLS` cells drawn once (at
+   most :data:`FIT_STEPS` iterations; the correction's derivative by forward mode through
+   its NumPy network, :func:`brdfkit.residual.network.evaluate_with_jacobian`; the three
+   channels on as many threads as there are, each a fixed piece of work);
    then refined on the same renders with the correction held at its value there (the
    hyponet evaluated once at the cells the renders reach, not at every iteration), and
    kept only where the true decode, correction re-evaluated, renders better;
@@ -25,7 +27,9 @@ them on the held-out pixels is refined, and the member chosen is recorded in the
 the objective scenes see which one is right for a material (``docs/notes/compression.md``).
 
 Everything is NumPy, seeded and counted in iterations: the same table and files give the
-same bytes (on the same BLAS thread count), and no torch is imported.
+same bytes on any number of cores (the work split into fixed pieces, channels and
+scenes, never across BLAS threads, which the encode holds to one), and no torch is
+imported.
 """
 
 from __future__ import annotations
@@ -37,8 +41,8 @@ from brdfkit.errors import InputError
 __all__ = ["FIT_STEPS", "FIT_CELLS", "encode_residual", "fit_through", "correction_fn", "frozen_correction_fn"]
 
 FIT_STEPS = 8
-"""Most Gauss-Newton iterations of the fit through the correction (it replaced 60 Adam
-steps; ``docs/notes/compression.md``)."""
+"""Most Levenberg-Marquardt iterations of the fit through the correction (it replaced 60
+Adam steps; ``docs/notes/compression.md``)."""
 FIT_CELLS = 16384
 """Cells of the fit through the correction, drawn once with a fixed seed (the study drew
 65,536; 3 K unknowns a channel need far fewer)."""
@@ -77,55 +81,37 @@ def fit_through(residual, mapped: np.ndarray, c0: np.ndarray, steps: int = FIT_S
     """Coefficients ``(K, 3)`` minimising the mapped error of basis plus member ``member``'s
     correction at :data:`FIT_CELLS` cells (``mapped`` ``(P, 3)``: the table's, the mean
     included; NaN unmeasured), from ``c0``: at most ``steps`` Levenberg-Marquardt
-    iterations a channel (each channel's correction depends on its own coefficients alone)."""
+    iterations a channel (:func:`brdfkit.basis.least_squares.levenberg_marquardt`; each
+    channel's correction depends on its own coefficients alone)."""
     from brdfkit.residual.network import evaluate_with_jacobian
+
+    from brdfkit.basis.least_squares import levenberg_marquardt
+    from brdfkit.runtime import thread_map
 
     c0 = np.asarray(c0, np.float64)
     k = c0.shape[0]
     part = residual.basis.leading(k)
     ok = np.flatnonzero(np.isfinite(mapped).all(axis=1))
     idx = np.sort(np.random.default_rng(seed).choice(ok, size=min(FIT_CELLS, ok.size), replace=False))
-    comp = part.components[:, idx].T.astype(np.float64)  # (C, K)
+    comp = part.rows_at(idx).T.astype(np.float64)  # (C, K)
     hd = residual.cell_hd()[idx]
     _, cfg, state = residual.net_for(k, member)
     sigma = part.sigma.astype(np.float64)
-    out = c0.copy()
-    for ch in range(3):
+
+    def channel(ch):
         target = mapped[idx, ch] - part.mean[idx]
 
-        def resid(c, jacobian=True):
-            if not jacobian:
-                return comp @ c + residual.correction_channel(c, hd, member) - target, None
-            corr, jac = evaluate_with_jacobian(state, cfg, c / sigma, hd)
-            return comp @ c + corr - target, comp + jac / sigma
+        def evaluate(c):
+            return comp @ c + residual.correction_channel(c, hd, member) - target, None
 
-        out[:, ch] = _levenberg_marquardt(resid, c0[:, ch], steps)
-    return out
+        def jacobian(c, _):
+            return comp + evaluate_with_jacobian(state, cfg, c / sigma, hd)[1] / sigma
 
+        return levenberg_marquardt(evaluate, jacobian, c0[:, ch], steps)
 
-def _levenberg_marquardt(resid, x, steps: int, damping: float = 1e-3):
-    """``x`` after at most ``steps`` Levenberg-Marquardt iterations on ``resid(x) -> (r, J)``
-    (Marquardt's scaling; a step is taken only where it lowers ``|r|^2``)."""
-    r, jac = resid(x)
-    cost = r @ r
-    for _ in range(steps):
-        jtj, g = jac.T @ jac, jac.T @ r
-        scale = np.maximum(np.diag(jtj), 1e-30)
-        for _ in range(8):
-            trial = x - np.linalg.solve(jtj + damping * np.diag(scale), g)
-            rt, _ = resid(trial, False)
-            if rt @ rt < cost:
-                gain, x, cost = cost - rt @ rt, trial, rt @ rt
-                damping = max(damping / 3, 1e-7)
-                break
-            damping *= 4
-        else:
-            break
-        if gain <= 1e-6 * cost:
-            break
-        r, jac = resid(x)
-        cost = r @ r
-    return x
+    # Each channel a fixed piece of work (its correction depends on its own coefficients
+    # alone): the same bytes on any number of threads.
+    return np.stack(list(thread_map(channel, range(3))), axis=1)
 
 
 def encode_residual(residual, table, *, digest: str, size: int, source: str = "", steps: int | None = None):
