@@ -34,7 +34,8 @@ from brdfkit.errors import InputError
 # Re-exported: the metrics' own display encoding, defined with the renderer's.
 from brdfkit.render.display import EXPOSURE, display_encode, display_linear, srgb_oetf
 
-__all__ = ["EXPOSURE", "PSNR_CAP", "PEAK_THETA_H_DEG", "brdf_log_rmse", "dark_at_grazing", "darkest_ratio", "highlights",
+__all__ = ["EXPOSURE", "PSNR_CAP", "PEAK_THETA_H_DEG", "brdf_log_rmse", "dark_at_grazing", "grazing_ratio", "darkest_ratio",
+           "highlights",
            "display_encode", "srgb_oetf",
            "psnr", "delta_e_2000", "delta_e_2000_map", "ssim", "image_metrics", "score"]
 
@@ -116,6 +117,30 @@ def dark_at_grazing(pred, ref, above_deg: float = 80.0) -> float:
     p, r = np.asarray(pred, np.float64)[rows], np.asarray(ref, np.float64)[rows]
     ok = np.isfinite(p) & np.isfinite(r) & (r > 1e-4)
     return float(np.mean(p[ok] < 0.1 * r[ok])) if ok.any() else 0.0
+
+
+def grazing_ratio(pred, ref, above_deg: float = 80.0) -> float | None:
+    """The median of ``pred / ref`` over the cells and channels with ``theta_h >=
+    above_deg`` (degrees) where ``ref`` is positive: whether the grazing rows of a
+    reconstruction follow the material (1), or sit a band too dark or too bright, which
+    renders barely see and a plot of the table shows (``docs/notes/compression.md``,
+    "Grazing rows"). Both ``(90, 90, 180, 3)`` tables in 1/sr; NaN cells are not counted;
+    ``None`` where no cell is left.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> ref = np.full((90, 90, 180, 3), 0.2)
+    >>> pred = ref.copy(); pred[85:] *= 3.0
+    >>> grazing_ratio(pred, ref), grazing_ratio(ref, ref)
+    (3.0, 1.0)
+    """
+    from brdfkit.geometry import grid_angles
+
+    rows = np.degrees(grid_angles()[0]) >= above_deg
+    p, r = np.asarray(pred, np.float64)[rows], np.asarray(ref, np.float64)[rows]
+    ok = np.isfinite(p) & np.isfinite(r) & (r > 0)
+    return float(np.median(p[ok] / r[ok])) if ok.any() else None
 
 
 def darkest_ratio(pred, ref, at_least: float = 1.0) -> float | None:
