@@ -3,14 +3,13 @@ the model loaded once, the next table read while the current one is encoded, and
 ``jobs > 1``, worker processes.
 
 The work of one file is the same whatever the batch: its table, the decoder (loaded once
-per process), its encode (whose refinement runs on a fixed thread count,
-:data:`brdfkit.render.objective.THREADS`), its ``.emb`` written atomically. An output's
-bytes do not depend on ``jobs`` (``tests/test_torch_free.py``). Known defect, not yet
-traced: a table encoded after another in one process can differ in the last bits of its
-float32 coefficients from the same table encoded alone (teflon and violet-rubber of the
-20 MERL test proxies, after aluminium or the batch's other tables; after chrome-steel
-teflon was the same bytes), so some state a process keeps between tables still depends on
-the tables before.
+per process), its encode (in fixed pieces of work, with NumPy's BLAS on a fixed thread
+count, :data:`brdfkit.render.objective.THREADS`), its ``.emb`` written atomically. An
+output's bytes do not depend on ``jobs`` nor on the tables encoded before it in the
+process: the 20 MERL test proxies give the same bytes each alone in a fresh process, in
+one batch and with ``jobs=2`` (``tests/test_batch_bytes.py``; a compact basis whose
+components an earlier table restored used to compute on them, and changed the last bits
+of chrome-steel, black-oxidized-steel, violet-rubber and aluminium).
 A process keeps what every table shares: the decoder, the objective scenes' pairs
 (:func:`brdfkit.render.screen.screen`) and, per basis, the held-out pixels' maps.
 

@@ -1,0 +1,79 @@
+"""The same bytes, alone or in any batch: the 20 MERL test proxies encoded with the default
+built-in, each alone in a fresh process, against all of them in one batch and with
+``--jobs 2``, compared byte for byte.
+
+A table's encode must not depend on what its process did before (the tables before it in
+a batch, the parts of the model they restored) nor on how many processes share the batch.
+The "alone" encodes run in processes of their own, before and apart from the batches, so
+that no state a process keeps can make them agree by accident (the in-process check of
+``tests/test_torch_free.py`` could not catch a basis that one table's encode left in
+another arithmetic for the next). The commands run as a user's do: no thread variable is
+set for them, so the encode's own thread settings are what is tested.
+
+Needs ``../shared`` (the list of test materials) and the proxy tables in ``proxies/merl``
+(``docs/data.md`` says how they are made); skips without them.
+"""
+
+from __future__ import annotations
+
+import os
+import subprocess
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import pytest
+
+from conftest import brdfkit_command
+from helpers_foundation import MERL_SIZE, SHARED
+
+PROXIES = Path(__file__).resolve().parents[1] / "proxies" / "merl"
+TEST_LIST = SHARED / "data" / "merl-test.txt"
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+
+
+def _test_proxies() -> list[Path]:
+    """The 20 test materials' proxy tables, or skip."""
+    if not TEST_LIST.exists():
+        pytest.skip(f"reference data absent ({SHARED})")
+    names = TEST_LIST.read_text(encoding="utf-8").split()
+    paths = [PROXIES / f"{n}.binary" for n in names]
+    missing = [p.name for p in paths if not (p.exists() and p.stat().st_size == MERL_SIZE)]
+    if missing:
+        pytest.skip(f"proxy tables absent from {PROXIES} ({', '.join(missing[:3])} ...; docs/data.md)")
+    return paths
+
+
+def _user_env() -> dict:
+    """The environment of a user's shell: the shipped built-ins, no model variable, no
+    thread count chosen."""
+    from brdfkit.models import builtin
+
+    env = {k: v for k, v in os.environ.items() if k not in THREAD_VARIABLES + ("BRDFKIT_MODEL", builtin.BUILTIN_ENV)}
+    return env
+
+
+def _encode(args, cwd) -> None:
+    r = subprocess.run([*brdfkit_command(), "encode", *map(str, args)], cwd=cwd, env=_user_env(),
+                       capture_output=True, text=True, timeout=1800)
+    assert r.returncode == 0, (args, r.stderr[-2000:])
+
+
+@pytest.mark.slow
+@pytest.mark.proxy
+def test_the_test_proxies_give_the_same_bytes_alone_in_a_batch_and_in_two_processes(tmp_path, monkeypatch):
+    from brdfkit.models.builtin import BUILTIN_ENV, default_bundle
+
+    paths = _test_proxies()
+    monkeypatch.delenv(BUILTIN_ENV)
+    bundle = default_bundle()
+    if bundle is None:
+        pytest.skip("no shipped built-in model in this checkout")
+    # Alone: a fresh process each, two at a time (a process's bytes do not depend on the load).
+    with ThreadPoolExecutor(max_workers=2) as pool:
+        list(pool.map(lambda p: _encode([p, "-o", tmp_path / "alone"], tmp_path), paths))
+    _encode([*paths, "-o", tmp_path / "batch"], tmp_path)
+    _encode([*paths, "-o", tmp_path / "jobs2", "--jobs", "2"], tmp_path)
+    differ = {how: [p.stem for p in paths if (tmp_path / how / f"{p.stem}.emb").read_bytes()
+                    != (tmp_path / "alone" / f"{p.stem}.emb").read_bytes()]
+              for how in ("batch", "jobs2")}
+    assert differ == {"batch": [], "jobs2": []}, f"other bytes than alone ({bundle.name}): {differ}"
