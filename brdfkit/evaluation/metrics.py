@@ -131,9 +131,9 @@ def grazing_ratio(pred, ref, above_deg: float = 80.0) -> float | None:
     --------
     >>> import numpy as np
     >>> ref = np.full((90, 90, 180, 3), 0.2)
-    >>> pred = ref.copy(); pred[85:] *= 3.0
+    >>> pred = ref.copy(); pred[85:] *= 4.0
     >>> grazing_ratio(pred, ref), grazing_ratio(ref, ref)
-    (3.0, 1.0)
+    (4.0, 1.0)
     """
     from brdfkit.geometry import grid_angles
 
