@@ -1,40 +1,45 @@
-"""Encode and decode of basis and residual embeddings as a user runs them, against the
-hardware bound measured in the same run, and where the rest of the time goes.
+"""Encode and decode of basis and residual embeddings as a user runs them: the whole
+process, every second of it in a named stage, against the hardware bound measured in the
+same run; and a batch of tables.
 
-Issue 44, item 5. For each case (default: the default built-in's basis at 39 and 9
-numbers, ``merl80-l40``'s residual at 39 and 9) and one table (``--table``, default the
-``teflon`` proxy, else a synthetic material):
+For each case (default: teflon with the default built-in and with ``merl80-l40``, a
+residual embedding at 39 and 9 numbers, and the default's basis embedding at 39) and one
+table (``--table``, default the ``teflon`` proxy, else a synthetic material):
 
 * **processes**: ``brdfkit encode TABLE -m MODEL --kind K --size S`` and ``brdfkit decode``
   of what it wrote, each a fresh process as a user runs it: wall time and the child's
-  CPU time (user + system), best of ``--repeat``;
-* **stages**, in this process (CPU time, best of ``--repeat``; the caches a process
-  keeps, the objective scenes' pairs and the model, are cleared before each round, so a
-  stage costs what it costs a process): reading the table, loading the model, the
-  projection, the objective scenes' pairs, the table's views of them (lookups, pair
-  draws), the sparse maps of the refinement, the fit through the correction (residual),
-  the refinement (its iterations and held-out checks, the candidates' held-out errors);
-  decode: the decode and the MERL file written;
+  CPU time (user + system), best of ``--repeat`` by wall time;
+* **stages of the whole process** (the best run's): the process writes its stages
+  (``$BRDFKIT_PROFILE``, :func:`brdfkit.runtime.stage`) and this script adds the two it
+  cannot see, so that the stages sum to the wall time measured from outside: ``start``
+  (from the fork before the interpreter starts to brdfkit's first line), every stage of
+  the command (each first import is ``.../import``), and ``exit`` (from the end of the
+  command, the file renamed and the summary printed, to the parent seeing the process
+  end: the interpreter's teardown). Each stage has wall and CPU seconds (CPU of every
+  thread: a stage on two cores can show up to twice its wall time);
 * **the bound**: the plain matrix products of the same sizes, in NumPy, measured in the
   same run (best of ``--repeat``): for a decode, the mapped values ``(P, K) x (K, 3)`` at
   the basis's ``P`` cells (and for a residual its hyponet's products at every cell,
   ``6 -> W -> W -> 1`` a channel); for an encode, the projection's ``(K, P) x (P, K)`` and
   ``(K, P) x (P, 3)`` (and for a residual the hyponet's products, with its ``K`` tangents,
-  at the fit's cells, once an iteration).
+  at the fit's cells, once an iteration);
+* **a batch** (``--batch-list``, default ``../shared/data/merl-test.txt``'s 20 materials
+  in ``--proxies``; skipped when absent): ``brdfkit encode`` of all of them in one process
+  with the default model, with each ``--batch-jobs`` count: seconds a table, wall and CPU
+  (every process of the batch).
 
-The record holds, per case, the process times, the stages sorted by cost with their
-share of the in-process total, the bound, and the ratio of the process to the bound:
-what is left is start-up, file reading and writing, and the refinement's small sparse
-products, which no dense product bounds (``docs/notes/performance.md``).
+Wall times follow the machine's load; the record holds the load average at its start and
+end. CPU times are what to compare between runs on a loaded machine.
 
 Usage::
 
     python benchmarks/encode_decode.py [--repeat 3] [--table T.binary] [--cases merl-rgl-l40:basis-39,...]
-                                       [--json out.json]
+                                       [--batch-list LIST --proxies DIR --batch-jobs 1 2] [--json out.json]
 """
 
 from __future__ import annotations
 
+import json
 import os
 import resource
 import subprocess
@@ -44,20 +49,48 @@ import time
 
 import common
 
-DEFAULT_CASES = "default:basis-39,default:basis-9,merl80-l40:residual-39,merl80-l40:residual-9"
+DEFAULT_CASES = ("default:residual-39,default:residual-9,merl80-l40:residual-39,merl80-l40:residual-9,"
+                 "default:basis-39")
+THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
 
 
-def _process(args, cwd):
-    """``(wall, cpu)`` seconds of ``brdfkit ARGS`` in a fresh process."""
+def _process(args, cwd, profile: bool = True) -> dict:
+    """``brdfkit ARGS`` in a fresh process, as a user runs it (no thread variable set):
+    ``{"wall_s", "cpu_s", "stages"}``, the stages summing to ``wall_s`` (module
+    docstring)."""
+    env = {k: v for k, v in os.environ.items() if k not in THREAD_VARIABLES}
+    prof = os.path.join(cwd, "stages.json")
+    if profile:
+        env["BRDFKIT_PROFILE"] = prof
     before = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t = time.perf_counter()
+    t0 = time.time()
     r = subprocess.run([sys.executable, "-c", "import sys; from brdfkit.cli import main; sys.argv[0]='brdfkit'; "
-                        "main()", *map(str, args)], cwd=cwd, capture_output=True, text=True)
-    wall = time.perf_counter() - t
+                        "main()", *map(str, args)], cwd=cwd, capture_output=True, text=True, env=env)
+    t1 = time.time()
     after = resource.getrusage(resource.RUSAGE_CHILDREN)
     if r.returncode:
         raise SystemExit(f"brdfkit {' '.join(map(str, args))} failed: {r.stderr[-500:]}")
-    return wall, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    out = {"wall_s": t1 - t0, "cpu_s": cpu}
+    if profile:
+        with open(prof, encoding="utf-8") as f:
+            out["stages"] = _whole(json.load(f), t0, t1, cpu)
+        os.remove(prof)
+    return out
+
+
+def _whole(rec: dict, t0: float, t1: float, cpu: float) -> list:
+    """The process's own stages with its start and exit added: the first stage runs from
+    ``t0`` (before the fork) to brdfkit's first line, ``exit`` from the command's end to
+    ``t1``; the CPU seconds the process did not see (its teardown) are ``exit``'s."""
+    stages = [dict(s) for s in rec["stages"]]
+    first_cut = rec["ended"] - sum(s["wall_s"] for s in stages[1:])  # brdfkit's first line
+    stages[0]["stage"], stages[0]["wall_s"] = "start: fork, interpreter, brdfkit's first line", first_cut - t0
+    stages.append({"stage": "exit: interpreter teardown", "wall_s": t1 - rec["ended"],
+                   "cpu_s": max(0.0, cpu - rec["cpu_s"]), "entries": 1})
+    for s in stages:
+        s["wall_s"], s["cpu_s"] = round(s["wall_s"], 4), round(s["cpu_s"], 4)
+    return stages
 
 
 def _best(fn, repeat):
@@ -67,70 +100,6 @@ def _best(fn, repeat):
         fn()
         best = min(best, time.process_time() - t)
     return best
-
-
-def _clear():
-    from brdfkit.embeddings import decoders
-    from brdfkit.render import quadrature, screen
-
-    decoders._loaded.cache_clear()
-    screen._SCREENS.clear()
-    quadrature.clear_cache()
-
-
-def _stages(table_path, model, kind, size, repeat):
-    """CPU seconds of each stage of an encode and a decode (module docstring)."""
-    import numpy as np
-
-    from brdfkit.basis.refine_on_screen import prepare_screens, refine_coefficients
-    from brdfkit.embeddings import choose_decoder
-    from brdfkit.io.merl import read_merl, write_merl
-    from brdfkit.render.objective import ObjectiveConfig, objective_views
-    from brdfkit.render.scene_suite import scene_env
-    from brdfkit.render import screen as screen_mod
-    from brdfkit.runtime import blas_threads
-
-    cfg = ObjectiveConfig(steps=8)
-    out = {}
-    out["read table"] = _best(lambda: read_merl(table_path), repeat)
-    table = read_merl(table_path)
-
-    def load():
-        _clear()
-        return choose_decoder(kind, model, size=size)
-
-    out["load model"] = _best(load, repeat)
-    dec = load()
-    basis = dec.obj.basis if kind == "residual" else dec.obj
-    part = basis.leading(size // 3)
-    with blas_threads(1):
-        out["projection"] = _best(lambda: part.project(table), repeat)
-        c0 = part.project(table)
-
-        def screens():
-            screen_mod._SCREENS.clear()
-            return [screen_mod.screen(None, cfg.resolution, env=scene_env(s)) for s in cfg.scenes]
-
-        out["objective scenes' pairs"] = _best(screens, repeat)
-        out["views (lookups, draws)"] = _best(lambda: objective_views(table, cfg), repeat)
-        out["refinement maps"] = _best(lambda: prepare_screens(part, table, cfg), repeat) - out["views (lookups, draws)"]
-        sc = prepare_screens(part, table, cfg)
-        if kind == "residual":
-            from brdfkit.residual.encoding import fit_through
-
-            out["fit through the correction"] = _best(
-                lambda: fit_through(dec.obj, part.mapped_table(table), c0), repeat)
-        out["refinement (iterations, held-out checks)"] = _best(
-            lambda: refine_coefficients(part, table, c0, cfg, screens=sc), repeat)
-    c, _ = refine_coefficients(part, table, c0, cfg, screens=sc)
-    gain = 1.0 if kind == "residual" else None
-    decode = (lambda: dec.obj.decode(c, gain)) if gain else (lambda: part.decode(c))
-    dec_out = {"decode": _best(decode, repeat)}
-    with tempfile.TemporaryDirectory() as tmp:
-        t = decode()
-        dec_out["write MERL file"] = _best(lambda: write_merl(os.path.join(tmp, "x.binary"), t), repeat)
-    dec_out["load model"] = out["load model"]
-    return out, dec_out, (dec, part, np.asarray(c))
 
 
 def _bounds(dec, part, kind, repeat):
@@ -165,10 +134,14 @@ def _bounds(dec, part, kind, repeat):
         for _ in range(3):  # a channel each
             decode.append(lambda: chain(p))
             encode.append(lambda: chain(FIT_CELLS, k))
-    return _best(lambda: [f() for f in decode], repeat), _best(lambda: [f() for f in encode], repeat)
+    from brdfkit.runtime import blas_threads
+
+    with blas_threads(1):  # one thread's products, as the encode's own (CPU seconds of one core)
+        return _best(lambda: [f() for f in decode], repeat), _best(lambda: [f() for f in encode], repeat)
 
 
 def _case(spec, table_path, repeat, tmp):
+    from brdfkit.embeddings import choose_decoder
     from brdfkit.models.builtin import default_bundle
 
     model, kind_size = spec.split(":")
@@ -178,24 +151,54 @@ def _case(spec, table_path, repeat, tmp):
     enc_args = ["encode", table_path, "-m", model, "--kind", kind, "--size", size, "-o", tmp]
     emb = os.path.join(tmp, os.path.splitext(os.path.basename(table_path))[0] + ".emb")
     dec_args = ["decode", emb, "-o", os.path.join(tmp, "decoded.binary")]
-    enc_p = min((_process(enc_args, tmp) for _ in range(repeat)), key=lambda x: x[0])
-    dec_p = min((_process(dec_args, tmp) for _ in range(repeat)), key=lambda x: x[0])
-    stages, dec_stages, (dec, part, _) = _stages(table_path, model, kind, size, repeat)
-    bound_dec, bound_enc = _bounds(dec, part, kind, repeat)
-    row = {"case": f"{model}:{kind}-{size}", "encode_wall_s": enc_p[0], "encode_cpu_s": enc_p[1],
-           "decode_wall_s": dec_p[0], "decode_cpu_s": dec_p[1], "encode_bound_s": bound_enc,
-           "decode_bound_s": bound_dec, "encode_to_bound": enc_p[0] / bound_enc, "decode_to_bound": dec_p[0] / bound_dec}
-    for name, st in (("encode", stages), ("decode", dec_stages)):
-        total = sum(st.values())
-        row[f"{name}_stages_s"] = {k: round(v, 4) for k, v in sorted(st.items(), key=lambda kv: -kv[1])}
-        row[f"{name}_stages_share"] = {k: round(v / total, 3) for k, v in row[f"{name}_stages_s"].items()}
-    return row
+    enc = min((_process(enc_args, tmp) for _ in range(repeat)), key=lambda x: x["wall_s"])
+    dec_p = min((_process(dec_args, tmp) for _ in range(repeat)), key=lambda x: x["wall_s"])
+    dec = choose_decoder(kind, model, size=size)
+    basis = dec.obj.basis if kind == "residual" else dec.obj
+    bound_dec, bound_enc = _bounds(dec, basis.leading(size // 3), kind, repeat)
+    return {"case": f"{model}:{kind}-{size}", "encode_wall_s": enc["wall_s"], "encode_cpu_s": enc["cpu_s"],
+            "decode_wall_s": dec_p["wall_s"], "decode_cpu_s": dec_p["cpu_s"], "encode_bound_s": bound_enc,
+            "decode_bound_s": bound_dec, "encode_to_bound": enc["wall_s"] / bound_enc,
+            "decode_to_bound": dec_p["wall_s"] / bound_dec, "encode_stages": enc["stages"],
+            "decode_stages": dec_p["stages"],
+            "accounted": round(sum(s["wall_s"] for s in enc["stages"]) / enc["wall_s"], 4)}
+
+
+def _batch(list_path, proxies, jobs_counts, tmp) -> list:
+    """Seconds a table of one ``brdfkit encode`` of every listed table, per ``--jobs``."""
+    with open(list_path, encoding="utf-8") as f:
+        names = f.read().split()
+    paths = [os.path.abspath(os.path.join(proxies, f"{n}.binary")) for n in names]
+    if not all(os.path.exists(p) for p in paths):
+        print(f"batch skipped: not every table of {list_path} is in {proxies}", file=sys.stderr)
+        return []
+    out = []
+    for jobs in jobs_counts:
+        r = _process(["encode", *paths, "-o", os.path.join(tmp, f"batch{jobs}"), "--jobs", jobs], tmp,
+                     profile=jobs == 1)
+        row = {"tables": len(paths), "jobs": jobs, "wall_s_a_table": r["wall_s"] / len(paths),
+               "cpu_s_a_table": r["cpu_s"] / len(paths), "wall_s": r["wall_s"], "cpu_s": r["cpu_s"]}
+        if "stages" in r:
+            row["stages"] = r["stages"]
+        out.append(row)
+    return out
+
+
+def _top(stages, n=4) -> str:
+    """The ``n`` costliest stages by wall time, with their share."""
+    total = sum(s["wall_s"] for s in stages)
+    top = sorted(stages, key=lambda s: -s["wall_s"])[:n]
+    return ", ".join(f"{s['stage'].replace('encode/', '')} {s['wall_s'] / total:.0%}" for s in top)
 
 
 def main(argv=None):
     ap = common.timing_parser(__doc__, 3)
     ap.add_argument("--table", default=os.path.join("proxies", "merl", "teflon.binary"))
     ap.add_argument("--cases", default=DEFAULT_CASES, help="MODEL:KIND-SIZE entries, comma-separated")
+    ap.add_argument("--batch-list", default=os.path.join("..", "shared", "data", "merl-test.txt"),
+                    help="names of the batch's tables, one a line ('' for no batch)")
+    ap.add_argument("--proxies", default=os.path.join("proxies", "merl"), help="folder of the batch's NAME.binary")
+    ap.add_argument("--batch-jobs", type=int, nargs="+", default=[1, 2])
     a = ap.parse_args(argv)
     load0, t0 = common.load_average(), time.time()
     with tempfile.TemporaryDirectory() as tmp:
@@ -207,15 +210,19 @@ def main(argv=None):
             table_path = os.path.join(tmp, "synthetic.binary")
             write_merl(table_path, synthetic.table(synthetic.STIFF[1]))
         results = [_case(spec, table_path, a.repeat, tmp) for spec in a.cases.split(",")]
-    cols = ["case", "encode wall s", "encode CPU s", "bound s", "x bound", "decode wall s", "decode CPU s", "bound s",
-            "x bound", "encode: largest stages"]
-    table = [[r["case"], r["encode_wall_s"], r["encode_cpu_s"], r["encode_bound_s"], r["encode_to_bound"],
-              r["decode_wall_s"], r["decode_cpu_s"], r["decode_bound_s"], r["decode_to_bound"],
-              ", ".join(f"{k} {v:.0%}" for k, v in list(r["encode_stages_share"].items())[:3])] for r in results]
-    record = common.write_record({"cases": results, "table": os.path.relpath(table_path) if a.table in table_path
-                                  else "synthetic"}, None, load0, t0)
-    common.report("encode_decode", "Encode and decode against the bound (issue 44 item 5)", cols, table, record,
-                  a.json)
+        batch = _batch(a.batch_list, a.proxies, a.batch_jobs, tmp) if a.batch_list and os.path.exists(
+            a.batch_list) else []
+    cols = ["case", "encode wall s", "encode CPU s", "bound s", "decode wall s", "decode CPU s", "bound s",
+            "encode: largest stages (wall)"]
+    table = [[r["case"], r["encode_wall_s"], r["encode_cpu_s"], r["encode_bound_s"], r["decode_wall_s"],
+              r["decode_cpu_s"], r["decode_bound_s"], _top(r["encode_stages"])] for r in results]
+    table += [[f"batch of {b['tables']}, --jobs {b['jobs']} (a table)", b["wall_s_a_table"], b["cpu_s_a_table"],
+               "", "", "", "", _top(b["stages"]) if "stages" in b else ""] for b in batch]
+    record = common.write_record({"cases": results, "batch": batch,
+                                  "table": os.path.relpath(table_path) if a.table in table_path else "synthetic"},
+                                 None, load0, t0)
+    common.report("encode_decode", "Encode and decode as whole processes, every second in a stage", cols, table,
+                  record, a.json)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
-"""Where and on how many threads torch runs: the one device rule and the thread counts.
+"""Where and on how many threads torch runs: the one device rule and the thread counts;
+and where a process's seconds go (its stages, ``$BRDFKIT_PROFILE``).
 
 Device
 ------
@@ -23,6 +24,15 @@ one thread) sets it with :func:`torch_threads` for the duration of the call and 
 it. :func:`set_torch_threads` (``--threads`` of ``brdfkit render`` and ``metrics``, the
 benchmark's worker processes) is for the command line and for processes brdfkit starts.
 
+Stages
+------
+``BRDFKIT_PROFILE=stages.json brdfkit encode ...`` writes, when the process ends, every
+second of it from the process's start in a named stage (:func:`stage`,
+:class:`StageProfile`): the command's own (``load model``, ``encode/project``, ...) and
+each first import (``.../import``). ``benchmarks/encode_decode.py`` adds the fork before
+the interpreter and its teardown after, so that the stages sum to the wall time seen from
+outside. Without the variable a stage costs an attribute lookup.
+
 torch is imported on first use only.
 """
 
@@ -34,7 +44,8 @@ import os
 from brdfkit.errors import InputError
 
 __all__ = ["resolve_device", "threads_for_load", "idle_cores", "running_others", "set_default_threads",
-           "set_torch_threads", "torch_threads", "cpu_threads", "set_cpu_threads", "thread_map", "blas_threads"]
+           "set_torch_threads", "torch_threads", "cpu_threads", "set_cpu_threads", "thread_map", "blas_threads",
+           "PROFILE_ENV", "StageProfile", "stage", "start_profile"]
 
 def resolve_device(device=None, *, local_rank: int | None = None):
     """The ``torch.device`` for a device option.
@@ -232,3 +243,167 @@ def blas_threads(threads: int | None):
 
     with threadpool_limits(limits=int(threads), user_api="blas"):
         yield
+
+
+# --- the stages of a process (BRDFKIT_PROFILE) -----------------------------------------------
+
+PROFILE_ENV = "BRDFKIT_PROFILE"
+"""Environment variable: a JSON file that a ``brdfkit`` process writes its stages into
+when it ends (:func:`stage`, :func:`start_profile`); unset, the stages cost nothing."""
+
+_PROFILE: list = []  # the running StageProfile, when there is one
+
+
+class StageProfile:
+    """The seconds of a process in named stages, every second in exactly one.
+
+    The process's time is cut at each entry to and exit from a :func:`stage` of the main
+    thread, and each piece is charged to the stages open then, joined by ``/`` (the
+    innermost a stage's own time; ``main`` outside any). With ``imports`` set, a module
+    imported for the first time is a stage of its own, ``import``, under the stage that
+    imported it. Wall seconds are ``time.time`` (comparable with another process's
+    clock), CPU seconds ``time.process_time`` (every thread of the process: a stage that
+    works on two cores shows up to twice its wall time)."""
+
+    def __init__(self, imports: bool = True):
+        import threading
+        import time
+
+        self._clock, self._cpu, self._main = time.time, time.process_time, threading.main_thread()
+        self.started = _process_start()
+        self.stack: list = []
+        self.totals: dict = {}  # path -> [wall s, cpu s, entries]
+        self._t, self._c = self._clock(), self._cpu()
+        self.totals["start: interpreter and brdfkit.runtime"] = [
+            self._t - self.started if self.started is not None else 0.0, self._c, 1]
+        if imports:
+            _watch_imports(self)
+
+    def _cut(self) -> None:
+        t, c = self._clock(), self._cpu()
+        entry = self.totals.setdefault("/".join(self.stack) or "main", [0.0, 0.0, 0])
+        entry[0] += t - self._t
+        entry[1] += c - self._c
+        self._t, self._c = t, c
+
+    def enter(self, name: str) -> bool:
+        """Open stage ``name`` (``False``, and nothing done, off the main thread or inside
+        a stage of the same name)."""
+        import threading
+
+        if threading.current_thread() is not self._main or (self.stack and self.stack[-1] == name):
+            return False
+        self._cut()
+        self.stack.append(name)
+        self.totals.setdefault("/".join(self.stack), [0.0, 0.0, 0])[2] += 1
+        return True
+
+    def leave(self) -> None:
+        """Close the innermost stage."""
+        self._cut()
+        self.stack.pop()
+
+    def record(self) -> dict:
+        """``{"started", "ended", "wall_s", "cpu_s", "stages": [{"stage", "wall_s",
+        "cpu_s", "entries"}]}``, the stages in the order first entered; ``started`` the
+        process's start (epoch seconds, ``/proc``'s 10 ms ticks; ``None`` elsewhere)."""
+        self._cut()
+        stages = [{"stage": k, "wall_s": round(v[0], 4), "cpu_s": round(v[1], 4), "entries": v[2]}
+                  for k, v in self.totals.items()]
+        return {"started": self.started, "ended": self._t, "wall_s": round(sum(v[0] for v in self.totals.values()), 4),
+                "cpu_s": round(self._c, 4), "stages": stages}
+
+
+class _Stage:
+    """:func:`stage`'s context manager."""
+
+    __slots__ = ("name", "open")
+
+    def __init__(self, name):
+        self.name, self.open = name, False
+
+    def __enter__(self):
+        self.open = bool(_PROFILE) and _PROFILE[0].enter(self.name)
+        return self
+
+    def __exit__(self, *exc):
+        if self.open:
+            _PROFILE[0].leave()
+        return False
+
+
+def stage(name: str) -> _Stage:
+    """``with stage("project"): ...``: the block's seconds are stage ``name`` of the
+    process's profile (:class:`StageProfile`) when one runs (``$BRDFKIT_PROFILE``), else
+    nothing at all. Stages nest; one entered off the main thread is part of the stage
+    that started the thread."""
+    return _Stage(name)
+
+
+def start_profile(environ=None) -> StageProfile | None:
+    """Start the process's profile when ``$BRDFKIT_PROFILE`` names a file (the command
+    line calls this first), and write it there, as JSON, when the interpreter exits;
+    ``None`` when the variable is unset."""
+    import atexit
+
+    environ = os.environ if environ is None else environ
+    path = environ.get(PROFILE_ENV)
+    if not path or _PROFILE:
+        return _PROFILE[0] if _PROFILE else None
+    _PROFILE.append(StageProfile())
+    atexit.register(_write_profile, path, list(__import__("sys").argv))
+    return _PROFILE[0]
+
+
+def _write_profile(path: str, argv: list) -> None:
+    import json
+
+    from brdfkit.atomic import atomic_open
+
+    prof = _PROFILE[0]
+    while prof.stack:
+        prof.leave()
+    with atomic_open(path, "w") as f:
+        json.dump({"format": "brdfkit-stages", "argv": argv, **prof.record()}, f, indent=1)
+
+
+def _process_start() -> float | None:
+    """This process's start in epoch seconds (Linux ``/proc``, 10 ms ticks), or ``None``."""
+    try:
+        with open("/proc/self/stat") as f:
+            ticks = int(f.read().rsplit(")", 1)[1].split()[19])
+        with open("/proc/stat") as f:
+            boot = next(int(line.split()[1]) for line in f if line.startswith("btime"))
+        return boot + ticks / os.sysconf("SC_CLK_TCK")
+    except (OSError, ValueError, IndexError, StopIteration, AttributeError):
+        return None
+
+
+def _watch_imports(prof: StageProfile) -> None:
+    """Charge first imports to a stage ``import`` (profiling only: ``builtins.__import__``
+    and ``importlib.import_module`` wrapped)."""
+    import builtins
+    import importlib
+    import sys
+
+    plain, by_name = builtins.__import__, importlib.import_module
+
+    def new(name, fromlist=()):
+        if name not in sys.modules:
+            return True
+        mod = sys.modules[name]
+        return any(isinstance(n, str) and n != "*" and not hasattr(mod, n) for n in fromlist or ())
+
+    def imported(name, globals=None, locals=None, fromlist=(), level=0):
+        if level or not new(name, fromlist):
+            return plain(name, globals, locals, fromlist, level)
+        with stage("import"):
+            return plain(name, globals, locals, fromlist, level)
+
+    def import_module(name, package=None):
+        if name in sys.modules:
+            return by_name(name, package)
+        with stage("import"):
+            return by_name(name, package)
+
+    builtins.__import__, importlib.import_module = imported, import_module

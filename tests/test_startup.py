@@ -3,7 +3,8 @@
 Each command runs as a user runs it, in a fresh process, through ``brdfkit.cli.main``; the
 process then prints which of the heavy modules it imported. ``plot`` of tables is checked
 in ``tests/test_plot.py``, ``import brdfkit`` and ``brdfkit --help`` in
-``tests/test_cli_basics.py``.
+``tests/test_cli_basics.py``. A process run with ``$BRDFKIT_PROFILE`` writes where its
+seconds went, every one of them in a named stage.
 """
 
 from __future__ import annotations
@@ -105,3 +106,63 @@ def test_commands_that_run_the_network_do_import_torch(good, tmp_path):
     [(code, heavy)] = _run(["encode", good / "samples.csv", "-m", good / "model.safetensors",
                             "-o", tmp_path / "s.emb"])
     assert code == 0 and "torch" in heavy
+
+
+@pytest.mark.slow
+def test_a_profiled_encode_accounts_for_every_second_in_named_stages(tmp_path):
+    """``$BRDFKIT_PROFILE``: a whole ``brdfkit encode`` process writes its stages, which tile
+    its time from the process's start to its end (nothing twice, nothing left out), the
+    command's own stages and first imports among them."""
+    from brdfkit.io.merl import write_merl
+    from brdfkit.testing.examples import lambertian_table, tiny_basis_file
+
+    from conftest import brdfkit_command, quiet_env
+
+    write_merl(tmp_path / "t.binary", lambertian_table())
+    basis = tiny_basis_file(tmp_path / "basis.safetensors")
+    env = {**quiet_env(), "BRDFKIT_PROFILE": str(tmp_path / "stages.json")}
+    r = subprocess.run([*brdfkit_command(), "encode", "t.binary", "-m", str(basis), "--size", "6", "--steps", "1"],
+                       cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0, r.stderr
+    rec = json.loads((tmp_path / "stages.json").read_text())
+    names = [s["stage"] for s in rec["stages"]]
+    for want in ("load model", "read table (waiting for the reader)", "encode", "encode/project", "encode/refine",
+                 "write embedding", "import"):
+        assert want in names, names
+    assert names[0].startswith("start") and len(set(names)) == len(names)
+    assert abs(sum(s["wall_s"] for s in rec["stages"]) - rec["wall_s"]) < 1e-3
+    if rec["started"] is not None:  # the process's start (10 ms ticks) to its end, all of it in the stages
+        assert abs(rec["ended"] - rec["started"] - rec["wall_s"]) < 0.02
+    assert all(s["wall_s"] >= 0 and s["cpu_s"] >= 0 for s in rec["stages"])
+
+
+def test_stages_nest_and_tile_the_time():
+    """Each piece of time is charged once, to the stages open then; a stage entered off the
+    main thread is part of the one that started the thread; without ``$BRDFKIT_PROFILE``
+    no profile runs and a stage does nothing."""
+    import threading
+    import time
+
+    from brdfkit import runtime
+
+    prof = runtime.StageProfile(imports=False)
+    runtime._PROFILE.append(prof)
+    try:
+        with runtime.stage("a"):
+            time.sleep(0.02)
+            with runtime.stage("b"):
+                time.sleep(0.03)
+                t = threading.Thread(target=lambda: runtime.stage("c").__enter__())
+                t.start()
+                t.join()
+        time.sleep(0.01)
+    finally:
+        runtime._PROFILE.clear()
+    rec = prof.record()
+    got = {s["stage"]: s["wall_s"] for s in rec["stages"]}
+    assert set(got) == {rec["stages"][0]["stage"], "a", "a/b", "main"}
+    assert got["a"] >= 0.02 and got["a/b"] >= 0.03 and got["main"] >= 0.01
+    assert abs(sum(got.values()) - rec["wall_s"]) < 1e-3
+    assert runtime.start_profile({}) is None and not runtime._PROFILE
+    with runtime.stage("nothing") as st:
+        assert not st.open

@@ -93,15 +93,17 @@ def encode_coefficients(basis, table, *, digest: str, size: int | None = None, s
     from brdfkit.basis.refine_on_screen import DEFAULT_TRUST, refine_coefficients
     from brdfkit.io.embedding import Embedding
     from brdfkit.render.objective import THREADS, ObjectiveConfig
-    from brdfkit.runtime import blas_threads
+    from brdfkit.runtime import blas_threads, stage
 
     if size is None:
         size = min(DEFAULT_SIZE, 3 * basis.n_components)
     part = basis.leading(_components(basis, int(size)))
     steps = DEFAULT_STEPS if steps is None else int(steps)
     with blas_threads(THREADS):  # the same sums whatever the machine's cores
-        c0 = part.project(table)
-        c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps), trust=DEFAULT_TRUST)
+        with stage("project"):
+            c0 = part.project(table)
+        with stage("refine"):
+            c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps), trust=DEFAULT_TRUST)
     measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
     record = refinement_record(rec) if steps else None
     return Embedding(np.asarray(c, np.float32).reshape(-1), "basis", digest, source, measured, refinement=record)

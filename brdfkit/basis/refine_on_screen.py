@@ -274,20 +274,23 @@ class Screens:
 def prepare_screens(basis, table, config=None) -> Screens:
     """:class:`Screens` of ``table`` for ``basis``."""
     from brdfkit.render.objective import ObjectiveConfig, objective_views
+    from brdfkit.runtime import stage
 
     cfg = config or ObjectiveConfig()
     basis_row = np.full(N_CELLS, -1, np.int64)
     basis_row[basis.cells] = np.arange(basis.cells.size)
-    views = objective_views(table, cfg)
-    fits = [cell_map(basis, v.screen, v.idx, v.weight, basis_row) for v in views]
-    helds = [cell_map(basis, v.screen, v.held_pairs, None, basis_row) for v in views]
+    with stage("objective views"):
+        views = objective_views(table, cfg)
+    with stage("cell maps"):
+        fits = [cell_map(basis, v.screen, v.idx, v.weight, basis_row) for v in views]
+        helds = [cell_map(basis, v.screen, v.held_pairs, None, basis_row) for v in views]
     return Screens(views, fits, helds, [v.target[m.pixels] for v, m in zip(views, fits)],
                    [v.target[m.pixels] for v, m in zip(views, helds)])
 
 
 class _Channel:
-    """One channel's least-squares problem over the fitted maps: its residuals at
-    coefficients ``c`` and their Jacobian (:func:`solve_channels`)."""
+    """One channel's least-squares problem over the fitted maps: its residuals at that
+    channel's coefficients ``x`` ``(K,)`` and their Jacobian (:func:`solve_channels`)."""
 
     def __init__(self, maps, targets, ch, c0, tau):
         from brdfkit.render.display import display_encode

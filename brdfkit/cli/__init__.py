@@ -16,9 +16,13 @@ import importlib.util
 import os
 import sys
 
-import click
+from brdfkit.runtime import start_profile
 
-from brdfkit.errors import BrdfkitError
+start_profile()  # $BRDFKIT_PROFILE: the process's stages, from here to its end (brdfkit.runtime.stage)
+
+import click  # noqa: E402
+
+from brdfkit.errors import BrdfkitError  # noqa: E402
 
 # name -> one-line help, shown by ``brdfkit --help`` without importing the module.
 COMMANDS = {

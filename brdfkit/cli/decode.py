@@ -26,13 +26,18 @@ def command(embedding, model_path, output):
     from brdfkit.io.embedding import read_embedding
     from brdfkit.io.merl import write_merl
     from brdfkit.embeddings import decoder_for
+    from brdfkit.runtime import stage
 
     if output is None:
         output = os.path.splitext(embedding)[0] + ".binary"
     refuse_overwrite_of_inputs(output, [embedding])
-    emb = read_embedding(embedding)
-    dec = decoder_for(emb, model_path, name=embedding)
+    with stage("read embedding"):
+        emb = read_embedding(embedding)
+    with stage("load model"):
+        dec = decoder_for(emb, model_path, name=embedding)
     refuse_overwrite_of_inputs(output, [dec.path])
-    table = decode(emb, dec, source=embedding)
-    write_merl(output, table)
+    with stage("decode"):
+        table = decode(emb, dec, source=embedding)
+    with stage("write table"):
+        write_merl(output, table)
     click.echo(f"decoded {embedding} into {output}", err=True)

@@ -74,8 +74,11 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
     if samples and kind is not None and get_kind(kind).name != latent:
         raise InputError(f"{samples[0]}: --kind {kind} is made from a table; a .csv sample set is encoded as a "
                          f"{latent} latent (encode the sample sets without --kind)")
+    from brdfkit.runtime import stage
+
     # The decoders are loaded (and a size checked) before any work; workers load their own.
-    dec = choose_decoder(kind, model_path, size=size) if tables else None
+    with stage("load model"):
+        dec = choose_decoder(kind, model_path, size=size) if tables else None
     if samples:
         choose_decoder(latent, model_path)
     if size is not None and dec is not None:
@@ -95,7 +98,8 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
         outcomes = encode_files(inputs, job)
         if outcomes[0].error:
             raise InputError(outcomes[0].error)
-    _report(out, outcomes, job)
+    with stage("report"):
+        _report(out, outcomes, job)
 
 
 def _report(out, outcomes, job) -> None:

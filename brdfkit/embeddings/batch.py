@@ -101,6 +101,7 @@ def _encode_one(path, target, data, job: EncodeJob, decoders, inputs) -> Outcome
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.errors import BrdfkitError
     from brdfkit.io.embedding import write_embedding
+    from brdfkit.runtime import stage
 
     samples = path.lower().endswith(".csv")
     dec = decoders[1] if samples else decoders[0]
@@ -108,9 +109,11 @@ def _encode_one(path, target, data, job: EncodeJob, decoders, inputs) -> Outcome
         if isinstance(data, BaseException):
             raise data
         refuse_overwrite_of_inputs(target, [*inputs, dec.path])
-        emb = job.encode(data[0], dec, size=None if samples else job.size, refine=job.refine, steps=job.steps,
-                     max_seconds=job.max_seconds, source=data[1] or os.path.basename(path))
-        write_embedding(target, emb)
+        with stage("encode"):
+            emb = job.encode(data[0], dec, size=None if samples else job.size, refine=job.refine, steps=job.steps,
+                             max_seconds=job.max_seconds, source=data[1] or os.path.basename(path))
+        with stage("write embedding"):
+            write_embedding(target, emb)
     except (BrdfkitError, OSError) as e:
         return Outcome(path, target, error=str(e) if isinstance(e, BrdfkitError) else f"{path}: {e.strerror or e}")
     return Outcome(path, target, emb.kind, emb.size, dec.label, emb.refinement)
@@ -130,11 +133,14 @@ def _serial(plan: list, job: EncodeJob, decoders, inputs, on_done):
     """Encode in this process, reading the next input on a thread meanwhile."""
     from concurrent.futures import ThreadPoolExecutor
 
+    from brdfkit.runtime import stage
+
     out = []
     with ThreadPoolExecutor(max_workers=1) as reader:
         ahead = reader.submit(_read_safely, plan[0][1], job) if plan else None
         for n, (i, path, target) in enumerate(plan):
-            data = ahead.result()
+            with stage("read table (waiting for the reader)"):
+                data = ahead.result()
             ahead = reader.submit(_read_safely, plan[n + 1][1], job) if n + 1 < len(plan) else None
             out.append((i, _encode_one(path, target, data, job, decoders, inputs)))
             if on_done is not None:

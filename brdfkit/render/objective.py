@@ -244,14 +244,17 @@ def objective_views(table, cfg: ObjectiveConfig, device=None) -> list[ObjectiveV
     from brdfkit.render.lookup import TableRows
     from brdfkit.render.scene_suite import scene_env
     from brdfkit.render.screen import screen
+    from brdfkit.runtime import stage
 
     rng = np.random.default_rng(cfg.seed)
     rows = TableRows(table)
     views = []
     for name in cfg.scenes:
-        sc = screen(None, cfg.resolution, env=scene_env(name))
-        at_pairs = sc.lookup(rows)
-        target = sc.render_table(rows, at_pairs)
+        with stage("scene's pairs"):
+            sc = screen(None, cfg.resolution, env=scene_env(name))
+        with stage("the table's render"):
+            at_pairs = sc.lookup(rows)
+            target = sc.render_table(rows, at_pairs)
         perm = rng.permutation(sc.pixels)
         n_held = max(1, int(round(cfg.holdout * sc.pixels)))
         held = np.sort(perm[:n_held])

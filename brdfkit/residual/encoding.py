@@ -157,28 +157,36 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
     from brdfkit.io.embedding import Embedding
     from brdfkit.render.objective import ObjectiveConfig
     from brdfkit.residual.model import gain_options
+    from brdfkit.runtime import stage
 
     part = residual.basis.leading(k)
     steps = DEFAULT_STEPS if steps is None else int(steps)
     cfg = ObjectiveConfig(steps=steps)
-    c0 = part.project(table)
-    mapped = part.mapped_table(table)
+    with stage("project"):
+        c0 = part.project(table)
+        mapped = part.mapped_table(table)
     screens = prepare_screens(part, table, cfg)  # one set of renders and maps for every candidate
-    ca, rec_a = refine_coefficients(part, table, c0, cfg, trust=DEFAULT_TRUST, screens=screens)
-    err_a = min(rec_a["heldout"]) if rec_a["heldout"] else heldout_error(part, table, ca, cfg, None, screens)
+    with stage("refine the basis alone"):
+        ca, rec_a = refine_coefficients(part, table, c0, cfg, trust=DEFAULT_TRUST, screens=screens)
+        err_a = min(rec_a["heldout"]) if rec_a["heldout"] else heldout_error(part, table, ca, cfg, None, screens)
     cands = [(err_a, ca, rec_a, None)]
     starts, lives = [], {}  # each member's projection (the study's best for half the materials at 9 numbers) and fit
     for member in residual.members(k):
-        lives[member] = screens.with_extra(correction_fn(residual, k, member), fits=False)  # at the held-out cells
-        for c in (c0, fit_through(residual, mapped, c0, member=member)):
-            starts.append((lives[member].held_error(c), c, member))
+        with stage("correction at the held-out cells"):
+            lives[member] = screens.with_extra(correction_fn(residual, k, member), fits=False)
+        with stage("fit through the correction"):
+            fitted = fit_through(residual, mapped, c0, member=member)
+        with stage("held-out errors of the starts"):
+            starts += [(lives[member].held_error(c), c, member) for c in (c0, fitted)]
     _, cs, best = min(starts, key=lambda x: x[0])
-    c2, rec_b = refine_coefficients(part, table, cs, cfg, trust=DEFAULT_TRUST, screens=screens,
-                                    extra=frozen_correction_fn(residual, k, cs, best))
+    with stage("refine with the correction"):
+        c2, rec_b = refine_coefficients(part, table, cs, cfg, trust=DEFAULT_TRUST, screens=screens,
+                                        extra=frozen_correction_fn(residual, k, cs, best))
     unrefined = dict(rec_b, best_step=0)
     cands += [(e, c, unrefined, m) for e, c, m in starts]
     if steps:
-        cands.append((lives[best].held_error(c2), c2, rec_b, best))
+        with stage("held-out errors of the starts"):
+            cands.append((lives[best].held_error(c2), c2, rec_b, best))
     err, c, rec, member = min(cands, key=lambda x: x[0])
     measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
     record = refinement_record(rec) if steps else None
