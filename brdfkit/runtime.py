@@ -215,7 +215,9 @@ def cpu_threads() -> int:
 def thread_map(fn, items, threads: int | None = None):
     """``map(fn, items)`` on :func:`cpu_threads` threads (``threads`` if given), results in
     the order of ``items``: for work that releases the GIL (NumPy on large arrays) and
-    whose results do not depend on which thread made them."""
+    whose results do not depend on which thread made them. While more than one thread
+    runs, NumPy's BLAS runs on one thread (:func:`blas_threads`): the pieces, not the
+    products, share the cores."""
     n = cpu_threads() if threads is None else int(threads)
     items = list(items)
     if n <= 1 or len(items) <= 1:
@@ -223,7 +225,7 @@ def thread_map(fn, items, threads: int | None = None):
         return
     from concurrent.futures import ThreadPoolExecutor
 
-    with ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
+    with blas_threads(1), ThreadPoolExecutor(max_workers=min(n, len(items))) as pool:
         yield from pool.map(fn, items)
 
 
@@ -238,11 +240,21 @@ def blas_threads(threads: int | None):
     if threads is None:
         yield
         return
-    import numpy  # noqa: F401  (loads NumPy's BLAS, so that threadpoolctl sees it)
-    from threadpoolctl import threadpool_limits
-
-    with threadpool_limits(limits=int(threads), user_api="blas"):
+    with _blas().limit(limits=int(threads)):
         yield
+
+
+_BLAS: list = []
+
+
+def _blas():
+    """threadpoolctl's controller of the BLAS libraries NumPy loaded (found once)."""
+    if not _BLAS:
+        import numpy  # noqa: F401  (loads NumPy's BLAS, so that threadpoolctl sees it)
+        from threadpoolctl import ThreadpoolController
+
+        _BLAS.append(ThreadpoolController().select(user_api="blas"))
+    return _BLAS[0]
 
 
 # --- the stages of a process (BRDFKIT_PROFILE) -----------------------------------------------

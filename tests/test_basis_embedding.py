@@ -227,9 +227,10 @@ def test_one_levenberg_marquardt_converges_stops_by_its_rule_and_never_raises_th
     assert at_min.step() and len(calls) == TRIES  # done: nothing more evaluated
 
 
-def test_the_refinement_gives_the_same_bytes_on_one_thread_or_two(basis_and_table):
-    """The channels are fixed pieces of work: the refinement's coefficients and record do
-    not depend on how many threads run them."""
+def test_the_refinement_and_the_decode_give_the_same_bytes_on_one_thread_or_two(basis_and_table):
+    """The channels, scenes and cells are fixed pieces of work: the refinement's
+    coefficients and record, and the dense decode, do not depend on how many threads run
+    them."""
     from brdfkit.runtime import set_cpu_threads
     from brdfkit import runtime
 
@@ -240,7 +241,8 @@ def test_the_refinement_gives_the_same_bytes_on_one_thread_or_two(basis_and_tabl
     try:
         for threads in (1, 2):
             set_cpu_threads(threads)
-            out.append(refine_coefficients(basis, held, c0, cfg))
+            c, rec = refine_coefficients(basis, held, c0, cfg)
+            out.append((c.tobytes(), rec, basis.decode(c).tobytes()))
     finally:
         runtime._CPU_THREADS.clear()
-    assert out[0][0].tobytes() == out[1][0].tobytes() and out[0][1] == out[1][1]
+    assert out[0] == out[1]

@@ -73,6 +73,9 @@ __all__ = ["PcaBasis", "EPS", "DEFAULT_LAMBDA", "DEFAULT_COMPONENTS", "cosine_we
 
 DEFAULT_COMPONENTS = 8
 DEFAULT_LAMBDA = 0.1
+DECODE_PIECE = 1 << 17
+"""Cells of one piece of a dense decode's inverse mapping (pieces run on
+:func:`brdfkit.runtime.thread_map`'s threads)."""
 
 
 def cosine_weight(theta_h, theta_d, phi_d) -> np.ndarray:
@@ -269,9 +272,17 @@ class PcaBasis:
         """Dense table from mapped values at the basis's cells ``(P, 3)`` (the mean
         included): float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis cells
         (:func:`brdfkit.basis.mapping.from_mapped`)."""
+        from brdfkit.runtime import thread_map
+
         out = np.full((N_CELLS, 3), np.nan)
-        out[self.cells] = self.mapping.from_mapped(mapped, self.cell_weight()[:, None],
-                                                   self.reference[:, None].astype(np.float64), floor)
+        weight = self.cell_weight()
+
+        def piece(s):  # elementwise: fixed pieces of cells, the same bytes on any threads
+            e = min(s + DECODE_PIECE, self.cells.size)
+            out[self.cells[s:e]] = self.mapping.from_mapped(mapped[s:e], weight[s:e, None],
+                                                            self.reference[s:e, None].astype(np.float64), floor)
+
+        list(thread_map(piece, range(0, self.cells.size, DECODE_PIECE)))
         return out.reshape(GRID_SHAPE + (3,))
 
     def mapped_table(self, table: np.ndarray) -> np.ndarray:

@@ -242,6 +242,8 @@ class Screens:
         ``fits=False``: the held-out maps only (all a choice by :meth:`held_error` needs)."""
         if extra is None:
             return self
+        import threading
+
         maps = (self.fits if fits else []) + self.helds
         present = np.zeros(N_CELLS, bool)
         for m in maps:
@@ -249,16 +251,21 @@ class Screens:
         union = np.flatnonzero(present)
         of_c = extra(union)
         last: list = [None, None]
+        lock = threading.Lock()  # the scenes' renders ask from several threads: evaluated once
 
         def at(c):
             key = np.asarray(c, np.float64).tobytes()
-            if last[0] != key:
-                last[:] = [key, of_c(c)]
-            return last[1]
+            with lock:
+                if last[0] != key:
+                    last[:] = [key, of_c(c)]
+                return last[1]
 
         def attach(m):
             pos = np.searchsorted(union, m.cells)
-            return dataclasses.replace(m, extra=lambda c: at(c)[pos])
+            out = dataclasses.replace(m, extra=lambda c: at(c)[pos])
+            if "_padded" in m.__dict__:  # the Jacobian's layout does not depend on the correction
+                out.__dict__["_padded"] = m.__dict__["_padded"]
+            return out
 
         return dataclasses.replace(self, fits=[attach(m) for m in self.fits] if fits else self.fits,
                                    helds=[attach(m) for m in self.helds])
@@ -267,8 +274,11 @@ class Screens:
         """The render error on the views' held-out pixels (full pairs) of coefficients
         ``c`` ``(K, 3)``: the mean over the scenes of the display MSE."""
         from brdfkit.render.screen import screen_error
+        from brdfkit.runtime import thread_map
 
-        return float(np.mean([screen_error(m.render(c), t) for m, t in zip(self.helds, self.held_targets)]))
+        # Each scene a fixed piece of work, their mean taken in order: the same bytes on any threads.
+        return float(np.mean(list(thread_map(lambda mt: screen_error(mt[0].render(c), mt[1]),
+                                             list(zip(self.helds, self.held_targets))))))
 
 
 def prepare_screens(basis, table, config=None) -> Screens:
@@ -281,9 +291,12 @@ def prepare_screens(basis, table, config=None) -> Screens:
     basis_row[basis.cells] = np.arange(basis.cells.size)
     with stage("objective views"):
         views = objective_views(table, cfg)
-    with stage("cell maps"):
-        fits = [cell_map(basis, v.screen, v.idx, v.weight, basis_row) for v in views]
-        helds = [cell_map(basis, v.screen, v.held_pairs, None, basis_row) for v in views]
+    with stage("cell maps"):  # each map a fixed piece of work
+        from brdfkit.runtime import thread_map
+
+        jobs = [(v, v.idx, v.weight) for v in views] + [(v, v.held_pairs, None) for v in views]
+        maps = list(thread_map(lambda j: cell_map(basis, j[0].screen, j[1], j[2], basis_row), jobs))
+        fits, helds = maps[:len(views)], maps[len(views):]
     return Screens(views, fits, helds, [v.target[m.pixels] for v, m in zip(views, fits)],
                    [v.target[m.pixels] for v, m in zip(views, helds)])
 

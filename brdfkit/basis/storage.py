@@ -212,6 +212,7 @@ class Compact:
     def __init__(self, rows, mean, how):
         self.stored_rows, self.mean, self.how = rows, np.asarray(mean, np.float32), how
         self._rows: dict = {}
+        self._gram: dict = {}
 
     def rows(self, k: int) -> np.ndarray:
         """The ``k`` leading stored components, float32 ``(k, Ps)`` (kept)."""
@@ -238,7 +239,9 @@ class Compact:
 
     def normal_equations(self, k: int, b, ok=None):
         """``(A A^T, A b)`` over the restored cells where ``ok`` (all by default), in
-        float64, for ``b`` ``(P, C)``: what a least-squares projection solves."""
+        float64, for ``b`` ``(P, C)``: what a least-squares projection solves (``A A^T``
+        over all the cells made once a ``k`` and kept: a table measured everywhere the
+        basis is, as every MERL table of the grid's measured cells, reuses it)."""
         _, ia, ib, wa, wb = self.how
         s = self.rows(k).astype(np.float64)
         ps = s.shape[1]
@@ -248,10 +251,17 @@ class Compact:
             b = np.where(np.isfinite(b), b, 0.0)
         v = np.stack([np.bincount(ia, wa * b[:, j], ps) + np.bincount(ib, wb * b[:, j], ps)
                       for j in range(b.shape[1])], 1)
+        if ok is None and k in self._gram:
+            return self._gram[k].copy(), s @ v
+        from brdfkit.runtime import blas_threads
+
         x = s * np.sqrt(np.bincount(ia, wa * wa, ps) + np.bincount(ib, wb * wb, ps))
-        ata = x @ x.T
-        both = (wb > 0) & (ia != ib)  # restored between two stored cells: their cross term
-        x = s[:, ia[both]] * (wa[both] * wb[both])
-        x = x @ s[:, ib[both]].T
+        with blas_threads(1):  # kept for later tables: the same sums whoever asked first
+            ata = x @ x.T
+            both = (wb > 0) & (ia != ib)  # restored between two stored cells: their cross term
+            x = s[:, ia[both]] * (wa[both] * wb[both])
+            x = x @ s[:, ib[both]].T
         ata += x + x.T
+        if ok is None:
+            self._gram = {k: ata.copy()}
         return ata, s @ v

@@ -74,9 +74,37 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
     if samples and kind is not None and get_kind(kind).name != latent:
         raise InputError(f"{samples[0]}: --kind {kind} is made from a table; a .csv sample set is encoded as a "
                          f"{latent} latent (encode the sample sets without --kind)")
+    from brdfkit.api import encode, load_input
+    from brdfkit.embeddings.batch import Reader
     from brdfkit.runtime import stage
 
-    # The decoders are loaded (and a size checked) before any work; workers load their own.
+    job = EncodeJob(model_path, kind, size, steps, refine, max_seconds, output_dir, read=load_input, encode=encode)
+    reader = Reader(job)
+    if jobs == 1 or len(inputs) == 1:
+        reader.start(inputs[0])  # the first table is read while the model loads
+    try:
+        _check_decoders(choose_decoder, get_kind, kind, model_path, size, max_seconds, tables, samples, latent)
+    except BaseException:
+        reader.close()
+        raise
+    out = console()
+    if len(inputs) > 1:
+        with ProgressBar("encoding", total=len(inputs), count=True, out=out) as bar:
+            outcomes = encode_files(inputs, job, jobs=jobs, reader=reader, on_done=lambda o: bar.update(
+                advance=1, description=f"encoded {os.path.basename(o.path)}"))
+    else:
+        outcomes = encode_files(inputs, job, reader=reader)
+        if outcomes[0].error:
+            raise InputError(outcomes[0].error)
+    with stage("report"):
+        _report(out, outcomes, job)
+
+
+def _check_decoders(choose_decoder, get_kind, kind, model_path, size, max_seconds, tables, samples, latent):
+    """The decoders loaded (and a size checked) before any work (workers load their own)."""
+    from brdfkit.errors import InputError
+    from brdfkit.runtime import stage
+
     with stage("load model"):
         dec = choose_decoder(kind, model_path, size=size) if tables else None
     if samples:
@@ -86,20 +114,6 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
     if max_seconds is not None and dec is not None and not get_kind(dec.kind).wall_clock:
         raise InputError(f"--max-seconds caps a hypernetwork latent's refinement; a {dec.kind} embedding's is "
                          f"counted in iterations (--steps N)")
-    from brdfkit.api import encode, load_input
-
-    job = EncodeJob(model_path, kind, size, steps, refine, max_seconds, output_dir, read=load_input, encode=encode)
-    out = console()
-    if len(inputs) > 1:
-        with ProgressBar("encoding", total=len(inputs), count=True, out=out) as bar:
-            outcomes = encode_files(inputs, job, jobs=jobs, on_done=lambda o: bar.update(
-                advance=1, description=f"encoded {os.path.basename(o.path)}"))
-    else:
-        outcomes = encode_files(inputs, job)
-        if outcomes[0].error:
-            raise InputError(outcomes[0].error)
-    with stage("report"):
-        _report(out, outcomes, job)
 
 
 def _report(out, outcomes, job) -> None:

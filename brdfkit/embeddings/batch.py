@@ -24,7 +24,7 @@ from __future__ import annotations
 import dataclasses
 import os
 
-__all__ = ["EncodeJob", "Outcome", "target_of", "plan_targets", "encode_files"]
+__all__ = ["EncodeJob", "Outcome", "Reader", "target_of", "plan_targets", "encode_files"]
 
 
 def target_of(path: str, output_dir: str | None) -> str:
@@ -129,22 +129,48 @@ def _read_safely(path, job: EncodeJob):
         return e
 
 
-def _serial(plan: list, job: EncodeJob, decoders, inputs, on_done):
-    """Encode in this process, reading the next input on a thread meanwhile."""
-    from concurrent.futures import ThreadPoolExecutor
+class Reader:
+    """Inputs read on a thread, one ahead of the encode (``job.read``): :meth:`start` a
+    file's read (the command starts the first one before the model loads), :meth:`take`
+    its data or the error reading it."""
 
+    def __init__(self, job: EncodeJob):
+        from concurrent.futures import ThreadPoolExecutor
+
+        self.job, self.pool, self.pending = job, ThreadPoolExecutor(max_workers=1), {}
+
+    def start(self, path: str) -> None:
+        path = os.fspath(path)
+        if path not in self.pending:
+            self.pending[path] = self.pool.submit(_read_safely, path, self.job)
+
+    def take(self, path: str):
+        self.start(path)
+        return self.pending.pop(os.fspath(path)).result()
+
+    def close(self) -> None:
+        self.pool.shutdown(wait=False, cancel_futures=True)
+
+
+def _serial(plan: list, job: EncodeJob, decoders, inputs, on_done, reader: Reader | None = None):
+    """Encode in this process, reading the next input on a thread meanwhile."""
     from brdfkit.runtime import stage
 
+    reader = reader or Reader(job)
     out = []
-    with ThreadPoolExecutor(max_workers=1) as reader:
-        ahead = reader.submit(_read_safely, plan[0][1], job) if plan else None
+    try:
         for n, (i, path, target) in enumerate(plan):
+            if n == 0:
+                reader.start(path)
             with stage("read table (waiting for the reader)"):
-                data = ahead.result()
-            ahead = reader.submit(_read_safely, plan[n + 1][1], job) if n + 1 < len(plan) else None
+                data = reader.take(path)
+            if n + 1 < len(plan):
+                reader.start(plan[n + 1][1])
             out.append((i, _encode_one(path, target, data, job, decoders, inputs)))
             if on_done is not None:
                 on_done(out[-1][1])
+    finally:
+        reader.close()
     return out
 
 
@@ -163,7 +189,7 @@ def _worker_one(item) -> tuple:
     return i, _encode_one(path, target, _read_safely(path, _WORKER["job"]), _WORKER["job"], _WORKER["decoders"], _WORKER["inputs"])
 
 
-def encode_files(paths, job: EncodeJob, *, jobs: int = 1, on_done=None) -> list[Outcome]:
+def encode_files(paths, job: EncodeJob, *, jobs: int = 1, on_done=None, reader: Reader | None = None) -> list[Outcome]:
     """Encode BRDF files (MERL ``.binary``, RGL ``.bsdf``, ``.csv`` sample sets) into their
     ``.emb`` (:func:`target_of`), in order; a bad input is an outcome with its error, and
     the others go on.
@@ -179,6 +205,9 @@ def encode_files(paths, job: EncodeJob, *, jobs: int = 1, on_done=None) -> list[
         that many workers, each loading the model once (the outputs are the same bytes).
     on_done
         Called with each :class:`Outcome` as it is made.
+    reader
+        A :class:`Reader` that may have started reading the first input already (in
+        this process: ``jobs`` 1, or one input); closed when done.
 
     Returns
     -------
@@ -195,8 +224,10 @@ def encode_files(paths, job: EncodeJob, *, jobs: int = 1, on_done=None) -> list[
         if on_done is not None:
             on_done(r)
     if jobs <= 1 or len(plan) <= 1:
-        done = _serial(plan, job, job.decoders(tables, samples), paths, on_done)
+        done = _serial(plan, job, job.decoders(tables, samples), paths, on_done, reader)
     else:
+        if reader is not None:
+            reader.close()
         import multiprocessing
         from concurrent.futures import ProcessPoolExecutor
 

@@ -244,17 +244,18 @@ def objective_views(table, cfg: ObjectiveConfig, device=None) -> list[ObjectiveV
     from brdfkit.render.lookup import TableRows
     from brdfkit.render.scene_suite import scene_env
     from brdfkit.render.screen import screen
-    from brdfkit.runtime import stage
+    from brdfkit.runtime import thread_map
 
-    rng = np.random.default_rng(cfg.seed)
     rows = TableRows(table)
+
+    def looked_up(name):  # a scene's pairs and the table's render there: a fixed piece of work
+        sc = screen(None, cfg.resolution, env=scene_env(name))
+        at_pairs = sc.lookup(rows)
+        return sc, at_pairs, sc.render_table(rows, at_pairs)
+
+    rng = np.random.default_rng(cfg.seed)  # the draws in the scenes' order, whatever the threads
     views = []
-    for name in cfg.scenes:
-        with stage("scene's pairs"):
-            sc = screen(None, cfg.resolution, env=scene_env(name))
-        with stage("the table's render"):
-            at_pairs = sc.lookup(rows)
-            target = sc.render_table(rows, at_pairs)
+    for sc, at_pairs, target in thread_map(looked_up, list(cfg.scenes)):
         perm = rng.permutation(sc.pixels)
         n_held = max(1, int(round(cfg.holdout * sc.pixels)))
         held = np.sort(perm[:n_held])

@@ -68,6 +68,12 @@ def _cell_hd(cells_key: bytes, n: int) -> np.ndarray:
     return np.ascontiguousarray(grid_hd()[cells])
 
 
+PIECE_CELLS = 16384
+"""Cells of one piece of a correction's evaluation (a channel's hyponet at that many cells;
+:func:`brdfkit.residual.network.evaluate`'s block), the pieces on
+:func:`brdfkit.runtime.thread_map`'s threads."""
+
+
 def _count(cfg, count):
     """The count a network takes (``None`` for one that takes none); one that takes it
     and is given none is refused."""
@@ -166,9 +172,18 @@ class BasisResidual:
         _, cfg, state = self.net_for(c.shape[0], member)
         z = net_input((c / self.basis.sigma[:c.shape[0], None].astype(np.float64)).T, cfg.k_max,
                       _count(cfg, count))
+        from brdfkit.runtime import thread_map
+
         hd = self.cell_hd() if hd is None else hd
         weights = hyponet_weights(state, cfg, z)
-        return np.stack([evaluate(weights, hd, ch) for ch in range(3)], axis=1)
+        out = np.empty((hd.shape[0], 3), np.float32)
+
+        def piece(p):  # a channel at PIECE_CELLS cells: evaluate's own blocks, the same bytes on any threads
+            ch, s = p
+            out[s:s + PIECE_CELLS, ch] = evaluate(weights, hd[s:s + PIECE_CELLS], ch, PIECE_CELLS)
+
+        list(thread_map(piece, [(ch, s) for ch in range(3) for s in range(0, hd.shape[0], PIECE_CELLS)]))
+        return out
 
     def correction_channel(self, coefficients: np.ndarray, hd: np.ndarray, member: int = 0,
                            count: int | None = None) -> np.ndarray:
