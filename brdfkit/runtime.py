@@ -244,17 +244,20 @@ def blas_threads(threads: int | None):
         yield
 
 
-_BLAS: list = []
+_BLAS: list = []  # [(modules imported then, controller)]
 
 
 def _blas():
-    """threadpoolctl's controller of the BLAS libraries NumPy loaded (found once)."""
-    if not _BLAS:
+    """threadpoolctl's controller of the BLAS libraries loaded (NumPy's, and any another
+    module brought, torch's): found again only after new modules were imported."""
+    import sys
+
+    if not _BLAS or _BLAS[0][0] != len(sys.modules):
         import numpy  # noqa: F401  (loads NumPy's BLAS, so that threadpoolctl sees it)
         from threadpoolctl import ThreadpoolController
 
-        _BLAS.append(ThreadpoolController().select(user_api="blas"))
-    return _BLAS[0]
+        _BLAS[:] = [(len(sys.modules), ThreadpoolController().select(user_api="blas"))]
+    return _BLAS[0][1]
 
 
 # --- the stages of a process (BRDFKIT_PROFILE) -----------------------------------------------
