@@ -44,7 +44,8 @@ import os
 from brdfkit.errors import InputError
 
 __all__ = ["resolve_device", "threads_for_load", "idle_cores", "running_others", "set_default_threads",
-           "set_torch_threads", "torch_threads", "cpu_threads", "set_cpu_threads", "thread_map", "blas_threads",
+           "set_torch_threads", "torch_threads", "cpu_threads", "set_cpu_threads", "thread_map", "beside",
+           "blas_threads",
            "PROFILE_ENV", "StageProfile", "stage", "start_profile"]
 
 def resolve_device(device=None, *, local_rank: int | None = None):
@@ -210,6 +211,29 @@ def cpu_threads() -> int:
         return max(1, int(os.environ["OMP_NUM_THREADS"]))
     except (KeyError, ValueError):
         return _cpus()
+
+
+def beside(fn, *args, **kwargs):
+    """``fn(*args, **kwargs)`` on a thread of its own while the caller goes on, when
+    :func:`cpu_threads` allows more than one, else now: a ``Future`` whose ``result()``
+    gives its value (or raises its error). For a fixed piece of work independent of what
+    the caller does meanwhile: its result is the same either way."""
+    import threading
+    from concurrent.futures import Future
+
+    fut: Future = Future()
+
+    def run():
+        try:
+            fut.set_result(fn(*args, **kwargs))
+        except BaseException as e:  # raised by result(), in the caller
+            fut.set_exception(e)
+
+    if cpu_threads() <= 1:
+        run()
+    else:
+        threading.Thread(target=run, daemon=True, name="brdfkit-beside").start()
+    return fut
 
 
 def thread_map(fn, items, threads: int | None = None):

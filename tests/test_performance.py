@@ -4,6 +4,7 @@ definitions they replace."""
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from brdfkit.geometry import N_CELLS, cell_angles, hd_vectors
 from brdfkit.geometry import grid_hd
@@ -80,6 +81,30 @@ def test_blas_threads_sets_numpys_blas_and_restores_it():
         with blas_threads(None):
             assert counts() == [other] * len(before)
     assert counts() == before
+
+
+def test_beside_runs_a_piece_on_its_own_thread_or_now_and_gives_its_result_or_error():
+    """``runtime.beside``: on a thread of its own with two threads allowed, now with one;
+    either way ``result()`` is the function's value, or raises its error."""
+    import threading
+
+    from brdfkit import runtime
+
+    def where(x):
+        return x * 2, threading.current_thread().name
+
+    def fails():
+        raise ValueError("bad piece")
+
+    try:
+        for threads in (1, 2):
+            runtime.set_cpu_threads(threads)
+            value, name = runtime.beside(where, 21).result()
+            assert value == 42 and (name == "brdfkit-beside") == (threads == 2)
+            with pytest.raises(ValueError, match="bad piece"):
+                runtime.beside(fails).result()
+    finally:
+        runtime._CPU_THREADS.clear()
 
 
 def test_running_others_reads_this_machine():

@@ -90,20 +90,24 @@ def encode_coefficients(basis, table, *, digest: str, size: int | None = None, s
     >>> emb.kind, emb.size, emb.refinement is None
     ('basis', 6, True)
     """
-    from brdfkit.basis.refine_on_screen import DEFAULT_TRUST, refine_coefficients
+    from brdfkit.basis.refine_on_screen import DEFAULT_TRUST, prepare_screens, refine_coefficients
     from brdfkit.io.embedding import Embedding
     from brdfkit.render.objective import THREADS, ObjectiveConfig
-    from brdfkit.runtime import blas_threads, stage
+    from brdfkit.runtime import beside, blas_threads, stage
 
     if size is None:
         size = min(DEFAULT_SIZE, 3 * basis.n_components)
     part = basis.leading(_components(basis, int(size)))
     steps = DEFAULT_STEPS if steps is None else int(steps)
+    cfg = ObjectiveConfig(steps=steps)
     with blas_threads(THREADS):  # the same sums whatever the machine's cores
+        made = beside(prepare_screens, part, table, cfg) if steps else None  # while the table is projected
         with stage("project"):
             c0 = part.project(table)
+        with stage("objective views and cell maps (beside the projection)"):
+            screens = made.result() if made is not None else None
         with stage("refine"):
-            c, rec = refine_coefficients(part, table, c0, ObjectiveConfig(steps=steps), trust=DEFAULT_TRUST)
+            c, rec = refine_coefficients(part, table, c0, cfg, trust=DEFAULT_TRUST, screens=screens)
     measured = int(np.isfinite(np.asarray(table).reshape(-1, 3)).all(axis=1).sum())
     record = refinement_record(rec) if steps else None
     return Embedding(np.asarray(c, np.float32).reshape(-1), "basis", digest, source, measured, refinement=record)

@@ -210,15 +210,19 @@ class Compact:
     """
 
     def __init__(self, rows, mean, how):
+        import threading
+
         self.stored_rows, self.mean, self.how = rows, np.asarray(mean, np.float32), how
         self._rows: dict = {}
         self._gram: dict = {}
+        self._lock = threading.Lock()  # an encode's pieces ask from several threads: restored once
 
     def rows(self, k: int) -> np.ndarray:
         """The ``k`` leading stored components, float32 ``(k, Ps)`` (kept)."""
-        if k not in self._rows:
-            self._rows = {k: self.stored_rows(k)}
-        return self._rows[k]
+        with self._lock:
+            if k not in self._rows:
+                self._rows = {k: self.stored_rows(k)}
+            return self._rows[k]
 
     def rows_at(self, k: int, positions) -> np.ndarray:
         """The ``k`` leading restored components at ``positions`` among the restored

@@ -165,19 +165,27 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
     from brdfkit.io.embedding import Embedding
     from brdfkit.render.objective import ObjectiveConfig
     from brdfkit.residual.model import gain_options
-    from brdfkit.runtime import stage
+    from brdfkit.runtime import beside, stage
 
     part = residual.basis.leading(k)
     steps = DEFAULT_STEPS if steps is None else int(steps)
     cfg = ObjectiveConfig(steps=steps)
+    # Independent pieces run beside the caller's (runtime.beside): the renders and maps of
+    # the objective scenes (one set for every candidate) while the table is projected; the
+    # basis alone refined while the correction's candidates are fitted.
+    made = beside(prepare_screens, part, table, cfg)
     with stage("project"):
         c0 = part.project(table)
         mapped = part.mapped_table(table)
-    screens = prepare_screens(part, table, cfg)  # one set of renders and maps for every candidate
-    with stage("refine the basis alone"):
+    with stage("objective views and cell maps (beside the projection)"):
+        screens = made.result()
+
+    def basis_alone():
         ca, rec_a = refine_coefficients(part, table, c0, cfg, trust=DEFAULT_TRUST, screens=screens)
         err_a = min(rec_a["heldout"]) if rec_a["heldout"] else heldout_error(part, table, ca, cfg, None, screens)
-    cands = [(err_a, ca, rec_a, None)]
+        return err_a, ca, rec_a, None
+
+    alone = beside(basis_alone)
     starts, lives = [], {}  # each member's projection (the study's best for half the materials at 9 numbers) and fit
     for member in residual.members(k):
         with stage("correction at the held-out cells"):
@@ -186,6 +194,8 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
             fitted = fit_through(residual, mapped, c0, member=member)
         with stage("held-out errors of the starts"):
             starts += [(lives[member].held_error(c), c, member) for c in (c0, fitted)]
+    with stage("refine the basis alone (beside the fits)"):
+        cands = [alone.result()]
     _, cs, best = min(starts, key=lambda x: x[0])
     with stage("refine with the correction"):
         c2, rec_b = refine_coefficients(part, table, cs, cfg, trust=DEFAULT_TRUST, screens=screens,
