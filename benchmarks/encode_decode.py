@@ -7,8 +7,9 @@ residual embedding at 39 and 9 numbers, and the default's basis embedding at 39)
 table (``--table``, default the ``teflon`` proxy, else a synthetic material):
 
 * **processes**: ``brdfkit encode TABLE -m MODEL --kind K --size S`` and ``brdfkit decode``
-  of what it wrote, each a fresh process as a user runs it: wall time and the child's
-  CPU time (user + system), best of ``--repeat`` by wall time;
+  of what it wrote, each a fresh process as a user runs it (no thread variable, bytecode
+  caches written): wall time and the child's CPU time (user + system), best of
+  ``--repeat`` by wall time (every run's in ``encode_runs``, ``decode_runs``);
 * **stages of the whole process** (the best run's): the process writes its stages
   (``$BRDFKIT_PROFILE``, :func:`brdfkit.runtime.stage`) and this script adds the two it
   cannot see, so that the stages sum to the wall time measured from outside: ``start``
@@ -29,12 +30,16 @@ table (``--table``, default the ``teflon`` proxy, else a synthetic material):
   (every process of the batch).
 
 Wall times follow the machine's load; the record holds the load average at its start and
-end. CPU times are what to compare between runs on a loaded machine.
+end. On a loaded machine compare CPU times, and compare them within one run:
+``--baseline DIR`` (another revision's ``brdfkit`` package, ``git archive REV brdfkit |
+tar -x -C DIR``) runs each process of that revision just before the same one of this
+checkout, and records both.
 
 Usage::
 
     python benchmarks/encode_decode.py [--repeat 3] [--table T.binary] [--cases merl-rgl-l40:basis-39,...]
-                                       [--batch-list LIST --proxies DIR --batch-jobs 1 2] [--json out.json]
+                                       [--batch-list LIST --proxies DIR --batch-jobs 1 2] [--baseline DIR]
+                                       [--json out.json]
 """
 
 from __future__ import annotations
@@ -51,14 +56,18 @@ import common
 
 DEFAULT_CASES = ("default:residual-39,default:residual-9,merl80-l40:residual-39,merl80-l40:residual-9,"
                  "default:basis-39")
-THREAD_VARIABLES = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS")
+# A user's shell: no thread count chosen, and Python writes its bytecode caches.
+USER_UNSET = ("OMP_NUM_THREADS", "MKL_NUM_THREADS", "OPENBLAS_NUM_THREADS", "PYTHONDONTWRITEBYTECODE")
 
 
-def _process(args, cwd, profile: bool = True) -> dict:
+def _process(args, cwd, profile: bool = True, baseline: str | None = None) -> dict:
     """``brdfkit ARGS`` in a fresh process, as a user runs it (no thread variable set):
     ``{"wall_s", "cpu_s", "stages"}``, the stages summing to ``wall_s`` (module
-    docstring)."""
-    env = {k: v for k, v in os.environ.items() if k not in THREAD_VARIABLES}
+    docstring); ``baseline``: a folder holding another revision's ``brdfkit`` package,
+    run instead (first on ``PYTHONPATH``)."""
+    env = {k: v for k, v in os.environ.items() if k not in USER_UNSET}
+    if baseline:
+        env["PYTHONPATH"] = os.pathsep.join([baseline] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
     prof = os.path.join(cwd, "stages.json")
     if profile:
         env["BRDFKIT_PROFILE"] = prof
@@ -72,7 +81,7 @@ def _process(args, cwd, profile: bool = True) -> dict:
         raise SystemExit(f"brdfkit {' '.join(map(str, args))} failed: {r.stderr[-500:]}")
     cpu = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
     out = {"wall_s": t1 - t0, "cpu_s": cpu}
-    if profile:
+    if profile and os.path.exists(prof):  # (a brdfkit from before $BRDFKIT_PROFILE writes none)
         with open(prof, encoding="utf-8") as f:
             out["stages"] = _whole(json.load(f), t0, t1, cpu)
         os.remove(prof)
@@ -140,7 +149,22 @@ def _bounds(dec, part, kind, repeat):
         return _best(lambda: [f() for f in decode], repeat), _best(lambda: [f() for f in encode], repeat)
 
 
-def _case(spec, table_path, repeat, tmp):
+def _runs(args, tmp, repeat, baseline) -> tuple:
+    """``(runs, baseline runs)``: ``repeat`` runs of ``brdfkit ARGS``, each after a run of
+    the baseline when there is one (interleaved: both under the same load)."""
+    runs, base = [], []
+    for _ in range(repeat):
+        if baseline:
+            base.append(_process(args, tmp, baseline=baseline))
+        runs.append(_process(args, tmp))
+    return runs, base
+
+
+def _pairs(runs) -> list:
+    return [[round(r["wall_s"], 3), round(r["cpu_s"], 3)] for r in runs]
+
+
+def _case(spec, table_path, repeat, tmp, baseline=None):
     from brdfkit.embeddings import choose_decoder
     from brdfkit.models.builtin import default_bundle
 
@@ -151,21 +175,29 @@ def _case(spec, table_path, repeat, tmp):
     enc_args = ["encode", table_path, "-m", model, "--kind", kind, "--size", size, "-o", tmp]
     emb = os.path.join(tmp, os.path.splitext(os.path.basename(table_path))[0] + ".emb")
     dec_args = ["decode", emb, "-o", os.path.join(tmp, "decoded.binary")]
-    enc = min((_process(enc_args, tmp) for _ in range(repeat)), key=lambda x: x["wall_s"])
-    dec_p = min((_process(dec_args, tmp) for _ in range(repeat)), key=lambda x: x["wall_s"])
+    enc_runs, enc_base = _runs(enc_args, tmp, repeat, baseline)
+    dec_runs, dec_base = _runs(dec_args, tmp, repeat, baseline)  # the current revision's .emb
+    enc, dec_p = (min(runs, key=lambda x: x["wall_s"]) for runs in (enc_runs, dec_runs))
     dec = choose_decoder(kind, model, size=size)
     basis = dec.obj.basis if kind == "residual" else dec.obj
     bound_dec, bound_enc = _bounds(dec, basis.leading(size // 3), kind, repeat)
     return {"case": f"{model}:{kind}-{size}", "encode_wall_s": enc["wall_s"], "encode_cpu_s": enc["cpu_s"],
+            "encode_runs": _pairs(enc_runs), "decode_runs": _pairs(dec_runs),
+            **({"baseline_encode_runs": _pairs(enc_base), "baseline_decode_runs": _pairs(dec_base),
+                "baseline_encode_cpu_s": min(r["cpu_s"] for r in enc_base),
+                "baseline_decode_cpu_s": min(r["cpu_s"] for r in dec_base),
+                "encode_cpu_s_min": min(r["cpu_s"] for r in enc_runs),
+                "decode_cpu_s_min": min(r["cpu_s"] for r in dec_runs)} if baseline else {}),
             "decode_wall_s": dec_p["wall_s"], "decode_cpu_s": dec_p["cpu_s"], "encode_bound_s": bound_enc,
             "decode_bound_s": bound_dec, "encode_to_bound": enc["wall_s"] / bound_enc,
-            "decode_to_bound": dec_p["wall_s"] / bound_dec, "encode_stages": enc["stages"],
-            "decode_stages": dec_p["stages"],
-            "accounted": round(sum(s["wall_s"] for s in enc["stages"]) / enc["wall_s"], 4)}
+            "decode_to_bound": dec_p["wall_s"] / bound_dec, "encode_stages": enc.get("stages"),
+            "decode_stages": dec_p.get("stages"),
+            "accounted": round(sum(s["wall_s"] for s in enc["stages"]) / enc["wall_s"], 4) if "stages" in enc else None}
 
 
-def _batch(list_path, proxies, jobs_counts, tmp) -> list:
-    """Seconds a table of one ``brdfkit encode`` of every listed table, per ``--jobs``."""
+def _batch(list_path, proxies, jobs_counts, tmp, baseline=None) -> list:
+    """Seconds a table of one ``brdfkit encode`` of every listed table, per ``--jobs`` (the
+    baseline's run before each, when there is one)."""
     with open(list_path, encoding="utf-8") as f:
         names = f.read().split()
     paths = [os.path.abspath(os.path.join(proxies, f"{n}.binary")) for n in names]
@@ -174,10 +206,14 @@ def _batch(list_path, proxies, jobs_counts, tmp) -> list:
         return []
     out = []
     for jobs in jobs_counts:
-        r = _process(["encode", *paths, "-o", os.path.join(tmp, f"batch{jobs}"), "--jobs", jobs], tmp,
-                     profile=jobs == 1)
+        args = ["encode", *paths, "-o", os.path.join(tmp, f"batch{jobs}"), "--jobs", jobs]
+        base = _process(args, tmp, profile=False, baseline=baseline) if baseline else None
+        r = _process(args, tmp, profile=jobs == 1)
         row = {"tables": len(paths), "jobs": jobs, "wall_s_a_table": r["wall_s"] / len(paths),
                "cpu_s_a_table": r["cpu_s"] / len(paths), "wall_s": r["wall_s"], "cpu_s": r["cpu_s"]}
+        if base:
+            row.update(baseline_wall_s_a_table=base["wall_s"] / len(paths),
+                       baseline_cpu_s_a_table=base["cpu_s"] / len(paths))
         if "stages" in r:
             row["stages"] = r["stages"]
         out.append(row)
@@ -199,6 +235,11 @@ def main(argv=None):
                     help="names of the batch's tables, one a line ('' for no batch)")
     ap.add_argument("--proxies", default=os.path.join("proxies", "merl"), help="folder of the batch's NAME.binary")
     ap.add_argument("--batch-jobs", type=int, nargs="+", default=[1, 2])
+    ap.add_argument("--baseline", default=None,
+                    help="a folder holding another revision's brdfkit package (git archive REV brdfkit | tar -x -C "
+                         "DIR): each process of it runs just before the same one of this checkout, and both are "
+                         "recorded (a before/after comparison under the same load)")
+    ap.add_argument("--baseline-label", default=None, help="what the record calls the baseline (its revision)")
     a = ap.parse_args(argv)
     load0, t0 = common.load_average(), time.time()
     with tempfile.TemporaryDirectory() as tmp:
@@ -209,16 +250,26 @@ def main(argv=None):
 
             table_path = os.path.join(tmp, "synthetic.binary")
             write_merl(table_path, synthetic.table(synthetic.STIFF[1]))
-        results = [_case(spec, table_path, a.repeat, tmp) for spec in a.cases.split(",")]
-        batch = _batch(a.batch_list, a.proxies, a.batch_jobs, tmp) if a.batch_list and os.path.exists(
+        base = os.path.abspath(a.baseline) if a.baseline else None
+        results = [_case(spec, table_path, a.repeat, tmp, base) for spec in a.cases.split(",")]
+        batch = _batch(a.batch_list, a.proxies, a.batch_jobs, tmp, base) if a.batch_list and os.path.exists(
             a.batch_list) else []
     cols = ["case", "encode wall s", "encode CPU s", "bound s", "decode wall s", "decode CPU s", "bound s",
             "encode: largest stages (wall)"]
     table = [[r["case"], r["encode_wall_s"], r["encode_cpu_s"], r["encode_bound_s"], r["decode_wall_s"],
-              r["decode_cpu_s"], r["decode_bound_s"], _top(r["encode_stages"])] for r in results]
+              r["decode_cpu_s"], r["decode_bound_s"], _top(r["encode_stages"]) if r["encode_stages"] else ""]
+             for r in results]
     table += [[f"batch of {b['tables']}, --jobs {b['jobs']} (a table)", b["wall_s_a_table"], b["cpu_s_a_table"],
                "", "", "", "", _top(b["stages"]) if "stages" in b else ""] for b in batch]
-    record = common.write_record({"cases": results, "batch": batch,
+    if base:
+        cols += ["baseline encode CPU s (best)", "this encode CPU s (best)", "baseline decode CPU s", "this decode CPU s"]
+        for row, r in zip(table, results):
+            row += [r["baseline_encode_cpu_s"], r["encode_cpu_s_min"], r["baseline_decode_cpu_s"],
+                    r["decode_cpu_s_min"]]
+        for row, b in zip(table[len(results):], batch):
+            row += [b["baseline_cpu_s_a_table"], b["cpu_s_a_table"], "", ""]
+    label = a.baseline_label or (os.path.basename(os.path.normpath(a.baseline)) if a.baseline else None)
+    record = common.write_record({"cases": results, "batch": batch, "baseline": label,
                                   "table": os.path.relpath(table_path) if a.table in table_path else "synthetic"},
                                  None, load0, t0)
     common.report("encode_decode", "Encode and decode as whole processes, every second in a stage", cols, table,

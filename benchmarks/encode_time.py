@@ -3,7 +3,7 @@ seconds an encode takes and the render error of what it decodes to.
 
 For each material (``--materials``, or the names of ``--list`` in ``--proxies``, every
 ``--every``-th), each case ``MODEL:KIND-SIZE`` (``default`` names the default built-in)
-and each ``--steps`` value, the table is encoded as ``brdfkit encode -m MODEL --kind KIND
+and each ``--steps`` value (or the case's own, ``MODEL:KIND-SIZE@0/10/40``), the table is encoded as ``brdfkit encode -m MODEL --kind KIND
 --size SIZE --steps STEPS`` encodes it (:func:`brdfkit.api.encode`, in this process),
 decoded densely, and rendered at ``--px`` pixels in each of ``--scenes`` (the judged
 suite, :mod:`brdfkit.render.scene_suite`) beside the table's own render: PSNR and Delta E
@@ -88,23 +88,27 @@ def _scores(table, ref, refs, scene, envs) -> dict:
             "scenes": {s: {"psnr": r["psnr"], "delta_e": r["delta_e"]} for s, r in per.items()}}
 
 
-def _decoders(cases) -> list:
+def _decoders(cases, steps) -> list:
+    """``[(label, decoder, size, step counts)]``: a case ``MODEL:KIND-SIZE``, or
+    ``MODEL:KIND-SIZE@S1/S2/...`` with its own step counts (a latent's Adam steps)."""
     from brdfkit.embeddings import choose_decoder
     from brdfkit.models.builtin import default_bundle
 
     out = []
     for spec in cases:
+        spec, _, own = spec.partition("@")
         model, kind_size = spec.split(":")
         model = default_bundle().name if model == "default" else model
         kind, size = kind_size.rsplit("-", 1)
-        out.append((f"{model}:{kind}-{size}", choose_decoder(kind, model, size=int(size)), int(size)))
+        counts = [int(s) for s in own.split("/")] if own else list(steps)
+        out.append((f"{model}:{kind}-{size}", choose_decoder(kind, model, size=int(size)), int(size), counts))
     return out
 
 
-def _summary(records, steps) -> list:
+def _summary(records) -> list:
     rows = []
     for case in dict.fromkeys(r["case"] for r in records):
-        for s in steps:
+        for s in dict.fromkeys(r["steps"] for r in records if r["case"] == case):
             rs = [r for r in records if r["case"] == case and r["steps"] == s]
             scenes = rs[0]["scenes"]
             rows.append({"case": case, "steps": s, "materials": len(rs),
@@ -141,15 +145,16 @@ def main(argv=None):
     mats = _materials(a)
     scene = Scene(resolution=a.px)
     envs = {s: scene_env(s) for s in scene_names(a.scenes)}
-    decoders = _decoders(a.cases.split(","))
-    records = []
+    decoders = _decoders(a.cases.split(","), a.steps)
+    records, warm = [], set()
     for name, path in mats:
         table = read_merl(path)
         refs = _renders(table, scene, envs)
-        for label, dec, size in decoders:
-            if not records:  # a warm-up: the caches a process fills on its first encode
-                encode(table, dec, size=size, steps=max(a.steps), source=name)
-            for steps in a.steps:
+        for label, dec, size, counts in decoders:
+            if label not in warm:  # a warm-up: the caches a process fills on a case's first encode
+                encode(table, dec, size=size, steps=max(counts), source=name)
+                warm.add(label)
+            for steps in counts:
                 w, c = time.perf_counter(), time.process_time()
                 emb = encode(table, dec, size=size, steps=steps, source=name)
                 wall, cpu = time.perf_counter() - w, time.process_time() - c
@@ -158,11 +163,12 @@ def main(argv=None):
                        "ran": (emb.refinement or {}).get("steps", 0), **_scores(decoded, table, refs, scene, envs)}
                 records.append(rec)
                 print(f"{name} {label} steps {steps}: {rec['psnr']:.2f} dB, {cpu:.2f} s CPU", file=sys.stderr)
-    summary = _summary(records, a.steps)
+    summary = _summary(records)
     cols = ["case", "steps", "materials", "encode wall s", "encode CPU s", "PSNR dB", "Delta E"]
     rows = [[r["case"], r["steps"], r["materials"], r["encode_wall_s"], r["encode_cpu_s"], r["psnr"], r["delta_e"]]
             for r in summary]
-    record = common.write_record({"config": {**vars(a), "set": settings}, "materials": [n for n, _ in mats],
+    config = {k: v for k, v in vars(a).items() if k != "json"}
+    record = common.write_record({"config": {**config, "set": settings}, "materials": [n for n, _ in mats],
                                   "summary": summary, "records": records}, None, load0, t0)
     common.report("encode_time", "Encode: error against run time", cols, rows, record, a.json)
 
