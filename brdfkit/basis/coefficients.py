@@ -101,10 +101,11 @@ def encode_coefficients(basis, table, *, digest: str, size: int | None = None, s
     steps = DEFAULT_STEPS if steps is None else int(steps)
     cfg = ObjectiveConfig(steps=steps)
     with blas_threads(THREADS):  # the same sums whatever the machine's cores
-        made = beside(prepare_screens, part, table, cfg) if steps else None  # while the table is projected
+        with stage("objective views and cell maps"):  # while the table is projected, where it can
+            made = beside(prepare_screens, part, table, cfg) if steps else None
         with stage("project"):
             c0 = part.project(table)
-        with stage("objective views and cell maps (beside the projection)"):
+        with stage("waiting for the objective views and cell maps"):
             screens = made.result() if made is not None else None
         with stage("refine"):
             c, rec = refine_coefficients(part, table, c0, cfg, trust=DEFAULT_TRUST, screens=screens)

@@ -173,11 +173,12 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
     # Independent pieces run beside the caller's (runtime.beside): the renders and maps of
     # the objective scenes (one set for every candidate) while the table is projected; the
     # basis alone refined while the correction's candidates are fitted.
-    made = beside(prepare_screens, part, table, cfg)
+    with stage("objective views and cell maps"):  # (returns at once when it runs beside)
+        made = beside(prepare_screens, part, table, cfg)
     with stage("project"):
         c0 = part.project(table)
         mapped = part.mapped_table(table)
-    with stage("objective views and cell maps (beside the projection)"):
+    with stage("waiting for the objective views and cell maps"):
         screens = made.result()
 
     def basis_alone():
@@ -185,7 +186,8 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
         err_a = min(rec_a["heldout"]) if rec_a["heldout"] else heldout_error(part, table, ca, cfg, None, screens)
         return err_a, ca, rec_a, None
 
-    alone = beside(basis_alone)
+    with stage("refine the basis alone"):
+        alone = beside(basis_alone)
     starts, lives = [], {}  # each member's projection (the study's best for half the materials at 9 numbers) and fit
     for member in residual.members(k):
         with stage("correction at the held-out cells"):
@@ -194,7 +196,7 @@ def _encode(residual, table, digest: str, k: int, source: str, steps):
             fitted = fit_through(residual, mapped, c0, member=member)
         with stage("held-out errors of the starts"):
             starts += [(lives[member].held_error(c), c, member) for c in (c0, fitted)]
-    with stage("refine the basis alone (beside the fits)"):
+    with stage("waiting for the basis alone"):
         cands = [alone.result()]
     _, cs, best = min(starts, key=lambda x: x[0])
     with stage("refine with the correction"):
