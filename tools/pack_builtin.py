@@ -110,10 +110,18 @@ MEMBERS: dict = {}
 cap holds one network a size for both built-ins (0.1 MB a network); none given: all."""
 
 
+SPARSE: dict = {}
+"""``{bundle: file}`` of a residual file whose networks join the bundle's residual
+(``--sparse NAME=FILE``): the network of ``brdfkit fit --method correction`` (or any
+network for the basis's ``K`` components) through which ``brdfkit sparse`` decodes; its
+record goes under the residual's ``sparse`` key."""
+
+
 def _pack_residual(src, dst, parts):
     """A residual re-saved for shipping: its heads in int8, its basis named as the bundle's
     (the same file, by digest), the sizes it is offered at (:data:`OFFERED`), the members
-    that ship (:data:`MEMBERS`)."""
+    that ship (:data:`MEMBERS`), and the networks of sparse fits that join it
+    (:data:`SPARSE`)."""
     from brdfkit.basis.basis_file import load_basis
     from brdfkit.io.digest import file_digest
     from brdfkit.residual.residual_file import load_residual, save_residual
@@ -125,6 +133,12 @@ def _pack_residual(src, dst, parts):
     if bundle in MEMBERS:
         nets = [(cfg, state) for cfg, state in nets if cfg.member in MEMBERS[bundle]]
         meta["shipped_members"] = ",".join(map(str, MEMBERS[bundle]))
+    if bundle in SPARSE:
+        extra = load_residual(SPARSE[bundle], basis=(load_basis(bpath), file_digest(bpath)))
+        if extra.basis_digest != res.basis_digest:
+            raise SystemExit(f"{SPARSE[bundle]}: corrects another basis than {src}")
+        nets = nets + extra.nets
+        meta["sparse"] = dict(extra.meta or {}, file=os.path.basename(SPARSE[bundle]))
     save_residual(dst, nets, basis_digest=res.basis_digest, basis_file=parts["basis"],
                   offered=OFFERED.get(bundle, ()), meta=meta, storage="int8")
     return file_digest(dst)
@@ -253,6 +267,9 @@ def main():
                     help="the members of a bundle's residual that ship, e.g. merl80-l40=0 (default: all)")
     ap.add_argument("--offered", nargs="*", default=[], metavar="NAME=SIZES",
                     help="the sizes a bundle's residual is offered at (where it won), e.g. merl80-l40=9,21,39")
+    ap.add_argument("--sparse", nargs="*", default=[], metavar="NAME=FILE",
+                    help="a residual file whose networks join a bundle's residual: the one brdfkit sparse decodes "
+                         "through, e.g. merl80-l40=merl80-sparse.safetensors")
     args = ap.parse_args()
     if not args.validation_only and not args.src:
         ap.error("--src is required (unless --validation-only)")
@@ -266,6 +283,9 @@ def main():
     for item in args.offered:
         name, _, sizes = item.partition("=")
         OFFERED[name] = tuple(int(x) for x in sizes.split(",") if x)
+    for item in args.sparse:
+        name, _, path = item.partition("=")
+        SPARSE[name] = path
 
     validation, renders = {}, {}
     for item in args.validation:

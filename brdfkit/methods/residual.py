@@ -36,22 +36,28 @@ def _load(path, device):
 
 
 def _model(loaded, options):
-    """The :class:`~brdfkit.prior.corrected.CorrectedPrior` of a loaded residual and the
-    learnt prior its record names (or ``options.prior``)."""
+    """The :class:`~brdfkit.prior.corrected.CorrectedPrior` of a loaded residual and its
+    learnt prior: ``options.prior``, else the one the residual's record names, else the
+    prior of the installed built-in whose residual it is."""
     from brdfkit.errors import InputError
     from brdfkit.io.digest import file_digest
-    from brdfkit.models.builtin import find_by_digest, resolve_prior
+    from brdfkit.models.builtin import find_by_digest, installed_bundles, resolve_prior
     from brdfkit.prior.corrected import CorrectedPrior
     from brdfkit.prior.prior_file import load_prior
 
     residual, path = loaded
-    record = residual.meta.get("correction", residual.meta)
-    where = resolve_prior(options.prior) if options.prior else find_by_digest(record.get("prior_digest"))
+    named = (residual.meta.get("sparse") or residual.meta).get("prior_digest")
+    where = resolve_prior(options.prior) if options.prior else find_by_digest(named)
+    if where is None:
+        real = os.path.realpath(path)
+        bundle = next((m for m in installed_bundles() if m.part("residual") and m.part("prior")
+                       and os.path.realpath(m.parts["residual"].path) == real), None)
+        where = resolve_prior(bundle.name) if bundle is not None else None
     if where is None:
         raise InputError(f"{path}: the learnt prior its correction was trained on is not installed; "
                          f"give it with -O prior=FILE")
     prior = load_prior(where)
-    if record.get("prior_digest") and prior.digest != record["prior_digest"]:
+    if named and not options.prior and prior.digest != named:
         raise InputError(f"{where}: not the learnt prior {os.path.basename(path)}'s correction was trained on")
     return CorrectedPrior(prior, residual, file_digest(path))
 

@@ -1,16 +1,19 @@
-"""A sparse reconstruction through the basis plus the correction (``brdfkit sparse``'s
+"""A sparse reconstruction through the basis plus a correction (``brdfkit sparse``'s
 default): :class:`CorrectedPrior`.
 
-The learnt prior fits the basis's coefficients to the samples in closed form
-(:meth:`brdfkit.prior.model.PriorModel.coefficients`); the correction, a hypernetwork
-residual trained on such fits (:mod:`brdfkit.prior.correction`), adds to the basis's
-mapped table what the coefficients and the sample count say the basis misses. Whether it
-does for *this* material the samples themselves say: they are dealt into
-:data:`HOLDOUT_FOLDS` folds, each fold's samples predicted from a fit to the others, by
-the basis alone and by the basis plus the correction, and the correction is kept only
-where its held-out error, in the metric's space ``ln(1 + rho cos_i)``, is the lower (as
-``encode`` keeps a residual embedding's correction only where its held-out renders are
-better). The dense table is then decoded in NumPy, no torch.
+The learnt prior fits the basis's ``K`` coefficients to the samples in closed form
+(:meth:`brdfkit.prior.model.PriorModel.fit`). The correction is a hypernetwork residual of
+the basis (:mod:`brdfkit.residual`): for coefficients, it adds to the basis's mapped table
+what the basis misses. The coefficients are then fitted again through it
+(:func:`fit_through`): the same least squares as the prior's, the samples' weighted error
+and the prior's Gaussian term, with the decode being the basis plus the correction.
+
+Whether the correction helps *this* material the samples themselves say: they are dealt
+into :data:`HOLDOUT_FOLDS` folds, each fold's samples predicted from the fits to the
+others, by the basis alone and by the basis plus the correction, and the correction is
+kept only where its held-out error, in the metric's space ``ln(1 + rho cos_i)``, is the
+lower (as ``encode`` keeps a residual embedding's correction only where its held-out
+renders are better). The dense table is then decoded in NumPy, no torch.
 """
 
 from __future__ import annotations
@@ -21,17 +24,21 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["CorrectedPrior", "HOLDOUT_FOLDS", "SparseFit"]
+__all__ = ["CorrectedPrior", "HOLDOUT_FOLDS", "THROUGH_STEPS", "SparseFit", "fit_through"]
 
 HOLDOUT_FOLDS = 5
 """Folds of the samples in the held-out choice (fewer when there are fewer samples)."""
 
+THROUGH_STEPS = 5
+"""Most Levenberg-Marquardt iterations of a fit through the correction."""
+
 
 @dataclasses.dataclass(frozen=True)
 class SparseFit:
-    """A material's fit: its coefficients ``(K, 3)``, whether the correction is kept, the
-    sample count it was fitted from, and the held-out errors of the basis alone and with
-    the correction (``None`` when too few samples to hold any out)."""
+    """A material's fit: its coefficients ``(K, 3)``, whether the correction is kept (the
+    coefficients are then those fitted through it), the sample count it was fitted from,
+    and the held-out errors of the basis alone and with the correction (``None`` when
+    too few samples to hold any out, or the choice was given)."""
 
     coefficients: np.ndarray
     corrected: bool
@@ -41,15 +48,15 @@ class SparseFit:
 
 @dataclasses.dataclass
 class CorrectedPrior:
-    """A learnt prior and the correction trained on its fits.
+    """A learnt prior and a residual of its basis.
 
     Attributes
     ----------
     prior
         :class:`~brdfkit.prior.model.PriorModel`.
     residual
-        :class:`~brdfkit.residual.model.BasisResidual` whose network for the basis's
-        ``K`` components takes the sample count (``ResidualConfig.count``).
+        :class:`~brdfkit.residual.model.BasisResidual` of the prior's basis, with a network
+        for its ``K`` components.
     residual_digest
         SHA-256 of the residual file (the decoder an embedding names).
     """
@@ -60,10 +67,8 @@ class CorrectedPrior:
 
     def __post_init__(self):
         k = self.prior.basis.n_components
-        _, cfg, _ = self.residual.net_for(k)
-        if not cfg.count:
-            raise InputError(f"the residual's network for {3 * k} numbers was not trained on sparse fits "
-                             f"(brdfkit fit --method correction)")
+        if k not in self.residual.components:
+            raise InputError(f"the residual has no network for the learnt prior's {k} components ({3 * k} numbers)")
 
     def fit(self, samples, *, correction: str = "auto") -> SparseFit:
         """The coefficients of a sample set and whether the correction is kept:
@@ -71,41 +76,42 @@ class CorrectedPrior:
         ``"off"``."""
         if correction not in ("auto", "on", "off"):
             raise InputError(f"correction={correction!r}: one of auto, on, off")
+        pf = self.prior.fit(samples)
+        if correction == "off":
+            return SparseFit(pf.coefficients, False, pf.count, None)
+        through = fit_through(pf, self.residual)
+        if correction == "on":
+            return SparseFit(through, True, pf.count, None)
+        errors = self._heldout(samples)
+        if errors is None or not errors[1] < errors[0]:
+            return SparseFit(pf.coefficients, False, pf.count, errors)
+        return SparseFit(through, True, pf.count, errors)
+
+    def _heldout(self, samples) -> tuple | None:
+        """``(basis alone, with the correction)``: the summed squared error, in the
+        metric's space, of every usable sample predicted from the fits to the other folds;
+        ``None`` below 2 usable samples."""
         from brdfkit.prior.model import sample_rows
 
-        c = self.prior.coefficients(samples)
-        ok = sample_rows(self.prior.basis, samples)[0]
-        n = int(ok.sum())
-        if correction != "auto":
-            return SparseFit(c, correction == "on", n, None)
-        errors = self._heldout(samples, ok)
-        if errors is None:
-            return SparseFit(c, False, n, None)
-        return SparseFit(c, bool(errors[1] < errors[0]), n, errors)
-
-    def _heldout(self, samples, ok) -> tuple | None:
-        """``(basis alone, with the correction)``: the summed squared error of every
-        usable sample predicted from a fit to the other folds; ``None`` below 2 samples."""
-        from brdfkit.prior.model import sample_rows
-
-        usable = np.flatnonzero(ok)
+        usable = np.flatnonzero(sample_rows(self.prior.basis, samples)[0])
         folds = min(HOLDOUT_FOLDS, usable.size)
         if folds < 2:
             return None
-        # A fixed deal (the same samples, the same folds): the choice depends on the
-        # samples alone.
+        # A fixed deal: the choice depends on the samples alone.
         order = usable[np.random.default_rng(0).permutation(usable.size)]
+        mapping = self.prior.basis.mapping
         err = np.zeros(2)
         for f in range(folds):
-            out = order[f::folds]
             keep = np.ones(len(samples), bool)
-            keep[out] = False
-            c = self.prior.coefficients(samples.subset(keep))
+            keep[order[f::folds]] = False
+            pf = self.prior.fit(samples.subset(keep))
+            through = fit_through(pf, self.residual)
             _, tab, w, cos, rho, hd = sample_rows(self.prior.basis, samples.subset(~keep))
-            base = tab[:, 1:2] + tab[:, 2:] @ c  # (S, 3) mapped
-            corr = self.residual.correction(c, np.ascontiguousarray(hd, np.float32), 0, int(keep[usable].sum()))
-            for i, mapped in enumerate((base, base + corr)):
-                pred = self.prior.basis.mapping.from_mapped(mapped, w[:, None], tab[:, 0:1])
+            hd = np.ascontiguousarray(hd, np.float32)
+            alone = tab[:, 1:2] + tab[:, 2:] @ pf.coefficients
+            corrected = tab[:, 1:2] + tab[:, 2:] @ through + self.residual.correction(through, hd, 0, pf.count)
+            for i, mapped in enumerate((alone, corrected)):
+                pred = mapping.from_mapped(mapped, w[:, None], tab[:, 0:1])
                 err[i] += float(np.sum((np.log1p(pred * cos[:, None]) - np.log1p(rho * cos[:, None])) ** 2))
         return float(err[0]), float(err[1])
 
@@ -124,3 +130,40 @@ class CorrectedPrior:
         return Embedding(np.asarray(fit.coefficients, np.float32).reshape(-1), "residual", self.residual_digest,
                          source, fit.count, parts={"basis": self.residual.basis_digest,
                                                    "residual": self.residual_digest}, options=options)
+
+
+def fit_through(fit, residual, steps: int = THROUGH_STEPS) -> np.ndarray:
+    """Coefficients ``(K, 3)`` of a prior's fit (:class:`~brdfkit.prior.model.PriorFit`)
+    fitted again through the correction: Levenberg-Marquardt on the same least squares,
+    the samples' weighted error through the basis plus the correction and the prior's
+    Gaussian term, each channel its own problem of ``K`` unknowns (the correction's
+    derivative by forward mode, :func:`brdfkit.residual.network.evaluate_with_jacobian`),
+    at most ``steps`` iterations, never worse than the start."""
+    from brdfkit.residual.network import evaluate_with_jacobian
+
+    k = fit.coefficients.shape[0]
+    _, cfg, state = residual.net_for(k)
+    sigma = residual.basis.sigma[:k].astype(np.float64)
+    a, count = fit.tab[:, 2:], fit.count if cfg.count else None
+    out = fit.coefficients.copy()
+    for ch in range(3):
+        q, b, mu, sd = fit.q[:, ch], fit.b[:, ch], fit.mean[:, ch], fit.sd[:, ch]
+
+        def terms(c):
+            f, jf = evaluate_with_jacobian(state, cfg, c / sigma, fit.hd, count)
+            r = b - a @ c - f
+            return float(q @ r ** 2 + np.sum(((c - mu) / sd) ** 2)), r, a + jf.astype(np.float64) / sigma
+
+        c = out[:, ch]
+        cost, r, j = terms(c)
+        damp = 1e-3
+        for _ in range(steps):
+            h = j.T @ (q[:, None] * j) + np.diag(1.0 / sd ** 2)
+            trial = c + np.linalg.solve(h + damp * np.diag(np.diag(h)), j.T @ (q * r) - (c - mu) / sd ** 2)
+            new = terms(trial)
+            if new[0] < cost:
+                c, (cost, r, j), damp = trial, new, damp / 3
+            else:
+                damp *= 4
+        out[:, ch] = c
+    return out

@@ -50,7 +50,7 @@ __all__ = ["CORRECTION_DEFAULTS", "fit_correction"]
 
 CORRECTION_DEFAULTS = {"steps": 8000, "batch": 8, "cells": 4096, "lr": 1e-3, "lr_end": 0.05, "width": 32,
                        "hidden": 64, "mixup": 0.5, "folds": 5, "context_min": 8, "context_max": 4000, "seed": 0,
-                       "loss": "metric", "checkpoint_every": 500, "storage": "float32"}
+                       "loss": "metric", "latent": 0, "checkpoint_every": 500, "storage": "float32"}
 """The options of :func:`fit_correction` and their defaults (``-O KEY=VALUE``)."""
 
 
@@ -217,7 +217,7 @@ class _Run:
         from brdfkit.residual.network import ResidualConfig
 
         k = full.n_components
-        return ResidualConfig(k, k, self.opts["width"], self.opts["hidden"], 0, count=True)
+        return ResidualConfig(k, k, self.opts["width"], self.opts["hidden"], 0, count=True, latent=self.opts["latent"])
 
     def _start(self, full, resume):
         """``(net, opt, step)``: fresh, or the checkpoint's."""
@@ -269,7 +269,7 @@ class _Run:
             g = torch.Generator(device=group.device).manual_seed(
                 (opts["seed"] * 7_919 + group.rank) * 1_000_003 + step)
             rows = _step_rows(d, prior, model.cfg, opts, g, group.device)
-            loss, base = _loss(ddp(rows[0], rows[1]), rows, opts["loss"], d.mapping)
+            loss, base = _loss(ddp(rows[0], rows[1], rows[4]), rows, opts["loss"], d.mapping)
             opt.zero_grad(set_to_none=True)
             loss.backward()
             opt.step()
@@ -291,7 +291,7 @@ def _loss(pred, rows, kind: str, mapping):
     ``pred (3 B, C)`` for one step's ``rows`` (:func:`_step_rows`)."""
     import torch
 
-    _, _, target, (mapped_basis, w, ref, cos, rho) = rows
+    _, _, target, (mapped_basis, w, ref, cos, rho) = rows[:4]
     if kind == "mapped":
         return ((pred - target) ** 2).mean(), float((target ** 2).mean())
     if kind == "relative":
@@ -321,6 +321,9 @@ def _step_rows(d, prior, cfg, opts, g, dev):
     bt = draw_batch(d, g, dev, opts["batch"], opts["cells"], opts["context_min"], opts["context_max"], opts["mixup"])
     with torch.no_grad():
         c, _, _ = context_fit(d, prior, cfg, bt)  # (B, 3, K)
+        ctab = d.fold_tab[bt.folds[:, None], bt.c_pos]
+        resid = (d.mapping.to_mapped(bt.crho, d.weight[bt.c_pos][..., None], ctab[..., 0:1]) - ctab[..., 1:2]
+                 - torch.einsum("bsk,blk->bsl", ctab[..., 2:], c))  # the samples' residuals (B, N, 3)
         qtab = d.fold_tab[bt.folds[:, None], bt.q_pos]
         ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
         mapped = d.mapping.to_mapped(bt.qrho, d.weight[bt.q_pos][..., None], ref)
@@ -334,4 +337,5 @@ def _step_rows(d, prior, cfg, opts, g, dev):
     per_cell = lambda a: a.repeat_interleave(3, dim=0)  # noqa: E731  (B, C) -> (3 B, C)
     extra = (rows(mapped - target), per_cell(d.weight[bt.q_pos]), per_cell(ref[..., 0]), per_cell(d.cos[bt.q_pos]),
              rows(bt.qrho))
-    return z, hd, rows(target), extra
+    samples = (d.hd[bt.c_pos].repeat_interleave(3, dim=0), rows(resid))  # a set encoder's input, a row a channel
+    return z, hd, rows(target), extra, samples

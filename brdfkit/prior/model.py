@@ -53,8 +53,8 @@ from brdfkit.geometry.trilinear import lookup_trilinear
 from brdfkit.basis import PcaBasis
 from brdfkit.basis.mapping import EPS, NIELSEN
 
-__all__ = ["PriorConfig", "PriorModel", "PriorWeights", "prior_net", "solve", "sample_rows", "N_REF",
-           "SPREAD_LOG_BOUND"]
+__all__ = ["PriorConfig", "PriorModel", "PriorWeights", "PriorFit", "prior_net", "solve", "likelihood_weights",
+           "sample_rows", "N_REF", "SPREAD_LOG_BOUND"]
 
 N_REF = 4000
 """The sample count the network's count feature is scaled by (``ln N / ln N_REF``)."""
@@ -261,10 +261,7 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
         b = mapping.to_mapped(rho, w[..., None], tab[..., 0:1], out=np.empty(np.shape(rho), np.asarray(rho).dtype))
         b -= tab[..., 1:2]
     comp = f64(tab[..., 2:])
-    # the metric's slope through the mapping's: d ln(1 + rho cos) / d x'
-    slope = rho + EPS / w[..., None] if not mapping.share else mapping.rho_slope(rho, w[..., None], tab[..., 0:1])
-    g = cos[..., None] * slope / (1 + rho * cos[..., None])
-    q = f64((g if weight == "energy" else g ** 2) / s2 + 1.0 / lam)
+    q = f64(likelihood_weights(tab, rho, w, cos, s2, lam, weight, mapping))
     sig = f64(sigma) if sigma.ndim == 3 else f64(sigma)[:, None]  # (B, 3 or 1, K)
     lhs = xp.einsum("bck,bcj,bcl->blkj", comp, comp, q)
     prec = 1.0 / sig ** 2
@@ -273,6 +270,44 @@ def solve(tab, rho, w, cos, sigma, s2: float, lam: float, mu=None, weight: str =
     if mu is not None:
         rhs = rhs + f64(mu) / sig ** 2
     return f32(xp.linalg.solve(lhs, rhs[..., None])[..., 0]), b
+
+
+def likelihood_weights(tab, rho, w, cos, s2: float, lam: float, weight: str = "metric", mapping=NIELSEN):
+    """``q (B, S, 3)``: each sample's weight in :func:`solve`'s least squares (module
+    docstring), in the inputs' dtype, NumPy or torch alike."""
+    # the metric's slope through the mapping's: d ln(1 + rho cos) / d x'
+    slope = rho + EPS / w[..., None] if not mapping.share else mapping.rho_slope(rho, w[..., None], tab[..., 0:1])
+    g = cos[..., None] * slope / (1 + rho * cos[..., None])
+    return (g if weight == "energy" else g ** 2) / s2 + 1.0 / lam
+
+
+@dataclasses.dataclass
+class PriorFit:
+    """A sample set's fit by the learnt prior (:meth:`PriorModel.fit`), and what a fit
+    through more than the basis needs of it (:mod:`brdfkit.prior.corrected`).
+
+    Attributes
+    ----------
+    coefficients
+        float64 ``(K, 3)``.
+    mean, sd
+        The prior's mean and standard deviations of the coefficients, float64 ``(K, 3)``.
+    tab, b, q, hd
+        At the usable samples: the basis ``(S, K + 2)`` (``[x_ref, mean, components]``),
+        the mapped samples less the basis's mean ``(S, 3)``, their weights ``(S, 3)``
+        (:func:`likelihood_weights`), their HD vectors ``(S, 6)``.
+    count
+        The usable samples, ``S``.
+    """
+
+    coefficients: np.ndarray
+    mean: np.ndarray
+    sd: np.ndarray
+    tab: np.ndarray
+    b: np.ndarray
+    q: np.ndarray
+    hd: np.ndarray
+    count: int
 
 
 def sample_rows(basis: PcaBasis, samples):
@@ -321,6 +356,10 @@ class PriorModel:
         """Basis coefficients ``(K, 3)`` fitted to a sample set (BRDF in 1/sr): the plain
         closed-form fit, then (``use_prior``) the fit again around the network's prior
         mean. In NumPy (:class:`PriorWeights`), whatever :attr:`net` is."""
+        return self.fit(samples, use_prior=use_prior).coefficients
+
+    def fit(self, samples, *, use_prior: bool = True) -> PriorFit:
+        """:meth:`coefficients` and the terms of their least squares (:class:`PriorFit`)."""
         if len(samples) == 0:
             raise InputError(f"{samples.source or 'samples'}: no samples to fit")
         ok, tab, w, cos, rho, hd = sample_rows(self.basis, samples)
@@ -332,6 +371,7 @@ class PriorModel:
         sig = T(self.basis.sigma)
         rows = (T(tab), T(rho), T(w), T(cos))
         c, b = solve(*rows, sig, self.cfg.s2, self.cfg.lam, weight=self.cfg.weight, mapping=self.basis.mapping)
+        mu, sd = np.zeros_like(c), np.broadcast_to(sig[:, None], c.shape)
         if use_prior:
             resid = b - np.einsum("bck,blk->bcl", rows[0][..., 2:], c)
             mu, sd, _, _ = PriorWeights.of(self.net, self.cfg)(T(hd), resid, c, sig, int(ok.sum()))
@@ -339,7 +379,10 @@ class PriorModel:
                          mapping=self.basis.mapping)
         if not np.isfinite(c).all():
             raise InputError(f"{samples.source or 'samples'}: the fit did not give finite coefficients")
-        return c[0].astype(np.float64).T
+        q = likelihood_weights(*rows, self.cfg.s2, self.cfg.lam, self.cfg.weight, self.basis.mapping)
+        f64 = lambda a: np.asarray(a, np.float64)[0]  # noqa: E731
+        return PriorFit(f64(c).T, f64(mu).T, f64(sd).T, f64(rows[0]), f64(b), f64(q), np.asarray(hd, np.float32),
+                        int(ok.sum()))
 
     def reconstruct(self, samples, *, use_prior: bool = True) -> np.ndarray:
         """Dense table ``(90, 90, 180, 3)`` (1/sr, ``>= 0``, NaN off the basis cells)."""

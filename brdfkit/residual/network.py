@@ -30,8 +30,8 @@ import json
 
 import numpy as np
 
-__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "net_input", "hyponet_weights", "evaluate",
-           "evaluate_with_jacobian", "COUNT_REF"]
+__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "encoder_shapes", "encode_samples", "net_input",
+           "hyponet_weights", "evaluate", "evaluate_with_jacobian", "COUNT_REF"]
 
 COUNT_REF = 4000
 """The sample count a network's count input is scaled by (``ln N / ln COUNT_REF``)."""
@@ -57,6 +57,11 @@ class ResidualConfig:
     count
         Whether it takes the sample count of a sparse fit as an input (module
         docstring): a network of a sparse reconstruction, not of ``encode``.
+    latent
+        The size of a set encoder's latent it takes (0: none): a network of a sparse
+        reconstruction that also reads the samples' residuals against the basis's fit
+        (``[H, D, r] -> hidden -> hidden -> latent``, ReLU, mean-pooled over the samples,
+        a channel's samples at a time; the paper's set encoder).
     """
 
     k_min: int = 1
@@ -65,6 +70,7 @@ class ResidualConfig:
     hidden: int = 64
     member: int = 0
     count: bool = False
+    latent: int = 0
 
     def __post_init__(self):
         for name in ("k_min", "k_max", "width", "hidden"):
@@ -77,15 +83,18 @@ class ResidualConfig:
             raise ValueError(f"residual config: k_min {self.k_min} > k_max {self.k_max}")
         if not isinstance(self.count, bool):
             raise ValueError(f"residual config: count must be true or false, not {self.count!r}")
+        if isinstance(self.latent, bool) or not isinstance(self.latent, int) or self.latent < 0:
+            raise ValueError(f"residual config: latent must be a whole number >= 0, not {self.latent!r}")
 
     @property
     def inputs(self) -> int:
-        """The network's input size: ``2 k_max``, and the count (:attr:`count`)."""
-        return 2 * self.k_max + int(self.count)
+        """The network's input size: ``2 k_max``, the count (:attr:`count`) and the set
+        encoder's latent (:attr:`latent`)."""
+        return 2 * self.k_max + int(self.count) + self.latent
 
     def to_json(self) -> str:
         d = dataclasses.asdict(self)
-        for key in ("member", "count"):  # files from before these fields read and write as they were
+        for key in ("member", "count", "latent"):  # files from before these fields read and write as they were
             if not d[key]:
                 del d[key]
         return json.dumps(d, sort_keys=True)
@@ -102,6 +111,27 @@ def hyponet_shapes(width: int) -> list:
     """The hyponet's tensors in order: ``w1 (6, W), b1 (W,), w2 (W, W), b2 (W,), w3 (W, 1),
     b3 (1,)``."""
     return [(6, width), (width,), (width, width), (width,), (width, 1), (1,)]
+
+
+def encoder_shapes(cfg: ResidualConfig) -> dict:
+    """``{name: shape}`` of a set encoder's tensors (:attr:`ResidualConfig.latent`), as
+    :class:`ResidualNet` names them."""
+    dims = (7, cfg.hidden, cfg.hidden, cfg.latent)
+    out = {}
+    for i, (a, b) in enumerate(zip(dims[:-1], dims[1:])):
+        out[f"encoder.{2 * i}.weight"], out[f"encoder.{2 * i}.bias"] = (b, a), (b,)
+    return out
+
+
+def encode_samples(state: dict, hd: np.ndarray, r: np.ndarray) -> np.ndarray:
+    """The set encoder's latent ``(latent,)`` float32 of one channel's samples at HD vectors
+    ``hd (S, 6)`` with residuals ``r (S,)`` (:class:`ResidualNet`'s ``encode`` in NumPy)."""
+    x = np.concatenate([np.asarray(hd, np.float32), np.asarray(r, np.float32)[:, None]], 1)
+    for i in (0, 2, 4):
+        x = x @ state[f"encoder.{i}.weight"].T + state[f"encoder.{i}.bias"]
+        if i < 4:
+            x = _relu(x)
+    return x.mean(0).astype(np.float32)
 
 
 def net_input(c_norm: np.ndarray, k_max: int, count: float | None = None) -> np.ndarray:
@@ -227,7 +257,9 @@ def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray,
 def ResidualNet(cfg: ResidualConfig):
     """The torch module of the network (made on call: torch is imported only here).
 
-    ``forward(z, hd)``: ``z (B, cfg.inputs)`` inputs (:func:`net_input`), ``hd`` the HD
+    ``forward(z, hd, samples=None)``: ``z (B, cfg.inputs - cfg.latent)`` inputs
+    (:func:`net_input`; with a set encoder, ``samples = (hd (B, S, 6), r (B, S))`` give the
+    rest), ``hd`` the HD
     vectors ``(B, C, 6)`` (per row) or ``(C, 6)`` (shared); returns the corrections
     ``(B, C)``.
     """
@@ -249,10 +281,19 @@ def ResidualNet(cfg: ResidualConfig):
                     torch.nn.init.kaiming_uniform_(p.T, a=5 ** 0.5)
                 base.append(torch.nn.Parameter(p))
             self.base = torch.nn.ParameterList(base)
+            if cfg.latent:
+                self.encoder = torch.nn.Sequential(torch.nn.Linear(7, cfg.hidden), torch.nn.ReLU(),
+                                                   torch.nn.Linear(cfg.hidden, cfg.hidden), torch.nn.ReLU(),
+                                                   torch.nn.Linear(cfg.hidden, cfg.latent))
             with torch.no_grad():
                 self.head.weight.mul_(0.1)
                 self.head.bias.zero_()
                 self.head.weight[sum(self.sizes[:4]):].zero_()  # the last layer's change starts at 0
+
+        def encode(self, hd, r):
+            """The set encoder's latent ``(B, latent)`` of samples at HD vectors ``hd (B, S,
+            6)`` with residuals ``r (B, S)``, mean-pooled."""
+            return self.encoder(torch.cat([hd, r[..., None]], -1)).mean(1)
 
         def weights(self, z):
             flat = self.head(self.body(z))
@@ -262,7 +303,9 @@ def ResidualNet(cfg: ResidualConfig):
                 at += n
             return out
 
-        def forward(self, z, hd):
+        def forward(self, z, hd, samples=None):
+            if cfg.latent:  # the set encoder's latent of the samples (hd, r) after the other inputs
+                z = torch.cat([z, self.encode(*samples)], 1)
             w1, b1, w2, b2, w3, b3 = self.weights(z)
             if hd.dim() == 2:
                 h = torch.relu(torch.einsum("cd,bdh->bch", hd, w1) + b1[:, None])

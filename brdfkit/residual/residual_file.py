@@ -21,7 +21,7 @@ import numpy as np
 from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.errors import FormatError, InputError
 from brdfkit.residual.model import BasisResidual
-from brdfkit.residual.network import ResidualConfig, hyponet_shapes
+from brdfkit.residual.network import ResidualConfig, encoder_shapes, hyponet_shapes
 
 __all__ = ["RESIDUAL_FORMAT", "RESIDUAL_VERSION", "STORAGES", "save_residual", "load_residual", "read_header",
            "serves_sparse"]
@@ -182,7 +182,8 @@ def _net_state(path: str, raw: dict, i: int, cfg: ResidualConfig) -> dict:
     want = {"body.0.weight": (cfg.hidden, cfg.inputs), "body.0.bias": (cfg.hidden,),
             "body.2.weight": (cfg.hidden, cfg.hidden), "body.2.bias": (cfg.hidden,),
             "head.weight": (total, cfg.hidden), "head.bias": (total,),
-            **{f"base.{j}": s for j, s in enumerate(hyponet_shapes(cfg.width))}}
+            **{f"base.{j}": s for j, s in enumerate(hyponet_shapes(cfg.width))},
+            **(encoder_shapes(cfg) if cfg.latent else {})}
     state = {}
     for k, shape in want.items():
         name = f"net{i}.{k}"
