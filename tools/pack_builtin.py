@@ -34,12 +34,12 @@ import shutil
 
 _PAPER = ("brdfkit fit PROXIES/merl PROXIES/rgl {latent}-O reference=merl80-l40.safetensors --minutes 14 --seed 0 "
           "-o {name}-paper.safetensors")
-_BASIS = ("brdfkit fit --method basis {data} --components 30 -O half=true -O phi_stride=2 -O int8=true -O w_floor=0.005 "
-          "-o {basis}")
+_BASIS = ("brdfkit fit --method basis {data} --components 30 -O half=true -O phi_stride=2 -O int8=true -O deflate=true "
+          "-O w_floor=0.005 -O eps_share=0.03 -o {basis}")
 _PRIOR = ("brdfkit fit --method prior {data} -O basis={basis} -O weight=energy -O s2=0.03 "
           "--steps 3000 --seed 0 -o {name}.safetensors")
-_RESIDUAL = ("brdfkit fit --method residual {data} -O basis={basis} --steps 4000 -O lr_end=0.05 -O members=4 "
-             "--seed 0 -o {name}.safetensors (member 0 of each size ships: --members NAME=0)")
+_RESIDUAL = ("brdfkit fit --method residual {data} -O basis={basis} --steps 4000 -O lr_end=0.05 -O members={members} "
+             "--seed 0 -o {name}.safetensors")
 _MERL80 = "PROXIES/merl --exclude-list merl-test.txt"
 _ALL = "PROXIES/merl PROXIES/rgl"
 # The tuning's stages (brdfkit tune, docs/training.md): each a --resume of the last with
@@ -61,14 +61,14 @@ MODELS = [  # name, {part: file} (the network first), materials list, fit comman
      _PAPER.format(name="merl-rgl-l40", latent="") + "; " + _tuned("merl-rgl-l40", (8965, 13633, 19735, 27242))
      + "; " + _BASIS.format(data=_ALL, basis="merl-rgl-basis.safetensors")
      + "; " + _PRIOR.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-prior")
-     + "; " + _RESIDUAL.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-residual")),
+     + "; " + _RESIDUAL.format(data=_ALL, basis="merl-rgl-basis.safetensors", name="merl-rgl-residual", members=1)),
     ("merl80-l40", {"network": "merl80-l40.safetensors", "basis": "merl80-basis.safetensors",
                     "prior": "merl80-prior.safetensors", "residual": "merl80-residual.safetensors"},
      "MERL less merl-test.txt (80)",
      "brdfkit fit PROXIES/merl --exclude-list merl-test.txt --minutes 14 --seed 0 -o merl80-l40.safetensors; "
      + _BASIS.format(data=_MERL80, basis="merl80-basis.safetensors") + "; "
      + _PRIOR.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-prior") + "; "
-     + _RESIDUAL.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-residual")),
+     + _RESIDUAL.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-residual", members=2)),
     ("merl-rgl-l7", {"network": "merl-rgl-l7.safetensors"}, "MERL + RGL (151)",
      _PAPER.format(name="merl-rgl-l7", latent="--latent-dim 7 ") + "; " + _tuned("merl-rgl-l7", (9710, 14495, 20283))),
 ]
