@@ -187,7 +187,7 @@ def test_sparse_usage_errors(installed, capsys, tmp_path):
     folder, inputs = installed
     s, out = inputs / "s.csv", tmp_path / "x.binary"
     for argv, words in (([], ("learnt prior", "makes no embedding", "--method residual and hypernet")),
-                        (["--method", "prior", "-m", "tiny-p"], ("learnt prior", "--method hypernet")),
+                        (["--method", "prior", "-m", "tiny-p"], ("learnt prior", "--method residual and hypernet")),
                         (["--method", "ipca", "-m", "tiny-p"], ("method 'ipca' makes no embedding",))):
         code, _, err = run_cli(capsys, ["sparse", s, *argv, "-o", out, "--emb", tmp_path / "x.emb"])
         line = one_error_line(err)
