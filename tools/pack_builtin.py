@@ -117,6 +117,14 @@ network for the basis's ``K`` components) through which ``brdfkit sparse`` decod
 record goes under the residual's ``sparse`` key."""
 
 
+def _with_members(bundle: str, command: str) -> str:
+    """A bundle's fit commands, with the residual's members that ship when not all do."""
+    if bundle not in MEMBERS:
+        return command
+    shipped = ",".join(map(str, MEMBERS[bundle]))
+    return f"{command} (member {shipped} of each size ships: --members {bundle}={shipped})"
+
+
 def _pack_residual(src, dst, parts):
     """A residual re-saved for shipping: its heads in int8, its basis named as the bundle's
     (the same file, by digest), the sizes it is offered at (:data:`OFFERED`), the members
@@ -333,7 +341,7 @@ def main():
     for name, parts, mats, command in sorted(MODELS, key=lambda m: m[0] != "merl80-l40"):
         packed = _pack_parts(args, parts)
         dst = os.path.join(args.dst, parts["network"])
-        entry = manifest_entry(dst, name, command=command, validation=validation.get(name, {}),
+        entry = manifest_entry(dst, name, command=_with_members(name, command), validation=validation.get(name, {}),
                                materials_list=mats)
         entry["parts"].update(packed)
         if name in renders:
@@ -364,7 +372,7 @@ def _some_parts(args, write_manifest, only: tuple, renders: dict) -> None:
     by_name = {m[0]: m for m in MODELS}
     for entry in entries:
         _, parts, _, command = by_name[entry["name"]]
-        entry["command"] = command
+        entry["command"] = _with_members(entry["name"], command)
         packed = _pack_parts(args, parts, only=only)
         if packed and "residual" not in only:
             entry["parts"].update(packed)
