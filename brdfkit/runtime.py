@@ -371,7 +371,7 @@ class _Stage:
         return False
 
 
-def stage(name: str) -> _Stage:
+def stage(name: str) -> contextlib.AbstractContextManager:
     """``with stage("project"): ...``: the block's seconds are stage ``name`` of the
     process's profile (:class:`StageProfile`) when one runs (``$BRDFKIT_PROFILE``), else
     nothing at all. Stages nest; one entered off the main thread is part of the stage

@@ -41,7 +41,7 @@ from brdfkit.basis import DEFAULT_COMPONENTS
 from brdfkit.prior.model import PriorConfig, PriorModel, prior_net, solve
 from brdfkit.prior.training_data import TrainingTensors, fold_bases, main_basis, to_device, training_cells
 
-__all__ = ["fit_prior", "FIT_OPTIONS"]
+__all__ = ["fit_prior", "FIT_OPTIONS", "Batch", "draw_batch", "context_fit"]
 
 FIT_OPTIONS = ("latent_dim", "steps", "minutes", "seed", "device", "batch_materials", "components", "basis",
                "folds", "mixup", "query_size", "lr", "lambda_w", "lambda_z", "ema", "width", "s2", "lam", "weight",
