@@ -68,7 +68,9 @@ class CorrectedPrior:
     def __post_init__(self):
         k = self.prior.basis.n_components
         if k not in self.residual.components:
-            raise InputError(f"the residual has no network for the learnt prior's {k} components ({3 * k} numbers)")
+            raise InputError(f"the residual has no network for the learnt prior's {k} components ({3 * k} numbers; "
+                             f"no built-in ships one): train it with brdfkit fit --method residual -O sizes={3 * k}, "
+                             f"or use --method prior")
 
     def fit(self, samples, *, correction: str = "auto") -> SparseFit:
         """The coefficients of a sample set and whether the correction is kept:
