@@ -77,7 +77,7 @@ def _renders(table, scene, envs) -> dict:
     return {s: render(brdf, scene, env=env)[0] for s, env in envs.items()}
 
 
-def _scores(table, ref, refs, scene, envs) -> dict:
+def _scores(table, refs, scene, envs) -> dict:
     from brdfkit.evaluation.comparison import mean_scores
     from brdfkit.evaluation.metrics import score
 
@@ -160,7 +160,7 @@ def main(argv=None):
                 wall, cpu = time.perf_counter() - w, time.process_time() - c
                 decoded = open_embedding(emb, dec, name).to_table()
                 rec = {"material": name, "case": label, "steps": steps, "encode_wall_s": wall, "encode_cpu_s": cpu,
-                       "ran": (emb.refinement or {}).get("steps", 0), **_scores(decoded, table, refs, scene, envs)}
+                       "ran": (emb.refinement or {}).get("steps", 0), **_scores(decoded, refs, scene, envs)}
                 records.append(rec)
                 print(f"{name} {label} steps {steps}: {rec['psnr']:.2f} dB, {cpu:.2f} s CPU", file=sys.stderr)
     summary = _summary(records)

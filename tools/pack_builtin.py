@@ -135,16 +135,15 @@ def _pack_residual(src, dst, parts):
     from brdfkit.residual.residual_file import load_residual, save_residual
 
     bpath = os.path.join(os.path.dirname(os.path.abspath(dst)), parts["basis"])
-    res = load_residual(src, basis=(load_basis(bpath), file_digest(bpath)))
+    basis = (load_basis(bpath), file_digest(bpath))  # load_residual refuses a file of another basis
+    res = load_residual(src, basis=basis)
     bundle = next(m[0] for m in MODELS if m[1].get("residual") == os.path.basename(dst))
     nets, meta = res.nets, dict(res.meta or {})
     if bundle in MEMBERS:
         nets = [(cfg, state) for cfg, state in nets if cfg.member in MEMBERS[bundle]]
         meta["shipped_members"] = ",".join(map(str, MEMBERS[bundle]))
     if bundle in SPARSE:
-        extra = load_residual(SPARSE[bundle], basis=(load_basis(bpath), file_digest(bpath)))
-        if extra.basis_digest != res.basis_digest:
-            raise SystemExit(f"{SPARSE[bundle]}: corrects another basis than {src}")
+        extra = load_residual(SPARSE[bundle], basis=basis)
         nets = nets + extra.nets
         meta["sparse"] = dict(extra.meta or {}, file=os.path.basename(SPARSE[bundle]))
     save_residual(dst, nets, basis_digest=res.basis_digest, basis_file=parts["basis"],

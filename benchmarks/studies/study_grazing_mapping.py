@@ -60,13 +60,10 @@ def _mapping(spec: str, share_floor: float):
 
 def _grazing(pred, ref):
     """``(median ratio at theta_h >= 80 deg, share of positive cells below 1%)``."""
-    from brdfkit.geometry import grid_angles
+    from brdfkit.evaluation.metrics import grazing_ratio
 
-    rows = np.degrees(grid_angles()[0]) >= 80
-    p, r = pred[rows], ref[rows]
-    ok = np.isfinite(p) & np.isfinite(r) & (r > 0)
     allok = np.isfinite(pred) & np.isfinite(ref) & (ref > 0)
-    return float(np.median(p[ok] / r[ok])), float((pred[allok] < 0.01 * ref[allok]).mean())
+    return grazing_ratio(pred, ref), float((pred[allok] < 0.01 * ref[allok]).mean())
 
 
 def _score(table, bases, ks, screens, ridge):

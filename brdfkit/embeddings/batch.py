@@ -160,8 +160,6 @@ def _serial(plan: list, job: EncodeJob, decoders, inputs, on_done, reader: Reade
     out = []
     try:
         for n, (i, path, target) in enumerate(plan):
-            if n == 0:
-                reader.start(path)
             with stage("read table (waiting for the reader)"):
                 data = reader.take(path)
             if n + 1 < len(plan):

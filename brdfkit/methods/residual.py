@@ -41,7 +41,7 @@ def _model(loaded, options):
     prior of the installed built-in whose residual it is."""
     from brdfkit.errors import InputError
     from brdfkit.io.digest import file_digest
-    from brdfkit.models.builtin import find_by_digest, installed_bundles, resolve_prior
+    from brdfkit.models.builtin import bundle_of_part, find_by_digest, resolve_prior
     from brdfkit.prior.corrected import CorrectedPrior
     from brdfkit.prior.prior_file import load_prior
 
@@ -49,10 +49,8 @@ def _model(loaded, options):
     named = (residual.meta.get("sparse") or residual.meta).get("prior_digest")
     where = resolve_prior(options.prior) if options.prior else find_by_digest(named)
     if where is None:
-        real = os.path.realpath(path)
-        bundle = next((m for m in installed_bundles() if m.part("residual") and m.part("prior")
-                       and os.path.realpath(m.parts["residual"].path) == real), None)
-        where = resolve_prior(bundle.name) if bundle is not None else None
+        bundle = bundle_of_part(path, "residual")
+        where = resolve_prior(bundle.name) if bundle is not None and bundle.part("prior") else None
     if where is None:
         raise InputError(f"{path}: the learnt prior its correction was trained on is not installed; "
                          f"give it with -O prior=FILE")

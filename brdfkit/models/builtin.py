@@ -38,8 +38,8 @@ from brdfkit.models.parts import PARTS
 
 __all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "PartEntry", "Bundle", "Manifest",
            "models_folder", "read_manifest", "installed_bundles", "is_path_spec", "resolve_part", "resolve_network",
-           "resolve_prior", "resolve_basis", "resolve_residual", "default_bundle", "find_by_digest", "is_builtin_part",
-           "write_manifest"]
+           "resolve_prior", "resolve_basis", "resolve_residual", "default_bundle", "find_by_digest", "bundle_of_part",
+           "is_builtin_part", "write_manifest"]
 
 BUILTIN_ENV = "BRDFKIT_BUILTIN_MODELS"
 MANIFEST = "manifest.json"
@@ -343,10 +343,16 @@ def find_by_digest(digest: str | None) -> str | None:
     return None
 
 
+def bundle_of_part(path: str | os.PathLike, part: str):
+    """The installed built-in (:class:`Bundle`) whose ``part`` file ``path`` is, or ``None``."""
+    real = os.path.realpath(os.fspath(path))
+    return next((m for m in installed_bundles() if m.part(part) and os.path.realpath(m.parts[part].path) == real),
+                None)
+
+
 def is_builtin_part(path: str | os.PathLike, part: str) -> bool:
     """Whether ``path`` is the ``part`` file of an installed built-in."""
-    real = os.path.realpath(os.fspath(path))
-    return any(m.part(part) and os.path.realpath(m.parts[part].path) == real for m in installed_bundles())
+    return bundle_of_part(path, part) is not None
 
 
 def write_manifest(folder: str | os.PathLike, entries: list[dict], default: str | None) -> str:

@@ -81,13 +81,12 @@ class CorrectedPrior:
         pf = self.prior.fit(samples)
         if correction == "off":
             return SparseFit(pf.coefficients, False, pf.count, None)
-        through = fit_through(pf, self.residual)
         if correction == "on":
-            return SparseFit(through, True, pf.count, None)
+            return SparseFit(fit_through(pf, self.residual), True, pf.count, None)
         errors = self._heldout(samples)
         if errors is None or not errors[1] < errors[0]:
             return SparseFit(pf.coefficients, False, pf.count, errors)
-        return SparseFit(through, True, pf.count, errors)
+        return SparseFit(fit_through(pf, self.residual), True, pf.count, errors)
 
     def _heldout(self, samples) -> tuple | None:
         """``(basis alone, with the correction)``: the summed squared error, in the

@@ -321,9 +321,6 @@ def _step_rows(d, prior, cfg, opts, g, dev):
     bt = draw_batch(d, g, dev, opts["batch"], opts["cells"], opts["context_min"], opts["context_max"], opts["mixup"])
     with torch.no_grad():
         c, _, _ = context_fit(d, prior, cfg, bt)  # (B, 3, K)
-        ctab = d.fold_tab[bt.folds[:, None], bt.c_pos]
-        resid = (d.mapping.to_mapped(bt.crho, d.weight[bt.c_pos][..., None], ctab[..., 0:1]) - ctab[..., 1:2]
-                 - torch.einsum("bsk,blk->bsl", ctab[..., 2:], c))  # the samples' residuals (B, N, 3)
         qtab = d.fold_tab[bt.folds[:, None], bt.q_pos]
         ref, mean, comp = qtab[..., 0:1], qtab[..., 1:2], qtab[..., 2:]
         mapped = d.mapping.to_mapped(bt.qrho, d.weight[bt.q_pos][..., None], ref)
@@ -337,5 +334,16 @@ def _step_rows(d, prior, cfg, opts, g, dev):
     per_cell = lambda a: a.repeat_interleave(3, dim=0)  # noqa: E731  (B, C) -> (3 B, C)
     extra = (rows(mapped - target), per_cell(d.weight[bt.q_pos]), per_cell(ref[..., 0]), per_cell(d.cos[bt.q_pos]),
              rows(bt.qrho))
-    samples = (d.hd[bt.c_pos].repeat_interleave(3, dim=0), rows(resid))  # a set encoder's input, a row a channel
-    return z, hd, rows(target), extra, samples
+    return z, hd, rows(target), extra, _sample_rows(d, bt, c, rows) if opts["latent"] else None
+
+
+def _sample_rows(d, bt, c, rows):
+    """A set encoder's input, a row a channel: the samples' directions and what the basis's
+    fit ``c (B, 3, K)`` leaves at them in the mapped space, ``(3 B, N, 6)`` and ``(3 B, N)``."""
+    import torch
+
+    with torch.no_grad():
+        ctab = d.fold_tab[bt.folds[:, None], bt.c_pos]
+        resid = (d.mapping.to_mapped(bt.crho, d.weight[bt.c_pos][..., None], ctab[..., 0:1]) - ctab[..., 1:2]
+                 - torch.einsum("bsk,blk->bsl", ctab[..., 2:], c))  # (B, N, 3)
+    return d.hd[bt.c_pos].repeat_interleave(3, dim=0), rows(resid)

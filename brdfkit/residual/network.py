@@ -30,7 +30,7 @@ import json
 
 import numpy as np
 
-__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "encoder_shapes", "encode_samples", "net_input",
+__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "encoder_shapes", "net_input",
            "hyponet_weights", "evaluate", "evaluate_with_jacobian", "COUNT_REF"]
 
 COUNT_REF = 4000
@@ -121,17 +121,6 @@ def encoder_shapes(cfg: ResidualConfig) -> dict:
     for i, (a, b) in enumerate(zip(dims[:-1], dims[1:])):
         out[f"encoder.{2 * i}.weight"], out[f"encoder.{2 * i}.bias"] = (b, a), (b,)
     return out
-
-
-def encode_samples(state: dict, hd: np.ndarray, r: np.ndarray) -> np.ndarray:
-    """The set encoder's latent ``(latent,)`` float32 of one channel's samples at HD vectors
-    ``hd (S, 6)`` with residuals ``r (S,)`` (:class:`ResidualNet`'s ``encode`` in NumPy)."""
-    x = np.concatenate([np.asarray(hd, np.float32), np.asarray(r, np.float32)[:, None]], 1)
-    for i in (0, 2, 4):
-        x = x @ state[f"encoder.{i}.weight"].T + state[f"encoder.{i}.bias"]
-        if i < 4:
-            x = _relu(x)
-    return x.mean(0).astype(np.float32)
 
 
 def net_input(c_norm: np.ndarray, k_max: int, count: float | None = None) -> np.ndarray:
