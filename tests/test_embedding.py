@@ -161,9 +161,38 @@ def test_merl_file_is_not_an_embedding(tmp_path):
 
 def test_write_refuses_a_malformed_kind_or_decoder(tmp_path):
     for e in (_emb(kind="Basis Set"), _emb(fp="x")):
-        with pytest.raises(ValueError, match="malformed"):
+        with pytest.raises(ValueError, match="could not be read back"):
             write_embedding(tmp_path / "a.emb", e)
     assert not (tmp_path / "a.emb").exists()
+
+
+def test_a_member_option_is_written_and_read_back(tmp_path):
+    """A residual's second member is the option ``correction.1`` (what merl80-l40's encode
+    chooses for teflon): the reader refused the dot the writer wrote."""
+    e = _emb(kind="residual", dim=9)
+    e.options = {"correction": 0.0, "correction.1": 1.0}
+    write_embedding(tmp_path / "m.emb", e)
+    assert read_embedding(tmp_path / "m.emb").options == {"correction": 0.0, "correction.1": 1.0}
+
+
+@pytest.mark.parametrize("options", [{"Correction": 1.0}, {"correction.0": 1.0}, {"correction.x": 1.0},
+                                     {"correction": float("nan")}])
+def test_write_refuses_what_read_refuses(tmp_path, options):
+    """The writer checks with the reader's schema: what it refuses, the reader refuses too."""
+    import json
+
+    from brdfkit.io.embedding import EMBEDDING_FORMAT
+
+    e = _emb(kind="residual", dim=9)
+    e.options = options
+    with pytest.raises(ValueError, match="could not be read back"):
+        write_embedding(tmp_path / "m.emb", e)
+    assert not (tmp_path / "m.emb").exists()
+    doc = {"format": EMBEDDING_FORMAT, "version": 2, "kind": "residual", "size": 9, "values": [0.0] * 9,
+           "decoder": FP, "options": options}
+    (tmp_path / "h.emb").write_text(json.dumps(doc))
+    with pytest.raises(FormatError, match="options"):
+        read_embedding(tmp_path / "h.emb")
 
 
 def test_a_latent_of_another_model_is_refused():
@@ -178,3 +207,18 @@ def test_a_latent_of_another_model_is_refused():
         check_latent(_emb(dim=7), model)
     with pytest.raises(ModelMismatchError, match="basis"):
         check_latent(_emb(kind="basis"), model)
+
+
+def test_a_blend_takes_a_left_out_option_as_its_kind_default():
+    """A residual embedding without options decodes member 0 at gain 1
+    (``brdfkit.residual.model.gains``); blended with one of member 1, half of each, not 0."""
+    from brdfkit.embeddings.blend import interpolate
+    from brdfkit.residual.model import gains
+
+    a = _emb(kind="residual", dim=9)
+    b = _emb(kind="residual", dim=9, seed=1)
+    b.options = {"correction": 0.0, "correction.1": 1.0}
+    mid = interpolate(a, b, 0.5)
+    assert mid.options == {"correction": 0.5, "correction.1": 0.5}
+    assert gains(mid.options) == {0: 0.5, 1: 0.5}
+    assert gains(interpolate(a, b, 0.0).options) == gains(a.options)

@@ -57,8 +57,10 @@ def interpolate(a: Embedding, b: Embedding, t: float, allow_extrapolation: bool 
         raise InputError(f"t = {t:g} extrapolates beyond float32 range")
     options = None
     if a.options or b.options:
+        from brdfkit.embeddings.registry import get_kind
+
+        kind = get_kind(a.kind)  # an option left out is its kind's default, not always 0
         keys = sorted(set(a.options or {}) | set(b.options or {}))
-        options = {k: (1.0 - t) * float((a.options or {}).get(k, 0.0)) + t * float((b.options or {}).get(k, 0.0))
-                   for k in keys}
+        options = {k: (1.0 - t) * kind.option(a.options, k) + t * kind.option(b.options, k) for k in keys}
     return Embedding(values, a.kind, a.decoder, f"interpolate({a.source or 'a'}, {b.source or 'b'}, t={t:g})", 0,
                      parts=dict(a.parts) if a.parts else None, options=options)

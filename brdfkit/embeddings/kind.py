@@ -46,6 +46,10 @@ class EmbeddingKind:
     wall_clock
         Its refinement takes a wall-clock cap (``--max-seconds``); a kind whose
         refinement is counted in iterations alone refuses one.
+    option_defaults
+        ``{name: value}`` of the decode options an embedding of the kind may leave out
+        and that are not 0 then (a residual's ``correction``: 1); any other option left
+        out is 0 (:meth:`option`).
     """
 
     name: str
@@ -59,6 +63,19 @@ class EmbeddingKind:
     start: str = ""
     torch: bool = False
     wall_clock: bool = False
+    option_defaults: dict = dataclasses.field(default_factory=dict)
+
+    def option(self, options: dict | None, name: str) -> float:
+        """The value of decode option ``name`` in an embedding's ``options`` (``None``:
+        none given), its default when left out.
+
+        Examples
+        --------
+        >>> k = EmbeddingKind("k", "", "basis", None, None, None, None, option_defaults={"correction": 1.0})
+        >>> k.option(None, "correction"), k.option({"correction.1": 1.0}, "correction.1"), k.option({}, "x")
+        (1.0, 1.0, 0.0)
+        """
+        return float((options or {}).get(name, self.option_defaults.get(name, 0.0)))
 
     def load(self, path, device=None):
         """``(obj, digest)``: the decoder in the file ``path`` and the digest embeddings name

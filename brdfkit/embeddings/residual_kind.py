@@ -30,4 +30,5 @@ def _open(residual, digest, emb, name, device):
 
 
 KIND = EmbeddingKind("residual", "coefficients of a PCA basis plus a hypernetwork's correction, chosen per material "
-                     "(3 numbers a component)", "residual", lambda r: r.sizes(), _default_size, _encode, _open)
+                     "(3 numbers a component)", "residual", lambda r: r.sizes(), _default_size, _encode, _open,
+                     option_defaults={"correction": 1.0})  # brdfkit.residual.model.gains: member 0 when left out

@@ -36,7 +36,8 @@ import numpy as np
 from brdfkit.atomic import atomic_open, check_input_file
 from brdfkit.errors import FormatError
 
-__all__ = ["EMBEDDING_FORMAT", "EMBEDDING_VERSION", "Embedding", "write_embedding", "read_embedding"]
+__all__ = ["EMBEDDING_FORMAT", "EMBEDDING_VERSION", "Embedding", "write_embedding", "read_embedding",
+           "parse_document"]
 
 EMBEDDING_FORMAT = "brdfkit-embedding"
 EMBEDDING_VERSION = 2
@@ -46,6 +47,9 @@ _MAX_BYTES = 1 << 20
 _F32_MAX = float(np.finfo(np.float32).max)
 _HEX64 = re.compile(r"[0-9a-f]{64}\Z")
 _KIND = re.compile(r"[a-z][a-z0-9-]*\Z")
+# An option is named as a kind is, and a residual's member M > 0 by ".M" after its name
+# (brdfkit.residual.model.gains: "correction", "correction.1").
+_OPTION = re.compile(r"[a-z][a-z0-9-]*(\.[1-9][0-9]*)?\Z")
 _OLD_KINDS = {"latent": "hypernet"}  # names a kind had before, as files may hold them
 
 
@@ -133,18 +137,22 @@ def _to_json(emb: Embedding) -> str:
 
 
 def write_embedding(path: str | os.PathLike, emb: Embedding) -> None:
-    """Write an embedding as JSON, atomically.
+    """Write an embedding as JSON, atomically, after checking the document with the
+    reader's own checks (:func:`parse_document`): a file that is written can be read.
 
     Raises
     ------
     ValueError
-        Non-finite values, a malformed kind or decoder (a bug upstream, not something to save).
+        A document :func:`read_embedding` would refuse (non-finite values, a malformed
+        kind, decoder, part or option name...): a bug upstream, not something to save.
     """
     if not np.isfinite(emb.values).all():
         raise ValueError("embedding holds non-finite values")
-    if not _KIND.match(str(emb.kind)) or not _HEX64.match(str(emb.decoder)):
-        raise ValueError(f"embedding kind {emb.kind!r} or decoder {emb.decoder!r} is malformed")
     text = _to_json(emb)
+    try:
+        parse_document(json.loads(text), "embedding")
+    except FormatError as e:
+        raise ValueError(f"refusing to write an embedding that could not be read back: {e.problem}") from None
     with atomic_open(path, "w", encoding="utf-8") as f:
         f.write(text)
 
@@ -177,6 +185,26 @@ def read_embedding(path: str | os.PathLike) -> Embedding:
         doc = json.loads(raw.decode("utf-8-sig"))
     except (UnicodeDecodeError, ValueError) as e:
         raise FormatError(path, f"not an embedding file: not JSON text ({str(e).splitlines()[0]})") from None
+    return parse_document(doc, path)
+
+
+def parse_document(doc, path: str = "embedding") -> Embedding:
+    """The embedding a parsed ``.emb`` document holds, checked: the one schema of the
+    format, which :func:`read_embedding` reads with and :func:`write_embedding` checks
+    what it writes with.
+
+    Raises
+    ------
+    FormatError
+        Naming ``path``, as :func:`read_embedding` says.
+
+    Examples
+    --------
+    >>> doc = {"format": "brdfkit-embedding", "version": 2, "kind": "residual", "size": 3,
+    ...        "values": [1, 0, 0], "decoder": "ab" * 32, "options": {"correction.1": 1}}
+    >>> parse_document(doc).options
+    {'correction.1': 1.0}
+    """
     if not isinstance(doc, dict):
         raise FormatError(path, "not an embedding file: JSON is not an object")
     if doc.get("format") != EMBEDDING_FORMAT:
@@ -280,7 +308,8 @@ def _options(path, doc) -> dict | None:
     opts = doc.get("options")
     if opts is None:
         return None
-    if not (isinstance(opts, dict) and all(isinstance(k, str) and _KIND.match(k) and isinstance(v, (int, float))
+    if not (isinstance(opts, dict) and all(isinstance(k, str) and _OPTION.match(k) and isinstance(v, (int, float))
                                            and not isinstance(v, bool) and math.isfinite(v) for k, v in opts.items())):
-        raise FormatError(path, "'options' must map option names to finite numbers")
+        raise FormatError(path, "'options' must map option names (such as 'correction' or 'correction.1') "
+                                "to finite numbers")
     return {k: float(v) for k, v in opts.items()}
