@@ -4,6 +4,10 @@ A crash, ``SIGKILL`` or Ctrl-C while writing never leaves a half-written output:
 target either keeps its old content or gets the complete new one (``os.replace`` is
 atomic on POSIX within one file system). Outputs equal to an input are refused so that
 nothing a user handed in is ever overwritten.
+
+A writer may name its format's reader (``verify``): the complete temporary file is read
+back by it before it takes its name, so that what brdfkit writes is what brdfkit reads.
+The reader is the one schema of its format; a file it refuses is never written.
 """
 
 from __future__ import annotations
@@ -11,21 +15,29 @@ from __future__ import annotations
 import contextlib
 import os
 import secrets
-from typing import IO, Iterable, Iterator
+from typing import IO, Callable, Iterable, Iterator
 
-from brdfkit.errors import InputError
+from brdfkit.errors import BrdfkitError, InputError
 
-__all__ = ["atomic_path", "atomic_open", "refuse_overwrite_of_inputs", "check_input_file"]
+__all__ = ["atomic_path", "atomic_open", "refuse_overwrite_of_inputs", "check_input_file", "UnreadableOutput"]
+
+
+class UnreadableOutput(BrdfkitError):
+    """What a writer made was refused by its own format's reader (a bug, reported in one
+    line; the output is not written)."""
 
 _TMP_PREFIX = ".brdfkit-tmp-"
 _O_CLOEXEC = getattr(os, "O_CLOEXEC", 0)
 
 
 @contextlib.contextmanager
-def atomic_path(path: str | os.PathLike) -> Iterator[str]:
+def atomic_path(path: str | os.PathLike, verify: Callable[[str], object] | None = None) -> Iterator[str]:
     """Yield a temporary path in the target's folder; rename it onto ``path`` on success.
 
     The temporary file is removed if the body raises (``KeyboardInterrupt`` included).
+    ``verify(tmp)``, when given, reads the complete file back with its format's reader
+    first; a :class:`~brdfkit.errors.BrdfkitError` it raises becomes
+    :class:`UnreadableOutput` and nothing is written.
     """
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
@@ -46,6 +58,8 @@ def atomic_path(path: str | os.PathLike) -> Iterator[str]:
                 tmp = None
         mode = os.stat(tmp).st_mode & 0o777
         yield tmp
+        if verify is not None:
+            _read_back(verify, tmp, path)
         with open(tmp, "rb+") as f:
             os.fsync(f.fileno())
         # Some writers replace the file instead of filling it (safetensors' save_file
@@ -60,13 +74,24 @@ def atomic_path(path: str | os.PathLike) -> Iterator[str]:
         raise
 
 
+def _read_back(verify: Callable[[str], object], tmp: str, path: str) -> None:
+    """``verify(tmp)``, its refusal as :class:`UnreadableOutput` naming ``path``."""
+    try:
+        verify(tmp)
+    except BrdfkitError as e:
+        reason = str(e).replace(tmp, path)
+        raise UnreadableOutput(f"{path}: not written: brdfkit could not read back what it made ({reason})") from None
+
+
 @contextlib.contextmanager
-def atomic_open(path: str | os.PathLike, mode: str = "w", **kwargs) -> Iterator[IO]:
-    """``open`` for writing, atomically (see :func:`atomic_path`)."""
+def atomic_open(path: str | os.PathLike, mode: str = "w", verify: Callable[[str], object] | None = None,
+                **kwargs) -> Iterator[IO]:
+    """``open`` for writing, atomically (see :func:`atomic_path`, and its ``verify``)."""
     if not mode.startswith("w"):
         raise ValueError("atomic_open is for writing only")
-    with atomic_path(path) as tmp, open(tmp, mode, **kwargs) as f:
-        yield f
+    with atomic_path(path, verify) as tmp:
+        with open(tmp, mode, **kwargs) as f:
+            yield f
 
 
 def refuse_overwrite_of_inputs(output: str | os.PathLike | None,

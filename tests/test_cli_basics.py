@@ -198,6 +198,26 @@ def test_atomic_success_and_permissions(tmp_path):
     assert target.stat().st_mode & 0o777 == 0o666 & ~_umask()
 
 
+def test_an_output_its_reader_refuses_is_not_written(tmp_path):
+    """``verify``: the writer's own format reader reads the finished temporary file before
+    it takes its name; a refusal leaves the old content and no temporary file."""
+    from brdfkit.atomic import UnreadableOutput
+    from brdfkit.io.merl import read_merl
+
+    target = tmp_path / "t.binary"
+    target.write_bytes(b"old")
+    with pytest.raises(UnreadableOutput) as e:
+        with atomic_open(target, "wb", verify=read_merl) as f:
+            f.write(b"\x00" * 16)  # not a MERL table
+    line = str(e.value)
+    assert "\n" not in line and line.startswith(f"{target}: not written") and ".brdfkit-tmp-" not in line
+    assert target.read_bytes() == b"old" and not tmp_leftovers(tmp_path)
+    seen = []
+    with atomic_open(tmp_path / "ok.txt", verify=lambda p: seen.append(open(p).read())) as f:
+        f.write("complete")
+    assert seen == ["complete"]
+
+
 def test_atomic_refusals(tmp_path):
     with pytest.raises(InputError, match="does not exist"):
         with atomic_path(tmp_path / "no" / "x"):

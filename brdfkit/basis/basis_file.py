@@ -52,7 +52,7 @@ def save_basis(path: str | os.PathLike, basis: PcaBasis, *, half: bool = False, 
 
     tensors, meta = basis_tensors(basis, half=half, phi_stride=phi_stride, int8=int8, deflate=deflate,
                                   where=os.fspath(path))
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=load_basis) as tmp:
         write_safetensors(tmp, tensors, meta)
 
 

@@ -169,7 +169,7 @@ def save_reference(path: str | os.PathLike, rho_ref: np.ndarray,
     if arr.shape != TABLE_SHAPE:
         raise ValueError(f"reference table must have shape {TABLE_SHAPE}, not {arr.shape}")
     meta = {"format": REFERENCE_FORMAT, "version": "1", "materials": json.dumps(list(materials))}
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=load_reference) as tmp:
         write_safetensors(tmp, {"rho_ref": arr}, meta)
 
 

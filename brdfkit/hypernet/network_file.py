@@ -162,7 +162,7 @@ def save_network(path: str | os.PathLike, net, rho_ref: np.ndarray, meta: dict |
         metadata["version"] = "2"
         metadata["reference"] = storage.reference_record("cells" if reference_file is None else "file",
                                                          values, digest, reference_file)
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=lambda tmp: load_network(tmp, "cpu")) as tmp:
         write_safetensors(tmp, tensors, metadata)
     return net_digest
 

@@ -147,7 +147,7 @@ def write_shared_reference(path: str | os.PathLike, mask: np.ndarray, values: np
     digest = reference_digest(mask, values)
     meta = {"format": SHARED_FORMAT, "version": SHARED_VERSION, "digest": digest,
             "materials": json.dumps(list(materials))}
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=read_shared_reference) as tmp:
         write_safetensors(tmp, {MASK: np.ascontiguousarray(mask), VALUES: np.ascontiguousarray(values)}, meta)
     return digest
 

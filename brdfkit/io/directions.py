@@ -200,7 +200,7 @@ def write_directions(path: str | os.PathLike, directions: DirectionSet, comments
             raise InputError(f"{os.fspath(path)}: a comment line holds a line break")
     wi, wo = directions.vectors()
     data = np.column_stack([directions.theta_h, directions.theta_d, directions.phi_d, wi, wo])
-    with atomic_open(path, "w", newline="") as f:
+    with atomic_open(path, "w", newline="", verify=read_directions) as f:
         for c in comments:
             f.write(f"# {c}\n")
         f.write(",".join(ANGLE_COLUMNS + VECTOR_COLUMNS) + "\n")

@@ -166,7 +166,7 @@ def write_merl(path: str | os.PathLike, table) -> None:
     stored = _stored_values(table if arr is table else arr)
     stored[np.isnan(stored)] = -1.0
     payload = stored.reshape(N_CELLS, 3).T  # cell-major -> channel-major
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=read_merl) as tmp:
         with open(tmp, "wb") as f:
             # f.write, not ndarray.tofile(f): tofile turns a Ctrl-C that lands while it
             # writes into "TypeError: expected str ... not BufferedWriter".

@@ -107,7 +107,7 @@ class SampleSet:
 def write_samples(path: str | os.PathLike, samples: SampleSet) -> None:
     """Write a sample set as CSV (angle columns, full float64 precision), atomically."""
     data = np.column_stack([samples.theta_h, samples.theta_d, samples.phi_d, samples.rgb])
-    with atomic_open(path, "w", newline="") as f:
+    with atomic_open(path, "w", newline="", verify=read_samples) as f:
         f.write(",".join(ANGLE_COLUMNS) + "\n")
         np.savetxt(f, data, fmt="%.17g", delimiter=",")
 

@@ -94,7 +94,7 @@ def save_prior(path: str | os.PathLike, model: PriorModel, *, half: bool = False
         meta.update(basis_file=basis_file, basis_digest=basis_digest)
     digest = _content_digest(_digest(net), basis_digest, meta["config"])
     meta[HEADER_DIGEST_KEY] = digest
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=lambda tmp: load_prior(tmp, "cpu")) as tmp:
         write_safetensors(tmp, tensors, meta)
     return digest
 

@@ -23,8 +23,8 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.residual.model import BasisResidual
 from brdfkit.residual.network import ResidualConfig, encoder_shapes, hyponet_shapes
 
-__all__ = ["RESIDUAL_FORMAT", "RESIDUAL_VERSION", "STORAGES", "save_residual", "load_residual", "read_header",
-           "serves_sparse"]
+__all__ = ["RESIDUAL_FORMAT", "RESIDUAL_VERSION", "STORAGES", "save_residual", "load_residual", "read_networks",
+           "read_header", "serves_sparse"]
 
 RESIDUAL_FORMAT = "brdfkit-residual"
 RESIDUAL_VERSION = "1"
@@ -84,7 +84,7 @@ def save_residual(path: str | os.PathLike, nets: list, *, basis_digest: str, bas
               "basis_digest": basis_digest, "basis_file": os.path.basename(basis_file),
               "offered": json.dumps(sorted(int(s) for s in offered)),
               "meta": json.dumps(meta or {}, sort_keys=True, default=str)}
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=read_networks) as tmp:
         write_safetensors(tmp, tensors, header)
 
 
@@ -153,6 +153,21 @@ def load_residual(path: str | os.PathLike, basis=None) -> BasisResidual:
     InputError
         The basis it corrects is not found, or is not the given one.
     """
+    path = os.fspath(path)
+    meta, nets, offered, record = read_networks(path)
+    return BasisResidual(_find_basis(path, meta, basis), meta["basis_digest"], nets, offered, record)
+
+
+def read_networks(path: str | os.PathLike) -> tuple[dict, list, tuple, dict]:
+    """``(header, [(ResidualConfig, state)], offered sizes, meta record)`` of a residual
+    file, every tensor checked against its network's config: the file's schema, without
+    the basis it corrects (what :func:`save_residual` reads back before it writes).
+
+    Raises
+    ------
+    FormatError
+        As :func:`load_residual`.
+    """
     from brdfkit.io.tensorfile import open_safetensors
 
     path = os.fspath(path)
@@ -171,7 +186,7 @@ def load_residual(path: str | os.PathLike, basis=None) -> BasisResidual:
     extra = sorted(k for k in raw if not k.startswith(tuple(f"net{i}." for i in range(len(cfgs)))))
     if extra:
         raise FormatError(path, f"tensors {extra[:3]} belong to no network of the file")
-    return BasisResidual(_find_basis(path, meta, basis), meta["basis_digest"], nets, offered, record)
+    return meta, nets, offered, record
 
 
 def _net_state(path: str, raw: dict, i: int, cfg: ResidualConfig) -> dict:

@@ -154,7 +154,7 @@ def write_tensor_file(path, fields: dict, align: int = 8) -> None:
         out[at:at + len(entry)] = entry
         at += len(entry)
         out[offsets[name]:offsets[name] + a.nbytes] = a.tobytes()
-    with atomic_path(path) as tmp:
+    with atomic_path(path, verify=read_tensor_file) as tmp:
         with open(tmp, "wb") as f:
             f.write(out)
     return None
