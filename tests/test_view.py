@@ -259,6 +259,25 @@ def test_export_refuses_a_folder_that_holds_files_unless_forced(tmp_path, capsys
     assert code == 0, err
 
 
+def test_export_force_leaves_no_texture_of_an_earlier_larger_export(tmp_path, capsys, shipped_models):
+    """``--force`` over an export of more components: its extra textures are removed (they
+    would pass for part of the new export), the user's own files are kept."""
+    from brdfkit.io.embedding import write_embedding
+
+    for k in (9, 3):
+        write_embedding(tmp_path / f"g{k}.emb", projected_embedding(_glossy_table(), "merl80-l40", "basis", k=k))
+    folder = tmp_path / "out"
+    assert run_cli(capsys, ["export", tmp_path / "g9.emb", "--glsl", folder])[0] == 0
+    assert (folder / "brdfkit_basis2.bin").exists()
+    (folder / "notes.txt").write_text("mine")
+    code, _, err = run_cli(capsys, ["export", tmp_path / "g3.emb", "--glsl", folder, "--force"])
+    assert code == 0, err
+    doc = json.loads((folder / "material.json").read_text())
+    bins = sorted(p.name for p in folder.glob("*.bin"))
+    assert bins == [t["file"] for t in doc["textures"]] and "brdfkit_basis2.bin" not in bins
+    assert (folder / "notes.txt").read_text() == "mine"
+
+
 def test_a_silent_browser_ends_in_one_line_within_its_deadline(tmp_path, monkeypatch):
     """A Chromium that starts and never answers (here a program that sleeps on the pipe)
     is given up at the deadline, killed, and said in one line."""

@@ -21,13 +21,15 @@ The folder holds:
 * ``README.md``: how to bind them.
 
 The folder is new or empty: one that holds files is refused, unless ``force`` (then the
-export's own files are written over, and nothing else is touched).
+export's own files are written over, an earlier export's textures that this one does not
+have are removed, and nothing else is touched).
 """
 
 from __future__ import annotations
 
 import json
 import os
+import re
 
 import numpy as np
 
@@ -38,6 +40,7 @@ __all__ = ["EXPORT_SHADERS", "MATERIAL_FORMAT", "export_glsl", "export_files"]
 EXPORT_SHADERS = ("brdfkit_bake.frag", "brdfkit_eval.glsl")
 """The GLSL an export is for: the bake pass and the lookup, with the files they require
 (:func:`brdfkit.view.page.glsl_files`)."""
+_TEXTURE = re.compile(r"brdfkit_basis[0-9]+\.bin")
 MATERIAL_FORMAT = {"format": "brdfkit-glsl-material", "version": 2}
 """``material.json``'s format (version 2: the defines and uniforms of
 :func:`brdfkit.view.live.material_uniforms`, the basis a sampler array)."""
@@ -83,6 +86,15 @@ def export_files(path, material: dict) -> dict:
     name = os.path.splitext(os.path.basename(path))[0]
     files["README.md"] = _readme(name, material, info, len(textures)).encode()
     return files
+
+
+def _remove_stale_textures(folder: str, files: dict) -> None:
+    """Remove the textures of an earlier export of more components from ``folder``
+    (``--force``): ``material.json`` lists the textures to bind, and a stale
+    ``brdfkit_basis<T>.bin`` beside them would be taken for part of this export."""
+    for f in os.listdir(folder):
+        if _TEXTURE.fullmatch(f) and f not in files:
+            os.unlink(os.path.join(folder, f))
 
 
 def _check_folder(folder: str, force: bool) -> None:
@@ -135,6 +147,7 @@ def export_glsl(path, folder, *, model_path=None, force: bool = False) -> dict:
     for f, data in files.items():
         with atomic_open(os.path.join(folder, f), "wb") as out:
             out.write(data)
+    _remove_stale_textures(folder, files)
     shaders = {f: files[f].decode() for f in _shader_files()}
     page = write_page([path], os.path.join(folder, "view.html"), model_path=model_path, live=True, shaders=shaders)
     listed = [(f, len(d)) for f, d in files.items()] + [("view.html", page["bytes"])]
