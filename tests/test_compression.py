@@ -163,13 +163,13 @@ def test_tune_fits_the_renders_writes_a_model_and_resumes(tiny, tmp_path):
     # The learning rates may change on resuming (a second stage at other rates).
     faster = dataclasses.replace(opts, lr_decoder=1e-3, lr_latent=1e-2)
     assert tune(d / "model.safetensors", data, out, steps=6, options=faster, resume=True)["steps"] == 6
-    # The peak region's loss changes what is learnt, and a checkpoint of another peak weight
-    # is another run's.
-    peaked = tmp_path / "peaked.safetensors"
-    tune(d / "model.safetensors", data, peaked, steps=3, options=dataclasses.replace(opts, peak_weight=1.0))
-    assert api.load_model(peaked, "cpu").digest != three_steps
+    # The ratio floor changes what is learnt, and a checkpoint of another floor weight is
+    # another run's.
+    floored = tmp_path / "floored.safetensors"
+    tune(d / "model.safetensors", data, floored, steps=3, options=dataclasses.replace(opts, floor_weight=10.0))
+    assert api.load_model(floored, "cpu").digest != three_steps
     with pytest.raises(InputError, match="another model, data or options"):
-        tune(d / "model.safetensors", data, peaked, steps=4, options=opts, resume=True)
+        tune(d / "model.safetensors", data, floored, steps=4, options=opts, resume=True)
 
 
 @pytest.mark.parametrize("args, message", [

@@ -23,7 +23,7 @@ from brdfkit.cli.common import model_option, parse_option, require_model
 @click.option("--resume", is_flag=True, help="Continue from OUTPUT.ckpt (same model, data and options).")
 @click.option("-O", "--option", "options", multiple=True, metavar="KEY=VALUE",
               help="lr_decoder, lr_latent, lr_encoder, batch, pairs_per_pixel, scenes, map_weight, "
-                   "lambda_z, query, context, resolution, peak_weight (docs/training.md).")
+                   "lambda_z, query, context, resolution, floor_weight, floor_ratio (docs/training.md).")
 @click.option("-q", "--quiet", is_flag=True, help="No progress messages.")
 def command(data, model_path, output, exclude_list, exclude_names, steps, minutes, seed, device, resume, options,
             quiet):

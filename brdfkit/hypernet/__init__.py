@@ -26,7 +26,8 @@ One module per concept, in the order data flows:
   refined on its own samples (``brdfkit sparse --method hypernet``).
 * :mod:`~brdfkit.hypernet.refine_on_screen`: a dense table's latent refined on the
   render-aligned error (what ``brdfkit encode`` runs).
-* :mod:`~brdfkit.hypernet.tuning`: ``brdfkit tune``, the auto-decoder stage on renders.
+* :mod:`~brdfkit.hypernet.tuning`: ``brdfkit tune``, the auto-decoder stage on renders;
+  :mod:`~brdfkit.hypernet.ratio_floor`, its loss on the decoded / true ratio.
 * :mod:`~brdfkit.hypernet.training`: ``brdfkit fit``: the step loop, its options, the
   training data, checkpoints and DDP.
 

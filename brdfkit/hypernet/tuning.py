@@ -40,18 +40,13 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError, require_counts
+from brdfkit.hypernet.ratio_floor import floor_data, floor_loss
 from brdfkit.render.objective import OBJECTIVE
 
 __all__ = ["TuneOptions", "tune"]
 
 _COUNTS = ("batch", "pairs_per_pixel", "query", "context", "resolution")
 """The integer options of :class:`TuneOptions` (each at least 1)."""
-
-PEAK_REGION = (2.0, 60.0)
-"""``(theta_h below, theta_d above)`` in degrees: the cells of :attr:`TuneOptions.peak_weight`'s
-loss, around the 7-D latent's black corner (``theta_h < 1``, ``theta_d > 75`` degrees;
-``benchmarks/black_cells.py``)."""
-
 
 @dataclasses.dataclass(frozen=True)
 class TuneOptions:
@@ -76,10 +71,15 @@ class TuneOptions:
         Cells per material for the mapped loss and for the encoder's context.
     resolution
         Side in pixels of the renders (:data:`brdfkit.render.screen.SCREEN_RESOLUTION`).
-    peak_weight
-        Weight of the mapped loss, not cosine-weighted, on ``query`` cells of the
-        near-specular grazing region (:data:`PEAK_REGION`; 0: none): where the cosine
-        weight and the renders let a small latent decode the material black.
+    floor_weight
+        Weight of the ratio floor (0: none): the one-sided loss
+        ``mean(relu(1 - pred / m_f)^2)``, ``m_f`` the mapped value of ``floor_ratio``
+        times the material's value, on the ``query`` uniform cells and ``query`` cells of
+        :data:`~brdfkit.hypernet.ratio_floor.FLOOR_REGION`. It is 0 wherever the decoded value is at least that share of
+        the material's, and sees the relative error where the mapped loss does not (a
+        material far below the reference, whose mapped value is nearly 0).
+    floor_ratio
+        The share of the material's value below which :attr:`floor_weight` costs, in (0, 1).
     """
 
     lr_decoder: float = 1e-4
@@ -93,13 +93,16 @@ class TuneOptions:
     query: int = 4096
     context: int = 4096
     resolution: int = 32
-    peak_weight: float = 0.0
+    floor_weight: float = 0.0
+    floor_ratio: float = 0.1
 
     def __post_init__(self):
-        for name in ("lr_decoder", "lr_latent", "lr_encoder", "map_weight", "lambda_z", "peak_weight"):
+        for name in ("lr_decoder", "lr_latent", "lr_encoder", "map_weight", "lambda_z", "floor_weight"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(f"tune option {name} must be a finite number >= 0, got {v!r}")
+        if not (isinstance(self.floor_ratio, (int, float)) and 0 < self.floor_ratio < 1):
+            raise InputError(f"tune option floor_ratio must be in (0, 1), got {self.floor_ratio!r}")
         require_counts(self, _COUNTS, "tune option ")
         from brdfkit.render.scene_suite import require_objective
 
@@ -166,7 +169,7 @@ def _identity(model_digest, names, opts, seed) -> str:
     """What a checkpoint must have been made for to be resumed: the model, the materials,
     the options but the learning rates, the seed (JSON, sorted keys)."""
     fields = dataclasses.asdict(opts)
-    for key, default in (("resolution", 32), ("peak_weight", 0.0)):
+    for key, default in (("resolution", 32), ("floor_weight", 0.0), ("floor_ratio", 0.1)):
         if fields[key] == default:  # added later: left out at its default, so older checkpoints resume
             del fields[key]
     for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
@@ -266,14 +269,16 @@ def _resume(run: _Tuning, state: dict, ckpt, opts):
     run.step, run.elapsed0, run.history = int(state["step"]), float(state["elapsed"]), list(state["history"])
 
 
-def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev, peak=None):
+def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev, floor=None):
     """One optimiser step on a batch seeded by ``(run.seed, run.step)``.
 
     ``values``: float32 torch ``(materials, n_cells, 3)``, the mapped values at ``cells``
-    (int64 ``(n_cells,)`` flat MERL indices), on ``dev``; ``peak``: the positions in
-    ``cells`` of :data:`PEAK_REGION` (``None``: no peak loss); ``views[i][k]``: material ``i``'s
+    (int64 ``(n_cells,)`` flat MERL indices), on ``dev``; ``floor``: ``(positions in ``cells``
+    of :data:`~brdfkit.hypernet.ratio_floor.FLOOR_REGION`, mapped value of 0 at ``cells``)`` (``None``: no ratio floor);
+    ``views[i][k]``: material ``i``'s
     target image and pair draw under ``screens[k]``. Returns the batch's sums of the log
-    screen errors, of the mapped losses and of the encoder's losses (torch scalars).
+    screen errors, of the mapped losses, of the encoder's losses and of the ratio floor's
+    losses (torch scalars; the last 0.0 without a floor).
     """
     import torch
 
@@ -287,7 +292,7 @@ def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev, peak=N
     turn = torch.randint(0, len(screens), (opts.batch,), generator=gen)
     q = torch.randint(0, cells.numel(), (opts.batch, opts.query), generator=gen).to(dev)
     c = torch.randint(0, cells.numel(), (opts.batch, opts.context), generator=gen).to(dev)
-    loss_s = loss_m = loss_e = 0.0
+    loss_s = loss_m = loss_e = loss_f = 0.0
     for b in range(opts.batch):
         i, k = int(mats[b]), int(turn[b])
         target, idx, w = views[i][k]
@@ -298,38 +303,26 @@ def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev, peak=N
         pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
         cos = cos_theta_i(th, td, pd).clamp(min=0.0)[:, None]
         loss_m = loss_m + torch.mean((cos * (pred - values[i, q[b]])) ** 2)
-        if peak is not None:
-            p = peak[torch.randint(0, peak.numel(), (opts.query,), generator=gen).to(dev)]
+        if floor is not None:
+            region, zero = floor
+            p = region[torch.randint(0, region.numel(), (opts.query,), generator=gen).to(dev)]
             th, td, pd = (a.float() for a in cell_angles(cells[p]))
-            pred = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
-            loss_m = loss_m + opts.peak_weight * torch.mean((pred - values[i, p]) ** 2)
+            pred_r = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
+            loss_f = loss_f + (floor_loss(pred, values[i, q[b]], zero[q[b]], opts.floor_ratio)
+                               + floor_loss(pred_r, values[i, p], zero[p], opts.floor_ratio))
         th, td, pd = (a.float() for a in cell_angles(cells[c[b]]))
         z_enc = net.encode(hd_vectors(th, td, pd)[None], values[i, c[b]][None])
         loss_e = loss_e + torch.mean((z_enc - latents[i].detach()) ** 2)
     zs = torch.cat([latents[int(i)] for i in mats])
-    loss = (loss_s + opts.map_weight * loss_m) / opts.batch + opts.lambda_z * torch.mean(zs ** 2)
+    loss = ((loss_s + opts.map_weight * loss_m + opts.floor_weight * loss_f) / opts.batch
+            + opts.lambda_z * torch.mean(zs ** 2))
     for o in run.optimizers:
         o.zero_grad(set_to_none=True)
     (loss + loss_e / opts.batch).backward()
     torch.nn.utils.clip_grad_norm_(net.decoder.parameters(), 1.0)
     for o in run.optimizers:
         o.step()
-    return loss_s, loss_m, loss_e
-
-
-def _peak_positions(cells: np.ndarray, dev):
-    """int64 torch positions in ``cells`` (flat MERL indices) inside :data:`PEAK_REGION`."""
-    import torch
-
-    from brdfkit.geometry import N_PHI_D, N_THETA_D, N_THETA_H
-
-    ih, id_ = cells // (N_THETA_D * N_PHI_D), (cells // N_PHI_D) % N_THETA_D
-    th = np.degrees((ih / N_THETA_H) ** 2 * (np.pi / 2))
-    td = np.degrees(id_ / N_THETA_D * (np.pi / 2))
-    pos = np.flatnonzero((th < PEAK_REGION[0]) & (td > PEAK_REGION[1]))
-    if pos.size == 0:
-        raise InputError("tune -O peak_weight: the training set has no cell in the peak region")
-    return torch.from_numpy(pos).to(dev)
+    return loss_s, loss_m, loss_e, loss_f
 
 
 def _loop(run: _Tuning, m, screens, views, tset, opts, dev, steps, minutes, checkpoint_minutes, ckpt, say):
@@ -341,13 +334,13 @@ def _loop(run: _Tuning, m, screens, views, tset, opts, dev, steps, minutes, chec
 
     values = torch.from_numpy(tset.values).to(dev)
     cells = torch.from_numpy(tset.cells).to(dev)
-    peak = _peak_positions(tset.cells, dev) if opts.peak_weight > 0 else None
+    floor = floor_data(tset, dev) if opts.floor_weight > 0 else None
     gen = torch.Generator()
     last_ckpt = time.monotonic()
     say(f"tuning from step {run.step}")
     try:
         while (steps is None or run.step < steps) and (minutes is None or time.monotonic() - run.t0 < 60 * minutes):
-            loss_s, loss_m, loss_e = _step(run, m, screens, views, values, cells, gen, opts, dev, peak)
+            loss_s, loss_m, loss_e, loss_f = _step(run, m, screens, views, values, cells, gen, opts, dev, floor)
             run.step += 1
             psnr = -10 * loss_s.item() / opts.batch / math.log(10)
             run.ema = psnr if run.ema is None else 0.98 * run.ema + 0.02 * psnr
@@ -356,7 +349,9 @@ def _loop(run: _Tuning, m, screens, views, tset, opts, dev, steps, minutes, chec
                                     float(loss_e) / opts.batch))
                 say(f"step {run.step}: screen PSNR (ema) {run.ema:.2f} dB, "
                     f"mapped {float(loss_m) / opts.batch:.4g}, "
-                    f"encoder {float(loss_e) / opts.batch:.4g}, {time.monotonic() - run.t0:.0f} s")
+                    f"encoder {float(loss_e) / opts.batch:.4g}, "
+                    + (f"floor {float(loss_f) / opts.batch:.4g}, " if floor is not None else "")
+                    + f"{time.monotonic() - run.t0:.0f} s")
             if time.monotonic() - last_ckpt > 60 * checkpoint_minutes:
                 save_checkpoint(ckpt, run.checkpoint_state())
                 last_ckpt = time.monotonic()
