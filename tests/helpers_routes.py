@@ -1,0 +1,126 @@
+"""The route matrix's parameters and inputs (``tests/test_routes_*.py``).
+
+Every parameter is generated from the registries, never listed by hand: the built-ins
+the package ships (its manifest), what each one serves (kinds and their sizes, sparse
+methods), the kinds (``KINDS``), the methods (``METHODS``) and the recipes of ``brdfkit
+fit`` (``FITTERS``). A new built-in, kind, size, method or recipe is a new route of the
+matrix without an edit here; a recipe without a tiny setting below fails its route with a
+message saying so.
+
+The inputs are the materials the package ships (``brdfkit material``), written once per
+run for both pytest-xdist workers.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import pytest
+
+from conftest import run_cli
+
+MATERIALS = ("teflon", "chrome-steel", "blue-metallic-paint", "violet-rubber")
+"""What ``brdfkit material`` can write without ``../shared`` (the package's own NBRDF fits)."""
+
+RESOLUTION = "16"
+"""Render size of the matrix's scores (pixels): each route is checked to run and to give a
+table that renders like its truth, not measured."""
+
+FLOOR_DB = 30.0
+"""PSNR (dB, the reference scene) that every decoded table of a route reaches against its
+truth from :data:`FULL_SIZE` numbers up."""
+
+FULL_SIZE = 12
+"""Below this many numbers a basis of one to three components a channel is what it is:
+unrefined, teflon's projection onto one component renders 19.0 dB, chrome-steel's onto
+two 29.2 and onto three 29.6 (16 px, merl80-l40, 2026-12-01)."""
+
+LOW_SIZE_FLOOR_DB = 18.0
+"""The floor below :data:`FULL_SIZE` numbers; a black or wrong table renders far under it."""
+
+
+def shipped():
+    """``[(name, kinds {kind: (sizes, default size)}, methods (names served))]`` of the
+    built-ins the package ships, from their manifest and parts (empty without them)."""
+    from brdfkit.embeddings import choose_decoder
+    from brdfkit.embeddings.registry import KINDS
+    from brdfkit.methods import METHODS
+    from brdfkit.models.builtin import models_folder, read_manifest
+
+    out = []
+    for b in read_manifest(models_folder()).installed():
+        kinds = {}
+        for k in KINDS:
+            if KINDS[k].part in b.parts:
+                d = choose_decoder(k, os.path.join(models_folder(), b.parts[KINDS[k].part].file))
+                kinds[k] = (tuple(d.sizes), d.default_size)
+        methods = tuple(m for m in METHODS if METHODS[m].part is None or METHODS[m].part in b.parts)
+        out.append((b.name, kinds, methods))
+    return out
+
+
+def encode_routes():
+    """``(built-in, kind, size, default size)`` of every size of every kind of every
+    shipped built-in."""
+    return [pytest.param(name, kind, size, default, id=f"{name}-{kind}-{size}")
+            for name, kinds, _ in shipped() for kind, (sizes, default) in kinds.items() for size in sizes]
+
+
+def kind_routes():
+    """``(built-in, kind, default size)`` of every kind of every shipped built-in."""
+    return [pytest.param(name, kind, default, id=f"{name}-{kind}")
+            for name, kinds, _ in shipped() for kind, (_, default) in kinds.items()]
+
+
+def method_routes():
+    """``(built-in, method, served)`` of every sparse method that takes a model against
+    every built-in, and ``(None, method, True)`` of each that takes none."""
+    from brdfkit.methods import METHODS
+
+    free = [pytest.param(None, m, True, id=m) for m in METHODS if not METHODS[m].needs_model]
+    return free + [pytest.param(name, method, method in methods, id=f"{name}-{method}")
+                   for name, _, methods in shipped() for method in METHODS if METHODS[method].needs_model]
+
+
+def floor(size: int) -> float:
+    """The PSNR floor of a route at ``size`` numbers."""
+    return FLOOR_DB if size >= FULL_SIZE else LOW_SIZE_FLOOR_DB
+
+
+def materials(tmp_path_factory) -> Path:
+    """A folder of the shipped materials as MERL tables, ``<name>.binary``, written once
+    per run (both workers share it)."""
+    from brdfkit.materials.nbrdf_networks import write_material
+
+    base = tmp_path_factory.getbasetemp()
+    if os.environ.get("PYTEST_XDIST_WORKER"):
+        base = base.parent
+    folder = base / "route-materials"
+    if not all((folder / f"{m}.binary").is_file() for m in MATERIALS):
+        part = Path(tempfile.mkdtemp(prefix=".route-materials-", dir=base))
+        for m in MATERIALS:
+            write_material(m, part / f"{m}.binary")
+        try:
+            os.rename(part, folder)
+        except OSError:  # the other worker wrote them first: the same tables
+            shutil.rmtree(part, ignore_errors=True)
+    return folder
+
+
+def psnr(capsys, ref, pred, *extra) -> float:
+    """``brdfkit metrics --ref REF PRED --json``'s PSNR at :data:`RESOLUTION`."""
+    code, out, err = run_cli(capsys, ["metrics", "--ref", ref, pred, "--json", "--resolution", RESOLUTION,
+                                      "--quiet", *extra])
+    assert code == 0, err
+    return json.loads(out)["psnr"]
+
+
+def ok(capsys, args) -> str:
+    """Run ``brdfkit ARGS`` in-process; its stderr, after checking it exited 0."""
+    code, _, err = run_cli(capsys, args)
+    assert code == 0, f"brdfkit {' '.join(map(str, args))}: exit {code}: {err}"
+    return err
