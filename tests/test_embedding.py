@@ -222,3 +222,35 @@ def test_a_blend_takes_a_left_out_option_as_its_kind_default():
     assert mid.options == {"correction": 0.5, "correction.1": 0.5}
     assert gains(mid.options) == {0: 0.5, 1: 0.5}
     assert gains(interpolate(a, b, 0.0).options) == gains(a.options)
+
+
+def test_any_blend_of_member_embeddings_is_written_read_and_decodes_as_blended(tmp_path):
+    """A property over what ``encode`` and ``interpolate`` write: for residual embeddings of
+    any members (``gain_options``, as an encode chooses one) blended at any ``t`` in [0, 1],
+    ``write_embedding`` writes, ``read_embedding`` reads back the same embedding, and its
+    gains are the blend of the two members' gains."""
+    hypothesis = pytest.importorskip("hypothesis")
+    from hypothesis import strategies as st
+
+    from brdfkit.embeddings.blend import interpolate
+    from brdfkit.residual.model import gain_options, gains
+
+    members = st.one_of(st.none(), st.integers(0, 12))
+
+    @hypothesis.given(members, members, st.floats(0.0, 1.0), st.integers(1, 30))
+    @hypothesis.settings(max_examples=60, deadline=None)
+    def check(ma, mb, t, k):
+        a, b = _emb(kind="residual", dim=3 * k), _emb(kind="residual", dim=3 * k, seed=1)
+        a.options, b.options = gain_options(ma), gain_options(mb)
+        mid = interpolate(a, b, t)
+        write_embedding(tmp_path / "p.emb", mid)
+        back = read_embedding(tmp_path / "p.emb")
+        assert back.options == mid.options and np.array_equal(back.values, mid.values)
+        want = {}
+        for g, w in ((gains(a.options), 1 - t), (gains(b.options), t)):
+            for m, v in g.items():
+                want[m] = want.get(m, 0.0) + w * v
+        got = gains(back.options)
+        assert set(got) == {m for m, v in want.items() if v} and all(abs(got[m] - want[m]) < 1e-12 for m in got)
+
+    check()

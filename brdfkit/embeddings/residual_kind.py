@@ -23,12 +23,18 @@ def _encode(residual, digest, table, *, source, size, steps, refine, max_seconds
 
 
 def _open(residual, digest, emb, name, device):
-    from brdfkit.residual.brdf import ResidualBRDF, check_embedding, sample_count
+    from brdfkit.residual.brdf import ResidualBRDF, check_embedding
 
     c, gain = check_embedding(emb, residual, digest, name)
-    return ResidualBRDF(residual, c, gain, name=name or "embedding", device=device, count=sample_count(emb))
+    return ResidualBRDF(residual, c, gain, name=name or "embedding", device=device)
+
+
+def _option_defaults():
+    from brdfkit.residual.model import OPTION_DEFAULTS
+
+    return dict(OPTION_DEFAULTS)
 
 
 KIND = EmbeddingKind("residual", "coefficients of a PCA basis plus a hypernetwork's correction, chosen per material "
                      "(3 numbers a component)", "residual", lambda r: r.sizes(), _default_size, _encode, _open,
-                     option_defaults={"correction": 1.0})  # brdfkit.residual.model.gains: member 0 when left out
+                     option_defaults=_option_defaults())

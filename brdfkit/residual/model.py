@@ -24,7 +24,11 @@ import numpy as np
 from brdfkit.errors import InputError
 from brdfkit.residual.network import evaluate, hyponet_weights, net_input
 
-__all__ = ["BasisResidual", "gains", "gain_options"]
+__all__ = ["BasisResidual", "OPTION_DEFAULTS", "gains", "gain_options", "offered_sizes", "components_of"]
+
+OPTION_DEFAULTS = {"correction": 1.0}
+"""The decode options an embedding may leave out that are not 0 then: member 0's gain
+(embeddings written before the members were one network's, always on)."""
 
 
 def gains(options: dict | None) -> dict:
@@ -39,7 +43,7 @@ def gains(options: dict | None) -> dict:
     {0: 1.0}
     """
     options = options or {}
-    out = {0: float(options.get("correction", 1.0))}
+    out = {0: float(options.get("correction", OPTION_DEFAULTS["correction"]))}
     for key, value in options.items():
         if key.startswith("correction."):
             out[int(key.split(".", 1)[1])] = float(value)
@@ -60,6 +64,32 @@ def gain_options(member: int | None) -> dict:
     return {"correction": 1.0} if member == 0 else {"correction": 0.0, f"correction.{member}": 1.0}
 
 
+def components_of(configs, n_components: int) -> tuple:
+    """The numbers of components (ascending) that networks of ``configs`` decode with a
+    basis of ``n_components``.
+
+    Examples
+    --------
+    >>> from brdfkit.residual.network import ResidualConfig
+    >>> components_of([ResidualConfig(3, 3), ResidualConfig(7, 7, member=1)], 30)
+    (3, 7)
+    """
+    return tuple(sorted({k for cfg in configs for k in range(cfg.k_min, cfg.k_max + 1) if k <= n_components}))
+
+
+def offered_sizes(components, offered) -> tuple:
+    """The sizes ``encode`` offers (ascending): ``3 K`` for each of ``components``, those of
+    ``offered`` alone when the file records any.
+
+    Examples
+    --------
+    >>> offered_sizes((3, 7, 13), ()), offered_sizes((3, 7, 13), (9, 39))
+    ((9, 21, 39), (9, 39))
+    """
+    served = tuple(3 * k for k in components)
+    return tuple(s for s in served if s in offered) if offered else served
+
+
 @functools.lru_cache(maxsize=2)
 def _cell_hd(cells_key: bytes, n: int) -> np.ndarray:
     from brdfkit.geometry import grid_hd
@@ -72,16 +102,6 @@ PIECE_CELLS = 16384
 """Cells of one piece of a correction's evaluation (a channel's hyponet at that many cells;
 :func:`brdfkit.residual.network.evaluate`'s block), the pieces on
 :func:`brdfkit.runtime.thread_map`'s threads."""
-
-
-def _count(cfg, count):
-    """The count a network takes (``None`` for one that takes none); one that takes it
-    and is given none is refused."""
-    if not cfg.count:
-        return None
-    if count is None:
-        raise InputError("this residual network decodes a sparse fit: the embedding names no sample count")
-    return count
 
 
 def _as_gains(gain) -> dict:
@@ -121,16 +141,12 @@ class BasisResidual:
     @property
     def components(self) -> tuple:
         """The numbers of components it decodes, ascending (its networks', within the basis's)."""
-        return tuple(sorted({k for cfg, _ in self.nets for k in range(cfg.k_min, cfg.k_max + 1)
-                             if k <= self.basis.n_components}))
+        return components_of([cfg for cfg, _ in self.nets], self.basis.n_components)
 
     def sizes(self) -> tuple:
         """Sizes ``encode`` offers (ascending): ``3 K`` for each ``K`` it decodes, less those
-        its file does not offer and those of a network of sparse fits (which takes a sample
-        count, :mod:`brdfkit.prior.correction`)."""
-        sparse = {k for cfg, _ in self.nets if cfg.count for k in range(cfg.k_min, cfg.k_max + 1)}
-        served = tuple(3 * k for k in self.components if k not in sparse)
-        return tuple(s for s in served if s in self.offered) if self.offered else served
+        its file does not offer (:func:`offered_sizes`)."""
+        return offered_sizes(self.components, self.offered)
 
     def check_k(self, k: int) -> None:
         if k not in self.components:
@@ -159,19 +175,16 @@ class BasisResidual:
         cells = np.ascontiguousarray(self.basis.cells, dtype=np.int64)
         return _cell_hd(cells.tobytes(), cells.size)
 
-    def correction(self, coefficients: np.ndarray, hd: np.ndarray | None = None, member=0,
-                   count: int | None = None) -> np.ndarray:
+    def correction(self, coefficients: np.ndarray, hd: np.ndarray | None = None, member=0) -> np.ndarray:
         """The mapped correction ``(N, 3)`` float32 of coefficients ``(K, 3)`` at HD
         vectors ``hd (N, 6)`` (default: every cell of the basis), of one member or of the
-        gains ``{member: gain}`` (:func:`gains`) summed; ``count``: the sample count of a
-        sparse fit, for a network that takes it (:class:`ResidualConfig`)."""
+        gains ``{member: gain}`` (:func:`gains`) summed."""
         if isinstance(member, dict):
-            parts = [np.float32(g) * self.correction(coefficients, hd, m, count) for m, g in member.items()]
+            parts = [np.float32(g) * self.correction(coefficients, hd, m) for m, g in member.items()]
             return sum(parts[1:], parts[0]) if parts else None
         c = np.asarray(coefficients, np.float64)
         _, cfg, state = self.net_for(c.shape[0], member)
-        z = net_input((c / self.basis.sigma[:c.shape[0], None].astype(np.float64)).T, cfg.k_max,
-                      _count(cfg, count))
+        z = net_input((c / self.basis.sigma[:c.shape[0], None].astype(np.float64)).T, cfg.k_max)
         from brdfkit.runtime import thread_map
 
         hd = self.cell_hd() if hd is None else hd
@@ -185,28 +198,26 @@ class BasisResidual:
         list(thread_map(piece, [(ch, s) for ch in range(3) for s in range(0, hd.shape[0], PIECE_CELLS)]))
         return out
 
-    def correction_channel(self, coefficients: np.ndarray, hd: np.ndarray, member: int = 0,
-                           count: int | None = None) -> np.ndarray:
+    def correction_channel(self, coefficients: np.ndarray, hd: np.ndarray, member: int = 0) -> np.ndarray:
         """One channel's mapped correction ``(N,)`` float32 of its coefficients ``(K,)`` at
         HD vectors ``hd (N, 6)`` (each channel's correction depends on its own
         coefficients alone)."""
         c = np.asarray(coefficients, np.float64)
         _, cfg, state = self.net_for(c.shape[0], member)
-        z = net_input((c / self.basis.sigma[:c.shape[0]].astype(np.float64))[None], cfg.k_max, _count(cfg, count))
+        z = net_input((c / self.basis.sigma[:c.shape[0]].astype(np.float64))[None], cfg.k_max)
         return evaluate(hyponet_weights(state, cfg, z), hd, 0)
 
-    def mapped(self, coefficients: np.ndarray, gain=1.0, count: int | None = None) -> np.ndarray:
+    def mapped(self, coefficients: np.ndarray, gain=1.0) -> np.ndarray:
         """Mapped values ``(P, 3)`` at the basis's cells, the mean included; ``gain`` member
-        0's gain, or the gains ``{member: gain}`` (:func:`gains`); ``count`` the sample
-        count of a sparse fit (a network that takes it)."""
+        0's gain, or the gains ``{member: gain}`` (:func:`gains`)."""
         c = np.asarray(coefficients, np.float32)
         out = self.basis.leading(c.shape[0]).mapped_values(c)
         g = _as_gains(gain)
         if g:
-            out = out + self.correction(c, None, g, count)
+            out = out + self.correction(c, None, g)
         return out
 
-    def decode_at(self, coefficients: np.ndarray, cells, gain=1.0, count: int | None = None) -> tuple:
+    def decode_at(self, coefficients: np.ndarray, cells, gain=1.0) -> tuple:
         """:meth:`decode` at some cells only: ``(at, values)``, the flat MERL ``cells``
         the basis covers (ascending) and the BRDF there, float64 ``(n, 3)``, 1/sr (the
         hyponet evaluated at those cells alone)."""
@@ -221,11 +232,11 @@ class BasisResidual:
         mapped = part.mean[pos, None] + part.rows_at(pos).T @ c
         g = _as_gains(gain)
         if g:
-            mapped = mapped + self.correction(c, np.ascontiguousarray(grid_hd()[at]), g, count)
+            mapped = mapped + self.correction(c, np.ascontiguousarray(grid_hd()[at]), g)
         ref = part.reference[pos, None].astype(np.float64)
         return at, part.mapping.from_mapped(mapped, part.cell_weight(at)[:, None], ref)
 
-    def decode(self, coefficients: np.ndarray, gain=1.0, count: int | None = None) -> np.ndarray:
+    def decode(self, coefficients: np.ndarray, gain=1.0) -> np.ndarray:
         """Dense table float64 ``(90, 90, 180, 3)``, 1/sr, ``> 0``, NaN off the basis's
         cells."""
-        return self.basis.decode_mapped(self.mapped(coefficients, gain, count))
+        return self.basis.decode_mapped(self.mapped(coefficients, gain))
