@@ -198,6 +198,13 @@ def test_a_broken_material_is_recorded_not_fatal(library, tmp_path, monkeypatch)
     assert not got["complete"] and got["dropped_materials"] == ["broken"]
     assert {r["material"] for r in got["records"]} == {good} and len(got["records"]) == 3
     assert "materials dropped because not every merged run covered them: broken" in (tmp_path / "p" / "bench.md").read_text()
+    # Runs of one built-in's name made with other parts of it (a retrained model) are not merged.
+    part.update(complete=True, parts={"merl80-l40": {"basis": "0" * 64}})
+    (tmp_path / "part.json").write_text(json.dumps(part))
+    other = dict(part, parts={"merl80-l40": {"basis": "1" * 64}})
+    (tmp_path / "other.json").write_text(json.dumps(other))
+    with pytest.raises(InputError, match="other parts of the built-in model 'merl80-l40'"):
+        merge_results([tmp_path / "part.json", tmp_path / "other.json"], str(tmp_path / "q"), replace=True)
     assert plotted == [str(tmp_path / n) for n in ("more", "merged", "again", "p")]  # each run and merge that wrote
 
 
@@ -359,3 +366,8 @@ def test_resume_keeps_finished_materials_and_runs_the_rest(library, tmp_path, mo
                         seeds=1, methods=("ipca",), resolution=8)
     with pytest.raises(InputError, match="these differ: n"):
         run_bench(other, progress=False, resume=True)
+    # So is a run of other built-in parts under the same names (a model retrained since).
+    part["parts"] = {"merl80-l40": {"basis": "0" * 64}}
+    path.write_text(json.dumps(part))
+    with pytest.raises(InputError, match="needs the same built-in models"):
+        run_bench(cfg, progress=False, resume=True)

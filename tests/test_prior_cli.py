@@ -311,7 +311,10 @@ def test_bench_default_methods_lead_with_a_builtins_prior(installed, capsys, tmp
     assert code == 0, err
     result = json.loads((out / "bench.json").read_text())
     assert result["config"]["methods"] == ["prior", "hypernet", "ipca", "nbrdf"]
-    assert result["config"]["models"] == {"prior": str(folder / PRIOR)}
+    # The record names the built-in as given, and holds the digests of the parts that ran.
+    assert result["config"]["models"] == {"prior": "tiny-p"} and result["config"]["ipca"] == "tiny-p"
+    tiny_p = {b.name: b for b in builtin.read_manifest(folder).bundles}["tiny-p"]
+    assert result["parts"] == {"tiny-p": {p: tiny_p.part(p).digest for p in ("basis", "network", "prior")}}
     assert sorted(r["method"] for r in result["records"]) == ["hypernet", "ipca", "nbrdf", "prior"]
     assert all("error" not in r for r in result["records"]), result["records"]
 
@@ -340,8 +343,13 @@ def test_bench_takes_builtin_names(installed, capsys, tmp_path):
                                     "--resolution", "8", "--threads", "1", "-q", "-o", out])
     assert code == 0, err
     result = json.loads((out / "bench.json").read_text())
-    assert result["complete"] and result["config"]["models"] == {"prior": str(folder / PRIOR)}
-    assert result["config"]["model"] == str(folder / "tiny-h.safetensors")
+    assert result["complete"] and result["config"]["models"] == {"prior": "tiny-p"}
+    assert result["config"]["model"] == "tiny-h" and str(folder) not in json.dumps(result["config"])
+    bundles = {b.name: b for b in builtin.read_manifest(folder).bundles}
+    assert result["parts"] == {"tiny-h": {"network": bundles["tiny-h"].part("network").digest},
+                               "tiny-p": {p: bundles["tiny-p"].part(p).digest for p in ("basis", "prior")}}
+    # Its compression entries too: the name given, the kind and size that ran.
+    assert cfg.recorded(r)[0]["compression_models"] == ("tiny-h:hypernet-7",)
     recs = result["records"]
     assert sorted(r["method"] for r in recs) == ["hypernet", "ipca", "prior"]
     assert all("error" not in r for r in recs), recs

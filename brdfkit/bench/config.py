@@ -147,6 +147,44 @@ class BenchConfig:
             compression_models=tuple(_basis_spelling(p) if basis_components(p) else _resolve_compressor(p, cfg.device)
                                      for p in cfg.compression_models))
 
+    def recorded(self, resolved: "BenchConfig") -> tuple[dict, dict]:
+        """What ``bench.json`` records of a run of this configuration (as given, its
+        default methods filled in) that ran as ``resolved`` (:meth:`resolved`): ``(config,
+        parts)``. ``config`` is ``resolved`` with each built-in named as it was given
+        (``merl80-l40``, not the file it resolved to, which lies elsewhere on every machine;
+        a compression entry ``merl80-l40:residual-39``, the kind and size that ran); a path
+        stays as given. ``parts`` is ``{built-in: {part: digest}}`` of the parts those
+        names resolved to, by the digests their manifest records: what made the figures."""
+        from brdfkit.models.builtin import installed_bundles, is_path_spec
+
+        bundles = {b.name: b for b in installed_bundles()}
+        parts: dict = {}
+
+        def named(given, ran):
+            if given is None or is_path_spec(given) or given not in bundles:
+                return ran
+            real = os.path.realpath(ran)
+            for part, p in bundles[given].parts.items():
+                if os.path.realpath(p.path) == real:
+                    parts.setdefault(given, {})[part] = p.digest
+            return given
+
+        def entry(given, ran):  # a compression entry MODEL[:KIND[-SIZE]] as MODEL:KIND-SIZE
+            if basis_components(given):
+                return ran
+            path, sep, what = ran.rpartition(":")
+            return f"{named(compression_entry(given)[0], path)}{sep}{what}"
+
+        from brdfkit.methods import METHODS
+
+        fields = {m.bench_option for m in METHODS.values() if m.bench_option}
+        out = dataclasses.replace(
+            resolved, **{f: named(getattr(self, f), getattr(resolved, f)) for f in fields if getattr(resolved, f)},
+            models={m: named(self.models.get(m), p) if p else p for m, p in resolved.models.items()},
+            plan_model=named(self.plan_model, resolved.plan_model) if resolved.plan_model else None,
+            compression_models=tuple(entry(g, r) for g, r in zip(self.compression_models, resolved.compression_models)))
+        return dataclasses.asdict(out), dict(sorted(parts.items()))
+
     def with_default_methods(self) -> "BenchConfig":
         """This configuration with ``methods=None`` replaced by :func:`default_methods`
         (and, when that adds the learnt prior of the built-in ``-m``, ``models["prior"]``

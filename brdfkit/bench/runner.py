@@ -77,7 +77,9 @@ def run_bench(cfg: BenchConfig, progress: bool = True, resume: bool = False) -> 
     Returns
     -------
     dict
-        The content of ``bench.json``: ``config``, ``environment``, ``materials``,
+        The content of ``bench.json``: ``config`` (each built-in by the name it was
+        given, :meth:`BenchConfig.recorded`), ``parts`` (``{built-in: {part: digest}}``
+        of the parts the names resolved to), ``environment``, ``materials``,
         ``records`` (one per reconstruction: material, method, N, seed, sampling and
         how the samples were made (:meth:`brdfkit.acquisition.protocol.SamplingProtocol.samples`),
         metrics, ``time_s``, ``render_s``, or ``error``), ``summary`` (:func:`summarise`),
@@ -87,13 +89,16 @@ def run_bench(cfg: BenchConfig, progress: bool = True, resume: bool = False) -> 
     ------
     InputError
         Bad options, missing files or test materials, unreadable model files, unknown
-        built-in model names; with ``resume``, an earlier run of another configuration.
+        built-in model names; with ``resume``, an earlier run of another configuration
+        or of other built-in parts.
     """
-    cfg = cfg.resolved()  # built-in names -> their files, recorded as such
+    given = cfg.with_default_methods()
+    cfg = given.resolved()  # built-in names -> their files; the record keeps the names and the parts' digests
     cfg.validate()
     os.makedirs(cfg.output, exist_ok=True)
     if cfg.jobs > 1 and cfg.threads is None:
         cfg = dataclasses.replace(cfg, threads=max(1, (os.cpu_count() or 1) // cfg.jobs))
+    recorded, parts = given.recorded(cfg)
     tasks = []
     if cfg.data is not None:
         names = None
@@ -109,7 +114,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True, resume: bool = False) -> 
                 "compression": len(cfg.compressors())}
     result = {"format": "brdfkit-bench", "version": FORMAT_VERSION,
               "started": datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds"),
-              "config": dataclasses.asdict(cfg), "environment": _environment(cfg),
+              "config": recorded, "parts": parts, "environment": _environment(cfg),
               "materials": {"sparse": [t[1] for t in tasks[:n_sparse]], "sparse_count": n_sparse,
                             "compression": [t[1] for t in tasks[n_sparse:]],
                             "compression_count": len(tasks) - n_sparse},
@@ -179,6 +184,9 @@ def _resume(result: dict, json_path: str, tasks: list) -> list:
                     if k not in _RESUME_FREE and old_cfg.get(k) != new_cfg.get(k))
     if differ:
         raise InputError(f"{json_path}: --resume needs the same configuration; these differ: {', '.join(differ)}")
+    if old.get("parts", {}) != result["parts"]:
+        raise InputError(f"{json_path}: --resume needs the same built-in models; a part of "
+                         f"{', '.join(sorted(set(old.get('parts', {})) | set(result['parts'])))} differs")
     if old.get("environment", {}).get("renderer") != result["environment"]["renderer"]:
         raise InputError(f"{json_path}: --resume needs the same renderer; the earlier run used another")
     finished = {(r["kind"], r["material"]) for r in old_records}
@@ -266,6 +274,12 @@ def merge_results(paths, output: str, allow_incomplete: bool = False, replace: b
     if len(res) > 1:
         raise InputError(f"the runs rendered at different resolutions ({sorted(res)}); their image "
                          f"metrics are not comparable")
+    parts = {}
+    for run in runs:  # a built-in's name means the same parts in every run merged
+        for name, got in run.get("parts", {}).items():
+            if parts.setdefault(name, got) != got:
+                raise InputError(f"the runs used other parts of the built-in model {name!r}; their figures "
+                                 f"are not of one model")
     common, dropped = {}, []
     for kind in ("sparse", "compression"):
         covered = [{r["material"] for r in run["records"] if r["kind"] == kind} for run in runs]
@@ -300,7 +314,7 @@ def merge_results(paths, output: str, allow_incomplete: bool = False, replace: b
     mats = {"sparse": [m for m in dict.fromkeys(m for run in runs for m in run["materials"]["sparse"])
                        if m in common["sparse"]],
             "compression": list(dict.fromkeys(r["material"] for r in records if r["kind"] == "compression"))}
-    result = dict(first, config=cfg, records=records, complete=all(run.get("complete") for run in runs),
+    result = dict(first, config=cfg, parts=dict(sorted(parts.items())), records=records, complete=all(run.get("complete") for run in runs),
                   dropped_materials=dropped,
                   elapsed_s=sum(run["elapsed_s"] for run in runs),
                   materials={**mats, "sparse_count": len(mats["sparse"]),
