@@ -255,7 +255,7 @@ def test_nbrdf_refuses_bad_parameters():
 
 @pytest.mark.slow
 def test_registry_names_and_uniform_interface(basis, library, tmp_path):
-    assert set(METHODS) == {"hypernet", "ipca", "nbrdf", "prior", "residual"}
+    assert set(METHODS) == {"hypernet", "ipca", "nbrdf", "prior"}
     with pytest.raises(InputError, match="unknown method 'pca'.*ipca"):
         get_method("pca")
     ipca = get_method("ipca")
@@ -426,7 +426,7 @@ def test_registry_options_and_one_call(basis, library, tmp_path):
     # What `brdfkit fit` trains is its own registry; a reconstruction method has no fit.
     from brdfkit.training import FITTERS, get_fitter
 
-    assert list(FITTERS) == ["hypernet", "basis", "prior", "residual", "correction"]
+    assert list(FITTERS) == ["hypernet", "basis", "prior", "residual"]
     assert get_fitter("ipca") is FITTERS["basis"]  # the old name of the basis recipe
     assert not any(hasattr(m, "fit") or hasattr(m, "fit_fn") for m in METHODS.values())
     with pytest.raises(InputError, match="unknown --method 'nbrdf' for fit"):

@@ -64,7 +64,7 @@ def test_bench_cli_end_to_end(setup, tmp_path, capsys):
     assert "note: pca-1 is now basis-1" in stderr
     result = json.loads((out / "bench.json").read_text())
     assert result["complete"] and result["format"] == "brdfkit-bench"
-    assert set(result["environment"]["method_defaults"]) == {"hypernet", "ipca", "nbrdf", "prior", "residual"}
+    assert set(result["environment"]["method_defaults"]) == {"hypernet", "ipca", "nbrdf", "prior"}
     assert result["environment"]["method_defaults"]["hypernet"] == {"refine": True, "refine_target": "weights",
                                                                     "steps": 300}
     test_names = [setup["names"][0], setup["names"][2]]

@@ -24,9 +24,9 @@ def test_every_registry_refers_to_the_parts():
     assert all(p.name == n for n, p in PARTS.items())
     assert {k: v.part for k, v in KINDS.items()} == {"residual": "residual", "basis": "basis", "hypernet": "network"}
     assert {k: v.part for k, v in METHODS.items()} == {"hypernet": "network", "ipca": "basis", "nbrdf": None,
-                                                       "prior": "prior", "residual": "residual"}
+                                                       "prior": "prior"}
     assert {k: v.part for k, v in FITTERS.items()} == {"hypernet": "network", "basis": "basis", "prior": "prior",
-                                                       "residual": "residual", "correction": "residual"}
+                                                       "residual": "residual"}
     with pytest.raises(InputError, match="unknown model part 'weights'; parts: network, basis, prior, residual"):
         get_part("weights")
 

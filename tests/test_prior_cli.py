@@ -186,8 +186,8 @@ def test_sparse_file_by_its_format(installed, capsys, tmp_path):
 def test_sparse_usage_errors(installed, capsys, tmp_path):
     folder, inputs = installed
     s, out = inputs / "s.csv", tmp_path / "x.binary"
-    for argv, words in (([], ("learnt prior", "makes no embedding", "--method residual and hypernet")),
-                        (["--method", "prior", "-m", "tiny-p"], ("learnt prior", "--method residual and hypernet")),
+    for argv, words in (([], ("learnt prior", "makes no embedding", "--method hypernet does")),
+                        (["--method", "prior", "-m", "tiny-p"], ("learnt prior", "--method hypernet does")),
                         (["--method", "ipca", "-m", "tiny-p"], ("method 'ipca' makes no embedding",))):
         code, _, err = run_cli(capsys, ["sparse", s, *argv, "-o", out, "--emb", tmp_path / "x.emb"])
         line = one_error_line(err)

@@ -110,13 +110,6 @@ MEMBERS: dict = {}
 cap holds one network a size for both built-ins (0.1 MB a network); none given: all."""
 
 
-SPARSE: dict = {}
-"""``{bundle: file}`` of a residual file whose networks join the bundle's residual
-(``--sparse NAME=FILE``): the network of ``brdfkit fit --method correction`` (or any
-network for the basis's ``K`` components) through which ``brdfkit sparse`` decodes; its
-record goes under the residual's ``sparse`` key."""
-
-
 def _with_members(bundle: str, command: str) -> str:
     """A bundle's fit commands, with the residual's members that ship when not all do."""
     if bundle not in MEMBERS:
@@ -127,9 +120,8 @@ def _with_members(bundle: str, command: str) -> str:
 
 def _pack_residual(src, dst, parts):
     """A residual re-saved for shipping: its heads in int8, its basis named as the bundle's
-    (the same file, by digest), the sizes it is offered at (:data:`OFFERED`), the members
-    that ship (:data:`MEMBERS`), and the networks of sparse fits that join it
-    (:data:`SPARSE`)."""
+    (the same file, by digest), the sizes it is offered at (:data:`OFFERED`) and the members
+    that ship (:data:`MEMBERS`)."""
     from brdfkit.basis.basis_file import load_basis
     from brdfkit.io.digest import file_digest
     from brdfkit.residual.residual_file import load_residual, save_residual
@@ -142,10 +134,6 @@ def _pack_residual(src, dst, parts):
     if bundle in MEMBERS:
         nets = [(cfg, state) for cfg, state in nets if cfg.member in MEMBERS[bundle]]
         meta["shipped_members"] = ",".join(map(str, MEMBERS[bundle]))
-    if bundle in SPARSE:
-        extra = load_residual(SPARSE[bundle], basis=basis)
-        nets = nets + extra.nets
-        meta["sparse"] = dict(extra.meta or {}, file=os.path.basename(SPARSE[bundle]))
     save_residual(dst, nets, basis_digest=res.basis_digest, basis_file=parts["basis"],
                   offered=OFFERED.get(bundle, ()), meta=meta, storage="int8")
     return file_digest(dst)
@@ -274,9 +262,6 @@ def main():
                     help="the members of a bundle's residual that ship, e.g. merl80-l40=0 (default: all)")
     ap.add_argument("--offered", nargs="*", default=[], metavar="NAME=SIZES",
                     help="the sizes a bundle's residual is offered at (where it won), e.g. merl80-l40=9,21,39")
-    ap.add_argument("--sparse", nargs="*", default=[], metavar="NAME=FILE",
-                    help="a residual file whose networks join a bundle's residual: the one brdfkit sparse decodes "
-                         "through, e.g. merl80-l40=merl80-sparse.safetensors")
     args = ap.parse_args()
     if not args.validation_only and not args.src:
         ap.error("--src is required (unless --validation-only)")
@@ -290,9 +275,6 @@ def main():
     for item in args.offered:
         name, _, sizes = item.partition("=")
         OFFERED[name] = tuple(int(x) for x in sizes.split(",") if x)
-    for item in args.sparse:
-        name, _, path = item.partition("=")
-        SPARSE[name] = path
 
     validation, renders = {}, {}
     for item in args.validation:

@@ -30,7 +30,7 @@ from brdfkit.basis.storage import (GRAZING_FULL, INT8_BLOCK, Compact, check_half
                                    expansion, pack_rows, quantize, unpack_rows)
 
 __all__ = ["BASIS_FORMAT", "BASIS_VERSION", "basis_tensors", "is_basis_format", "save_basis", "load_basis",
-           "read_basis", "storage_of"]
+           "read_basis", "read_components", "storage_of"]
 
 BASIS_FORMAT = "brdfkit-basis"
 BASIS_VERSION = "2"
@@ -130,6 +130,34 @@ def load_basis(path: str | os.PathLike) -> PcaBasis:
     path = check_input_file(path)
     with open_safetensors(path) as f:
         return read_basis(f, path)
+
+
+def read_components(path: str | os.PathLike) -> int:
+    """The number of components a basis file holds, from its header alone (the shape of
+    its ``sigma``; no tensor is read), its format checked.
+
+    Raises
+    ------
+    FormatError
+        Not a safetensors file, another format, no ``sigma`` of one dimension.
+
+    Examples
+    --------
+    >>> from brdfkit.testing.examples import tiny_basis_file
+    >>> read_components(tiny_basis_file("tiny-basis.safetensors", components=4))
+    4
+    """
+    from brdfkit.io.tensorfile import open_safetensors
+
+    path = check_input_file(path)
+    with open_safetensors(path) as f:
+        fmt = (f.metadata() or {}).get("format")
+        if fmt not in _FORMATS:
+            raise FormatError(path, f"not a brdfkit PCA basis (format {fmt!r}, expected {BASIS_FORMAT!r})")
+        shape = f.get_slice("sigma").get_shape() if "sigma" in f.keys() else []
+    if len(shape) != 1 or shape[0] < 1:
+        raise FormatError(path, "PCA basis tensor 'sigma' is missing or not one number a component")
+    return int(shape[0])
 
 
 def read_basis(f, path: str, prefix: str = "") -> PcaBasis:

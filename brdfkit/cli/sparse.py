@@ -22,15 +22,12 @@ def _model_from_env() -> bool:
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True,
               help="Output dense MERL .binary table.")
 @click.option("--emb", "emb_path", type=click.Path(dir_okay=False), default=None,
-              help="Also write the embedding (.emb): a residual embedding (method residual) or a latent "
-                   "(method hypernet).")
+              help="Method hypernet: also write the latent (.emb) the table is decoded from.")
 @click.option("--method", type=click.Choice([_AUTO] + sorted(METHODS)), default=_AUTO, show_default=True,
-              help="Reconstruction method; auto: a built-in's learnt prior with the correction its residual "
-                   "holds for it (residual), else its learnt prior, else its hypernetwork; a model file's own "
-                   "method.")
+              help="Reconstruction method; auto: a built-in's learnt prior, else its hypernetwork; a model "
+                   "file's own method.")
 @click.option("-O", "--option", "method_options", multiple=True, metavar="KEY=VALUE",
-              help="A method's option: residual's correction=auto|on|off and prior=FILE; prior's use_prior=false; "
-                   "ipca's lam=0.1.")
+              help="A method's option: prior's use_prior=false; ipca's lam=0.1; hypernet's steps=300.")
 @click.option("--refine/--no-refine", default=None,
               help="Method hypernet: refine the encoded material on its samples, early-stopped on "
                    "held-out ones (docs/notes/generalisation.md) [default: refine].")
@@ -44,9 +41,9 @@ def command(samples, model_path, output, emb_path, method, method_options, refin
     Cornell .brdf file, or a CSV with angles in radians or degrees and RGB or one
     column per wavelength (converted to linear sRGB); the formats are in docs/formats.md.
     Cells below the horizon are written as -1. Without -m the default built-in model is
-    used (`brdfkit models`): its learnt prior's fit decoded through the basis plus the
-    hypernetwork correction trained on such fits (method residual), kept where held-out
-    samples say it helps. The message line says which method and model ran.
+    used (`brdfkit models`): its learnt prior (method prior), the basis fitted in closed
+    form around the prior mean a set encoder reads from the samples. The message line says
+    which method and model ran.
     """
     from brdfkit.api import sparse
     from brdfkit.atomic import refuse_overwrite_of_inputs
@@ -75,7 +72,7 @@ def command(samples, model_path, output, emb_path, method, method_options, refin
             given["refine_target"] = refine_target
     if method == "hypernet" and emb_path and "refine_target" not in given:
         given["refine_target"] = "latent"  # the embedding written must decode to the table written
-    if model_path is None and method in ("hypernet", "prior", "residual"):
+    if model_path is None and method in ("hypernet", "prior"):
         require_model(None)  # nothing installed: the "no model given" error, with its advice
     inputs = [samples, model_path]
     refuse_overwrite_of_inputs(output, inputs)
@@ -91,8 +88,6 @@ def command(samples, model_path, output, emb_path, method, method_options, refin
     how = ""
     if method == "hypernet":
         how = f"; refined on the samples ({options.refine_target})" if options.refine else "; not refined"
-    if method == "residual":
-        how = "; the correction kept" if emb.options.get("correction") else "; the basis alone (held-out choice)"
     if data.note:
         click.echo(f"{samples}: {data.note}", err=True)
     click.echo(f"reconstructed {output}{extra} from {len(data)} samples ({used}){how}", err=True)
@@ -103,9 +98,9 @@ def _refuse_options(method: str, emb_path, refine, refine_target) -> None:
     (before any work: nbrdf's takes minutes)."""
     from brdfkit.errors import InputError
 
-    if emb_path and method not in ("hypernet", "residual"):
+    if emb_path and method != "hypernet":
         what = "the learnt prior (method prior)" if method == "prior" else f"method {method!r}"
-        raise InputError(f"--emb: {what} makes no embedding; --method residual and hypernet do")
+        raise InputError(f"--emb: {what} makes no embedding; --method hypernet does (its latent)")
     if (refine is not None or refine_target) and method != "hypernet":
         raise InputError(f"--refine/--refine-target apply to --method hypernet; method {method!r} "
                          f"{'already fits its samples in closed form' if method == 'prior' else 'has no encoder'}")

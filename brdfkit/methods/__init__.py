@@ -2,22 +2,23 @@
 compared against (Gokbudak et al. 2024, Sec. 4), in the style of colour-science's
 ``DELTA_E_METHODS`` and ``delta_E(..., method=)``.
 
-============ =========================================================== ==============
-name         method                                                      ``-m`` model
-============ =========================================================== ==============
-``hypernet`` the hypernetwork: encode the samples, decode the hyponet    network file
+============ ============================================================== ===============
+name         method                                                         ``-m`` model
+============ ============================================================== ===============
+``hypernet`` the hypernetwork: encode the samples, decode the hyponet       network file
              (:mod:`.hypernet`, :func:`brdfkit.api.sparse`)
-``ipca``     PCA basis of log-mapped tables, ridge fit to the samples    PCA basis file
+``ipca``     PCA basis of log-mapped tables, ridge fit to the samples       PCA basis file
              (Nielsen, Jensen and Ramamoorthi 2015; :mod:`.ipca`)
-``nbrdf``    one 6-21-21-3 MLP fitted to the samples alone               none
+``nbrdf``    one 6-21-21-3 MLP fitted to the samples alone                  none
              (Sztrajman et al. 2021; :mod:`.nbrdf`)
 ``prior``    the basis fitted around a learnt prior: a set encoder of the   learnt-prior
-             samples predicts the coefficients' prior mean (:mod:`.prior`;   file
-             :mod:`brdfkit.prior`)
-``residual`` the learnt prior's fit plus the basis's hypernetwork          basis residual
-             correction trained on such fits, kept where held-out samples   file
-             say it helps (:mod:`.residual`; :mod:`brdfkit.prior.corrected`)
-============ =========================================================== ==============
+             samples predicts the coefficients' prior mean (:mod:`.prior`;  file
+             :mod:`brdfkit.prior`); ``--method auto``'s with a built-in
+============ ============================================================== ===============
+
+(``residual``, the learnt prior's fit through a correction trained on such fits, left on
+2026-12-01: it served no built-in and gained at most 0.23 dB over ``prior`` on the
+validation split, ``docs/notes/generalisation.md``, "What left the product".)
 
 Every method has the same interface (:class:`~.method.Method`), so ``brdfkit sparse``,
 ``brdfkit validate`` and the benchmark loop over them alike (what ``brdfkit fit`` trains
@@ -48,7 +49,7 @@ of a ``-m`` value (:mod:`.choice`) reads the built-ins' manifest.
 from __future__ import annotations
 
 from brdfkit.errors import InputError
-from brdfkit.methods import hypernet, ipca, nbrdf, prior, residual
+from brdfkit.methods import hypernet, ipca, nbrdf, prior
 from brdfkit.methods.method import Method, MethodOptions
 
 __all__ = ["Method", "MethodOptions", "METHODS", "get_method", "reconstruct"]
@@ -58,7 +59,6 @@ METHODS: dict[str, Method] = {
     "ipca": ipca.METHOD,
     "nbrdf": nbrdf.METHOD,
     "prior": prior.METHOD,
-    "residual": residual.METHOD,
 }
 """The reconstruction methods by name."""
 

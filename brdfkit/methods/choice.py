@@ -9,10 +9,8 @@ different file for each method (:func:`resolve_for`); a path is the file as it i
 part told by the format its header records (:func:`brdfkit.models.parts.file_part`),
 and a file of a part no method takes (a basis residual) is refused in one line.
 ``--method auto``, ``brdfkit sparse``'s default, picks the method too (:func:`choose`): a
-built-in's learnt prior with the correction its residual holds for it when it has both
-(``residual``, ``docs/reconstruct.md``), else its learnt prior (the better sparse
-reconstruction than the paper's decoder, ``docs/notes/generalisation.md``), else its
-hypernetwork; a file by its part.
+built-in's learnt prior (the better sparse reconstruction than the paper's decoder,
+``docs/notes/generalisation.md``), else its hypernetwork; a file by its part.
 """
 
 from __future__ import annotations
@@ -120,14 +118,8 @@ def file_method(path: str | os.PathLike) -> str:
 
 
 def _auto_method(entry) -> str:
-    """``--method auto``'s method for a built-in bundle: ``residual`` when its residual
-    holds a network trained on its learnt prior's sparse fits, else ``prior`` when it has
-    a learnt prior, else ``hypernet``."""
-    if entry.part("prior") and entry.part("residual"):
-        from brdfkit.residual.residual_file import serves_sparse
-
-        if serves_sparse(entry.parts["residual"].path):
-            return "residual"
+    """``--method auto``'s method for a built-in bundle: ``prior`` when it has a learnt
+    prior, else ``hypernet``."""
     return "prior" if entry.part("prior") else "hypernet"
 
 
@@ -152,6 +144,10 @@ def choose(method: str, spec: str | os.PathLike | None) -> Choice:
         An unknown name, a built-in without the part the method needs, a file of a part
         no method (or not this method) takes.
     """
+    if method != AUTO:
+        from brdfkit.methods import get_method
+
+        get_method(method)  # an unknown name refused in one line, listing the methods
     if spec is None:
         if method != AUTO and not _part_of_method(method):
             return Choice(method, None, None)

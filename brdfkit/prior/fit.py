@@ -152,8 +152,7 @@ def draw_batch(d: TrainingTensors, g, dev, batch_materials: int, query_size: int
     """A batch drawn with ``g``: one context size ``N`` log-uniform in ``[context_min,
     context_max]``, the materials, their context cells (uniform Rusinkiewicz angles) and
     query cells (uniform over the cells), mixed with probability ``mixup``
-    (:func:`_mixup`). The learnt prior's training and its correction's
-    (:mod:`brdfkit.prior.correction`) draw alike."""
+    (:func:`_mixup`)."""
     import torch
 
     P = d.n_cells

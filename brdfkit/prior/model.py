@@ -284,7 +284,8 @@ def likelihood_weights(tab, rho, w, cos, s2: float, lam: float, weight: str = "m
 @dataclasses.dataclass
 class PriorFit:
     """A sample set's fit by the learnt prior (:meth:`PriorModel.fit`), and what a fit
-    through more than the basis needs of it (:mod:`brdfkit.prior.corrected`).
+    through more than the basis needs of it (a fit again through a correction of the basis:
+    ``benchmarks/studies/corrected_prior.py``).
 
     Attributes
     ----------

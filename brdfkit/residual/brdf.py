@@ -13,8 +13,7 @@ __all__ = ["ResidualBRDF", "check_embedding", "sample_count"]
 def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndarray, dict]:
     """The ``(K, 3)`` coefficients and correction gains ``{member: gain}``
     (:func:`brdfkit.residual.model.gains`) of a residual embedding, checked against the
-    residual (its file's digest, its basis's, the sizes it decodes, its members); the
-    sample count of a sparse fit is :func:`sample_count`.
+    residual (its file's digest, its basis's, the sizes it decodes, its members).
 
     Raises
     ------
@@ -48,8 +47,9 @@ def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndar
 
 
 def sample_count(emb) -> float | None:
-    """The sample count a sparse reconstruction's embedding records (``options``
-    ``samples``: its correction network takes it), or ``None``."""
+    """The sample count an embedding of the removed ``brdfkit sparse --method residual``
+    records (``options`` ``samples``), or ``None``: read by nothing that decodes (no network
+    takes a count now); kept while :mod:`brdfkit.view.live` still asks."""
     count = (emb.options or {}).get("samples")
     return None if count is None else float(count)
 
@@ -59,19 +59,17 @@ class ResidualBRDF(DecodedBRDF):
     ``to_table``): decoded in NumPy, for a render only at the cells its pairs reach
     (:class:`~brdfkit.render.renderable.DecodedBRDF`: the hyponet at those cells alone)."""
 
-    def __init__(self, residual, coefficients, gain=1.0, name: str = "embedding", device=None,
-                 count: float | None = None):
+    def __init__(self, residual, coefficients, gain=1.0, name: str = "embedding", device=None):
         self.residual = residual
         self.coefficients = np.asarray(coefficients, np.float32)
         self.gain = gain if isinstance(gain, dict) else float(gain)  # member 0's, or {member: gain}
         self.name = name
-        self.count = count  # a sparse fit's sample count (its correction network takes it)
 
     def to_table(self) -> np.ndarray:
         """float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis's cells."""
-        return self.residual.decode(self.coefficients, self.gain, self.count)
+        return self.residual.decode(self.coefficients, self.gain)
 
     def at_cells(self, cells) -> tuple:
         """``(cells, values)``: the decode at those of the flat MERL ``cells`` the basis
         covers, float64 ``(n, 3)``."""
-        return self.residual.decode_at(self.coefficients, cells, self.gain, self.count)
+        return self.residual.decode_at(self.coefficients, cells, self.gain)

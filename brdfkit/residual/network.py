@@ -5,11 +5,8 @@ coefficients instead of a learnt latent).
 For one colour channel of a material, the input is its ``K`` coefficients in training
 standard deviations (``c_k / sigma_k``), padded with zeros to ``k_max`` and followed by a
 mask of ``K`` ones (so one network serves every size ``K <= k_max``):
-``z = [c_1/s_1 ... c_K/s_K, 0 ... 0, 1 ... 1, 0 ... 0]``, ``2 k_max`` numbers. A network
-trained on coefficients fitted from ``N`` samples (a sparse reconstruction's,
-:mod:`brdfkit.prior.correction`) takes the count too, ``ln N / ln 4000`` after them
-(``ResidualConfig.count``): how far the coefficients can be trusted. A body
-``2 k_max (+ 1) -> hidden -> hidden`` (ReLU) and a linear head give the change of the hyponet's
+``z = [c_1/s_1 ... c_K/s_K, 0 ... 0, 1 ... 1, 0 ... 0]``, ``2 k_max`` numbers. A body
+``2 k_max -> hidden -> hidden`` (ReLU) and a linear head give the change of the hyponet's
 weights from a learnt base; the hyponet ``6 -> width -> width -> 1`` (ReLU) maps a cell's
 Rusinkiewicz HD vector (:func:`brdfkit.geometry.hd_vectors`) to the correction of that
 channel's mapped value. The head's rows of the last layer start at zero and so does the
@@ -30,11 +27,14 @@ import json
 
 import numpy as np
 
-__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "encoder_shapes", "net_input",
-           "hyponet_weights", "evaluate", "evaluate_with_jacobian", "COUNT_REF"]
+__all__ = ["ResidualConfig", "ResidualNet", "hyponet_shapes", "net_input", "hyponet_weights", "evaluate",
+           "evaluate_with_jacobian", "LEFT_FIELDS"]
 
-COUNT_REF = 4000
-"""The sample count a network's count input is scaled by (``ln N / ln COUNT_REF``)."""
+LEFT_FIELDS = ("count", "latent")
+"""Config fields of the networks of sparse fits (``brdfkit fit --method correction``: a
+sample count, a set encoder's latent), which left brdfkit on 2026-12-01
+(``docs/notes/generalisation.md``, "What left the product"): a file whose network has one
+is refused in one line (:mod:`brdfkit.residual.residual_file`)."""
 
 
 @dataclasses.dataclass(frozen=True)
@@ -54,14 +54,6 @@ class ResidualConfig:
         Which of the networks that serve the same sizes this is (0, 1, ...): a file may hold
         several *members* a size, and ``encode`` keeps per material the one that renders the
         objective scenes best (``docs/notes/compression.md``).
-    count
-        Whether it takes the sample count of a sparse fit as an input (module
-        docstring): a network of a sparse reconstruction, not of ``encode``.
-    latent
-        The size of a set encoder's latent it takes (0: none): a network of a sparse
-        reconstruction that also reads the samples' residuals against the basis's fit
-        (``[H, D, r] -> hidden -> hidden -> latent``, ReLU, mean-pooled over the samples,
-        a channel's samples at a time; the paper's set encoder).
     """
 
     k_min: int = 1
@@ -69,8 +61,6 @@ class ResidualConfig:
     width: int = 32
     hidden: int = 64
     member: int = 0
-    count: bool = False
-    latent: int = 0
 
     def __post_init__(self):
         for name in ("k_min", "k_max", "width", "hidden"):
@@ -81,22 +71,22 @@ class ResidualConfig:
             raise ValueError(f"residual config: member must be a whole number >= 0, not {self.member!r}")
         if self.k_min > self.k_max:
             raise ValueError(f"residual config: k_min {self.k_min} > k_max {self.k_max}")
-        if not isinstance(self.count, bool):
-            raise ValueError(f"residual config: count must be true or false, not {self.count!r}")
-        if isinstance(self.latent, bool) or not isinstance(self.latent, int) or self.latent < 0:
-            raise ValueError(f"residual config: latent must be a whole number >= 0, not {self.latent!r}")
 
     @property
     def inputs(self) -> int:
-        """The network's input size: ``2 k_max``, the count (:attr:`count`) and the set
-        encoder's latent (:attr:`latent`)."""
-        return 2 * self.k_max + int(self.count) + self.latent
+        """The network's input size, ``2 k_max``."""
+        return 2 * self.k_max
+
+    @property
+    def count(self) -> bool:
+        """Always ``False``: no network takes a sample count since the networks of sparse
+        fits left (:data:`LEFT_FIELDS`); kept while :mod:`brdfkit.view.live` still asks."""
+        return False
 
     def to_json(self) -> str:
         d = dataclasses.asdict(self)
-        for key in ("member", "count", "latent"):  # files from before these fields read and write as they were
-            if not d[key]:
-                del d[key]
+        if not d["member"]:  # files from before members read and write as they were
+            del d["member"]
         return json.dumps(d, sort_keys=True)
 
     @classmethod
@@ -113,35 +103,23 @@ def hyponet_shapes(width: int) -> list:
     return [(6, width), (width,), (width, width), (width,), (width, 1), (1,)]
 
 
-def encoder_shapes(cfg: ResidualConfig) -> dict:
-    """``{name: shape}`` of a set encoder's tensors (:attr:`ResidualConfig.latent`), as
-    :class:`ResidualNet` names them."""
-    dims = (7, cfg.hidden, cfg.hidden, cfg.latent)
-    out = {}
-    for i, (a, b) in enumerate(zip(dims[:-1], dims[1:])):
-        out[f"encoder.{2 * i}.weight"], out[f"encoder.{2 * i}.bias"] = (b, a), (b,)
-    return out
-
-
-def net_input(c_norm: np.ndarray, k_max: int, count: float | None = None) -> np.ndarray:
+def net_input(c_norm: np.ndarray, k_max: int, count: None = None) -> np.ndarray:
     """The input ``(B, 2 k_max)`` float32 of coefficients in training standard deviations
-    ``(B, K)``: padded to ``k_max``, the mask of the ``K`` given after them; with a sample
-    ``count``, ``(B, 2 k_max + 1)``, its ``ln count / ln COUNT_REF`` last.
+    ``(B, K)``: padded to ``k_max``, the mask of the ``K`` given after them (``count``:
+    ``None`` alone, kept while :mod:`brdfkit.view.live` passes it; :data:`LEFT_FIELDS`).
 
     Examples
     --------
     >>> net_input(np.array([[1.0, 2.0]]), 3).tolist()
     [[1.0, 2.0, 0.0, 1.0, 1.0, 0.0]]
-    >>> net_input(np.array([[1.0, 2.0]]), 2, count=4000).tolist()
-    [[1.0, 2.0, 1.0, 1.0, 1.0]]
     """
+    if count is not None:
+        raise ValueError("no residual network takes a sample count (the networks of sparse fits left brdfkit)")
     c_norm = np.asarray(c_norm, np.float32)
     b, k = c_norm.shape
-    z = np.zeros((b, 2 * k_max + (count is not None)), np.float32)
+    z = np.zeros((b, 2 * k_max), np.float32)
     z[:, :k] = c_norm
     z[:, k_max:k_max + k] = 1.0
-    if count is not None:
-        z[:, -1] = np.log(max(float(count), 1.0)) / np.log(COUNT_REF)
     return z
 
 
@@ -177,12 +155,11 @@ def evaluate(weights: list, hd: np.ndarray, row: int, chunk: int = 16384) -> np.
     return out
 
 
-def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray, hd: np.ndarray,
-                           count: int | None = None):
+def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray, hd: np.ndarray):
     """The correction of one channel at HD vectors ``hd (N, 6)`` and its derivative in
     that channel's normalised coefficients ``c_norm (K,)`` (``c_k / sigma_k``), by forward
     mode through :func:`hyponet_weights` and :func:`evaluate` (float32, the ``K``
-    directions at once); ``count``: the sample count, for a network that takes it.
+    directions at once).
 
     Returns
     -------
@@ -207,7 +184,7 @@ def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray,
     True
     """
     k = int(np.asarray(c_norm).shape[0])
-    z = net_input(np.asarray(c_norm)[None], cfg.k_max, count if cfg.count else None)[0]
+    z = net_input(np.asarray(c_norm)[None], cfg.k_max)[0]
     w0, b0 = state["body.0.weight"], state["body.0.bias"]
     a1 = w0 @ z + b0
     m1 = (a1 > 0).astype(np.float32)
@@ -246,9 +223,7 @@ def evaluate_with_jacobian(state: dict, cfg: ResidualConfig, c_norm: np.ndarray,
 def ResidualNet(cfg: ResidualConfig):
     """The torch module of the network (made on call: torch is imported only here).
 
-    ``forward(z, hd, samples=None)``: ``z (B, cfg.inputs - cfg.latent)`` inputs
-    (:func:`net_input`; with a set encoder, ``samples = (hd (B, S, 6), r (B, S))`` give the
-    rest), ``hd`` the HD
+    ``forward(z, hd)``: ``z (B, cfg.inputs)`` inputs (:func:`net_input`), ``hd`` the HD
     vectors ``(B, C, 6)`` (per row) or ``(C, 6)`` (shared); returns the corrections
     ``(B, C)``.
     """
@@ -270,19 +245,10 @@ def ResidualNet(cfg: ResidualConfig):
                     torch.nn.init.kaiming_uniform_(p.T, a=5 ** 0.5)
                 base.append(torch.nn.Parameter(p))
             self.base = torch.nn.ParameterList(base)
-            if cfg.latent:
-                self.encoder = torch.nn.Sequential(torch.nn.Linear(7, cfg.hidden), torch.nn.ReLU(),
-                                                   torch.nn.Linear(cfg.hidden, cfg.hidden), torch.nn.ReLU(),
-                                                   torch.nn.Linear(cfg.hidden, cfg.latent))
             with torch.no_grad():
                 self.head.weight.mul_(0.1)
                 self.head.bias.zero_()
                 self.head.weight[sum(self.sizes[:4]):].zero_()  # the last layer's change starts at 0
-
-        def encode(self, hd, r):
-            """The set encoder's latent ``(B, latent)`` of samples at HD vectors ``hd (B, S,
-            6)`` with residuals ``r (B, S)``, mean-pooled."""
-            return self.encoder(torch.cat([hd, r[..., None]], -1)).mean(1)
 
         def weights(self, z):
             flat = self.head(self.body(z))
@@ -292,9 +258,7 @@ def ResidualNet(cfg: ResidualConfig):
                 at += n
             return out
 
-        def forward(self, z, hd, samples=None):
-            if cfg.latent:  # the set encoder's latent of the samples (hd, r) after the other inputs
-                z = torch.cat([z, self.encode(*samples)], 1)
+        def forward(self, z, hd):
             w1, b1, w2, b2, w3, b3 = self.weights(z)
             if hd.dim() == 2:
                 h = torch.relu(torch.einsum("cd,bdh->bch", hd, w1) + b1[:, None])

@@ -20,11 +20,11 @@ import numpy as np
 
 from brdfkit.atomic import atomic_path, check_input_file
 from brdfkit.errors import FormatError, InputError
-from brdfkit.residual.model import BasisResidual
-from brdfkit.residual.network import ResidualConfig, encoder_shapes, hyponet_shapes
+from brdfkit.residual.model import BasisResidual, components_of, offered_sizes
+from brdfkit.residual.network import LEFT_FIELDS, ResidualConfig, hyponet_shapes
 
 __all__ = ["RESIDUAL_FORMAT", "RESIDUAL_VERSION", "STORAGES", "save_residual", "load_residual", "read_networks",
-           "read_header", "serves_sparse"]
+           "read_header", "read_offer"]
 
 RESIDUAL_FORMAT = "brdfkit-residual"
 RESIDUAL_VERSION = "1"
@@ -88,15 +88,6 @@ def save_residual(path: str | os.PathLike, nets: list, *, basis_digest: str, bas
         write_safetensors(tmp, tensors, header)
 
 
-def serves_sparse(path: str | os.PathLike) -> bool:
-    """Whether a residual file holds a network trained on sparse fits (one that takes the
-    sample count, ``brdfkit fit --method correction``), by its header alone."""
-    try:
-        return any(d.get("count") for d in json.loads(read_header(path).get("configs", "[]")))
-    except (FormatError, InputError, OSError, ValueError, AttributeError):
-        return False
-
-
 def read_header(path: str | os.PathLike) -> dict:
     """The header of a residual file, checked (:class:`FormatError` otherwise)."""
     from brdfkit.io.tensorfile import open_safetensors
@@ -116,28 +107,79 @@ def read_header(path: str | os.PathLike) -> dict:
     return meta
 
 
-def _find_basis(path: str, meta: dict, basis):
-    """The basis the residual corrects: ``basis`` (``(PcaBasis, digest)``) if given, else
-    the file its header names beside it, else the installed built-in part of that digest."""
-    from brdfkit.basis.basis_file import load_basis
+def _configs(path: str, meta: dict) -> list:
+    """The networks' configs a header records, checked: a network of sparse fits (a config
+    field of :data:`~brdfkit.residual.network.LEFT_FIELDS`) is refused in one line."""
+    try:
+        raw = json.loads(meta.get("configs", ""))
+        left = sorted({k for d in raw if isinstance(d, dict) for k in d if k in LEFT_FIELDS and d[k]})
+        if not left:
+            cfgs = [ResidualConfig(**{k: v for k, v in d.items() if k not in LEFT_FIELDS}) for d in raw]
+    except (ValueError, TypeError) as e:
+        raise FormatError(path, f"bad residual header ({e})") from None
+    if left:
+        raise FormatError(path, f"holds a network of sparse fits ({', '.join(left)}: brdfkit fit --method correction), "
+                                f"which brdfkit no longer reads (it left on 2026-12-01: docs/notes/generalisation.md); "
+                                f"use a residual of `brdfkit fit --method residual`")
+    if not cfgs:
+        raise FormatError(path, "a residual file holds at least one network")
+    return cfgs
+
+
+def _basis_file(path: str, meta: dict) -> str:
+    """The basis file the residual corrects: the one its header names beside it, else the
+    installed built-in part of its digest."""
     from brdfkit.io.digest import cached_file_digest
 
     want = meta["basis_digest"]
-    if basis is not None:
-        obj, digest = basis
-        if digest != want:
-            raise InputError(f"{path}: corrects basis {want[:12]}, not the given basis {digest[:12]}")
-        return obj
     beside = os.path.join(os.path.dirname(os.path.abspath(path)), meta.get("basis_file") or "")
     if meta.get("basis_file") and os.path.isfile(beside) and cached_file_digest(beside) == want:
-        return load_basis(beside)
+        return beside
     from brdfkit.models.builtin import find_by_digest
 
     found = find_by_digest(want)
     if found is None:
         raise InputError(f"{path}: the basis it corrects ({meta.get('basis_file') or want[:12]}) is neither beside "
                          f"it nor an installed built-in's")
-    return load_basis(found)
+    return found
+
+
+def _find_basis(path: str, meta: dict, basis):
+    """The basis the residual corrects: ``basis`` (``(PcaBasis, digest)``) if given, else
+    loaded from :func:`_basis_file`."""
+    from brdfkit.basis.basis_file import load_basis
+
+    if basis is not None:
+        obj, digest = basis
+        if digest != meta["basis_digest"]:
+            raise InputError(f"{path}: corrects basis {meta['basis_digest'][:12]}, not the given basis {digest[:12]}")
+        return obj
+    return load_basis(_basis_file(path, meta))
+
+
+def read_offer(path: str | os.PathLike) -> tuple[tuple, int]:
+    """``(sizes, members)`` a residual file offers ``encode``, from its header and its
+    basis's alone (no weights loaded): the sizes :meth:`BasisResidual.sizes` gives once it
+    is loaded, and the most members (:class:`~brdfkit.residual.network.ResidualConfig`)
+    any of them has.
+
+    Raises
+    ------
+    FormatError, InputError
+        As :func:`load_residual`.
+    """
+    from brdfkit.basis.basis_file import read_components
+
+    path = os.fspath(path)
+    meta = read_header(path)
+    cfgs = _configs(path, meta)
+    try:
+        offered = tuple(int(s) for s in json.loads(meta.get("offered", "[]")))
+    except (ValueError, TypeError) as e:
+        raise FormatError(path, f"bad residual header ({e})") from None
+    sizes = offered_sizes(components_of(cfgs, read_components(_basis_file(path, meta))), offered)
+    members = max((len({c.member for c in cfgs if c.k_min <= s // 3 <= c.k_max}) for s in sizes), default=0)
+    return sizes, members
 
 
 def load_residual(path: str | os.PathLike, basis=None) -> BasisResidual:
@@ -172,14 +214,12 @@ def read_networks(path: str | os.PathLike) -> tuple[dict, list, tuple, dict]:
 
     path = os.fspath(path)
     meta = read_header(path)
+    cfgs = _configs(path, meta)
     try:
-        cfgs = [ResidualConfig(**d) for d in json.loads(meta.get("configs", ""))]
         offered = tuple(int(s) for s in json.loads(meta.get("offered", "[]")))
         record = json.loads(meta.get("meta", "{}"))
     except (ValueError, TypeError) as e:
         raise FormatError(path, f"bad residual header ({e})") from None
-    if not cfgs:
-        raise FormatError(path, "a residual file holds at least one network")
     with open_safetensors(path, framework="numpy", diagnose="brdfkit residual file") as f:
         raw = {k: f.get_tensor(k) for k in f.keys()}
     nets = [(cfg, _net_state(path, raw, i, cfg)) for i, cfg in enumerate(cfgs)]
@@ -197,8 +237,7 @@ def _net_state(path: str, raw: dict, i: int, cfg: ResidualConfig) -> dict:
     want = {"body.0.weight": (cfg.hidden, cfg.inputs), "body.0.bias": (cfg.hidden,),
             "body.2.weight": (cfg.hidden, cfg.hidden), "body.2.bias": (cfg.hidden,),
             "head.weight": (total, cfg.hidden), "head.bias": (total,),
-            **{f"base.{j}": s for j, s in enumerate(hyponet_shapes(cfg.width))},
-            **(encoder_shapes(cfg) if cfg.latent else {})}
+            **{f"base.{j}": s for j, s in enumerate(hyponet_shapes(cfg.width))}}
     state = {}
     for k, shape in want.items():
         name = f"net{i}.{k}"

@@ -11,9 +11,11 @@ name           what it trains                                      its file (``F
 ``prior``      the learnt prior of a basis (:mod:`brdfkit.prior`)   ``prior``
 ``residual``   the hypernetwork residual of a basis                 ``residual``
                (:mod:`brdfkit.residual.training`)
-``correction`` the hypernetwork correction of a learnt prior's      ``residual``
-               sparse fits (:mod:`brdfkit.prior.correction`)
 ============== =================================================== ==========================
+
+(``correction``, a residual trained on a learnt prior's sparse fits, left on 2026-12-01
+with ``brdfkit sparse --method residual``, the one route that read its file:
+``docs/notes/generalisation.md``, "What left the product".)
 
 Each recipe names the part of a model its file is, in the part registry
 :data:`brdfkit.models.parts.PARTS` (which says how the file loads and what digest
@@ -109,12 +111,6 @@ def _residual(data, output, **kw):
     return fit_residual(data, output, **kw)
 
 
-def _correction(data, output, **kw):
-    from brdfkit.prior.correction import fit_correction
-
-    return fit_correction(data, output, **kw)
-
-
 FITTERS: dict[str, Fitter] = {
     "hypernet": Fitter("hypernet", "the hypernetwork (Gokbudak et al. 2024)", "network", _hypernet, None),
     "basis": Fitter("basis", "a PCA basis of log-mapped tables (Nielsen et al. 2015)", "basis", _basis,
@@ -122,8 +118,6 @@ FITTERS: dict[str, Fitter] = {
                     aliases=("ipca",)),
     "prior": Fitter("prior", "the learnt prior of a basis", "prior", _prior, _prior_options),
     "residual": Fitter("residual", "the hypernetwork residual of a basis", "residual", _residual, None),
-    "correction": Fitter("correction", "the hypernetwork correction of a learnt prior's sparse fits", "residual",
-                         _correction, None),
 }
 """The recipes of ``brdfkit fit`` by name."""
 

@@ -1,5 +1,9 @@
-"""A sparse reconstruction through the basis plus a correction (``brdfkit sparse``'s
-default): :class:`CorrectedPrior`.
+"""A sparse reconstruction through the basis plus a correction: :class:`CorrectedPrior`,
+what ``study_sparse_correction.py`` scores (``brdfkit sparse --method residual`` until it
+left the product on 2026-12-01, issue 55: ``docs/notes/generalisation.md``, "What left the
+product"). It needs a residual network of the learnt prior's ``K`` components trained on
+projections (``brdfkit fit --method residual -O sizes=3K``); the networks of sparse fits
+(a sample count as an input) left with it.
 
 The learnt prior fits the basis's ``K`` coefficients to the samples in closed form
 (:meth:`brdfkit.prior.model.PriorModel.fit`). The correction is a hypernetwork residual of
@@ -14,6 +18,8 @@ others, by the basis alone and by the basis plus the correction, and the correct
 kept only where its held-out error, in the metric's space ``ln(1 + rho cos_i)``, is the
 lower (as ``encode`` keeps a residual embedding's correction only where its held-out
 renders are better). The dense table is then decoded in NumPy, no torch.
+
+Run from ``benchmarks/studies/`` (a study imports it as ``corrected_prior``).
 """
 
 from __future__ import annotations
@@ -36,13 +42,12 @@ THROUGH_STEPS = 5
 @dataclasses.dataclass(frozen=True)
 class SparseFit:
     """A material's fit: its coefficients ``(K, 3)``, whether the correction is kept (the
-    coefficients are then those fitted through it), the sample count it was fitted from,
-    and the held-out errors of the basis alone and with the correction (``None`` when
-    too few samples to hold any out, or the choice was given)."""
+    coefficients are then those fitted through it), and the held-out errors of the basis
+    alone and with the correction (``None`` when too few samples to hold any out, or the
+    choice was given)."""
 
     coefficients: np.ndarray
     corrected: bool
-    count: int
     heldout: tuple | None
 
 
@@ -57,20 +62,16 @@ class CorrectedPrior:
     residual
         :class:`~brdfkit.residual.model.BasisResidual` of the prior's basis, with a network
         for its ``K`` components.
-    residual_digest
-        SHA-256 of the residual file (the decoder an embedding names).
     """
 
     prior: object
     residual: object
-    residual_digest: str = ""
 
     def __post_init__(self):
         k = self.prior.basis.n_components
         if k not in self.residual.components:
-            raise InputError(f"the residual has no network for the learnt prior's {k} components ({3 * k} numbers; "
-                             f"no built-in ships one): train it with brdfkit fit --method residual -O sizes={3 * k}, "
-                             f"or use --method prior")
+            raise InputError(f"the residual has no network for the learnt prior's {k} components ({3 * k} numbers): "
+                             f"train it with brdfkit fit --method residual -O sizes={3 * k}")
 
     def fit(self, samples, *, correction: str = "auto") -> SparseFit:
         """The coefficients of a sample set and whether the correction is kept:
@@ -80,13 +81,13 @@ class CorrectedPrior:
             raise InputError(f"correction={correction!r}: one of auto, on, off")
         pf = self.prior.fit(samples)
         if correction == "off":
-            return SparseFit(pf.coefficients, False, pf.count, None)
+            return SparseFit(pf.coefficients, False, None)
         if correction == "on":
-            return SparseFit(fit_through(pf, self.residual), True, pf.count, None)
+            return SparseFit(fit_through(pf, self.residual), True, None)
         errors = self._heldout(samples)
         if errors is None or not errors[1] < errors[0]:
-            return SparseFit(pf.coefficients, False, pf.count, errors)
-        return SparseFit(fit_through(pf, self.residual), True, pf.count, errors)
+            return SparseFit(pf.coefficients, False, errors)
+        return SparseFit(fit_through(pf, self.residual), True, errors)
 
     def _heldout(self, samples) -> tuple | None:
         """``(basis alone, with the correction)``: the summed squared error, in the
@@ -110,7 +111,7 @@ class CorrectedPrior:
             _, tab, w, cos, rho, hd = sample_rows(self.prior.basis, samples.subset(~keep))
             hd = np.ascontiguousarray(hd, np.float32)
             alone = tab[:, 1:2] + tab[:, 2:] @ pf.coefficients
-            corrected = tab[:, 1:2] + tab[:, 2:] @ through + self.residual.correction(through, hd, 0, pf.count)
+            corrected = tab[:, 1:2] + tab[:, 2:] @ through + self.residual.correction(through, hd, 0)
             for i, mapped in enumerate((alone, corrected)):
                 pred = mapping.from_mapped(mapped, w[:, None], tab[:, 0:1])
                 err[i] += float(np.sum((np.log1p(pred * cos[:, None]) - np.log1p(rho * cos[:, None])) ** 2))
@@ -118,19 +119,7 @@ class CorrectedPrior:
 
     def decode(self, fit: SparseFit) -> np.ndarray:
         """Dense table float64 ``(90, 90, 180, 3)``, 1/sr, NaN off the basis's cells."""
-        return self.residual.decode(fit.coefficients, 1.0 if fit.corrected else 0.0, fit.count)
-
-    def embedding(self, fit: SparseFit, source: str = ""):
-        """The fit as a residual embedding (:class:`~brdfkit.io.embedding.Embedding`, kind
-        ``"residual"``, ``3 K`` numbers, ``options`` the correction's gain and the
-        sample count)."""
-        from brdfkit.io.embedding import Embedding
-        from brdfkit.residual.model import gain_options
-
-        options = {**gain_options(0 if fit.corrected else None), "samples": fit.count}
-        return Embedding(np.asarray(fit.coefficients, np.float32).reshape(-1), "residual", self.residual_digest,
-                         source, fit.count, parts={"basis": self.residual.basis_digest,
-                                                   "residual": self.residual_digest}, options=options)
+        return self.residual.decode(fit.coefficients, 1.0 if fit.corrected else 0.0)
 
 
 def fit_through(fit, residual, steps: int = THROUGH_STEPS) -> np.ndarray:
@@ -145,13 +134,13 @@ def fit_through(fit, residual, steps: int = THROUGH_STEPS) -> np.ndarray:
     k = fit.coefficients.shape[0]
     _, cfg, state = residual.net_for(k)
     sigma = residual.basis.sigma[:k].astype(np.float64)
-    a, count = fit.tab[:, 2:], fit.count if cfg.count else None
+    a = fit.tab[:, 2:]
     out = fit.coefficients.copy()
     for ch in range(3):
         q, b, mu, sd = fit.q[:, ch], fit.b[:, ch], fit.mean[:, ch], fit.sd[:, ch]
 
         def terms(c):
-            f, jf = evaluate_with_jacobian(state, cfg, c / sigma, fit.hd, count)
+            f, jf = evaluate_with_jacobian(state, cfg, c / sigma, fit.hd)
             r = b - a @ c - f
             return float(q @ r ** 2 + np.sum(((c - mu) / sd) ** 2)), r, a + jf.astype(np.float64) / sigma
 
