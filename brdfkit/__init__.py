@@ -33,26 +33,27 @@ its own layer and the layers above it in this table, inside functions too
                                              neither imports the other
 7    ``prior/``, ``residual/``               the learnt prior of a basis; the hypernetwork
                                              residual of a basis
-8    ``embeddings/``                         embedding kinds by name (``KINDS``), decoders,
-                                             blends
-9    ``methods/``                            sparse-reconstruction methods by name
-                                             (``METHODS``) and the choice a ``-m`` value
-                                             makes
-10   ``files/``                              a BRDF file of any type, opened, converted,
+8    ``embeddings/``, ``methods/``           embedding kinds by name (``KINDS``), decoders,
+                                             blends; sparse-reconstruction methods by name
+                                             (``METHODS``); what a model serves (kinds,
+                                             sizes, methods: ``methods.service``, which
+                                             reads both registries) and the choice a
+                                             ``-m`` value makes
+9    ``files/``                              a BRDF file of any type, opened, converted,
                                              rendered
-11   ``acquisition/``                        where to measure: sampling, planning,
+10   ``acquisition/``                        where to measure: sampling, planning,
                                              designs, the benchmark protocol
-12   ``evaluation/``                         metrics, comparisons, held-out error
-13   ``figures/``, ``view/``                 plots, comparison sheets, interpolation
+11   ``evaluation/``                         metrics, comparisons, held-out error
+12   ``figures/``, ``view/``                 plots, comparison sheets, interpolation
                                              strips; the page that renders BRDFs live
                                              in WebGL2, GLSL for an engine
-14   ``training/``, ``bench/``, ``testing/`` what ``brdfkit fit`` trains (``FITTERS``);
+13   ``training/``, ``bench/``, ``testing/`` what ``brdfkit fit`` trains (``FITTERS``);
                                              the benchmark; the tests' examples and fuzzer
-15   ``api``                                 the front: the library's verbs (encode,
+14   ``api``                                 the front: the library's verbs (encode,
                                              decode, sparse, interpolate, fit, ...)
-16   ``demos/``                              ``brdfkit demo``, run through the front as a
+15   ``demos/``                              ``brdfkit demo``, run through the front as a
                                              user would
-17   ``cli/``                                the ``brdfkit`` command line, thin over the
+16   ``cli/``                                the ``brdfkit`` command line, thin over the
                                              library
 ==== ======================================= ============================================
 
@@ -70,7 +71,7 @@ import importlib
 __version__ = "0.1.0"
 
 LAYERS = (("errors", "atomic", "console", "runtime", "distributed"), ("geometry",), ("io",), ("materials", "models"), ("render",),
-          ("basis", "hypernet"), ("prior", "residual"), ("embeddings",), ("methods",), ("files",), ("acquisition",),
+          ("basis", "hypernet"), ("prior", "residual"), ("embeddings", "methods"), ("files",), ("acquisition",),
           ("evaluation",), ("figures", "view"), ("training", "bench", "testing"), ("api",), ("demos",), ("cli",))
 """The packages and top-level modules in their layers, lowest first (the table above):
 data flows down this list, never up."""

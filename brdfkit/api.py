@@ -277,11 +277,13 @@ def sparse(samples, model=None, *, method: str = "auto", seed: int = 0, device=N
         :class:`~brdfkit.io.samples.SampleSet` or the path of a ``.csv`` sample set.
     model
         A built-in's name or a model file; ``None``: the default built-in
-        (:func:`brdfkit.methods.choice.choose`); or a model loaded already (a
+        (:func:`brdfkit.methods.choice.choose`, as what the model serves says:
+        :func:`brdfkit.methods.service.serves`); or a model loaded already (a
         hypernetwork, a :class:`~brdfkit.basis.model.PcaBasis`, a learnt prior).
     method
-        ``"auto"`` (a built-in's learnt prior when it has one, else its hypernetwork; a
-        file's own method) or a name of :data:`brdfkit.methods.METHODS`.
+        ``"auto"`` (the model's own: a built-in's learnt prior when it has one, else its
+        hypernetwork, else its basis; a file's by its part) or a name of
+        :data:`brdfkit.methods.METHODS` the model serves.
     seed
         Drives any randomness of the method.
     options

@@ -96,6 +96,28 @@ def test_data_flows_one_way():
     assert not upward, upward
 
 
+def _module_name(rel: str) -> str:
+    """``brdfkit/models/parts.py`` -> ``brdfkit.models.parts``; a package's
+    ``__init__.py`` is the package."""
+    name = rel[:-3].replace(os.sep, ".")
+    return name[:-len(".__init__")] if name.endswith(".__init__") else name
+
+
+def test_no_two_modules_import_each_other():
+    """No module imports a module that imports it, inside functions included: what a model
+    serves is answered in one place (``brdfkit.methods.service``), and ``models/builtin.py``
+    and ``models/parts.py`` no longer send a question back and forth."""
+    trees = {_module_name(rel): ast.parse(src) for rel, src in _modules()}
+    imports = {}
+    for name, tree in trees.items():
+        found = set()
+        for module, names in _imports(tree):
+            found |= {f"{module}.{n}" if f"{module}.{n}" in trees else module for n in names or [""]}
+        imports[name] = {m for m in found if m in trees and m != name}
+    pairs = sorted({tuple(sorted((a, b))) for a in imports for b in imports[a] if a in imports[b]})
+    assert not pairs, pairs
+
+
 def test_the_residual_imports_the_basis_and_not_the_hypernetwork():
     found = [(rel, module) for rel, src in _modules() if _package(rel) == "residual"
              for module, _ in _imports(ast.parse(src)) if module.startswith("brdfkit.hypernet")]

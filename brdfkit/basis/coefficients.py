@@ -35,16 +35,17 @@ iterations of :mod:`brdfkit.basis.refine_on_screen`, with
 
 
 def basis_sizes(basis) -> range:
-    """The sizes a basis embedding of ``basis`` may have: ``3 K`` numbers for ``K`` from 1
-    to the basis's components.
+    """The sizes a basis embedding of ``basis`` (a basis, or its number of components) may
+    have: ``3 K`` numbers for ``K`` from 1 to the basis's components.
 
     Examples
     --------
     >>> from brdfkit.testing.examples import tiny_basis
-    >>> list(basis_sizes(tiny_basis(4)))
-    [3, 6, 9, 12]
+    >>> list(basis_sizes(tiny_basis(4))), list(basis_sizes(2))
+    ([3, 6, 9, 12], [3, 6])
     """
-    return range(3, 3 * basis.n_components + 1, 3)
+    k = basis if isinstance(basis, int) else basis.n_components
+    return range(3, 3 * k + 1, 3)
 
 
 def _components(basis, size: int, what: str = "a basis embedding") -> int:

@@ -257,7 +257,7 @@ def _compressor(cfg: BenchConfig, entry: str, what, device) -> tuple:
 
         return f"{kind}-{size} ({stem})", size, compress, trained
     if entry == "basis":  # the ipca basis's K leading components, projected
-        from brdfkit.models.parts import load_part
+        from brdfkit.models.builtin import load_part
 
         basis = load_part(cfg.model_file("ipca"), "basis").leading(what)
         return (f"basis-{what} ({3 * what} numbers)", 3 * what, lambda table, name: basis.decode(basis.project(table)),

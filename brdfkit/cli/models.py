@@ -34,10 +34,12 @@ def _table(columns):
     return tab
 
 
-def _json(m) -> dict:
+def _json(m, served: dict) -> dict:
     d = m.to_json()
     for p in d["parts"].values():
         p["installed"] = os.path.isfile(p["path"])
+    if m.name in served:
+        d["serves"] = served[m.name].to_json()
     return d
 
 
@@ -76,22 +78,26 @@ def command(as_json, check):
 
     A built-in model is a bundle of parts: its hypernetwork (network), PCA basis (basis),
     learnt prior (prior) and basis residual (residual); each job takes the part it needs.
-    Validation figures are renders (PSNR and Delta E 2000) of reconstructions from N
+    What each serves is listed as the jobs take it: the embedding kinds `encode --kind`
+    makes and their sizes (`--size`; residual members: the networks a size among which
+    encode chooses), and the methods `sparse --method` runs, auto's first. Validation figures are renders (PSNR and Delta E 2000) of reconstructions from N
     samples of held-out materials, or of encode + decode (the materials named, held out
     or not), then the BRDF log RMSE. A model with a learnt prior reconstructs sparse
     samples with it by default (`brdfkit sparse`, docs/models.md). The folder is the
     package's brdfkit/models, or $BRDFKIT_BUILTIN_MODELS when set.
     """
+    from brdfkit.methods.service import installed_services
     from brdfkit.models.builtin import read_manifest
 
     man = read_manifest()
     installed = man.installed()
+    served = {s.bundle: s for s in installed_services()}
     if check:
         for m in installed:
             _check(m)
     if as_json:
         click.echo(json.dumps({"folder": man.folder, "default": man.default,
-                               "bundles": [_json(m) for m in man.bundles]}, indent=1))
+                               "bundles": [_json(m, served) for m in man.bundles]}, indent=1))
         return
     if not installed:
         click.echo(f"no built-in models installed (in {man.folder}); pass -m MODEL.safetensors from `brdfkit fit`")
@@ -110,7 +116,7 @@ def command(as_json, check):
                     "-" if m.materials is None else str(m.materials), "-" if m.steps is None else f"{m.steps:,}",
                     _duration(m.train_seconds))
     out.print(tab)
-    out.print("*: the default. dim: its hypernetwork's latent. A prior is sparse's default method.")
+    out.print("*: the default. dim: its hypernetwork's latent.")
     _print_renders(out, installed)
     if ns:
         out.print("\nBRDF-space: log RMSE on held-out materials from N samples (-: not measured)")
@@ -118,6 +124,7 @@ def command(as_json, check):
         for m in installed:
             val.add_row(m.name, *("-" if m.validation.get(n) is None else f"{m.validation[n]:.3f}" for n in ns))
         out.print(val)
+    _print_served(out, installed, served)
     out.print()
     for m in installed:
         lists = f"; materials: {m.materials_list}" if m.materials_list else ""
@@ -131,10 +138,30 @@ def command(as_json, check):
         out.print(f"checked: {len(installed)} model(s), {parts} part(s): each loads and matches the manifest")
 
 
+def _print_served(out, installed, served) -> None:
+    """What each built-in serves (:mod:`brdfkit.methods.service`): a line of embedding kinds
+    and sizes, a line of sparse methods."""
+    out.print("\nServes: encode --kind KIND --size N (the first kind and the * size by default;")
+    out.print("members: networks a size, chosen per material); sparse --method (auto's first)")
+    for m in installed:
+        s = served[m.name]
+        kinds = "; ".join(f"{k} {_sizes(sizes, s.default_sizes[k])}"
+                          + (f" ({s.members[k]} members)" if s.members[k] > 1 else "") for k, sizes in s.kinds.items())
+        out.print(f"{m.name} encode: {kinds or 'none'}", soft_wrap=True)
+        out.print(f"{m.name} sparse: {', '.join(s.methods) or 'none'}", soft_wrap=True)
+
+
+def _sizes(sizes, default) -> str:
+    """Sizes for the listing, the default marked: ``9, 21, 39*`` or ``3, 6, ... 90 (39*)``."""
+    if len(sizes) > 3:
+        return f"{sizes[0]}, {sizes[1]}, ... {sizes[-1]} ({default}*)"
+    return ", ".join(f"{x}*" if x == default else str(x) for x in sizes)
+
+
 def _check(m) -> None:
     """Load each part of bundle ``m``: resolving checks a file's digest against the
     manifest, loading its weights against the digest it records (FormatError if not)."""
-    from brdfkit.models.parts import load_part
+    from brdfkit.models.builtin import load_part
 
     for name in m.parts:
         load_part(m.name, name)

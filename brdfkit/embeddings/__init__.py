@@ -26,16 +26,20 @@ Each kind is one :class:`EmbeddingKind` in :data:`KINDS`, registered by name as
 of a model that decodes it in the part registry :data:`brdfkit.models.parts.PARTS`.
 Modules:
 
-* :mod:`~brdfkit.embeddings.kind`: :class:`EmbeddingKind`;
+* :mod:`~brdfkit.embeddings.kind`: :class:`EmbeddingKind` (and :class:`~brdfkit.embeddings.kind.Offer`,
+  what a decoder file offers, read from its header);
 * :mod:`~brdfkit.embeddings.registry`: :data:`KINDS`, one module per kind beside it;
-* :mod:`~brdfkit.embeddings.decoders`: the decoder ``encode`` uses and the one an
-  embedding needs;
+* :mod:`~brdfkit.embeddings.decoders`: the decoder ``encode`` uses (the kind and file that
+  what the model serves gives, :mod:`brdfkit.methods.service`) and the one an embedding
+  needs;
 * :mod:`~brdfkit.embeddings.blend`: two embeddings blended (``brdfkit interpolate``).
 
 May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io`,
 :mod:`brdfkit.models`, :mod:`brdfkit.render` and the packages of the parts
 (:mod:`brdfkit.basis`, :mod:`brdfkit.hypernet`, :mod:`brdfkit.prior`,
-:mod:`brdfkit.residual`), each inside the functions of the kind that needs it.
+:mod:`brdfkit.residual`), each inside the functions of the kind that needs it; and
+:mod:`brdfkit.methods.service` (the same layer), inside :mod:`~brdfkit.embeddings.decoders`'
+functions.
 """
 
 from __future__ import annotations

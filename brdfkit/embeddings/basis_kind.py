@@ -3,7 +3,7 @@
 
 from __future__ import annotations
 
-from brdfkit.embeddings.kind import EmbeddingKind
+from brdfkit.embeddings.kind import EmbeddingKind, Offer
 
 __all__ = ["KIND"]
 
@@ -20,6 +20,14 @@ def _default_size(basis):
     return min(DEFAULT_SIZE, 3 * basis.n_components)
 
 
+def _offer(path) -> Offer:
+    from brdfkit.basis.basis_file import read_components
+    from brdfkit.basis.coefficients import DEFAULT_SIZE, basis_sizes
+
+    k = read_components(path)
+    return Offer(tuple(basis_sizes(k)), min(DEFAULT_SIZE, 3 * k))
+
+
 def _encode(basis, digest, table, *, source, size, steps, refine, max_seconds=None):
     from brdfkit.basis.coefficients import encode_coefficients
 
@@ -33,4 +41,4 @@ def _open(basis, digest, emb, name, device):
 
 
 KIND = EmbeddingKind("basis", "coefficients of a PCA basis, refined on renders (3 numbers a component)", "basis",
-                     _sizes, _default_size, _encode, _open, start="projection")
+                     _sizes, _default_size, _encode, _open, start="projection", offer=_offer)

@@ -1,8 +1,9 @@
 """How ``encode`` picks its decoder, and how an embedding finds the one it needs.
 
 A *decoder* is a loaded part of a model that turns an embedding's numbers into a BRDF
-(:class:`Decoder`). :func:`choose_decoder` picks the kind and file ``encode`` uses;
-:func:`decoder_for` finds an embedding's own, by the ``-m`` value given or by the digest
+(:class:`Decoder`). :func:`choose_decoder` loads the kind and file ``encode`` uses, as
+what the model serves says (:mod:`brdfkit.methods.service`); :func:`decoder_for` finds an
+embedding's own, the part of its kind of the ``-m`` value given or the part whose digest
 the embedding records among the installed built-ins
 (:func:`brdfkit.models.builtin.find_by_digest`). Loaded decoders are kept per process.
 Nothing here names a kind: each kind's entry in :data:`brdfkit.embeddings.registry.KINDS` says
@@ -57,7 +58,7 @@ class Decoder:
         sizes = self.sizes
         if size not in sizes:
             shown = f"{sizes[0]}, {sizes[1]}, ... {sizes[-1]}" if len(sizes) > 3 else ", ".join(map(str, sizes))
-            raise InputError(f"--size {size}: {self.kind} embeddings of {self.label} hold {shown} numbers")
+            raise InputError(f"--size {size}: {self.kind} embeddings of {self.label} hold {shown or 'no'} numbers")
 
 
 @functools.lru_cache(maxsize=4)
@@ -77,72 +78,27 @@ def load_decoder(kind: str, path: str | os.PathLike, device=None, label: str = "
                    label)
 
 
-def _file_kind(path: str, kind: str | None) -> str:
-    """The kind a model file decodes: ``kind`` when the file is that kind's part, else the
-    first kind of that part (by the part its header records)."""
-    from brdfkit.models.parts import file_part
-
-    part = file_part(path).name
-    if kind is not None:
-        if KINDS[kind].part != part:
-            raise InputError(f"{path}: a {part} file, not the {KINDS[kind].part} a {kind} embedding needs "
-                             f"(--kind {kind})")
-        return kind
-    found = kind_of_part(part)
-    if found is None:
-        raise InputError(f"{path}: a learnt-prior model file does not decode embeddings; pass its basis file or a "
-                         f"built-in's name")
-    return found.name
-
-
-def _bundle_kind(bundle, size: int | None, device) -> str:
-    """The first kind of :data:`KINDS` whose part ``bundle`` has and whose decoder offers
-    ``size`` (any, for ``None``)."""
-    from brdfkit.models.builtin import resolve_part
-
-    kinds = [k for k in KINDS.values() if bundle.part(k.part) is not None]
-    for k in kinds:
-        if size is None or size in load_decoder(k.name, resolve_part(bundle.name, k.part), device, bundle.name).sizes:
-            return k.name
-    if not kinds:
-        raise InputError(f"built-in model {bundle.name!r} ships no part that decodes embeddings")
-    return kinds[-1].name  # its size check then names the sizes it offers
-
-
 def choose_decoder(kind: str | None, spec, device=None, size: int | None = None) -> Decoder:
     """The decoder ``brdfkit encode`` uses for ``--kind`` ``kind``, ``-m`` ``spec`` and
-    ``--size`` ``size``.
+    ``--size`` ``size``: the kind and file that what the model serves gives
+    (:meth:`brdfkit.methods.service.Service.kind_for` and
+    :meth:`~brdfkit.methods.service.Service.path`), loaded.
 
-    ``spec`` ``None`` means the default built-in. A built-in's name gives, with no
-    ``kind``, the first kind of :data:`KINDS` whose part it ships and whose decoder offers
-    ``size`` (so a size a part does not serve falls back to the next); a file gives the
-    kind its header says. A given ``kind`` takes the part of that kind.
+    ``spec`` ``None`` means the default built-in. With no ``kind``, the first kind of
+    :data:`KINDS` the model decodes at ``size`` (so a size one part does not offer falls
+    back to the next); a given ``kind`` takes the part of that kind.
 
     Raises
     ------
     InputError
-        No model given and none installed, an unknown name or kind, a file of another kind
-        than ``kind``, a built-in without the part ``kind`` needs.
+        No model given and none installed, an unknown name or kind, a kind or size the
+        model does not serve (one line saying what it serves).
     """
-    from brdfkit.models.builtin import default_bundle, installed_bundles, is_path_spec, resolve_part
+    from brdfkit.methods.service import serves
 
-    if kind is not None:
-        kind = get_kind(kind).name
-    if spec is None:
-        entry = default_bundle()
-        if entry is None:
-            raise InputError("no model given: pass -m NAME or -m FILE, or set BRDFKIT_MODEL (no default built-in "
-                             "model is installed; `brdfkit models` lists the built-in ones)")
-        spec = entry.name
-    spec = os.fspath(spec)
-    if is_path_spec(spec):
-        return load_decoder(_file_kind(spec, kind), spec, device)
-    if kind is None:
-        entry = next((m for m in installed_bundles() if m.name == spec), None)
-        if entry is None:
-            resolve_part(spec, "network")  # the unknown-name error, listing the installed ones
-        kind = _bundle_kind(entry, size, device)
-    return load_decoder(kind, resolve_part(spec, KINDS[kind].part), device, spec)
+    service = serves(spec)
+    kind = service.kind_for(kind, size)
+    return load_decoder(kind, service.path(KINDS[kind].part), device, service.bundle or "")
 
 
 def decoder_for(emb, spec=None, device=None, name: str = "") -> Decoder:
@@ -156,7 +112,7 @@ def decoder_for(emb, spec=None, device=None, name: str = "") -> Decoder:
     ModelMismatchError
         ``spec`` names a decoder of another digest.
     """
-    from brdfkit.models.builtin import find_by_digest, resolve_part
+    from brdfkit.models.builtin import find_by_digest
 
     what = f"embedding {name}" if name else "embedding"
     kind = get_kind(emb.kind)
@@ -166,7 +122,9 @@ def decoder_for(emb, spec=None, device=None, name: str = "") -> Decoder:
             raise InputError(f"{what}: its {emb.kind} decoder {emb.decoder[:12]} is not among the installed built-in "
                              f"models; pass the file that made it with -m")
     else:
-        path = resolve_part(spec, kind.part)
+        from brdfkit.methods.service import serves
+
+        path = serves(spec).path(kind.part)  # a model without that part: one line saying what it serves
     dec = load_decoder(kind.name, path, device)
     if dec.digest != emb.decoder:
         raise ModelMismatchError(f"{what} was made with {emb.kind} decoder {emb.decoder[:12]}, not with "

@@ -4,7 +4,7 @@ refined on renders (:mod:`brdfkit.hypernet`). Called ``latent`` before; files an
 
 from __future__ import annotations
 
-from brdfkit.embeddings.kind import EmbeddingKind
+from brdfkit.embeddings.kind import EmbeddingKind, Offer
 
 __all__ = ["KIND"]
 
@@ -21,6 +21,13 @@ def _encode(net, digest, table, *, source, size, steps, refine, max_seconds=None
     return compress_table(net, table, cfg, source).embedding
 
 
+def _offer(path) -> Offer:
+    from brdfkit.hypernet.network_file import read_latent_dim
+
+    latent = read_latent_dim(path)
+    return Offer((latent,), latent)
+
+
 def _open(net, digest, emb, name, device):
     from brdfkit.hypernet.neural_brdf import NeuralBRDF
 
@@ -29,4 +36,4 @@ def _open(net, digest, emb, name, device):
 
 KIND = EmbeddingKind("hypernet", "a hypernetwork's latent, refined on renders (Gokbudak et al. 2024)", "network",
                      lambda n: (int(n.cfg.latent_dim),), lambda n: int(n.cfg.latent_dim), _encode, _open,
-                     aliases=("latent",), start="encoder pass", torch=True, wall_clock=True)
+                     aliases=("latent",), start="encoder pass", torch=True, wall_clock=True, offer=_offer)

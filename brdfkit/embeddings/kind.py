@@ -4,9 +4,20 @@
 from __future__ import annotations
 
 import dataclasses
+import typing
 from typing import Callable
 
-__all__ = ["EmbeddingKind"]
+__all__ = ["EmbeddingKind", "Offer"]
+
+
+class Offer(typing.NamedTuple):
+    """What a decoder file offers ``encode``, read from its header alone: the ``sizes``
+    (numbers per material, ascending), the ``default_size`` and the most ``members`` any
+    size has (a residual file may hold several networks a size; other kinds 1)."""
+
+    sizes: tuple
+    default_size: int
+    members: int = 1
 
 
 @dataclasses.dataclass(frozen=True)
@@ -50,6 +61,11 @@ class EmbeddingKind:
         ``{name: value}`` of the decode options an embedding of the kind may leave out
         and that are not 0 then (a residual's ``correction``: 1); any other option left
         out is 0 (:meth:`option`).
+    offer
+        ``offer(path) -> Offer``: what a file of its part offers, from its header alone
+        (what :func:`brdfkit.methods.service.serves` lists without loading any weights;
+        the loaded file's :attr:`sizes` and :attr:`default_size`, ``tests/test_service.py``).
+        ``None``: the file is loaded to ask them (:meth:`offered`).
     """
 
     name: str
@@ -64,6 +80,7 @@ class EmbeddingKind:
     torch: bool = False
     wall_clock: bool = False
     option_defaults: dict = dataclasses.field(default_factory=dict)
+    offer: Callable | None = dataclasses.field(default=None, repr=False)
 
     def option(self, options: dict | None, name: str) -> float:
         """The value of decode option ``name`` in an embedding's ``options`` (``None``:
@@ -83,3 +100,11 @@ class EmbeddingKind:
         from brdfkit.models.parts import get_part
 
         return get_part(self.part).load(path, device)
+
+    def offered(self, path) -> Offer:
+        """What the file ``path`` of its part offers: :attr:`offer`, else the loaded file's
+        :attr:`sizes` and :attr:`default_size`."""
+        if self.offer is not None:
+            return self.offer(path)
+        obj, _ = self.load(path)
+        return Offer(tuple(self.sizes(obj)), int(self.default_size(obj)))

@@ -40,7 +40,7 @@ from brdfkit.models.parts import HEADER_DIGEST_KEY
 from brdfkit.hypernet import network_storage as storage
 from brdfkit.hypernet.loaded import LoadedNetwork
 
-__all__ = ["MODEL_FORMAT", "MODEL_VERSION", "MODEL_VERSIONS", "save_network", "load_network",
+__all__ = ["MODEL_FORMAT", "MODEL_VERSION", "MODEL_VERSIONS", "save_network", "load_network", "read_latent_dim",
            "weights_digest", "state_digest"]
 
 MODEL_FORMAT = "brdfkit-model"
@@ -256,6 +256,31 @@ def _read_reference(path: str, f, md: dict, names: set) -> np.ndarray:
         raise FormatError(where, f"reference table does not match the digest recorded in {path}: the file "
                                  "is damaged, or is another model's")
     return storage.unpack_reference(where, mask, values)
+
+
+def read_latent_dim(path: str | os.PathLike) -> int:
+    """The latent size of a network file, from its header alone (its config's
+    ``latent_dim``; no tensor is read, no torch imported), the file's format checked as
+    :func:`load_network` checks it (the same one-line errors).
+
+    Raises
+    ------
+    FormatError
+        As :func:`load_network` for the header, or a config without a positive
+        ``latent_dim``.
+    """
+    path = os.fspath(path)
+    with open_safetensors(path, framework="numpy", diagnose="brdfkit model file", merl_hint=_MERL_HINT) as f:
+        version = (f.metadata() or {}).get("version")
+        md = check_format(path, f, MODEL_FORMAT, version if version in MODEL_VERSIONS else "1 or 2",
+                          "brdfkit model file", "model file")
+    try:
+        latent = json.loads(md["config"])["latent_dim"]
+    except (KeyError, TypeError, ValueError) as e:
+        raise FormatError(path, f"bad model config in metadata ({e})") from None
+    if isinstance(latent, bool) or not isinstance(latent, int) or latent < 1:
+        raise FormatError(path, f"bad model config in metadata (latent_dim {latent!r})")
+    return latent
 
 
 def load_network(path: str | os.PathLike, device=None) -> LoadedNetwork:

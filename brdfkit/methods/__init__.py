@@ -41,9 +41,13 @@ dataclass (``lam`` for ``ipca``; ``steps``, ``lr``, ``patience`` for ``nbrdf``).
 A new method is one module defining ``METHOD = Method(...)`` and one line in
 :data:`METHODS` (see DEVELOPERS.md). Importing this package imports no torch.
 
+What a model serves, kinds and sizes and methods, is :mod:`.service` (:func:`~.service.serves`),
+which the choice of a ``-m`` value (:mod:`.choice`) and ``encode``'s decoder
+(:func:`brdfkit.embeddings.choose_decoder`) ask.
+
 May import: the ground floor, :mod:`brdfkit.geometry`, :mod:`brdfkit.io`,
-:mod:`brdfkit.models` and :mod:`brdfkit.hypernet` (the ``hypernet`` method); the choice
-of a ``-m`` value (:mod:`.choice`) reads the built-ins' manifest.
+:mod:`brdfkit.models`, :mod:`brdfkit.hypernet` (the ``hypernet`` method), and, in
+:mod:`.service` alone, :mod:`brdfkit.embeddings`' registry (the same layer).
 """
 
 from __future__ import annotations

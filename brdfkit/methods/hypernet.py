@@ -20,7 +20,7 @@ DEFAULT_REFINE_STEPS = 300
 
 
 def _load(path, device):
-    from brdfkit.models.parts import load_part
+    from brdfkit.models.builtin import load_part
 
     return load_part(path, "network", device)
 

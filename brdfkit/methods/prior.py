@@ -35,7 +35,7 @@ class PriorOptions(MethodOptions):
 
 
 def _load(path, device):
-    from brdfkit.models.parts import load_part
+    from brdfkit.models.builtin import load_part
 
     return load_part(path, "prior", device)
 

@@ -37,9 +37,9 @@ from brdfkit.errors import FormatError, InputError
 from brdfkit.models.parts import PARTS
 
 __all__ = ["BUILTIN_ENV", "MANIFEST_FORMAT", "MANIFEST_VERSION", "PartEntry", "Bundle", "Manifest",
-           "models_folder", "read_manifest", "installed_bundles", "is_path_spec", "resolve_part", "resolve_network",
-           "resolve_prior", "resolve_basis", "resolve_residual", "default_bundle", "find_by_digest", "bundle_of_part",
-           "is_builtin_part", "write_manifest"]
+           "models_folder", "read_manifest", "installed_bundles", "is_path_spec", "find_bundle", "resolve_part",
+           "resolve_network", "resolve_prior", "resolve_basis", "resolve_residual", "load_part", "default_bundle",
+           "find_by_digest", "bundle_of_part", "is_builtin_part", "write_manifest"]
 
 BUILTIN_ENV = "BRDFKIT_BUILTIN_MODELS"
 MANIFEST = "manifest.json"
@@ -280,6 +280,21 @@ def _unknown(spec: str, installed: list[Bundle]) -> InputError:
                       "(pass a model file made by `brdfkit fit`)")
 
 
+def find_bundle(name: str) -> Bundle:
+    """The installed built-in called ``name``.
+
+    Raises
+    ------
+    InputError
+        No installed built-in of that name (one line listing those installed).
+    """
+    installed = installed_bundles()
+    found = next((m for m in installed if m.name == name), None)
+    if found is None:
+        raise _unknown(name, installed)
+    return found
+
+
 def resolve_part(spec: str | os.PathLike, part: str) -> str:
     """The file of ``part`` (a name of :data:`brdfkit.models.parts.PARTS`) that a
     ``-m`` value names: a path as it is (:func:`is_path_spec`), else that part of the
@@ -295,15 +310,12 @@ def resolve_part(spec: str | os.PathLike, part: str) -> str:
     """
     if is_path_spec(spec):
         return os.fspath(spec)
-    installed = installed_bundles()
-    for m in installed:
-        if m.name == spec:
-            if m.part(part) is None:
-                having = ", ".join(e.name for e in installed if e.part(part)) or "none installed"
-                raise InputError(f"built-in model {m.name!r} ships no {PARTS[part].label} (built-ins with one: "
-                                 f"{having}; `brdfkit models` lists them)")
-            return _checked(m, part)
-    raise _unknown(os.fspath(spec), installed)
+    m = find_bundle(os.fspath(spec))
+    if m.part(part) is None:
+        having = ", ".join(e.name for e in installed_bundles() if e.part(part)) or "none installed"
+        raise InputError(f"built-in model {m.name!r} ships no {PARTS[part].label} (built-ins with one: "
+                         f"{having}; `brdfkit models` lists them)")
+    return _checked(m, part)
 
 
 def resolve_network(spec: str | os.PathLike) -> str:
@@ -324,6 +336,13 @@ def resolve_basis(spec: str | os.PathLike) -> str:
 def resolve_residual(spec: str | os.PathLike) -> str:
     """The basis-residual file a ``-m`` value names (:func:`resolve_part`)."""
     return resolve_part(spec, "residual")
+
+
+def load_part(spec: str | os.PathLike, part: str, device="cpu"):
+    """Part ``part`` (a name of :data:`brdfkit.models.parts.PARTS`) of the model ``spec`` (a
+    built-in's name or a file), loaded and checked: a built-in's file against the
+    manifest's digest (:func:`resolve_part`), a file against the digest it records."""
+    return PARTS[part].load(resolve_part(spec, part), device)[0]
 
 
 def default_bundle() -> Bundle | None:

@@ -34,7 +34,10 @@ May import: the ground floor and :mod:`brdfkit.io`. The loaders and classes live
 parts' own packages, a layer or more above: a part names them by module path
 (``"brdfkit.basis.basis_file:load_basis"``), imported when a file of that part loads, as
 :func:`brdfkit.lazy_attributes` names the modules of the lazy packages; nothing here
-imports them otherwise, and :func:`part_of` imports nothing at all.
+imports them otherwise, and :func:`part_of` imports nothing at all. Nor does it import
+:mod:`brdfkit.models.builtin` (which reads it): a model's name resolves to a part's file
+there (:func:`~brdfkit.models.builtin.resolve_part`, :func:`~brdfkit.models.builtin.load_part`),
+and what a model serves is :mod:`brdfkit.methods.service`.
 """
 
 from __future__ import annotations
@@ -46,7 +49,7 @@ import sys
 
 from brdfkit.errors import InputError
 
-__all__ = ["Part", "PARTS", "HEADER_DIGEST_KEY", "get_part", "part_of_format", "file_part", "part_of", "load_part"]
+__all__ = ["Part", "PARTS", "HEADER_DIGEST_KEY", "get_part", "part_of_format", "file_part", "part_of"]
 
 HEADER_DIGEST_KEY = "fingerprint"
 """The header key of a ``header``-digest part's digest (its first name, kept)."""
@@ -193,12 +196,3 @@ def part_of(obj) -> Part | None:
     :class:`~brdfkit.residual.model.BasisResidual`, a
     :class:`~brdfkit.hypernet.loaded.LoadedNetwork`), or ``None``; imports nothing."""
     return next((p for p in PARTS.values() if p.is_loaded(obj)), None)
-
-
-def load_part(spec: str | os.PathLike, part: str, device="cpu"):
-    """Part ``part`` of the model ``spec`` (a built-in's name or a file), loaded and
-    checked: a built-in's file against the manifest's digest, a file against the digest
-    it records."""
-    from brdfkit.models.builtin import resolve_part
-
-    return get_part(part).load(resolve_part(spec, part), device)[0]
