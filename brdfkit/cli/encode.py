@@ -33,8 +33,9 @@ def _kind_names() -> list:
                    "same input gives the same bytes, however busy the machine.")
 @click.option("--kind", type=click.Choice(_kind_names()), default=None,
               help="What the numbers are: " + "; ".join(f"{k.name}: {k.summary}" for k in KINDS.values())
-                   + ". Default: for a built-in, the first of these it ships a part for that offers --size; for a "
-                     "file, the part it is; for sample sets, hypernet. (latent: the old name of hypernet.)")
+                   + ". Default: for a built-in, the first of these it serves at --size (`brdfkit models` lists "
+                     "the kinds and sizes each serves); for a file, the part it is; for sample sets, hypernet. "
+                     "(latent: the old name of hypernet.)")
 @click.option("--size", type=click.IntRange(min=1), default=None,
               help="Numbers per material: a basis or residual embedding holds 3 a component (3, 6, 9 ... up to "
                    "3 x the basis's components; default 39); a hypernet embedding the network's latent size.")

@@ -24,8 +24,9 @@ def _model_from_env() -> bool:
 @click.option("--emb", "emb_path", type=click.Path(dir_okay=False), default=None,
               help="Method hypernet: also write the latent (.emb) the table is decoded from.")
 @click.option("--method", type=click.Choice([_AUTO] + sorted(METHODS)), default=_AUTO, show_default=True,
-              help="Reconstruction method; auto: a built-in's learnt prior, else its hypernetwork; a model "
-                   "file's own method.")
+              help="Reconstruction method; auto: the model's own (`brdfkit models` lists the methods each "
+                   "built-in serves, auto's first): a built-in's learnt prior, else its hypernetwork, else its "
+                   "basis (ipca); a model file's own method.")
 @click.option("-O", "--option", "method_options", multiple=True, metavar="KEY=VALUE",
               help="A method's option: prior's use_prior=false; ipca's lam=0.1; hypernet's steps=300.")
 @click.option("--refine/--no-refine", default=None,
