@@ -1,9 +1,10 @@
 """The route matrix's parameters and inputs (``tests/test_routes_*.py``).
 
 Every parameter is generated from the registries, never listed by hand: the built-ins
-the package ships (its manifest), what each one serves (kinds and their sizes, sparse
-methods), the kinds (``KINDS``), the methods (``METHODS``) and the recipes of ``brdfkit
-fit`` (``FITTERS``). A new built-in, kind, size, method or recipe is a new route of the
+the package ships and what each one serves (kinds and their sizes, sparse methods), as
+the one answer to that question gives it (:func:`brdfkit.methods.service.serves`, which
+``brdfkit models`` and the commands ask too), the methods (``METHODS``) and the recipes
+of ``brdfkit fit`` (``FITTERS``). A new built-in, kind, size, method or recipe is a new route of the
 matrix without an edit here; a recipe without a tiny setting below fails its route with a
 message saying so.
 
@@ -45,22 +46,12 @@ LOW_SIZE_FLOOR_DB = 18.0
 
 def shipped():
     """``[(name, kinds {kind: (sizes, default size)}, methods (names served))]`` of the
-    built-ins the package ships, from their manifest and parts (empty without them)."""
-    from brdfkit.embeddings import choose_decoder
-    from brdfkit.embeddings.registry import KINDS
-    from brdfkit.methods import METHODS
-    from brdfkit.models.builtin import models_folder, read_manifest
+    built-ins the package ships, as :func:`brdfkit.methods.service.installed_services`
+    says they serve (``brdfkit models``; empty without them)."""
+    from brdfkit.methods.service import installed_services
 
-    out = []
-    for b in read_manifest(models_folder()).installed():
-        kinds = {}
-        for k in KINDS:
-            if KINDS[k].part in b.parts:
-                d = choose_decoder(k, os.path.join(models_folder(), b.parts[KINDS[k].part].file))
-                kinds[k] = (tuple(d.sizes), d.default_size)
-        methods = tuple(m for m in METHODS if METHODS[m].part is None or METHODS[m].part in b.parts)
-        out.append((b.name, kinds, methods))
-    return out
+    return [(s.bundle, {k: (sizes, s.default_sizes[k]) for k, sizes in s.kinds.items()}, s.methods)
+            for s in installed_services()]
 
 
 def encode_routes():
