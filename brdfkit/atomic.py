@@ -19,7 +19,8 @@ from typing import IO, Callable, Iterable, Iterator
 
 from brdfkit.errors import BrdfkitError, InputError
 
-__all__ = ["atomic_path", "atomic_open", "refuse_overwrite_of_inputs", "check_input_file", "UnreadableOutput"]
+__all__ = ["atomic_path", "atomic_paths", "atomic_open", "refuse_overwrite_of_inputs", "check_input_file",
+           "UnreadableOutput"]
 
 
 class UnreadableOutput(BrdfkitError):
@@ -72,6 +73,16 @@ def atomic_path(path: str | os.PathLike, verify: Callable[[str], object] | None 
             with contextlib.suppress(OSError):  # never mask the error that got us here
                 os.unlink(tmp)
         raise
+
+
+@contextlib.contextmanager
+def atomic_paths(*paths) -> Iterator[list]:
+    """:func:`atomic_path` of several outputs of one command (``None`` entries skipped,
+    and yielded as ``None``): all of them take their names only when the body has written
+    every one, so that a failure writing the last leaves none of them (a table and the
+    embedding it decodes from, say)."""
+    with contextlib.ExitStack() as stack:
+        yield [None if p is None else stack.enter_context(atomic_path(p)) for p in paths]
 
 
 def _read_back(verify: Callable[[str], object], tmp: str, path: str) -> None:

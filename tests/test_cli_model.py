@@ -17,7 +17,7 @@ from brdfkit import api
 from brdfkit.io.embedding import read_embedding, write_embedding
 from brdfkit.io.merl import MERL_FILE_SIZE, read_merl
 
-from conftest import one_error_line, run_cli, run_here
+from conftest import one_error_line, run_cli, run_here, tmp_leftovers
 from helpers_model import make_model, material_table, write_inputs
 
 
@@ -172,6 +172,22 @@ def test_sparse(files, tmp_path, capsys):
     np.testing.assert_allclose(api.decode(read_embedding(emb), m), table, rtol=1e-6, equal_nan=True)
     assert read_embedding(emb).sample_count == 300
     assert "refined on the samples (latent)" in err
+
+
+def test_a_failed_emb_leaves_neither_output(files, tmp_path, capsys, monkeypatch):
+    """``sparse -o T --emb E``: both outputs or neither (the table was written before an
+    embedding its writer refused)."""
+    import brdfkit.io.embedding
+    from brdfkit.atomic import UnreadableOutput
+
+    def refuse(path, emb):
+        raise UnreadableOutput(f"{path}: not written: brdfkit could not read back what it made (a test)")
+
+    monkeypatch.setattr(brdfkit.io.embedding, "write_embedding", refuse)
+    code, _, err = run_cli(capsys, ["sparse", files / "samples.csv", "-m", files / "model.safetensors",
+                                    "-o", tmp_path / "s.binary", "--emb", tmp_path / "s.emb", "--no-refine"])
+    assert code == 2 and "not written" in one_error_line(err)
+    assert sorted(p.name for p in tmp_path.iterdir()) == [] and not tmp_leftovers(tmp_path)
 
 
 def test_sparse_bad_method_and_overwrite(files, tmp_path, capsys):

@@ -47,7 +47,7 @@ def command(samples, model_path, output, emb_path, method, method_options, refin
     which method and model ran.
     """
     from brdfkit.api import sparse
-    from brdfkit.atomic import refuse_overwrite_of_inputs
+    from brdfkit.atomic import atomic_paths, refuse_overwrite_of_inputs
     from brdfkit.io.embedding import write_embedding
     from brdfkit.errors import InputError
     from brdfkit.io.merl import write_merl
@@ -81,9 +81,10 @@ def command(samples, model_path, output, emb_path, method, method_options, refin
     options = METHODS[method].make_options(**given)  # refused before the samples are read
     data = read_sample_file(samples)
     table, emb = sparse(data, model_path, method=method, **given)
-    write_merl(output, table)
-    if emb_path:
-        write_embedding(emb_path, emb)
+    with atomic_paths(output, emb_path) as (out_tmp, emb_tmp):  # both or neither
+        write_merl(out_tmp, table)
+        if emb_path:
+            write_embedding(emb_tmp, emb)
     extra = f" and {emb_path}" if emb_path else ""
     used = f"method {method}" + (f", model {choice.label}" if choice.label else "")
     how = ""
