@@ -58,7 +58,7 @@ def test_refinement_is_guarded_records_its_solver_and_gives_the_same_bytes(basis
     a, rec = refine_coefficients(basis, held, c0, cfg)
     b, again = refine_coefficients(basis, held, c0, cfg)
     assert a.tobytes() == b.tobytes() and rec == again
-    assert rec["solver"] == "gauss-newton" and 1 <= rec["steps"] <= 6 and len(rec["heldout"]) == rec["steps"] + 1
+    assert rec["solver"] == "levenberg-marquardt" and 1 <= rec["steps"] <= 6 and len(rec["heldout"]) == rec["steps"] + 1
     assert rec["heldout"][rec["best_step"]] == min(rec["heldout"]) <= rec["heldout"][0]
     if rec["best_step"] == 0:  # the projection is kept when no iteration helps the held-out pixels
         np.testing.assert_array_equal(a, c0)

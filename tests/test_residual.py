@@ -214,8 +214,20 @@ def test_a_residual_file_that_lies_is_refused(trained, tmp_path):
     with pytest.raises(InputError, match="basis it corrects"):
         load_residual(tmp_path / "other.safetensors")
     cfg, state = r.nets[0]
-    save_residual(tmp_path / "bad.safetensors", [(cfg, dict(state, **{"head.bias": state["head.bias"][:3]}))],
-                  basis_digest=r.basis_digest)
+    # Its writer reads what it made back first: a file its reader refuses is not written...
+    from brdfkit.atomic import UnreadableOutput
+
+    with pytest.raises(UnreadableOutput, match="head.bias"):
+        save_residual(tmp_path / "bad.safetensors", [(cfg, dict(state, **{"head.bias": state["head.bias"][:3]}))],
+                      basis_digest=r.basis_digest)
+    assert not (tmp_path / "bad.safetensors").exists()
+    # ... and one made otherwise is refused by the reader.
+    from brdfkit.io.tensorfile import open_safetensors, write_safetensors
+
+    with open_safetensors(str(res), framework="numpy") as f:
+        header, tensors = f.metadata(), {k: f.get_tensor(k) for k in f.keys()}
+    tensors["net0.head.bias"] = tensors["net0.head.bias"][:3]
+    write_safetensors(tmp_path / "bad.safetensors", tensors, header)
     with pytest.raises(FormatError, match="head.bias"):
         load_residual(tmp_path / "bad.safetensors", basis=(r.basis, r.basis_digest))
     (tmp_path / "junk.safetensors").write_bytes(b"not a file")

@@ -29,8 +29,8 @@ DEFAULT_SIZE = 39
 the hypernetwork's 40-D latent."""
 
 DEFAULT_STEPS = 8
-"""Most refinement iterations of a basis embedding (``brdfkit encode --steps``): Gauss-Newton
-iterations of :mod:`brdfkit.basis.refine_on_screen`, with
+"""Most refinement iterations of a basis embedding (``brdfkit encode --steps``):
+Levenberg-Marquardt iterations of :mod:`brdfkit.basis.refine_on_screen`, with
 :data:`~brdfkit.basis.refine_on_screen.DEFAULT_TRUST` (``docs/compression.md``)."""
 
 

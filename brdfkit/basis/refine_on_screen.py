@@ -1,5 +1,5 @@
 """A table's basis coefficients, refined on renders of objective scenes: a small nonlinear
-least-squares problem, solved by Gauss-Newton.
+least-squares problem, solved by Levenberg-Marquardt.
 
 :meth:`~brdfkit.basis.model.PcaBasis.project` gives the coefficients that minimise the
 squared error of the *mapped* table (``ln`` of the cosine-weighted values). Renders weigh
@@ -17,7 +17,7 @@ second term is :data:`DEFAULT_TRUST`'s trust term on how far the mapped table mo
 keeps the coefficients with the lowest render error on held-out pixels, the projection's
 own included (:func:`brdfkit.render.objective.refine_loop`).
 
-Why Gauss-Newton: the unknowns are few (``K <= 13`` a channel), a render is linear in the
+Why a least-squares solver: the unknowns are few (``K <= 13`` a channel), a render is linear in the
 table (``I = M rho``, ``M`` the scene's pairs as a sparse map from the cells they reach to
 the pixels), the basis is linear in the mapped space (``x' = mean + U c``), and each
 channel's image depends on that channel's coefficients alone; so each channel is a
@@ -57,8 +57,11 @@ coefficients trade the backlit rim for the rest (``docs/compression.md``: -2.5 d
 judged ``backlight`` scene for +1.6 dB in the suite mean, 20 training materials); with
 it, they move only where renders gain much for a small change of the table."""
 
+SOLVER = "levenberg-marquardt"
+"""The refinement's solver as an embedding's ``refinement`` record names it."""
+
 DEFAULT_ITERATIONS = 8
-"""Most Gauss-Newton iterations of a refinement (``brdfkit encode --steps``)."""
+"""Most Levenberg-Marquardt iterations of a refinement (``brdfkit encode --steps``)."""
 
 
 @dataclasses.dataclass
@@ -387,7 +390,7 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
         ``(K, 3)`` start, usually ``basis.project(table)``; also the trust term's centre.
     config
         :class:`brdfkit.render.objective.ObjectiveConfig` (its ``steps``: the most
-        Gauss-Newton iterations; scenes, pairs, held-out share, seed, resolution).
+        Levenberg-Marquardt iterations; scenes, pairs, held-out share, seed, resolution).
     trust
         Weight of the trust term (:data:`DEFAULT_TRUST`; 0: the render error alone).
     extra
@@ -411,11 +414,11 @@ def refine_coefficients(basis, table, coefficients, config=None, trust: float = 
     cfg = config or ObjectiveConfig(steps=DEFAULT_ITERATIONS)
     c0 = np.asarray(coefficients, np.float64)
     if cfg.steps == 0:
-        return c0, {"steps": 0, "best_step": 0, "stopped": "steps", "solver": "gauss-newton", "heldout": []}
+        return c0, {"steps": 0, "best_step": 0, "stopped": "steps", "solver": SOLVER, "heldout": []}
     screens = (screens or prepare_screens(basis, table, cfg)).with_extra(extra)
     step = solve_channels(screens.fits, screens.fit_targets, c0, trust=trust, cells=basis.cells.size)
     return refine_loop(c0, step, screens.held_error, steps=cfg.steps, check_every=1, patience=cfg.patience,
-                       max_seconds=cfg.max_seconds, solver="gauss-newton")
+                       max_seconds=cfg.max_seconds, solver=SOLVER)
 
 
 def heldout_error(basis, table, coefficients, config=None, extra=None, screens: Screens | None = None) -> float:

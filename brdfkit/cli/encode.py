@@ -24,11 +24,11 @@ def _kind_names() -> list:
 @click.option("-o", "--output-dir", type=click.Path(file_okay=False), default=None,
               help="Folder for the .emb files (created if missing); default: beside each input.")
 @click.option("--refine/--no-refine", default=True, show_default=True,
-              help="Refine a table's embedding on renders after its first estimate (Gauss-Newton on a basis or "
+              help="Refine a table's embedding on renders after its first estimate (Levenberg-Marquardt on a basis or "
                    "residual embedding's coefficients, Adam on a latent; --no-refine: the projection onto the "
                    "basis, or the paper's single encoder pass).")
 @click.option("--steps", type=click.IntRange(min=0), default=None,
-              help="Most refinement iterations per table [default: 8 Gauss-Newton iterations for a residual or "
+              help="Most refinement iterations per table [default: 8 Levenberg-Marquardt iterations for a residual or "
                    "basis embedding, 40 Adam steps for a latent]; fewer when held-out pixels stop improving. The "
                    "same input gives the same bytes, however busy the machine.")
 @click.option("--kind", type=click.Choice(_kind_names()), default=None,
@@ -54,7 +54,7 @@ def command(inputs, model_path, output_dir, refine, steps, kind, size, max_secon
     a residual embedding (merl-rgl-l40, the default, and merl80-l40: at 9, 21, 39
     numbers; `brdfkit models`) or a basis embedding (--kind basis): the coefficients of
     the basis's --size/3 leading components, projected and refined by at most --steps
-    Gauss-Newton iterations [default: 8] on renders of the objective scenes
+    Levenberg-Marquardt iterations [default: 8] on renders of the objective scenes
     (docs/compression.md). With a hypernetwork (--kind hypernet, or a network file) the
     latent is refined by Adam steps [default: 40] (docs/model.md).
     Either way an iterate is kept only where held-out pixels agree. A sample set gets the

@@ -78,7 +78,8 @@ class Embedding:
         or ``None`` (not refined): ``{"steps": int, "best_step": int, "stopped": str}``
         (the solver's iterations or steps, the one kept, why it stopped), and, in files
         written since the refinement became one loop for every kind, ``"solver"``
-        (``"gauss-newton"``, ``"adam"``) and ``"heldout"``, the held-out render errors of
+        (``"levenberg-marquardt"``, ``"adam"``; ``"gauss-newton"`` in files
+        written before the one solver, the same iterations) and ``"heldout"``, the held-out render errors of
         the start and of each check (display MSE); ``--steps`` of the record replays it.
     parts
         ``{part: digest}`` of every part that decodes it, when more than the decoder

@@ -57,7 +57,7 @@ class ObjectiveConfig:
     Attributes
     ----------
     steps
-        Most steps (0: the start alone): Adam steps on a latent, Gauss-Newton iterations
+        Most steps (0: the start alone): Adam steps on a latent, Levenberg-Marquardt iterations
         on a basis or residual embedding's coefficients; fewer when the held-out error
         stops improving (``patience``).
     max_seconds
@@ -65,7 +65,7 @@ class ObjectiveConfig:
         depends on the machine's speed and load; the result says so.
     lr
         Adam's learning rate on a latent, or ``None``: its refiner's default
-        (:data:`brdfkit.hypernet.refine_on_screen.DEFAULT_LR`). The Gauss-Newton
+        (:data:`brdfkit.hypernet.refine_on_screen.DEFAULT_LR`). The Levenberg-Marquardt
         refinement of a basis or residual embedding has none, and does not read it.
     pairs_per_pixel
         Pairs drawn per pixel for the fitted render (the full render has about 280).
@@ -75,7 +75,7 @@ class ObjectiveConfig:
     holdout
         Share of the pixels held out to choose the result, in ``(0, 1)``.
     check_every, patience
-        Steps between held-out checks (Gauss-Newton checks after every iteration, and
+        Steps between held-out checks (Levenberg-Marquardt checks after every iteration, and
         does not read ``check_every``); checks without a gain before stopping.
     seed
         Draws the pairs and the held-out pixels.
@@ -269,7 +269,7 @@ def objective_views(table, cfg: ObjectiveConfig, device=None) -> list[ObjectiveV
 def refine_loop(start, step, held_error, *, steps: int, check_every: int = 1, patience: int = 2,
                 max_seconds: float | None = None, solver: str = "", snapshot=None):
     """The refine-with-a-held-out-check loop that every refinement on renders runs: the
-    basis's and the residual's Gauss-Newton iterations
+    basis's and the residual's Levenberg-Marquardt iterations
     (:mod:`brdfkit.basis.refine_on_screen`), the hypernetwork latent's Adam steps
     (:mod:`brdfkit.hypernet.refine_on_screen`).
 

@@ -16,7 +16,7 @@ last layer's base: an untrained network corrects nothing, and the model *is* the
 :func:`evaluate` are the same forward pass in NumPy, which ``encode``, ``decode``,
 ``render`` and ``metrics`` use so that they load no torch, and
 :func:`evaluate_with_jacobian` adds its derivative in the coefficients (forward mode), what
-an encoder's Gauss-Newton fit through the correction needs
+an encoder's Levenberg-Marquardt fit through the correction needs
 (:func:`brdfkit.residual.encoding.fit_through`).
 """
 
