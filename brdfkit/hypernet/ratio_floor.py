@@ -33,7 +33,7 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["FLOOR_REGION", "floor_loss", "floor_data"]
+__all__ = ["FLOOR_REGION", "LOW_RATIO", "floor_loss", "floor_data", "low_ratio_cells"]
 
 FLOOR_REGION = (4.0, 55.0)
 """``(theta_h below, theta_d above)`` in degrees: the near-specular grazing cells that
@@ -43,6 +43,12 @@ degrees; ``benchmarks/black_cells.py``).
 There the reference (the training set's median) is 30 to 60 times the material, so the
 mapped value of the material is about ``rho / rho_ref`` (0.02), and a mapped error of that
 size, which neither the cosine-weighted mapped loss nor the renders see, decodes black."""
+
+
+LOW_RATIO = 0.1
+"""A cell where a material is below this share of the reference, ``(rho + eps) / (rho_ref +
+eps) < 0.1`` in some channel, is one :func:`low_ratio_cells` may draw: there its mapped
+value is under 0.1, and the mapped loss sees a black decode as an error of that size."""
 
 
 def floor_loss(pred, target, zero, ratio: float):
@@ -80,3 +86,15 @@ def floor_data(tset, dev):
     ref = np.asarray(tset.rho_ref, np.float64).reshape(N_CELLS, 3)[cells]
     zero = (EPS / (ref + EPS)).astype(np.float32)
     return torch.from_numpy(pos).to(dev), torch.from_numpy(zero).to(dev)
+
+
+def low_ratio_cells(values, candidates: int, most: int, gen, dev):
+    """int64 torch positions (at most ``most``) among ``candidates`` uniform positions in
+    the training cells where one material, of mapped values ``values`` (float32
+    ``(n_cells, 3)`` on ``dev``), is below :data:`LOW_RATIO` of the reference in some
+    channel; drawn with the generator ``gen`` (the tune's, seeded by the step)."""
+    import torch
+
+    c = torch.randint(0, values.shape[0], (candidates,), generator=gen).to(dev)
+    low = (torch.expm1(values[c]) < LOW_RATIO).any(dim=-1)
+    return c[low][:most]

@@ -40,7 +40,7 @@ import time
 import numpy as np
 
 from brdfkit.errors import InputError, require_counts
-from brdfkit.hypernet.ratio_floor import floor_data, floor_loss
+from brdfkit.hypernet.ratio_floor import floor_data, floor_loss, low_ratio_cells
 from brdfkit.render.objective import OBJECTIVE
 
 __all__ = ["TuneOptions", "tune"]
@@ -80,6 +80,11 @@ class TuneOptions:
         material far below the reference, whose mapped value is nearly 0).
     floor_ratio
         The share of the material's value below which :attr:`floor_weight` costs, in (0, 1).
+    floor_candidates
+        Uniform cells per material and step among which the ratio floor also takes up to
+        ``query`` where the material is far below the reference
+        (:func:`~brdfkit.hypernet.ratio_floor.low_ratio_cells`; 0: none): the dark cells
+        under a bright median, wherever they are.
     """
 
     lr_decoder: float = 1e-4
@@ -95,12 +100,15 @@ class TuneOptions:
     resolution: int = 32
     floor_weight: float = 0.0
     floor_ratio: float = 0.1
+    floor_candidates: int = 0
 
     def __post_init__(self):
         for name in ("lr_decoder", "lr_latent", "lr_encoder", "map_weight", "lambda_z", "floor_weight"):
             v = getattr(self, name)
             if not (isinstance(v, (int, float)) and math.isfinite(v) and v >= 0):
                 raise InputError(f"tune option {name} must be a finite number >= 0, got {v!r}")
+        if not (isinstance(self.floor_candidates, int) and self.floor_candidates >= 0):
+            raise InputError(f"tune option floor_candidates must be a count >= 0, got {self.floor_candidates!r}")
         if not (isinstance(self.floor_ratio, (int, float)) and 0 < self.floor_ratio < 1):
             raise InputError(f"tune option floor_ratio must be in (0, 1), got {self.floor_ratio!r}")
         require_counts(self, _COUNTS, "tune option ")
@@ -120,7 +128,7 @@ class TuneOptions:
                 if key == "scenes":
                     parts = value if isinstance(value, (tuple, list)) else str(value).split(",")
                     out[key] = tuple(str(v).strip() for v in parts)
-                elif key in _COUNTS:
+                elif key in _COUNTS or key == "floor_candidates":
                     out[key] = int(value)
                 else:
                     out[key] = float(value)
@@ -169,7 +177,7 @@ def _identity(model_digest, names, opts, seed) -> str:
     """What a checkpoint must have been made for to be resumed: the model, the materials,
     the options but the learning rates, the seed (JSON, sorted keys)."""
     fields = dataclasses.asdict(opts)
-    for key, default in (("resolution", 32), ("floor_weight", 0.0), ("floor_ratio", 0.1)):
+    for key, default in (("resolution", 32), ("floor_weight", 0.0), ("floor_ratio", 0.1), ("floor_candidates", 0)):
         if fields[key] == default:  # added later: left out at its default, so older checkpoints resume
             del fields[key]
     for key in ("lr_decoder", "lr_latent", "lr_encoder"):  # may change on --resume
@@ -310,6 +318,12 @@ def _step(run: _Tuning, m, screens, views, values, cells, gen, opts, dev, floor=
             pred_r = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
             loss_f = loss_f + (floor_loss(pred, values[i, q[b]], zero[q[b]], opts.floor_ratio)
                                + floor_loss(pred_r, values[i, p], zero[p], opts.floor_ratio))
+            if opts.floor_candidates:
+                p = low_ratio_cells(values[i], opts.floor_candidates, opts.query, gen, dev)
+                if p.numel():
+                    th, td, pd = (a.float() for a in cell_angles(cells[p]))
+                    pred_l = hyponet_forward(weights, hd_vectors(th, td, pd)[None])[0]
+                    loss_f = loss_f + floor_loss(pred_l, values[i, p], zero[p], opts.floor_ratio)
         th, td, pd = (a.float() for a in cell_angles(cells[c[b]]))
         z_enc = net.encode(hd_vectors(th, td, pd)[None], values[i, c[b]][None])
         loss_e = loss_e + torch.mean((z_enc - latents[i].detach()) ** 2)
