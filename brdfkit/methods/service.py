@@ -103,24 +103,21 @@ class Service:
         offers = {k.name: k.offered(self.files[k.part]) for k in KINDS.values() if k.part in self.files}
         return {k: o for k, o in offers.items() if o.sizes}
 
+    # The four below are documented in the class's text: a docstring would document them twice.
     @property
     def kinds(self) -> dict:
-        """``{kind: sizes}`` (the class's text)."""
         return {k: tuple(o.sizes) for k, o in self.offers.items()}
 
     @property
     def default_kind(self) -> str | None:
-        """The kind ``encode`` makes by default, or ``None``."""
         return next(iter(self.offers), None)
 
     @property
     def default_sizes(self) -> dict:
-        """``{kind: size}`` ``encode`` makes with no ``--size``."""
         return {k: o.default_size for k, o in self.offers.items()}
 
     @property
     def members(self) -> dict:
-        """``{kind: members}``: the most decoders any size of the kind has."""
         return {k: o.members for k, o in self.offers.items()}
 
     @property
