@@ -43,6 +43,10 @@ from ``A S a_i`` and ``A S M S a_i``, so a step costs two passes of ``O(P K)`` f
 candidates and ``K`` components. The candidates are those of
 :mod:`brdfkit.acquisition.planning` (measurable cells the basis covers). The design is deterministic:
 ``seed`` only seeds the Gaussian draws.
+
+Given the samples measured so far, the greedy starts from the posterior after them instead
+of ``I``, one a colour channel, and ``J`` and ``q`` are taken at this material's estimate:
+:mod:`brdfkit.acquisition.rounds` (``brdfkit plan --given``).
 """
 
 from __future__ import annotations
@@ -53,7 +57,7 @@ import numpy as np
 
 from brdfkit.errors import InputError
 
-__all__ = ["DEFAULT_DRAWS", "Likelihood", "render_metric", "cell_precision", "greedy_render"]
+__all__ = ["DEFAULT_DRAWS", "Likelihood", "render_metric", "scene_pairs", "cell_precision", "greedy_render"]
 
 DEFAULT_DRAWS = 16
 """Materials drawn from the ridge's Gaussian to average ``J^T J`` and ``q`` over (besides the
@@ -159,37 +163,48 @@ def render_metric(basis, draws: int = DEFAULT_DRAWS, seed: int = 0, scenes=_SCEN
     return out.copy()
 
 
-def _render_metric(basis, draws, seed, scenes, device) -> np.ndarray:
+def scene_pairs(basis, turn: float = 0.0, device=None):
+    """The screen's pairs a scene's Jacobian reads (:class:`brdfkit.render.screen.Screen`,
+    the environment turned by ``turn``), those the basis covers with a weight:
+    ``(tab (M, K + 2), w (M,), comp (M, K), to_pixels, pixels)``, ``comp`` the mapped
+    value's derivative ``d mapped / d z`` (the components times sigma), ``to_pixels`` a
+    sparse ``(pixels, M)`` map a channel summing each pixel's pairs with their radiance
+    weights."""
     import scipy.sparse
 
-    from brdfkit.render.display import display_slope
     from brdfkit.render.screen import rotated_envmap, screen
 
+    sc = screen(device, env=rotated_envmap(turn) if turn else None)
+    th, td, pd = (_array(t, np.float64) for t in (sc.theta_h, sc.theta_d, sc.phi_d))
+    tab, ok = _basis_at_pairs(basis, th, td, pd)
+    w = basis.weight(th, td, pd)
+    ok &= w > 0
+    tab, w = tab[ok], w[ok]
+    pix = _array(sc.pix, np.int64)[ok]
+    rw = _array(sc.rw, np.float64)[ok]  # (M, 3)
+    comp = tab[:, 2:] * basis.sigma.astype(np.float64)[None, :]
+    # pixel p's row of J (channel ch): sum over its pairs m of rw_m drho_m comp_m, times
+    # the slope; the pairs' radiance weights go into one sparse map a channel
+    to_pixels = [scipy.sparse.csr_matrix((rw[:, ch], (pix, np.arange(pix.size))), shape=(sc.pixels, pix.size))
+                 for ch in range(3)]
+    return tab, w, comp, to_pixels, sc.pixels
+
+
+def _render_metric(basis, draws, seed, scenes, device) -> np.ndarray:
+    from brdfkit.render.display import display_slope
+
     k = basis.n_components
-    sig = basis.sigma.astype(np.float64)
     cs = _gaussian_draws(basis, draws, seed)
     out = np.zeros((k, k))
     for turn in scenes:
-        sc = screen(device, env=rotated_envmap(turn) if turn else None)
-        th, td, pd = (_array(t, np.float64) for t in (sc.theta_h, sc.theta_d, sc.phi_d))
-        tab, ok = _basis_at_pairs(basis, th, td, pd)
-        w = basis.weight(th, td, pd)
-        ok &= w > 0
-        tab, w = tab[ok], w[ok]
-        pix = _array(sc.pix, np.int64)[ok]
-        rw = _array(sc.rw, np.float64)[ok]  # (M, 3)
-        comp = tab[:, 2:] * sig[None, :]  # d mapped / d z
-        # pixel p's row of J (channel ch): sum over its pairs m of rw_m drho_m comp_m, times
-        # the slope; the pairs' radiance weights go into one sparse map a channel
-        to_pixels = [scipy.sparse.csr_matrix((rw[:, ch], (pix, np.arange(pix.size))), shape=(sc.pixels, pix.size))
-                     for ch in range(3)]
+        tab, w, comp, to_pixels, pixels = scene_pairs(basis, turn, device)
         for c in cs:
             rho, drho = _rho(tab, w, c[None, :], basis.mapping)
             slope = display_slope(np.stack([m @ rho[0] for m in to_pixels], -1))
             dcomp = drho[0][:, None] * comp  # d rho / d z at each pair
             for ch in range(3):
                 jac = (to_pixels[ch] @ dcomp) * slope[:, ch:ch + 1]
-                out += jac.T @ jac / sc.pixels
+                out += jac.T @ jac / pixels
     return out / (len(cs) * 3)
 
 
@@ -216,7 +231,7 @@ def cell_precision(basis, cells: np.ndarray, likelihood: Likelihood, draws: int 
     return q + acc / len(cs) / likelihood.s2
 
 
-def greedy_render(rows: np.ndarray, q: np.ndarray, metric: np.ndarray, n: int) -> np.ndarray:
+def greedy_render(rows: np.ndarray, q: np.ndarray, metric: np.ndarray, n: int, start=None) -> np.ndarray:
     """Positions ``(n,)`` into the candidates, chosen greedily (module docstring).
 
     Parameters
@@ -224,38 +239,55 @@ def greedy_render(rows: np.ndarray, q: np.ndarray, metric: np.ndarray, n: int) -
     rows
         ``(P, K)`` design rows ``a_i`` (components times sigma).
     q
-        ``(P,)`` sample precisions.
+        ``(P,)`` sample precisions, or ``(C, P)``: one posterior a colour channel, each
+        with its own precisions (:mod:`brdfkit.acquisition.rounds`).
     metric
-        ``(K, K)`` ``M = E[J^T J]``.
+        ``(K, K)`` ``M = E[J^T J]``, or ``(C, K, K)``, one a channel.
     n
         Directions to choose, ``<= P``.
+    start
+        ``(C, K, K)`` posterior covariances ``S`` to start from (the samples measured so
+        far); ``None``: the prior's, ``I``. A step takes the candidate whose gains summed
+        over the channels are largest.
     """
     p, k = rows.shape
     if n > p:
         raise InputError(f"{n} directions asked for, but the basis covers only {p} measurable cells")
     a = np.asarray(rows, np.float64)
-    m = np.asarray(metric, np.float64)
-    s = np.eye(k)
+    qs = np.asarray(q, np.float64).reshape(-1, p)
+    ms = np.asarray(metric, np.float64).reshape(-1, k, k)
+    channels = max(len(qs), len(ms), 1 if start is None else np.size(start) // (k * k))
+    qs, ms = np.broadcast_to(qs, (channels, p)), np.broadcast_to(ms, (channels, k, k))
     # Per candidate j only two numbers of S change the gain: ua_j = a_j S a_j and
     # vu_j = a_j S M S a_j. A rank-one update of S changes each by terms of au = A S a_i
     # and b = A S M S a_i, two passes over the candidates a choice (the rows of A S and
     # A S M kept whole took six, and their outer-product updates most of the time).
-    ua = np.einsum("ij,ij->i", a, a)
-    vu = np.einsum("ij,ij->i", a @ m, a)
+    if start is None:  # S = I: the plain products, the bytes of a plan without samples
+        ss = [np.eye(k) for _ in qs]
+        ua = [np.einsum("ij,ij->i", a, a) for _ in qs]
+        vu = [np.einsum("ij,ij->i", a @ m, a) for m in ms]
+    else:
+        ss = [np.array(s, np.float64) for s in np.broadcast_to(np.reshape(start, (-1, k, k)), (channels, k, k))]
+        as_ = [a @ s for s in ss]
+        ua = [np.einsum("ij,ij->i", x, a) for x in as_]
+        vu = [np.einsum("ij,ij->i", x @ m, x) for x, m in zip(as_, ms)]
     taken = np.zeros(p, bool)
     chosen = []
     for _ in range(n):
-        den = 1.0 + q * ua
-        gain = np.where(taken, -np.inf, q * vu / den)
-        i = int(np.argmax(gain))
+        dens = [1.0 + qc * u for qc, u in zip(qs, ua)]
+        gain = qs[0] * vu[0] / dens[0]
+        for qc, v, d in zip(qs[1:], vu[1:], dens[1:]):
+            gain = gain + qc * v / d
+        i = int(np.argmax(np.where(taken, -np.inf, gain)))
         chosen.append(i)
         taken[i] = True
-        si = s @ a[i]                     # S a_i
-        scale = q[i] / den[i]
-        msi = m @ si
-        au = a @ si                       # A S a_i
-        b = a @ (s @ msi)                 # A S M S a_i
-        vu += scale * au * (scale * au * float(msi @ si) - 2.0 * b)
-        ua -= scale * au * au
-        s -= scale * np.outer(si, si)
+        for c, (qc, s, m, den) in enumerate(zip(qs, ss, ms, dens)):
+            si = s @ a[i]                     # S a_i
+            scale = qc[i] / den[i]
+            msi = m @ si
+            au = a @ si                       # A S a_i
+            b = a @ (s @ msi)                 # A S M S a_i
+            vu[c] += scale * au * (scale * au * float(msi @ si) - 2.0 * b)
+            ua[c] -= scale * au * au
+            s -= scale * np.outer(si, si)
     return np.array(chosen, np.int64)
