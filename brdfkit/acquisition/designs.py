@@ -6,7 +6,9 @@ name         design                                                        basis
 ``nielsen``  greedy minimum condition number of the basis rows (Nielsen,   needed
              Jensen and Ramamoorthi 2015), then moved cell by cell
 ``render``   greedy minimum expected render error of the fit under the     needed
-             basis's prior (:mod:`brdfkit.acquisition.optimal_design`)
+             basis's prior (:mod:`brdfkit.acquisition.optimal_design`), or
+             under its posterior after given samples
+             (:mod:`brdfkit.acquisition.rounds`)
 ``uniform``  uniform over the Rusinkiewicz angles, as ``brdfkit sample``   optional
              draws (:func:`brdfkit.acquisition.sampling.draw_cells`)
 ============ ============================================================= =========
@@ -81,13 +83,17 @@ class Design:
     indices), where ``pool`` holds the basis's candidate cells, their rows, the basis and
     the fit's likelihood (``None`` without a basis) and ``seed`` seeds everything random;
     ``needs_basis`` says it cannot run without a PCA basis, ``options`` names the
-    keywords ``choose`` takes."""
+    keywords ``choose`` takes. ``takes_given``: it also plans given the samples measured
+    so far (``brdfkit plan --given``): ``choose(pool, n, seed, given=posterior, **options)``,
+    ``posterior`` a :class:`~brdfkit.acquisition.rounds.Posterior` and ``pool`` without
+    its cells, returns ``(cells, (expected error before, after))``."""
 
     name: str
     summary: str
     choose: Callable = dataclasses.field(repr=False)
     needs_basis: bool = True
     options: tuple = ()
+    takes_given: bool = False
 
 
 @dataclasses.dataclass
@@ -270,12 +276,16 @@ def _nielsen_design(pool, n, seed, evaluations=DEFAULT_EVALUATIONS, refine=True)
     return pool.cells[_nielsen(pool, n, rng, evaluations=evaluations, refine=refine)]
 
 
-def _render_design(pool, n, seed, draws=None, candidates=DEFAULT_CANDIDATES):
+def _render_design(pool, n, seed, draws=None, candidates=DEFAULT_CANDIDATES, given=None):
     from brdfkit.acquisition.optimal_design import DEFAULT_DRAWS, cell_precision, greedy_render, render_metric
 
     draws = DEFAULT_DRAWS if draws is None else int(draws)
     if draws < 0 or int(candidates) < 1:
         raise InputError(f"render design: draws must be >= 0 and candidates >= 1, got {draws} and {candidates}")
+    if given is not None:  # from the posterior after the samples, at this material
+        from brdfkit.acquisition.rounds import render_given
+
+        return render_given(pool, n, seed, given, draws, candidates)
     rng = np.random.default_rng(seed)
     p = pool.cells.size
     if n > p:
@@ -299,7 +309,8 @@ DESIGNS: dict[str, Design] = {
     "nielsen": Design("nielsen", "greedy minimum condition number of the PCA basis rows (Nielsen et al. 2015)",
                       _nielsen_design, needs_basis=True, options=("evaluations", "refine")),
     "render": Design("render", "greedy minimum expected render error of the fit under the basis's prior "
-                     "(brdfkit.acquisition.optimal_design)", _render_design, needs_basis=True, options=("draws", "candidates")),
+                     "(brdfkit.acquisition.optimal_design)", _render_design, needs_basis=True,
+                     options=("draws", "candidates"), takes_given=True),
     "uniform": Design("uniform", "uniform over the Rusinkiewicz angles, as `brdfkit sample -n` draws",
                       _uniform_design, needs_basis=False),
 }

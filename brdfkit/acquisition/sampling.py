@@ -4,7 +4,9 @@ measurements a lab would take, were the table the material.
 * :func:`draw_samples`: ``n`` cells drawn at random (uniform over the Rusinkiewicz
   angles, as ``brdfkit sample -n`` draws, or over the measured cells);
 * :func:`draw_cells`: the same draw of cells, for a mask of allowed cells;
-* :func:`measure_samples`: the table at given directions (``brdfkit sample --at``).
+* :func:`measure_samples`: the table at given directions (``brdfkit sample --at``);
+* :func:`join_samples`: the samples so far and a round's, one set (``brdfkit sample
+  --at --given``: a lab measuring in rounds, ``docs/planning.md``).
 
 Examples
 --------
@@ -28,7 +30,7 @@ from brdfkit.geometry.trilinear import lookup_trilinear
 from brdfkit.io.directions import DirectionSet
 from brdfkit.io.samples import SampleSet
 
-__all__ = ["draw_samples", "draw_cells", "measure_samples"]
+__all__ = ["draw_samples", "draw_cells", "measure_samples", "join_samples"]
 
 
 def draw_samples(table: np.ndarray, n: int, seed: int | None = 0,
@@ -141,3 +143,35 @@ def measure_samples(table: np.ndarray, directions: DirectionSet, source: str = "
                          f"{'s' if bad.sum() > 1 else ''})")
     return SampleSet(np.array(directions.theta_h, np.float64), np.array(directions.theta_d, np.float64),
                      np.array(directions.phi_d, np.float64), np.clip(rgb, 0.0, None), source)
+
+
+def join_samples(*sets: SampleSet, source: str = "") -> SampleSet:
+    """Sample sets one after the other, as one set: the samples measured so far, then a
+    round's (``brdfkit sample --at PLAN --given SO_FAR``). The values and angles are
+    kept as they are (a cell measured twice stays twice: both are measurements).
+
+    Parameters
+    ----------
+    sets
+        :class:`~brdfkit.io.samples.SampleSet`, at least one.
+    source
+        The joined set's name; default the sets' names joined by ``+``.
+
+    Returns
+    -------
+    SampleSet
+        Their notes kept, each once.
+
+    Examples
+    --------
+    >>> from brdfkit.geometry import TABLE_SHAPE
+    >>> table = np.full(TABLE_SHAPE, 0.5)
+    >>> both = join_samples(draw_samples(table, 3, seed=0, source="a"), draw_samples(table, 2, seed=1, source="b"))
+    >>> len(both), both.source
+    (5, 'a+b')
+    """
+    if not sets:
+        raise InputError("no sample sets to join")
+    notes = list(dict.fromkeys(s.note for s in sets if s.note))
+    return SampleSet(*(np.concatenate([getattr(s, k) for s in sets]) for k in ("theta_h", "theta_d", "phi_d", "rgb")),
+                     source or "+".join(s.source for s in sets if s.source), "; ".join(notes))

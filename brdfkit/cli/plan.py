@@ -35,35 +35,38 @@ def _given(name: str) -> bool:
 @click.option("--within", type=click.Path(dir_okay=False), default=None, metavar="SAMPLES",
               help="Choose among the directions of this sample file (an instrument's measurements or reachable "
                    "configurations: .csv or pbrt-v2 .brdf), one per cell of the MERL grid, at their own angles.")
+@click.option("--given", type=click.Path(dir_okay=False), default=None, metavar="SAMPLES",
+              help="The samples of this material measured so far (any sample file, as --within): choose the next N "
+                   "directions for it, from the fit's posterior after them and at its estimate, never in a cell "
+                   "measured (render design; docs/planning.md, \"Measuring in rounds\").")
 @click.option("-o", "--output", type=click.Path(dir_okay=False), required=True, help="Output directions CSV.")
-def command(n, model, design, seed, evaluations, refine, draws, candidates, within, output):
+def command(n, model, design, seed, evaluations, refine, draws, candidates, within, given, output):
     """Write N measurement directions chosen for the reconstruction with a PCA basis.
 
     The CSV (docs/formats.md, "Directions CSV") gives each direction pair as the
     Rusinkiewicz angles theta_h,theta_d,phi_d (radians) and as the unit vectors
     wi_x..wo_z of the local frame (z the normal): what the light source and the detector
     are set to. Measure there (or `brdfkit sample TABLE --at` it), then `brdfkit sparse`.
+    In rounds: --given the samples so far chooses the next N for this material.
     See docs/planning.md.
     """
     from brdfkit.atomic import refuse_overwrite_of_inputs
     from brdfkit.console import console
     from brdfkit.errors import InputError
     from brdfkit.io.directions import write_directions
+    from brdfkit.io.sample_files import read_sample_file
     from brdfkit.acquisition.planning import plan_directions
 
-    refuse_overwrite_of_inputs(output, [p for p in (model, within) if p])
-    given = {"nielsen": ("evaluations", "refine"), "render": ("draws", "candidates")}
+    refuse_overwrite_of_inputs(output, [p for p in (model, within, given) if p])
+    applies = {"nielsen": ("evaluations", "refine"), "render": ("draws", "candidates")}
     values = {"evaluations": evaluations, "refine": refine, "draws": draws, "candidates": candidates}
     options = {k: v for k, v in values.items() if _given(k)}
-    wrong = [k for k in options if k not in given.get(design, ())]
+    wrong = [k for k in options if k not in applies.get(design, ())]
     if wrong:
         raise InputError(f"{' and '.join('--' + k for k in wrong)} do not apply to --design {design}")
-    samples = None
-    if within:
-        from brdfkit.io.sample_files import read_sample_file
-
-        samples = read_sample_file(within)
-    plan = plan_directions(model, n, design=design, seed=seed, within=samples, **options)
+    samples = read_sample_file(within) if within else None
+    so_far = read_sample_file(given) if given else None
+    plan = plan_directions(model, n, design=design, seed=seed, within=samples, given=so_far, **options)
     write_directions(output, plan.directions, comments=[
         f"brdfkit plan: {plan.describe()}" + (f"; among the {len(samples)} directions of {within}" if within else ""),
         "theta_h,theta_d,phi_d: Rusinkiewicz angles in radians; wi, wo: unit vectors, z the surface normal, "
