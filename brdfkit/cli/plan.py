@@ -29,7 +29,8 @@ def _given(name: str) -> bool:
 @click.option("--refine/--no-refine", default=None,
               help="nielsen: move the chosen cells to better grid neighbours at the end [default: refine].")
 @click.option("--draws", type=click.IntRange(min=0), default=None,
-              help="render: materials drawn from the basis's prior to average the render error over [default: 16].")
+              help="render: materials drawn from the basis's prior (with --given: from the fit's posterior around "
+                   "its estimate) to average the render error over [default: 16].")
 @click.option("--candidates", type=click.IntRange(min=1), default=None,
               help="render: cells considered, drawn at random from the basis's [default: 100000].")
 @click.option("--within", type=click.Path(dir_okay=False), default=None, metavar="SAMPLES",
