@@ -7,7 +7,7 @@ import numpy as np
 from brdfkit.errors import ModelMismatchError
 from brdfkit.render.renderable import DecodedBRDF
 
-__all__ = ["ResidualBRDF", "check_embedding", "sample_count"]
+__all__ = ["ResidualBRDF", "check_embedding"]
 
 
 def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndarray, dict]:
@@ -44,14 +44,6 @@ def check_embedding(emb, residual, digest: str, name: str = "") -> tuple[np.ndar
         if member not in residual.members(k):
             raise ModelMismatchError(f"{what}: the residual has no member {member} for {emb.size} numbers")
     return emb.values.reshape(k, 3), g
-
-
-def sample_count(emb) -> float | None:
-    """The sample count an embedding of the removed ``brdfkit sparse --method residual``
-    records (``options`` ``samples``), or ``None``: read by nothing that decodes (no network
-    takes a count now); kept while :mod:`brdfkit.view.live` still asks."""
-    count = (emb.options or {}).get("samples")
-    return None if count is None else float(count)
 
 
 class ResidualBRDF(DecodedBRDF):

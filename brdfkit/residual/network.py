@@ -77,12 +77,6 @@ class ResidualConfig:
         """The network's input size, ``2 k_max``."""
         return 2 * self.k_max
 
-    @property
-    def count(self) -> bool:
-        """Always ``False``: no network takes a sample count since the networks of sparse
-        fits left (:data:`LEFT_FIELDS`); kept while :mod:`brdfkit.view.live` still asks."""
-        return False
-
     def to_json(self) -> str:
         d = dataclasses.asdict(self)
         if not d["member"]:  # files from before members read and write as they were
@@ -103,18 +97,15 @@ def hyponet_shapes(width: int) -> list:
     return [(6, width), (width,), (width, width), (width,), (width, 1), (1,)]
 
 
-def net_input(c_norm: np.ndarray, k_max: int, count: None = None) -> np.ndarray:
+def net_input(c_norm: np.ndarray, k_max: int) -> np.ndarray:
     """The input ``(B, 2 k_max)`` float32 of coefficients in training standard deviations
-    ``(B, K)``: padded to ``k_max``, the mask of the ``K`` given after them (``count``:
-    ``None`` alone, kept while :mod:`brdfkit.view.live` passes it; :data:`LEFT_FIELDS`).
+    ``(B, K)``: padded to ``k_max``, the mask of the ``K`` given after them.
 
     Examples
     --------
     >>> net_input(np.array([[1.0, 2.0]]), 3).tolist()
     [[1.0, 2.0, 0.0, 1.0, 1.0, 0.0]]
     """
-    if count is not None:
-        raise ValueError("no residual network takes a sample count (the networks of sparse fits left brdfkit)")
     c_norm = np.asarray(c_norm, np.float32)
     b, k = c_norm.shape
     z = np.zeros((b, 2 * k_max), np.float32)

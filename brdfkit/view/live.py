@@ -182,8 +182,7 @@ def material_uniforms(material: dict) -> dict:
 
         cfg, state = net
         layout = hyponet_layout(cfg.width)
-        count = material.get("count") if cfg.count else None  # a sparse fit's network takes its sample count
-        z = net_input((c / np.asarray(basis.sigma[:k], np.float64)[:, None]).T, cfg.k_max, count)
+        z = net_input((c / np.asarray(basis.sigma[:k], np.float64)[:, None]).T, cfg.k_max)
         weights = hyponet_weights(state, cfg, z)
         for ch in range(3):
             channels[ch]["brdfkit_net"] = pack_hyponet(weights, ch, layout)
@@ -245,25 +244,19 @@ def basis_data(basis, k: int, compress: bool = True) -> dict:
 
 def live_material(emb, decoder, name: str) -> dict:
     """What the shader needs of one embedding besides its basis:
-    ``{"kind", "k", "coefficients" (3 K, component-major), "gain", "basis", "net", "count"}``
-    (``basis``: the decoder's basis object, ``net``: ``(cfg, state)`` or ``None``,
-    ``count``: a sparse fit's sample count, or ``None``),
+    ``{"kind", "k", "coefficients" (3 K, component-major), "gain", "basis", "net"}``
+    (``basis``: the decoder's basis object, ``net``: ``(cfg, state)`` or ``None``),
     checked against its decoder as ``brdfkit decode`` checks it."""
-    count = None
     if decoder.kind == "residual":
-        from brdfkit.residual.brdf import check_embedding, sample_count
+        from brdfkit.residual.brdf import check_embedding
 
         coefficients, gains = check_embedding(emb, decoder.obj, decoder.digest, name)
-        count = sample_count(emb)
         if len(gains) > 1:  # a blend of two materials that chose different members
             raise InputError(f"{name}: a blend of the corrections of members {', '.join(map(str, gains))}; "
                              f"--live decodes one member's: view it without --live")
         member, gain = next(iter(gains.items()), (0, 0.0))
         _, cfg, state = decoder.obj.net_for(coefficients.shape[0], member)
         basis, net = decoder.obj.basis, (cfg, state)
-        if cfg.count and count is None and gain:
-            raise InputError(f"{name}: its correction network decodes a sparse fit, and the embedding names no "
-                             f"sample count")
     else:
         from brdfkit.basis.coefficients import check_coefficients
 
@@ -273,4 +266,4 @@ def live_material(emb, decoder, name: str) -> dict:
         raise InputError(f"{name}: an embedding of {c.shape[0]} components per channel; the shader decodes at most "
                          f"{MAX_COMPONENTS}")
     return {"kind": decoder.kind, "k": int(c.shape[0]), "coefficients": [float(x) for x in c.reshape(-1)],
-            "gain": float(gain), "basis": basis, "net": net, "count": count}
+            "gain": float(gain), "basis": basis, "net": net}
