@@ -20,6 +20,8 @@ run of the model), as ``brdfkit models`` shows them.
         --validation merl80-l40=bench-sparse/bench.json     # the manifest's figures alone
     python tools/pack_builtin.py --src runs/models --dst brdfkit/models --priors-only
                                                             # new bases and learnt priors, the hypernetworks kept
+    python tools/pack_builtin.py --src runs/l7 --dst brdfkit/models --networks-only merl-rgl-l7=l7-floor2.safetensors \
+        --validation merl-rgl-l7=bench151/bench.json        # a hypernetwork tuned further from the shipped one
 
 A manifest of version 1 in ``--dst`` (``--validation-only``, ``--priors-only``) is
 rewritten as version 2.
@@ -54,6 +56,16 @@ def _tuned(name, ends):
                      f"--steps {end}" + (" --resume" if i else "") + _STAGES[i] for i, end in enumerate(ends))
 
 
+# merl-rgl-l7's ratio floor (issue 58): two tunes on from the network packed before them
+# (the built-in of that day, float16), the second drawing the floor's cells where the
+# material is far below the reference (`--networks-only` writes these from their records).
+_L7_FLOOR = ("brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l7 -o merl-rgl-l7-tune1.safetensors --steps 4000 "
+             "--seed 0 -O floor_weight=1.0 -O lr_decoder=3e-05 -O lr_encoder=0.001 -O lr_latent=0.001; "
+             "brdfkit tune PROXIES/merl PROXIES/rgl -m merl-rgl-l7-tune1.safetensors -o merl-rgl-l7.safetensors "
+             "--steps 4000 --seed 1 -O floor_candidates=65536 -O floor_weight=3.0 -O lr_decoder=3e-05 "
+             "-O lr_encoder=0.001 -O lr_latent=0.001")
+
+
 MODELS = [  # name, {part: file} (the network first), materials list, fit commands
     ("merl-rgl-l40", {"network": "merl-rgl-l40.safetensors", "basis": "merl-rgl-basis.safetensors",
                       "prior": "merl-rgl-prior.safetensors", "residual": "merl-rgl-residual.safetensors"},
@@ -70,7 +82,8 @@ MODELS = [  # name, {part: file} (the network first), materials list, fit comman
      + _PRIOR.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-prior") + "; "
      + _RESIDUAL.format(data=_MERL80, basis="merl80-basis.safetensors", name="merl80-residual", members=2)),
     ("merl-rgl-l7", {"network": "merl-rgl-l7.safetensors"}, "MERL + RGL (151)",
-     _PAPER.format(name="merl-rgl-l7", latent="--latent-dim 7 ") + "; " + _tuned("merl-rgl-l7", (9710, 14495, 20283))),
+     _PAPER.format(name="merl-rgl-l7", latent="--latent-dim 7 ") + "; " + _tuned("merl-rgl-l7", (9710, 14495, 20283))
+     + "; " + _L7_FLOOR),
 ]
 REFERENCE = "merl80-reference.safetensors"
 BASES = sorted({m[1]["basis"] for m in MODELS if "basis" in m[1]})
@@ -256,6 +269,9 @@ def main():
                     help="only set the manifest's validation figures; no model file is touched")
     ap.add_argument("--priors-only", action="store_true",
                     help="only the bases and learnt priors of --src, the shipped hypernetworks kept as they are")
+    ap.add_argument("--networks-only", nargs="*", default=None, metavar="NAME=FILE",
+                    help="only these bundles' hypernetworks, each tuned on from the shipped one (`brdfkit tune -m "
+                         "NAME`, then tunes of tunes, all in --src): every other part kept as it is")
     ap.add_argument("--residuals-only", action="store_true",
                     help="only the residuals of --src, every other part kept as it is")
     ap.add_argument("--members", nargs="*", default=[], metavar="NAME=MEMBERS",
@@ -311,6 +327,8 @@ def main():
         write_manifest(args.dst, entries, default=doc["default"])
         print(f"set the validation of {', '.join(sorted(validation)) or 'no model'} in {args.dst}/manifest.json")
         return
+    if args.networks_only is not None:
+        return _networks(args, write_manifest, renders)
     if args.priors_only or args.residuals_only:
         return _some_parts(args, write_manifest, ("basis", "prior") if args.priors_only else ("residual",), renders)
     os.makedirs(args.dst, exist_ok=True)
@@ -366,6 +384,77 @@ def _some_parts(args, write_manifest, only: tuple, renders: dict) -> None:
     write_manifest(args.dst, entries, default=doc["default"])
     total = sum(os.path.getsize(os.path.join(args.dst, f)) for f in os.listdir(args.dst) if f.endswith(".safetensors"))
     print(f"built-in folder {args.dst}: {total / 1e6:.1f} MB of model files")
+
+
+def _tune_chain(src_folder: str, path: str, shipped: str) -> list:
+    """The ``meta["tune"]`` records from the shipped network (digest ``shipped``) to the
+    file ``path``, oldest first: each tune names the network it started from (``from``),
+    found by digest among the files of ``src_folder``."""
+    from brdfkit.api import load_model
+
+    by_digest = {}
+    for f in os.listdir(src_folder):
+        if f.endswith(".safetensors"):
+            try:
+                by_digest[load_model(os.path.join(src_folder, f), "cpu").digest] = os.path.join(src_folder, f)
+            except Exception:  # not a network file (a checkpoint, a basis): not in the chain
+                continue
+    chain, at = [], path
+    while True:
+        tuned = _tune_record(at)
+        if not tuned:
+            raise SystemExit(f"{at}: not tuned from {shipped[:12]} (no tune record)")
+        chain.insert(0, tuned)
+        if tuned["from"] == shipped:
+            return chain
+        if tuned["from"] not in by_digest:
+            raise SystemExit(f"{at}: tuned from {tuned['from'][:12]}, neither shipped nor in {src_folder}")
+        at = by_digest[tuned["from"]]
+
+
+def _tune_command(name: str, record: dict, start: str, out: str) -> str:
+    """The ``brdfkit tune`` command of one tune record (its non-default options)."""
+    from brdfkit.hypernet.tuning import TuneOptions
+
+    defaults = TuneOptions().__dict__
+    opts = "".join(f" -O {k}={v}" for k, v in record["options"].items()
+                   if k != "scenes" and v != defaults.get(k))
+    return (f"brdfkit tune PROXIES/merl PROXIES/rgl -m {start} -o {out} --steps {record['steps']} "
+            f"--seed {record['seed']}{opts}")
+
+
+def _networks(args, write_manifest, renders: dict) -> None:
+    """Replace bundles' hypernetworks by files of ``args.src`` tuned on from the shipped
+    ones (``--networks-only NAME=FILE``): packed as the others, the tunes added to the
+    entry's steps, seconds and command, its figures those of ``renders`` (or none)."""
+    from brdfkit.hypernet.packing import pack_network
+
+    with open(os.path.join(args.dst, "manifest.json")) as f:
+        doc = json.load(f)
+    entries = _entries(doc)
+    for item in args.networks_only:
+        name, _, file = item.partition("=")
+        entry = next((e for e in entries if e["name"] == name), None)
+        if entry is None or not file:
+            raise SystemExit(f"--networks-only {item}: give NAME=FILE, NAME a bundle of {args.dst}")
+        shipped = entry["parts"]["network"]
+        chain = _tune_chain(args.src, os.path.join(args.src, file), shipped["digest"])
+        start, commands = name, []
+        for i, record in enumerate(chain):
+            out = f"{name}.safetensors" if i == len(chain) - 1 else f"{name}-tune{i + 1}.safetensors"
+            commands.append(_tune_command(name, record, start, out))
+            entry["steps"] += int(record["steps"])
+            entry["train_seconds"] = round(entry["train_seconds"] + float(record["wall_time_s"]), 1)
+            start = out
+        entry["command"] += "; " + "; ".join(commands)
+        digest = pack_network(os.path.join(args.src, file), os.path.join(args.dst, shipped["file"]), half=True,
+                              reference_file=REFERENCE)
+        entry["parts"]["network"] = {"file": shipped["file"], "digest": digest}
+        entry.pop("renders", None)  # measured with the network before
+        if name in renders:
+            entry["renders"] = renders[name]
+        print(f"{name}: {shipped['file']} packed from {file} ({len(chain)} tune(s) on from the shipped network)")
+    write_manifest(args.dst, entries, default=doc["default"])
 
 
 if __name__ == "__main__":
