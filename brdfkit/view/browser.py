@@ -39,7 +39,7 @@ import numpy as np
 
 from brdfkit.errors import BrdfkitError
 
-__all__ = ["find_chromium", "screenshot", "Browser", "INSTALL_ADVICE", "BrowserError", "FLAGS"]
+__all__ = ["find_chromium", "screenshot", "Browser", "INSTALL_ADVICE", "BrowserError", "FLAGS", "MIN_WINDOW"]
 
 INSTALL_ADVICE = ("headless Chromium is needed: apt-get install chromium (Debian, Ubuntu), or set "
                   "$BRDFKIT_CHROMIUM to a Chromium or Chrome executable")
@@ -49,6 +49,11 @@ FLAGS = ("--headless", "--no-sandbox", "--use-angle=swiftshader", "--enable-unsa
          "--force-device-scale-factor=1", "--hide-scrollbars", "--mute-audio", "--remote-debugging-pipe")
 """Chromium's flags: headless, software WebGL (SwiftShader), no network of its own, an
 sRGB screen at scale 1, and the DevTools protocol on a pipe."""
+MIN_WINDOW = 128
+"""Pixels: the smallest window a :class:`Browser` opens. Headless Chromium (Debian's 156)
+never answers ``Page.captureScreenshot`` in a 64-pixel window, while a 64-pixel still in a
+128-pixel window is captured in seconds: a smaller still is drawn in a window of this size
+and its corner captured."""
 
 
 class BrowserError(BrdfkitError):
@@ -120,17 +125,19 @@ def _start(size: int):
 
 class Browser:
     """One headless Chromium with one page (a context manager): :meth:`open` a URL and
-    wait until the page is drawn, :meth:`capture` its top-left corner. ``timeout``: the
+    wait until the page is drawn, :meth:`capture` its top-left corner (``size`` pixels
+    square by default; the window is at least :data:`MIN_WINDOW`). ``timeout``: the
     seconds Chromium has to answer any one command (the start's included)."""
 
     def __init__(self, size: int = 256, timeout: float = 60.0):
         self.size, self.timeout = int(size), float(timeout)
-        self.proc, self.pipe, self.profile, self.fds = _start(self.size)
+        self.window = max(self.size, MIN_WINDOW)
+        self.proc, self.pipe, self.profile, self.fds = _start(self.window)
         try:
             target = self._call("Target.createTarget", {"url": "about:blank"}, None)
             self.session = self._call("Target.attachToTarget", {"targetId": target["targetId"], "flatten": True},
                                       None)["sessionId"]
-            self._call("Emulation.setDeviceMetricsOverride", {"width": self.size, "height": self.size,
+            self._call("Emulation.setDeviceMetricsOverride", {"width": self.window, "height": self.window,
                                                               "deviceScaleFactor": 1, "mobile": False})
         except Exception:
             self.close()
