@@ -99,6 +99,18 @@ def read_merl(path: str | os.PathLike) -> np.ndarray:
     >>> bool(np.isnan(table).any())  # below the horizon: not measured
     True
     """
+    stored = _read_stored(path)
+    table = stored.reshape(N_CELLS, 3) * MERL_SCALE
+    table[stored.reshape(N_CELLS, 3) < 0] = np.nan
+    table = table.reshape(TABLE_SHAPE)
+    _remember_exact(table, np.where(stored < 0, np.nan, stored))
+    return table
+
+
+def _read_stored(path: str | os.PathLike) -> np.ndarray:
+    """A MERL file's stored values, checked (:func:`read_merl`'s every refusal), cell-major
+    flat: what :func:`write_merl` reads back of what it wrote (the table itself, and the
+    exact values it remembers, are not needed there)."""
     path = check_input_file(path)
     size = os.path.getsize(path)
     if size < _HEADER_BYTES:
@@ -119,12 +131,7 @@ def read_merl(path: str | os.PathLike) -> np.ndarray:
         kind = "NaN" if np.isnan(stored[bad]) else "infinite"
         raise FormatError(path, f"{kind} value in the payload (channel {'RGB'[bad // N_CELLS]}, "
                                 f"cell {bad % N_CELLS}); {int((~finite).sum())} non-finite values in all")
-    stored = stored.reshape(3, N_CELLS).T.reshape(-1)  # channel-major -> cell-major
-    table = stored.reshape(N_CELLS, 3) * MERL_SCALE
-    table[stored.reshape(N_CELLS, 3) < 0] = np.nan
-    table = table.reshape(TABLE_SHAPE)
-    _remember_exact(table, np.where(stored < 0, np.nan, stored))
-    return table
+    return stored.reshape(3, N_CELLS).T.reshape(-1)  # channel-major -> cell-major
 
 
 def write_merl(path: str | os.PathLike, table) -> None:
@@ -166,7 +173,7 @@ def write_merl(path: str | os.PathLike, table) -> None:
     stored = _stored_values(table if arr is table else arr)
     stored[np.isnan(stored)] = -1.0
     payload = stored.reshape(N_CELLS, 3).T  # cell-major -> channel-major
-    with atomic_path(path, verify=read_merl) as tmp:
+    with atomic_path(path, verify=_read_stored) as tmp:
         with open(tmp, "wb") as f:
             # f.write, not ndarray.tofile(f): tofile turns a Ctrl-C that lands while it
             # writes into "TypeError: expected str ... not BufferedWriter".
