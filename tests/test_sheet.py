@@ -124,3 +124,30 @@ def test_comparison_sheet_is_the_same_png_for_the_same_inputs(tmp_path):
     for out in ("a.png", "b.png"):
         comparison_sheet(tmp_path / "ref.exr", [tmp_path / "pred.exr"], tmp_path / out, progress=False)
     assert (tmp_path / "a.png").read_bytes() == (tmp_path / "b.png").read_bytes()
+
+
+@pytest.mark.slow
+def test_a_sheet_reads_each_table_once_and_takes_renders_made_elsewhere(materials, tmp_path, monkeypatch):
+    """Four inputs, more than ``TABLES_KEPT``: each file is read once over the sheet's
+    check, renders, scores and antialiasing; a render the loader is given
+    (``FileLoader.remember``, the demo's) is shown and scored without a render of its own."""
+    import brdfkit.evaluation.comparison as comparison
+    from brdfkit.figures.comparison_sheet import comparison_sheet
+
+    four = [str(p) for p in (*materials, tmp_path / "again.binary")]
+    (tmp_path / "again.binary").write_bytes(materials[1].read_bytes())
+    assert len(four) > comparison.TABLES_KEPT
+    reads = []
+    read_table = comparison.read_table
+    monkeypatch.setattr(comparison, "read_table", lambda path, *a: reads.append(path) or read_table(path, *a))
+    comparison_sheet(four[0], four[1:], tmp_path / "s.png", resolution=8, progress=False)
+    assert sorted(map(str, reads)) == sorted(four)
+
+    loader = comparison.FileLoader(None, 8, False, keep=len(four))
+    made = loader.renders(four[:2])
+    again = comparison.FileLoader(None, 8, False, keep=len(four))
+    for path, image in zip(four[:2], made):
+        again.remember(path, image)
+    rows = comparison_sheet(four[0], [four[1]], tmp_path / "t.png", loader=again)
+    assert again.counts.renders == 0 and again.counts.cached >= 2
+    assert rows == comparison_sheet(four[0], [four[1]], tmp_path / "u.png", loader=loader)

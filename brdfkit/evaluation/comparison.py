@@ -79,10 +79,13 @@ class FileLoader:
         Called once, before the first decoder that runs in torch is loaded (a
         hypernetwork's): ``brdfkit metrics`` sizes torch's thread pool there, so that
         nothing else imports torch.
+    keep
+        Dense tables kept (35 MB each; default :data:`TABLES_KEPT`): a sheet keeps all of
+        its inputs', which it reads again for each step (fewer, and each is read anew).
     """
 
     def __init__(self, model_path=None, resolution: int | None = None, progress: bool = True,
-                 before_torch=None):
+                 before_torch=None, keep: int = TABLES_KEPT):
         self.model_path = model_path
         self.resolution = resolution
         self.progress = progress
@@ -90,6 +93,7 @@ class FileLoader:
         self._models = EmbeddingDecoders(model_path, before_load=self._torch_needed)
         self._renders: dict = {}
         self._tables: collections.OrderedDict = collections.OrderedDict()
+        self.keep = max(1, int(keep))
         self.counts = RenderCounts()
 
     def _torch_needed(self):
@@ -132,6 +136,15 @@ class FileLoader:
             self.counts.renders += len(todo)
         return [self._renders[k].copy() for k in keys]
 
+    def remember(self, path, image, resolution=None, scene: str = "reference") -> None:
+        """Keep ``image`` as the render of the BRDF file ``path`` in ``scene`` (made
+        elsewhere, of the same table at the same settings): :meth:`renders` returns it
+        instead of rendering the file again."""
+        from brdfkit.files import render_file as files
+
+        settings = files.reference_scene(resolution or self.resolution)
+        self._renders[self._render_key(path, settings, scene)] = image
+
     def check(self, path):
         """Read ``path`` (and the decoder an ``.emb`` needs) without rendering: a bad
         reference must not cost a render of the prediction first (a 256 px render is
@@ -147,8 +160,8 @@ class FileLoader:
 
     def table(self, path):
         """The dense table of a BRDF file; a table file (``.binary``, ``.bsdf``) is read once per loader (the
-        check, the render and the BRDF-space error all need it), the last
-        :data:`TABLES_KEPT` kept."""
+        check, the render and the BRDF-space error all need it), the last :attr:`keep`
+        kept."""
         if path.lower().endswith(TABLE_SUFFIXES):
             st = os.stat(path)
             key = (os.path.realpath(path), st.st_ino, st.st_size, st.st_mtime_ns)  # a rewritten file is read again
@@ -156,7 +169,7 @@ class FileLoader:
                 table = read_table(path)
                 table.setflags(write=False)  # shared by the check, the render and the scores
                 self._tables[key] = table
-                while len(self._tables) > TABLES_KEPT:
+                while len(self._tables) > self.keep:
                     self._tables.popitem(last=False)
             self._tables.move_to_end(key)
             return self._tables[key]

@@ -90,7 +90,8 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     loader
         A :class:`brdfkit.evaluation.comparison.FileLoader` to read and render through
         (``model_path``, ``resolution``, ``progress`` and ``before_torch`` are then its
-        own): sheets of the same files in several scenes read each file once.
+        own): sheets of the same files in several scenes read each file once, when it
+        keeps as many tables as they have inputs (``FileLoader(..., keep=N)``).
 
     Returns
     -------
@@ -109,7 +110,8 @@ def comparison_sheet(ref: str | os.PathLike, preds: Sequence[str | os.PathLike],
     preds = [os.fspath(p) for p in preds]
     if not preds:
         raise InputError("compare: give a reference and at least one prediction")
-    loader = loader or FileLoader(model_path, resolution, progress, before_torch=before_torch)
+    # every input's table kept: the check, the renders, the scores and the antialiasing each read them
+    loader = loader or FileLoader(model_path, resolution, progress, before_torch=before_torch, keep=len(preds) + 1)
     for path in [ref, *preds]:  # every input readable before the first render
         check_input_file(path)
         loader.check(path)
