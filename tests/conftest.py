@@ -3,7 +3,8 @@ the tiny model configurations, the good and bad files of the bad-input tests,
 ``installed`` (a module's ``shelf`` of built-in models in use), the ``brdfkit`` runners
 (a subprocess, or in-process with ``run_cli``, or ``run_cli_uncaptured`` in a module
 fixture), the checks of one-line errors
-(``one_error_line``, ``format_error``) and the leftover-file check.
+(``one_error_line``, ``format_error``), the leftover-file check, and the order in which
+the suite's two workers take the files (:data:`HEAVY_FIRST`).
 
 Fixtures apply by name (the two autouse ones to every test); the constants and functions are imported
 by name (``from conftest import run_brdfkit, TINY``; pytest puts ``tests/`` on
@@ -82,6 +83,31 @@ def no_model_env(monkeypatch, no_builtin_models):
     sets it."""
     monkeypatch.delenv("BRDFKIT_MODEL", raising=False)
     monkeypatch.setenv("BRDFKIT_BUILTIN_MODELS", str(no_builtin_models))
+
+
+# --- the order the two workers take the files in -------------------------------------------
+
+HEAVY_FIRST = ("test_batch_bytes.py", "test_view_browser.py", "test_routes_*.py", "test_demo_real.py",
+               "test_reproducible.py", "test_residual.py", "test_baselines.py", "test_shipped_models.py",
+               "test_training.py", "test_torch_free.py", "test_prior.py", "test_demo.py", "test_bench.py")
+"""The test files (``fnmatch`` patterns) that take longest in the suite's 2-worker run,
+longest first (``--durations``): the workers take them first, then the others in their
+order. pytest-xdist hands a worker a whole file at a time (``--dist loadfile``); a long file
+taken last leaves the other worker idle until it ends, which is most of what a suite of
+unequal files loses on 2 cores (``--no-loadscope-reorder`` keeps this order; xdist's own
+puts the files with most tests first). A file that takes more than about 15 s goes here."""
+
+
+def pytest_collection_modifyitems(config, items):
+    """The :data:`HEAVY_FIRST` files first (a stable sort: each file's tests stay together
+    and in their order, the other files in theirs)."""
+    import fnmatch
+
+    def rank(item) -> int:
+        name = item.path.name
+        return next((i for i, p in enumerate(HEAVY_FIRST) if fnmatch.fnmatch(name, p)), len(HEAVY_FIRST))
+
+    items.sort(key=rank)
 
 
 # --- the files of the bad-input tests (test_bad_input_*.py, helpers_bad_input.py) -----------
