@@ -77,10 +77,8 @@ def run_bench(cfg: BenchConfig, progress: bool = True, resume: bool = False) -> 
     Returns
     -------
     dict
-        The content of ``bench.json``: ``config`` (each built-in by the name it was
-        given, :meth:`BenchConfig.recorded`), ``parts`` (``{built-in: {part: digest}}``
-        of the parts the names resolved to), ``environment``, ``materials``,
-        ``records`` (one per reconstruction: material, method, N, seed, sampling and
+        The content of ``bench.json``: ``config`` and ``parts`` (:meth:`BenchConfig.recorded`),
+        ``environment``, ``materials``, ``records`` (one per reconstruction: material, method, N, seed, sampling and
         how the samples were made (:meth:`brdfkit.acquisition.protocol.SamplingProtocol.samples`),
         metrics, ``time_s``, ``render_s``, or ``error``), ``summary`` (:func:`summarise`),
         ``outputs``.
@@ -89,8 +87,7 @@ def run_bench(cfg: BenchConfig, progress: bool = True, resume: bool = False) -> 
     ------
     InputError
         Bad options, missing files or test materials, unreadable model files, unknown
-        built-in model names; with ``resume``, an earlier run of another configuration
-        or of other built-in parts.
+        built-in model names; with ``resume``, an earlier run of another configuration or parts.
     """
     given = cfg.with_default_methods()
     cfg = given.resolved()  # built-in names -> their files; the record keeps the names and the parts' digests
