@@ -169,22 +169,52 @@ def test_demo_weights_file_is_package_data():
 
 # --- brdfkit demo ---------------------------------------------------------------------------
 
-@pytest.mark.slow
-def test_real_demo_end_to_end(shelf, monkeypatch, capsys, tmp_path):
+def _demo_in_process(args) -> tuple[int, str, str]:
+    """``brdfkit ARGS`` in this process where no ``capsys`` is at hand (a module fixture):
+    ``(exit code, stdout, stderr)``."""
+    import contextlib
+    import io
+
+    out, err = io.StringIO(), io.StringIO()
+    with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err):
+        try:
+            main([str(a) for a in args])
+        except SystemExit as e:
+            return e.code, out.getvalue(), err.getvalue()
+    return 0, out.getvalue(), err.getvalue()
+
+
+@pytest.fixture(scope="module")
+def demo_run(shelf, tmp_path_factory):
+    """One ``brdfkit demo`` on the tiny shelf, shared by the tests of what it prints and
+    writes: two materials (so a blend), every table kept (``--keep-tables``), the sheets at
+    8 px copied into a gallery (``--gallery``), each compression refined for 3 steps."""
+    import types
+
     import brdfkit.demos.real_materials
 
+    folder = tmp_path_factory.mktemp("demo-run")
+    out, gallery = folder / "demo", folder / "images"
+    gallery.mkdir()
     # in this process, the demo's refinement of 20 steps a table cut to 3 (as `quick`)
     assert brdfkit.demos.real_materials.COMPRESSION_STEPS == 20
-    monkeypatch.setenv(builtin.BUILTIN_ENV, str(shelf))
-    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_STEPS", 3)
-    out = tmp_path / "demo"
-    code, report, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "violet-rubber,teflon", "--resolution", "12",
-                                            "--keep-tables"])
+    with pytest.MonkeyPatch.context() as mp:
+        mp.delenv("BRDFKIT_MODEL", raising=False)
+        mp.setenv(builtin.BUILTIN_ENV, str(shelf))
+        mp.setattr(brdfkit.demos.real_materials, "COMPRESSION_STEPS", 3)
+        code, report, stderr = _demo_in_process(["demo", "--out", out, "--only", "violet-rubber,teflon",
+                                                 "--resolution", "8", "--keep-tables", "--gallery", gallery])
     assert code == 0, stderr[-3000:]
+    return types.SimpleNamespace(out=out, gallery=gallery, report=report, stderr=stderr, shelf=shelf)
+
+
+@pytest.mark.slow
+def test_real_demo_prints_its_tables_labels_and_times(demo_run):
+    report, stderr, out = demo_run.report, demo_run.stderr, demo_run.out
     flat = re.sub(r"\s+", " ", report)
     assert "Times" in report and "whole demo" in report
     for what in ("sparse", "compressed"):  # ranked by renders (issue 28)
-        assert f"MERL test materials, {what}: PSNR dB / Delta E 2000 of 12 px reference-scene renders" in flat
+        assert f"MERL test materials, {what}: PSNR dB / Delta E 2000 of 8 px reference-scene renders" in flat
     for name in ("violet-rubber", "teflon"):  # a row in each table: 4 sparse columns, 3 compressions
         rows = re.findall(rf"{name}\s*[│|]((?:\s*[\d.]+ / [\d.]+\s*[│|]?)+)", report)
         values = [[float(v) for v in re.findall(r"[\d.]+", row)] for row in rows]
@@ -210,7 +240,18 @@ def test_real_demo_end_to_end(shelf, monkeypatch, capsys, tmp_path):
     assert f"writing into {out}" in stderr.replace("\n", "")
     assert "compressing (refined on screen, at most 3 steps)" in re.sub(r"\s+", " ", stderr)
     assert "materials/  (2 files, 70.0 MB)" in report and "not kept" not in report
+    assert "Look: open" in report and "drag on a sphere to turn the light" in flat
+    assert "rendering violet-rubber and 5 reconstructions in the reference scene" in re.sub(r"\s+", " ", stderr)
+    assert "rendering violet-rubber and 3 reconstructions in the backlight scene" in re.sub(r"\s+", " ", stderr)
+    assert "comparison sheets, reference and backlight (10 renders, 8 px)" in flat
 
+
+@pytest.mark.slow
+def test_real_demo_writes_its_tables_embeddings_and_errors(demo_run):
+    out, shelf = demo_run.out, demo_run.shelf
+    assert sorted(os.listdir(out)) == ["decoded", "embeddings", "errors.json", "materials", "plot-violet-rubber.png",
+                                       "reconstructed", "samples", "sheet-violet-rubber-backlight.png",
+                                       "sheet-violet-rubber.png", "view.html"]
     # The tables: the material, the four sparse reconstructions, three compressions, a blend.
     ref = read_merl(out / "materials" / "violet-rubber.binary")
     np.testing.assert_allclose(ref, nbrdf_table(load_nbrdf_weights()["violet-rubber"], device="cpu"),
@@ -239,9 +280,12 @@ def test_real_demo_end_to_end(shelf, monkeypatch, capsys, tmp_path):
         (LABELS[2], "unseen", "basis", 9)]
     assert doc["compression_steps"] == 3 and doc["interpolation_model"] == "merl80-l40"
     assert doc["psnr"]["teflon"].keys() == doc["errors"]["teflon"].keys()  # the renders the tables rank by
-    # The sheet and the plot, of the first material.
-    for png in ("sheet-violet-rubber.png", "sheet-violet-rubber-backlight.png", "plot-violet-rubber.png"):
-        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # The digests of the parts that made the figures, as the manifest records them: the
+    # learnt prior and the basis of the sparse reconstructions, each compression's decoder.
+    digest = lambda m, p: entries[m].part(p).digest  # noqa: E731
+    assert doc["parts"] == {"merl80-l40": {p: digest("merl80-l40", p) for p in ("basis", "prior")},
+                            "merl-rgl-l40": {"network": digest("merl-rgl-l40", "network")},
+                            "merl-rgl-l7": {"network": digest("merl-rgl-l7", "network")}}
     # The page of the materials: the first, its unseen compression decoded by the page's shader, the other.
     page = (out / "view.html").read_text()
     data = json.loads(page.split('<script id="brdfkit-data" type="application/json">')[1].split("</script>")[0])
@@ -251,19 +295,54 @@ def test_real_demo_end_to_end(shelf, monkeypatch, capsys, tmp_path):
 
 
 @pytest.mark.slow
-def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
-    import brdfkit.api
-    from brdfkit.demos.real_materials import run_real_demo
+def test_real_demo_draws_its_sheets_and_copies_the_gallery(demo_run):
+    """The sheets' scores in errors.json (what the gallery quotes), and the copies of the
+    sheets, the plot and errors.json that ``--gallery`` makes for the docs."""
+    out, gallery = demo_run.out, demo_run.gallery
+    for png in ("sheet-violet-rubber.png", "sheet-violet-rubber-backlight.png", "plot-violet-rubber.png"):
+        assert (out / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    doc = json.loads((out / "errors.json").read_text())
+    assert list(doc["sheets"]) == ["reference", "backlight"]
+    assert list(doc["sheets"]["reference"]) == ["prior, 40 samples", "prior, 400 samples", *TILES]
+    assert list(doc["sheets"]["backlight"]) == TILES
+    for row in (*doc["sheets"]["reference"].values(), *doc["sheets"]["backlight"].values()):
+        assert set(row) == {"psnr", "delta_e", "ssim", "brdf_log_rmse", "delta_e_max"}
+        assert row["delta_e_max"] >= row["delta_e"] >= 0
+    assert sorted(os.listdir(gallery)) == ["demo-errors.json", "demo-plot.png", "demo-sheet-backlight.png",
+                                           "demo-sheet.png"]
+    for src, dst in (("errors.json", "demo-errors.json"), ("sheet-violet-rubber.png", "demo-sheet.png"),
+                     ("sheet-violet-rubber-backlight.png", "demo-sheet-backlight.png"),
+                     ("plot-violet-rubber.png", "demo-plot.png")):
+        assert (gallery / dst).read_bytes() == (out / src).read_bytes()
+    assert "Copied into" in demo_run.report
 
-    calls = []
-    encode = brdfkit.api.encode
+
+@pytest.mark.slow
+def test_real_demo_without_render_keeps_no_table(quick, monkeypatch, capsys, tmp_path):
+    """``brdfkit demo --no-render``: no sheet, so no dense table written, not even a
+    temporary one, and the output says how to keep them."""
+    import brdfkit.api
+    import brdfkit.demos.real_materials
+
+    calls, results = [], []
+    encode, run_real_demo = brdfkit.api.encode, brdfkit.demos.real_materials.run_real_demo
 
     def recording_encode(data, model, **kw):
         calls.append((model.kind, model.sizes[-1], kw.get("refine", True), kw.get("steps")))
         return encode(data, model, **kw)
 
     monkeypatch.setattr(brdfkit.api, "encode", recording_encode)
-    res = run_real_demo(tmp_path / "d", only=["chrome-steel"], render=False, device="cpu")
+    # the command's own result, kept (the command imports the function when it runs)
+    monkeypatch.setattr(brdfkit.demos.real_materials, "run_real_demo",
+                        lambda *a, **kw: results.append(run_real_demo(*a, **kw)) or results[-1])
+    code, stdout, stderr = run_cli(capsys, ["demo", "--out", tmp_path / "d", "--only", "chrome-steel", "--no-render",
+                                            "--device", "cpu"])
+    assert code == 0, stderr[-3000:]
+    flat = re.sub(r"\s+", " ", stdout)
+    assert "were not kept; --keep-tables writes them" in flat and "Look: open" not in flat
+    assert "(8 tables, 0.28 GB); brdfkit material chrome-steel -o chrome-steel.binary writes" in flat
+    assert "dense tables stay in memory" in re.sub(r"\s+", " ", stderr)
+    res = results[0]
     assert res.materials == ["chrome-steel"] and res.sparse_method == "prior" and res.sheet is None
     assert res.columns == SPARSE_COLUMNS + LABELS
     assert [c[:3] for c in res.compressions] == [
@@ -278,7 +357,6 @@ def test_real_demo_in_process_without_render(quick, monkeypatch, tmp_path):
     assert res.times[-1][0] == "whole demo" and all(t >= 0 for _, t in res.times)
     assert all(os.path.isfile(p) for p in res.files)
     assert not any("+" in os.path.basename(p) for p in res.files)  # one material: no blend
-    # By default no dense table is written: no sheet, so not even a temporary one.
     assert not res.keep_tables and not [p for p in res.files if p.endswith(".binary")]
     assert sorted(os.listdir(tmp_path / "d")) == ["embeddings", "errors.json", "plot-chrome-steel.png", "samples"]
     assert sorted(os.listdir(tmp_path / "d" / "embeddings")) == [
@@ -319,12 +397,13 @@ def _interrupted_sheet(monkeypatch, seen):
 
 
 @pytest.mark.slow
-def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, capsys, tmp_path):
+def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, tmp_path):
     """The sheet's six inputs are named by their tiles' labels (the sheet labels its tiles
     with the file stems): the reference, the default method from both sample counts and
     the three compressions, in-sample and unseen. Without --keep-tables they go to a
     temporary folder in OUT that is removed at the end, and on Ctrl-C during the sheet
-    too; with it, they are links to the kept tables, in a temporary folder likewise."""
+    too; with it, they are links to the kept tables, in a temporary folder likewise. (The
+    sheets themselves: ``demo_run``.)"""
     from brdfkit.demos.real_materials import run_real_demo
 
     tiles = ["teflon.binary", "prior, 40 samples.binary", "prior, 400 samples.binary",
@@ -348,40 +427,6 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, c
                 np.testing.assert_array_equal(tables[path], read_merl(k))
         else:
             assert sorted(os.listdir(out)) == ["embeddings", "plot-teflon.png", "samples"]
-
-    monkeypatch.undo()  # the real sheet again, and the tiny shelf with a short refinement (as `quick`)
-    import brdfkit.demos.real_materials
-
-    monkeypatch.setenv(builtin.BUILTIN_ENV, str(quick))
-    monkeypatch.setattr(brdfkit.demos.real_materials, "COMPRESSION_STEPS", 3)
-    out, gallery = tmp_path / "e", tmp_path / "images"
-    gallery.mkdir()
-    code, stdout, stderr = run_cli(capsys, ["demo", "--out", out, "--only", "teflon", "--resolution", "8",
-                                            "--gallery", gallery])
-    assert code == 0, stderr[-3000:]
-    assert sorted(os.listdir(out)) == ["embeddings", "errors.json", "plot-teflon.png", "samples",
-                                       "sheet-teflon-backlight.png", "sheet-teflon.png", "view.html"]
-    assert "Look: open" in stdout and "drag on a sphere to turn the light" in re.sub(r"\s+", " ", stdout)
-    assert "were not kept; --keep-tables writes them" in re.sub(r"\s+", " ", stdout)
-    assert "(8 tables, 0.28 GB); brdfkit material teflon -o teflon.binary writes" in re.sub(r"\s+", " ", stdout)
-    # The sheets' scores in errors.json (what the gallery quotes), and its copies for the docs.
-    doc = json.loads((out / "errors.json").read_text())
-    assert list(doc["sheets"]) == ["reference", "backlight"]
-    assert list(doc["sheets"]["reference"]) == ["prior, 40 samples", "prior, 400 samples", *TILES]
-    assert list(doc["sheets"]["backlight"]) == TILES
-    for row in (*doc["sheets"]["reference"].values(), *doc["sheets"]["backlight"].values()):
-        assert set(row) == {"psnr", "delta_e", "ssim", "brdf_log_rmse", "delta_e_max"}
-        assert row["delta_e_max"] >= row["delta_e"] >= 0
-    assert sorted(os.listdir(gallery)) == ["demo-errors.json", "demo-plot.png", "demo-sheet-backlight.png",
-                                           "demo-sheet.png"]
-    for src, dst in (("errors.json", "demo-errors.json"), ("sheet-teflon.png", "demo-sheet.png"),
-                     ("sheet-teflon-backlight.png", "demo-sheet-backlight.png"), ("plot-teflon.png", "demo-plot.png")):
-        assert (gallery / dst).read_bytes() == (out / src).read_bytes()
-    assert "Copied into" in stdout
-    assert "dense tables stay in memory" in re.sub(r"\s+", " ", stderr)
-    assert "rendering teflon and 5 reconstructions in the reference scene" in re.sub(r"\s+", " ", stderr)
-    assert "rendering teflon and 3 reconstructions in the backlight scene" in re.sub(r"\s+", " ", stderr)
-    assert "comparison sheets, reference and backlight (10 renders, 8 px)" in re.sub(r"\s+", " ", stdout)
 
 
 def test_sheets_render_at_128_px_by_default():

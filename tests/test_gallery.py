@@ -7,8 +7,14 @@ neither GitHub nor Sphinx shows: ``43.0<!-- demo-errors: psnr/blue-metallic-pain
 -->`` (keys separated by ``/``; the figure is the value rounded to the digits quoted). In
 the gallery every decimal number and every figure in dB outside code must carry one; in
 the README, every figure in dB or of Delta E in a paragraph that names the demo. So a
-figure left unmarked fails here as a figure that disagrees does. Fast (text and JSON
-only): part of the normal suite, with no marker.
+figure left unmarked fails here as a figure that disagrees does.
+
+The figures are also those of the built-ins that ship: ``demo-errors.json`` records the
+digest of every part that made them (``parts``, ``{built-in: {part: digest}}``), and each
+must be the digest the package's manifest records now; a part replaced (retrained and
+packed) without the gallery drawn again fails here, and ``brdfkit demo --gallery
+docs/images`` is what mends it. Fast (text and JSON only): part of the normal suite, with
+no marker.
 """
 
 from __future__ import annotations
@@ -82,6 +88,41 @@ def errors() -> dict:
         doc = json.load(f)
     assert doc["format"] == "brdfkit-demo-errors"
     return doc
+
+
+def stale_parts(recorded: dict, manifest) -> list[str]:
+    """``built-in/part`` of each part in ``recorded`` (``{built-in: {part: digest}}``) whose
+    digest is not the one the manifest (:func:`brdfkit.models.builtin.read_manifest`)
+    records, or that it does not list."""
+    bundles = {b.name: b for b in manifest.bundles}
+    out = []
+    for name, parts in sorted(recorded.items()):
+        for part, digest in sorted(parts.items()):
+            entry = bundles[name].part(part) if name in bundles else None
+            if entry is None or entry.digest != digest:
+                out.append(f"{name}/{part}")
+    return out
+
+
+def test_the_gallery_was_drawn_with_the_shipped_parts(errors):
+    """Every part that made the gallery's figures is the one the package ships: a part
+    replaced since needs the gallery drawn again."""
+    from brdfkit.models.builtin import read_manifest
+
+    manifest = read_manifest(os.path.join(ROOT, "brdfkit", "models"))
+    assert errors.get("parts"), "demo-errors.json records no parts: brdfkit demo --gallery docs/images"
+    assert set(errors["parts"]) == {errors["sparse_model"], *errors["compression_models"]}
+    assert stale_parts(errors["parts"], manifest) == [], \
+        "parts changed since the gallery was drawn: brdfkit demo --gallery docs/images"
+
+
+def test_a_replaced_part_is_stale():
+    from brdfkit.models.builtin import Bundle, Manifest, PartEntry
+
+    manifest = Manifest("m", "a", (Bundle("a", {"basis": PartEntry("b.st", "m/b.st", "1" * 64)}),))
+    assert stale_parts({"a": {"basis": "1" * 64}}, manifest) == []
+    assert stale_parts({"a": {"basis": "2" * 64}}, manifest) == ["a/basis"]
+    assert stale_parts({"a": {"residual": "1" * 64}, "z": {"basis": "1" * 64}}, manifest) == ["a/residual", "z/basis"]
 
 
 @pytest.mark.parametrize("page", sorted(QUOTING))

@@ -91,11 +91,12 @@ def _mean(values):
 @click.option("--resolution", type=click.IntRange(min=8, max=1024), default=SHEET_RESOLUTION,
               show_default=True, help="Render size of the comparison sheet, pixels.")
 @click.option("--keep-tables/--no-keep-tables", default=False, show_default=True,
-              help="Also write the dense MERL tables (33 tables of 35 MB, 1.15 GB; --train: the 700 MB "
+              help="Also write the dense MERL tables (17 tables of 35 MB, 0.59 GB; --train: the 700 MB "
                    "library and the decoded tables); without it they stay in memory or in a temporary "
                    "folder in OUT that is removed at the end. One material's table alone: brdfkit material.")
-@click.option("--only", default=None, hidden=True, metavar="NAME,...",
-              help="Run these of the shipped materials only (tests).")
+@click.option("--only", default=None, metavar="NAME,...",
+              help="The shipped materials to run, the first the sheets' and the plot's (brdfkit material "
+                   "--list names all four) [default: blue-metallic-paint,teflon].")
 @click.option("--gallery", "gallery", type=click.Path(file_okay=False), default=None, hidden=True, metavar="DIR",
               help="Also copy the sheets, the plot and errors.json into DIR under the gallery's names "
                    "(docs/images: docs/gallery.md).")
@@ -113,19 +114,19 @@ def command(train, out_dir, seed, device, do_render, resolution, keep_tables, on
             n_materials, holdout, options):
     """Try brdfkit on real materials with the built-in models (no download).
 
-    Four MERL materials the benchmark model never saw (shipped as their published NBRDF
-    fits) are reconstructed from 40 and 400 samples (learnt prior, and IPCA beside it),
-    compressed by three built-ins (in-sample: trained on them, the paper's protocol;
-    unseen: not) as `brdfkit encode` does (the 40-D ones' basis embeddings: 39 coefficients
-    of the PCA basis they ship; the 7-D one's latent), each refined on screen for at most
-    20 steps, and blended; prints the errors and times, and writes the samples,
-    embeddings, errors, comparison sheets (reference scene, and the compressions under
-    backlight; 128 px renders) and a plot into OUT (--keep-tables: the dense tables too,
-    33 of 35 MB, 1.15 GB; one material's table alone: brdfkit material NAME).
-    About two and a half minutes on 2 idle CPU cores (160 s: the run of 2026-11-28 in
-    docs/notes/demo.md). With --train: trains a small model on synthetic materials
-    instead, for --minutes (3): about 5 minutes in all (286 s: the training demo's run
-    recorded there). See docs/demo.md.
+    Two MERL materials the benchmark model never saw (shipped as their published NBRDF
+    fits; --only: others) are reconstructed from 40 and 400 samples (learnt prior, and
+    IPCA beside it), compressed by three built-ins (in-sample: trained on them, the
+    paper's protocol; unseen: not) as `brdfkit encode` does (the 40-D ones' residual
+    embeddings: 39 coefficients of the PCA basis they ship and their residual's
+    correction; the 7-D one's latent), each refined on screen for at most 20 steps, and
+    blended; prints the errors and times, and writes the samples, embeddings, errors,
+    comparison sheets (reference scene, and the compressions under backlight; 128 px
+    renders), a plot and a page of the materials (view.html) into OUT (--keep-tables: the
+    dense tables too, 17 of 35 MB, 0.59 GB; one material's table alone: brdfkit material
+    NAME). Under a minute on 2 CPU cores (46 s at load 2: the runs in docs/notes/demo.md). With
+    --train: trains a small model on synthetic materials instead, for --minutes (3): about
+    5 minutes in all (286 s: the training demo's run recorded there). See docs/demo.md.
     """
     if _mode(train):
         _train(out_dir, minutes, steps, n_materials, holdout, seed, device, do_render, options, keep_tables)

@@ -1,16 +1,18 @@
 """The demo on real materials with the built-in models (``brdfkit demo``).
 
-Four of the 20 MERL test materials, shipped as their published NBRDF networks and decoded
-to dense tables (:mod:`brdfkit.materials.nbrdf_networks`), go through everything brdfkit does with
-the built-in models (``docs/models.md``), none of which needs training here:
+Two of the 20 MERL test materials (:data:`DEMO_MATERIALS`, of the four shipped as their
+published NBRDF networks), decoded to dense tables (:mod:`brdfkit.materials.nbrdf_networks`),
+go through everything brdfkit does with the built-in models (``docs/models.md``), each job
+once a material, none of which needs training here:
 
 * sparse reconstruction from 40 and 400 samples (:func:`brdfkit.acquisition.sampling.draw_samples`)
   with ``brdfkit sparse``'s default method on ``merl80-l40`` (its learnt prior,
   :func:`brdfkit.methods.choice.choose`), which never saw these materials, and with
   IPCA on the same PCA basis beside it (Nielsen et al. 2015);
 * compression of the full table by three built-ins (:data:`COMPRESSIONS`) as ``brdfkit
-  encode`` makes it (:func:`brdfkit.api.encode`): the 40-D ones' basis embeddings (39
-  coefficients of the PCA basis they ship), the 7-D one's latent, each refined on screen
+  encode`` makes it (:func:`brdfkit.api.encode`): the 40-D ones' default embeddings (39
+  coefficients of the PCA basis they ship, and their residual's correction where they ship
+  one), the 7-D one's latent, each refined on screen
   for at most :data:`COMPRESSION_STEPS` steps, then decoded; of two kinds, labelled so:
 
   - *in-sample*: ``merl-rgl-l40`` (39 numbers) and ``merl-rgl-l7`` (7 numbers), fitted
@@ -28,7 +30,9 @@ the built-in models (``docs/models.md``), none of which needs training here:
 
 :func:`run_real_demo` returns what it measured and wrote; ``brdfkit demo`` prints it.
 It writes what one looks at: the sheet, the plot, the samples, the embeddings and the
-errors (``errors.json``). The 33 dense tables (35 MB each, 1.15 GB) stay in memory, the
+errors (``errors.json``, with the digests of the parts that made them:
+:func:`brdfkit.demos.real_outputs.parts_used`).
+The 17 dense tables (35 MB each, 0.59 GB) stay in memory, the
 six the sheet renders in a temporary folder removed at the end
 (:func:`brdfkit.demos.synthetic_training.scratch_folder`), unless ``keep_tables``.
 ``brdfkit demo --train`` is the synthetic training demo (:mod:`brdfkit.demos.synthetic_training`).
@@ -44,8 +48,8 @@ import time
 from brdfkit.errors import InputError
 
 __all__ = ["SPARSE_MODEL", "COMPRESSIONS", "COMPRESSION_MODELS", "COMPRESSION_SETS", "COMPRESSION_STEPS",
-           "INTERPOLATION_MODEL", "SAMPLE_COUNTS", "SHEET_RESOLUTION", "RealDemoResult", "demo_materials",
-           "check_models", "compression_labels", "run_real_demo"]
+           "INTERPOLATION_MODEL", "DEMO_MATERIALS", "SAMPLE_COUNTS", "SHEET_RESOLUTION", "RealDemoResult",
+           "demo_materials", "check_models", "compression_labels", "run_real_demo"]
 
 SPARSE_MODEL = "merl80-l40"
 """The built-in of the sparse reconstructions (trained without the test materials)."""
@@ -61,12 +65,17 @@ COMPRESSION_SETS = {"in-sample": "trained on all 151 MERL + RGL materials, these
 """What each kind of :data:`COMPRESSIONS` means, for the output."""
 COMPRESSION_STEPS = 20
 """Most refinement steps of each compression (``brdfkit encode``: 80 for a basis embedding,
-40 for a latent): 12 refinements (four materials, three models) in the demo's two and a half minutes."""
+40 for a latent): 6 refinements (two materials, three models) in the demo's minute."""
 INTERPOLATION_MODEL = "merl80-l40"
 """The compression model whose embeddings are blended (one of :data:`COMPRESSION_MODELS`).
 The unseen one, not ``merl-rgl-l40``: its basis is the one the sparse reconstructions'
 learnt prior uses, and editing materials that the model never saw is what a user does
 with their own measurements, which no built-in was trained on."""
+DEMO_MATERIALS = ("blue-metallic-paint", "teflon")
+"""The materials ``brdfkit demo`` runs unless told otherwise (``only``): two of the four
+shipped (:func:`demo_materials`), so that every job is shown once (the first material's
+sheets and plot, the blend needs a second) in well under a minute; ``--only`` names
+others, or all four."""
 SAMPLE_COUNTS = (40, 400)
 SHEET_RESOLUTION = 128
 """Render size of the comparison sheets and of the renders the error tables rank by, pixels:
@@ -182,7 +191,7 @@ class RealDemoResult:
 def _pick(only) -> list[str]:
     names = demo_materials()
     if not only:
-        return names
+        return [n for n in DEMO_MATERIALS if n in names]
     unknown = [n for n in only if n not in names]
     if unknown:
         raise InputError(f"unknown demo material(s) {', '.join(unknown)}; known: {', '.join(names)}")
@@ -199,7 +208,8 @@ def run_real_demo(out_dir: str = "brdfkit-demo", *, only=None, seed: int = 0, de
     out_dir
         Folder for the samples, embeddings, errors, sheet and plot (and tables).
     only
-        Names of the materials to run (default all four; :func:`demo_materials`).
+        Names of the materials to run (default :data:`DEMO_MATERIALS`; any of
+        :func:`demo_materials`).
     seed
         Seed of the sample draws.
     device
@@ -246,7 +256,7 @@ def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_
     import torch
 
     from brdfkit.console import console
-    from brdfkit.demos.real_outputs import DemoFiles, StepClock, write_figures
+    from brdfkit.demos.real_outputs import DemoFiles, StepClock, step_times, write_figures
     from brdfkit.materials.nbrdf_networks import load_nbrdf_weights, nbrdf_table
 
     err = console()
@@ -272,7 +282,10 @@ def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_
              **{f"{method} {n}": f"{method}, {n} samples" for n in SAMPLE_COUNTS},
              **{m: short for m, _, _, short in models.comps}}
 
-    rows, embs, shown, sheet_inputs, scored = [], {}, {}, {}, []
+    # Each tile's column of the error tables (a compression's tile is keyed by its model).
+    column_of = {"reference": "reference", **{k: k for k in tiles if k in columns},
+                 **{m: label for m, _, label, _ in models.comps}}
+    rows, embs, shown, sheet_inputs, scored, sheet_renders = [], {}, {}, {}, [], {}
     for name in names:
         err.print(f"{name}: decoding its NBRDF network, reconstructing, compressing ({refined})")
         with clock("decode NBRDF tables"):
@@ -285,7 +298,11 @@ def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_
             from brdfkit.demos.real_outputs import render_scores
 
             with clock("render scores"):
-                scored.append((name, render_scores(ref, [tables[c] for c in columns], resolution)))
+                scores, images = render_scores(ref, [tables[c] for c in columns], resolution)
+            scored.append((name, scores))
+            if first:  # the reference-scene sheet shows these renders: made once
+                by_column = dict(zip(["reference", *columns], images))
+                sheet_renders = {k: by_column[column_of[k]] for k in tiles}
         if emb is not None:
             embs[name] = emb
         if first:
@@ -297,8 +314,10 @@ def _run(out_dir, scratch, keep_tables, names, seed, device, resolution, refine_
 
     name = names[0]
     plot_path, sheet_path = write_figures(files, err, clock, name, shown, sheet_inputs, tiles, resolution,
-                                          compressions=COMPRESSION_MODELS, live=INTERPOLATION_MODEL)
-    times = _times(clock, models, names, files, refine_steps, len(tiles), resolution)
+                                          compressions=COMPRESSION_MODELS, live=INTERPOLATION_MODEL,
+                                          renders=sheet_renders)
+    times = step_times(clock, models.methods, models.comps, len(names), len(SAMPLE_COUNTS), files, refine_steps,
+                       len(tiles), resolution)
     files.written.append(_write_errors(out_dir, models, columns, rows, refine_steps, seed, scored, files.sheets))
     times.append(("whole demo", time.monotonic() - t_all))
     return RealDemoResult(out_dir, names, method, columns, rows, times, sorted(files.written), sheet_path,
@@ -410,42 +429,14 @@ def _interpolate(a, b, embs, models: _Models, files, clock, err) -> None:
     files.table("decoded", stem, mixed)
 
 
-def _times(clock, models: _Models, names, files, refine_steps, renders, resolution) -> list:
-    """``[(step, seconds)]`` of the demo's steps from ``clock``, the whole demo not yet;
-    ``renders``: the sheet's tiles (counted only with a sheet)."""
-    n_mat = len(names)
-    encode_step = f"encode + refine ({refine_steps} steps)" if refine_steps > 0 else "encode (encoder pass only)"
-    times = [("load the built-in models", clock.total("load models")),
-             (f"decode {n_mat} NBRDF network(s) to MERL tables", clock.total("decode NBRDF tables"))]
-    for label, _, _ in models.methods:
-        times.append((f"sparse reconstruction, {label} (mean of {n_mat * len(SAMPLE_COUNTS)})",
-                      clock.mean(f"sparse {label}")))
-    for m, _, label, _ in models.comps:
-        times.append((f"{encode_step}, {label} (mean)", clock.mean(f"encode {m}")))
-        times.append((f"decode, {label} (mean)", clock.mean(f"decode {m}")))
-    if n_mat > 1:
-        times.append(("interpolate two embeddings + decode", clock.total("interpolate")))
-    times.append((f"score the results (brdf_log_rmse, {len(clock.spent.get('score', ()))})",
-                  clock.total("score")))
-    if "render scores" in clock.spent:
-        times.append((f"render and score the results ({resolution} px)", clock.total("render scores")))
-    where = "" if files.keep_tables else " the sheet renders, to a temporary folder"
-    times.append((f"write the MERL tables{where} ({files.n_tables})", clock.total("write tables")))
-    times.append(("plot", clock.total("plot")))
-    if files.scratch is not None:
-        times.append((f"comparison sheets, reference and backlight ({2 * renders - 2} renders, {resolution} px)",
-                      clock.total("sheet")))
-        times.append(("the page of the materials (view.html)", clock.total("view")))
-    return times
-
-
 def _write_errors(out_dir, models: _Models, columns, rows, refine_steps, seed, scored, sheets) -> str:
     """``OUT/errors.json`` (:func:`brdfkit.demos.real_outputs.write_errors`) with what
     made its figures; returns its path."""
-    from brdfkit.demos.real_outputs import write_errors
+    from brdfkit.demos.real_outputs import parts_used, write_errors
 
     made = {"sparse_model": SPARSE_MODEL, "sparse_method": models.choice.method, "compression_models":
             list(COMPRESSION_MODELS), "compressions": [{"column": label, "model": m, "kind": kind, "embedding":
             models.hyper[m].kind, "size": models.hyper[m].default_size} for m, kind, label, _ in models.comps],
-            "compression_steps": refine_steps, "interpolation_model": INTERPOLATION_MODEL, "seed": seed}
+            "compression_steps": refine_steps, "interpolation_model": INTERPOLATION_MODEL, "seed": seed,
+            "parts": parts_used(SPARSE_MODEL, [method.part for _, method, _ in models.methods], models.hyper)}
     return write_errors(out_dir, made, columns, rows, scored, sheets)

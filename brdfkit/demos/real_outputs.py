@@ -1,8 +1,10 @@
 """What the real-materials demo (:mod:`brdfkit.demos.real_materials`) writes, and the clock
 of its steps: its output folders and the files it keeps, its dense tables (kept in the
 output folder, or the comparison sheet's inputs in a temporary folder), the plot, the
-comparison sheets, the page of the materials (``view.html``), ``errors.json``, and their copies into the docs' gallery
-(``brdfkit demo --gallery docs/images``).
+comparison sheets, the page of the materials (``view.html``), the table of its steps'
+seconds, ``errors.json`` (with the digests of the built-in parts that made it:
+:func:`parts_used`), and their copies into the docs' gallery (``brdfkit demo --gallery
+docs/images``).
 """
 
 from __future__ import annotations
@@ -11,7 +13,8 @@ import os
 import shutil
 import time
 
-__all__ = ["StepClock", "DemoFiles", "write_view", "write_figures", "write_errors", "GALLERY", "check_gallery", "copy_to_gallery"]
+__all__ = ["StepClock", "DemoFiles", "write_view", "write_figures", "step_times", "parts_used", "write_errors", "GALLERY",
+           "check_gallery", "copy_to_gallery"]
 
 
 class StepClock:
@@ -139,7 +142,8 @@ def write_view(files: DemoFiles, err, clock: StepClock, model: str) -> str:
 
 
 def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dict, inputs: dict,
-                  tiles: dict, resolution: int, compressions=(), live: str | None = None) -> tuple[str, str | None]:
+                  tiles: dict, resolution: int, compressions=(), live: str | None = None,
+                  renders: dict | None = None) -> tuple[str, str | None]:
     """The plot of ``shown`` (``{label: (90, 90, 180, 3) table}``, the material first;
     :func:`brdfkit.figures.brdf_plot.plot_brdfs`) and, when ``files`` has a scratch folder,
     the comparison sheets (:func:`brdfkit.figures.comparison_sheet.comparison_sheet`, one in
@@ -149,6 +153,9 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
     ``name``; the backlit sheet shows the keys of ``compressions`` only; progress on the
     console ``err``. Each sheet's scores go to ``files.sheets`` (:func:`sheet_scores`).
     With the sheets and ``live`` (a model), also ``view.html`` (:func:`write_view`).
+    ``renders``: ``{result key: reference-scene render at resolution}`` already made
+    (:func:`render_scores`'s), which the reference sheet then shows instead of rendering
+    them again.
 
     Returns
     -------
@@ -170,7 +177,9 @@ def write_figures(files: DemoFiles, err, clock: StepClock, name: str, shown: dic
 
     sheet_path = os.path.join(files.out_dir, f"sheet-{name}.png")
     preds = [inputs[k] for k in tiles if k != "reference"]
-    loader = FileLoader(None, resolution, True)  # one reading of the tables for both sheets
+    loader = FileLoader(None, resolution, True, keep=len(tiles))  # one reading of the tables for both sheets
+    for key, image in (renders or {}).items():
+        loader.remember(inputs[key], image)
     for scene in SHEET_SCENES:
         path = sheet_path if scene == "reference" else os.path.join(files.out_dir, f"sheet-{name}-{scene}.png")
         # the second scene shows the compressions (the sparse reconstructions are on the first)
@@ -199,10 +208,11 @@ def sheet_scores(loader, ref: str, preds: list, rows: dict, scene: str) -> dict:
             for (label, scores), img in zip(rows.items(), images)}
 
 
-def render_scores(ref, tables: list, resolution: int) -> list:
-    """``[(PSNR dB, Delta E 2000)]`` of each of ``tables`` against the table ``ref``
-    (``(90, 90, 180, 3)``, 1/sr), all rendered in the reference scene at ``resolution``
-    pixels in one quadrature pass: the demo's tables rank reconstructions by renders."""
+def render_scores(ref, tables: list, resolution: int) -> tuple[list, list]:
+    """``([(PSNR dB, Delta E 2000)], renders)``: the scores of each of ``tables`` against
+    the table ``ref`` (``(90, 90, 180, 3)``, 1/sr), all rendered in the reference scene at
+    ``resolution`` pixels in one quadrature pass (the demo's tables rank reconstructions
+    by renders), and those renders, ``ref``'s first."""
     import dataclasses
 
     from brdfkit.evaluation.metrics import delta_e_2000, psnr
@@ -212,7 +222,54 @@ def render_scores(ref, tables: list, resolution: int) -> list:
 
     scene = dataclasses.replace(REFERENCE, resolution=int(resolution))
     images = [img for img, _ in render_many([TableBRDF(t) for t in [ref, *tables]], scene)]
-    return [(min(psnr(img, images[0]), 100.0), delta_e_2000(img, images[0])) for img in images[1:]]
+    return [(min(psnr(img, images[0]), 100.0), delta_e_2000(img, images[0])) for img in images[1:]], images
+
+
+def step_times(clock: StepClock, methods, comps, n_mat: int, n_samples: int, files: DemoFiles, refine_steps: int,
+               renders: int, resolution: int) -> list:
+    """``[(step, seconds)]`` of the real-materials demo's steps from ``clock``, the whole
+    demo not yet: ``methods`` its sparse ``[(label, method, model)]``, ``comps`` its
+    compressions ``[(model, kind, label, short)]``, ``n_mat`` materials of ``n_samples``
+    sample counts each; ``renders``: the sheet's tiles (counted only with a sheet)."""
+    encode_step = f"encode + refine ({refine_steps} steps)" if refine_steps > 0 else "encode (encoder pass only)"
+    times = [("load the built-in models", clock.total("load models")),
+             (f"decode {n_mat} NBRDF network(s) to MERL tables", clock.total("decode NBRDF tables"))]
+    for label, _, _ in methods:
+        times.append((f"sparse reconstruction, {label} (mean of {n_mat * n_samples})", clock.mean(f"sparse {label}")))
+    for m, _, label, _ in comps:
+        times.append((f"{encode_step}, {label} (mean)", clock.mean(f"encode {m}")))
+        times.append((f"decode, {label} (mean)", clock.mean(f"decode {m}")))
+    if n_mat > 1:
+        times.append(("interpolate two embeddings + decode", clock.total("interpolate")))
+    times.append((f"score the results (brdf_log_rmse, {len(clock.spent.get('score', ()))})",
+                  clock.total("score")))
+    if "render scores" in clock.spent:
+        times.append((f"render and score the results ({resolution} px)", clock.total("render scores")))
+    where = "" if files.keep_tables else " the sheet renders, to a temporary folder"
+    times.append((f"write the MERL tables{where} ({files.n_tables})", clock.total("write tables")))
+    times.append(("plot", clock.total("plot")))
+    if files.scratch is not None:
+        times.append((f"comparison sheets, reference and backlight ({2 * renders - 2} renders, {resolution} px)",
+                      clock.total("sheet")))
+        times.append(("the page of the materials (view.html)", clock.total("view")))
+    return times
+
+
+def parts_used(sparse_model: str, sparse_parts, decoders: dict) -> dict:
+    """``{built-in: {part: digest}}``: the parts of the built-ins that made the demo's
+    figures, each by the digest its manifest records (what ``tests/test_gallery.py``
+    compares with the shipped manifest, so that a part replaced after the gallery was
+    drawn is seen): ``sparse_parts`` of ``sparse_model`` (its sparse methods' parts), and
+    of each built-in in ``decoders`` (``{built-in: Decoder}``, the compressions'), the
+    parts whose digests its decoder names (its own, and the basis a residual names)."""
+    from brdfkit.models.builtin import installed_bundles
+
+    bundles = {b.name: b for b in installed_bundles()}
+    named = {sparse_model: {bundles[sparse_model].part(part).digest for part in sparse_parts}}
+    for m, dec in decoders.items():
+        named.setdefault(m, set()).update({dec.digest, getattr(dec.obj, "basis_digest", None)})
+    return {m: {part: p.digest for part, p in bundles[m].parts.items() if p.digest in digests}
+            for m, digests in named.items()}
 
 
 def write_errors(out_dir, made: dict, columns, rows, scored, sheets=None) -> str:
