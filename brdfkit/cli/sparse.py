@@ -100,9 +100,10 @@ def _refuse_options(method: str, emb_path, refine, refine_target) -> None:
     (before any work: nbrdf's takes minutes)."""
     from brdfkit.errors import InputError
 
-    if emb_path and method != "hypernet":
+    if emb_path and METHODS[method].embedding_kind is None:
         what = "the learnt prior (method prior)" if method == "prior" else f"method {method!r}"
-        raise InputError(f"--emb: {what} makes no embedding; --method hypernet does (its latent)")
+        makers = [m for m, meth in METHODS.items() if meth.embedding_kind]
+        raise InputError(f"--emb: {what} makes no embedding; --method {', '.join(makers)} does (its latent)")
     if (refine is not None or refine_target) and method != "hypernet":
         raise InputError(f"--refine/--refine-target apply to --method hypernet; method {method!r} "
                          f"{'already fits its samples in closed form' if method == 'prior' else 'has no encoder'}")

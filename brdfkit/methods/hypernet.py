@@ -70,4 +70,5 @@ def _reconstruct(samples, model, options, *, seed, device):
 
 METHOD = Method("hypernet", "hypernetwork: encode the samples, decode the neural BRDF (Gokbudak et al. 2024)",
                 "hypernetwork model (.safetensors from `brdfkit fit` or `brdfkit demo`)", options=HypernetOptions,
-                part="network", load_fn=_load, reconstruct_fn=_reconstruct, bench_option="model")
+                part="network", load_fn=_load, reconstruct_fn=_reconstruct, embedding_kind="hypernet",
+                bench_option="model")

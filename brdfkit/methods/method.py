@@ -57,6 +57,10 @@ class Method:
         ``describe_fn(model, path) -> (label, size, materials)``: a label, the code size
         (latent dimension, components) and the training materials' names of a model, for
         the compression benchmark.
+    embedding_kind
+        The kind of embedding its reconstruction returns beside the table (the kind
+        ``brdfkit sparse --emb`` writes, :data:`brdfkit.embeddings.KINDS`); ``None`` for a
+        method that makes none (``--emb`` is refused for it in one line).
     bench_option
         The ``brdfkit bench`` option (and ``brdfkit.bench.BenchConfig`` field) that
         names its model file; ``None`` when it needs no model, or takes it by
@@ -72,6 +76,7 @@ class Method:
     reconstruct_fn: Callable | None = dataclasses.field(default=None, repr=False)
     compress_fn: Callable | None = dataclasses.field(default=None, repr=False)
     describe_fn: Callable | None = dataclasses.field(default=None, repr=False)
+    embedding_kind: str | None = None
     bench_option: str | None = None
 
     @property
