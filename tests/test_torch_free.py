@@ -1,8 +1,8 @@
 """The everyday jobs of basis and residual embeddings, and of plain tables, import no torch
 (issue 44 item 1): ``encode``, ``decode``, ``render``, ``metrics``, ``interpolate`` and
 ``convert`` run in one fresh interpreter with the shipped built-ins (a basis, and
-``merl80-l40``'s residual), and torch is not in ``sys.modules`` after them; and a batch
-of tables gives the same ``.emb`` bytes with one process or several (item 3)."""
+``merl80-l40``'s residual), and torch is not in ``sys.modules`` after them; and a table
+encoded after another in a batch gives the ``.emb`` bytes it gives alone (item 3)."""
 
 from __future__ import annotations
 
@@ -64,29 +64,27 @@ def test_everyday_jobs_import_no_torch(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow
-def test_a_batch_gives_the_same_bytes_in_one_process_or_two(tmp_path, monkeypatch, capsys):
-    """``brdfkit encode a b c --jobs 2`` writes what ``--jobs 1`` writes, to the byte, and
-    what each file encoded alone gives; one unreadable input fails alone."""
+def test_a_table_encoded_after_another_in_one_process_gives_its_bytes_alone(tmp_path, monkeypatch, capsys):
+    """``brdfkit encode a b bad`` (one process) writes for ``b``, encoded after ``a``, what
+    ``b`` encoded alone gives, to the byte; the unreadable input fails alone. (``--jobs 2``
+    against alone, for every shipped built-in and kind: ``tests/test_routes_encode.py``'s
+    ``test_a_batch_of_two_in_two_processes``; all three on real tables, in fresh
+    processes: ``tests/test_batch_bytes.py``.)"""
     from conftest import run_cli
 
     monkeypatch.delenv("BRDFKIT_BUILTIN_MODELS", raising=False)
     model = _shipped_residual()
     names = []
-    for i in range(3):
+    for i in range(2):
         write_merl(tmp_path / f"m{i}.binary", _table(i + 1))
         names.append(tmp_path / f"m{i}.binary")
     (tmp_path / "bad.binary").write_bytes(b"not a table")
-    out = {}
-    for jobs in (1, 2):
-        code, stdout, err = run_cli(capsys, ["encode", *names, tmp_path / "bad.binary", "-m", model, "--size", "9",
-                                             "--steps", "2", "-o", tmp_path / f"j{jobs}", "--jobs", str(jobs)])
-        assert code == 2 and "bad.binary" in err and "encoded 3 of 4 files" in stdout + err, err
-        out[jobs] = [(tmp_path / f"j{jobs}" / f"m{i}.emb").read_bytes() for i in range(3)]
-    assert out[1] == out[2]
-    code, _, err = run_cli(capsys, ["encode", names[1], "-m", model, "--size", "9", "--steps", "2",
-                                    "-o", tmp_path / "alone"])
+    opts = ["-m", model, "--size", "9", "--steps", "2"]
+    code, stdout, err = run_cli(capsys, ["encode", *names, tmp_path / "bad.binary", *opts, "-o", tmp_path / "batch"])
+    assert code == 2 and "bad.binary" in err and "encoded 2 of 3 files" in stdout + err, err
+    code, _, err = run_cli(capsys, ["encode", names[1], *opts, "-o", tmp_path / "alone"])
     assert code == 0, err
-    assert (tmp_path / "alone" / "m1.emb").read_bytes() == out[1][1]
+    assert (tmp_path / "alone" / "m1.emb").read_bytes() == (tmp_path / "batch" / "m1.emb").read_bytes()
 
 
 def test_options_that_do_not_apply_are_refused_in_one_line(tmp_path, capsys):
