@@ -12,27 +12,23 @@ import os
 import stat
 import subprocess
 import sys
+import types
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-from conftest import brdfkit_command, quiet_env
-from conftest import run_brdfkit as _run_brdfkit
+from conftest import brdfkit_command, quiet_env, run_cli, run_cli_uncaptured, run_here
 
 REPO = Path(__file__).resolve().parents[1]
-
-
-def run_brdfkit(args, timeout=300) -> subprocess.CompletedProcess:
-    return _run_brdfkit(args, timeout=timeout, env=quiet_env())
 
 
 @pytest.fixture(scope="module")
 def library(tmp_path_factory):
     """Two small synthetic MERL tables (``brdfkit synth``)."""
     folder = tmp_path_factory.mktemp("lib")
-    r = run_brdfkit(["synth", folder, "-n", "2", "--no-stiff"])
-    assert r.returncode == 0, r.stderr
+    code, err = run_cli_uncaptured(["synth", folder, "-n", "2", "--no-stiff"])
+    assert code == 0, err
     return folder
 
 
@@ -49,19 +45,20 @@ def library(tmp_path_factory):
     ["sample", "{missing}.binary", "-n", "40", "-o", "/nonexistent/x.csv"],
     ["fit", "{missing}", "-o", "/nonexistent/model.safetensors"],
 ])
-def test_a_bad_output_path_fails_before_any_input_is_read(tmp_path, argv):
+def test_a_bad_output_path_fails_before_any_input_is_read(tmp_path, argv, capsys):
     """The output is checked first: with a missing input too, the error names the
-    output folder, so nothing (table, model, render) was read or computed before."""
+    output folder, so nothing (table, model, render) was read or computed before (in this
+    process: the command's checks, not a process, are what is tested)."""
     args = [a.format(missing=tmp_path / "missing", tmp=tmp_path) for a in argv]
-    r = run_brdfkit(args)
+    r = run_here(capsys, args)
     assert r.returncode == 2, r.stderr
     assert "/nonexistent" in r.stderr and "does not exist" in r.stderr, r.stderr
     assert r.stderr.count("\n") == 1 and "Traceback" not in r.stderr
 
 
-def test_an_output_that_is_a_folder_fails_first(tmp_path):
-    r = run_brdfkit(["sparse", tmp_path / "missing.csv", "-m", tmp_path / "m.safetensors",
-                     "-o", tmp_path])
+def test_an_output_that_is_a_folder_fails_first(tmp_path, capsys):
+    r = run_here(capsys, ["sparse", tmp_path / "missing.csv", "-m", tmp_path / "m.safetensors",
+                          "-o", tmp_path])
     assert r.returncode == 2 and "is a directory" in r.stderr, r.stderr
 
 
@@ -96,12 +93,12 @@ def test_reference_tables_are_0644_under_umask_022(tmp_path, umask_022):
 
 
 @pytest.mark.slow
-def test_fit_writes_its_model_file_0644_under_umask_022(tmp_path, library, umask_022):
+def test_fit_writes_its_model_file_0644_under_umask_022(tmp_path, library, umask_022, capsys):
     """``brdfkit fit --method basis`` (seconds; the hypernet's network file goes through the
-    same writer, ``safetensors`` into :func:`brdfkit.atomic.atomic_path`)."""
-    r = run_brdfkit(["fit", library, "--method", "basis", "--components", "2",
-                     "-o", tmp_path / "basis.safetensors",
-                     "--quiet"])
+    same writer, ``safetensors`` into :func:`brdfkit.atomic.atomic_path`), in this process
+    under its umask."""
+    r = run_here(capsys, ["fit", library, "--method", "basis", "--components", "2",
+                          "-o", tmp_path / "basis.safetensors", "--quiet"])
     assert r.returncode == 0, r.stderr
     assert _mode(tmp_path / "basis.safetensors") == 0o644
 
@@ -157,9 +154,9 @@ def test_llvm_auto_detection_picks_only_19(monkeypatch):
 
 # --- 7. the CLI's own words, clean temporary folders, quiet pipes, the demo's image -------
 
-def test_interpolate_outside_0_1_names_the_cli_flag(tmp_path):
-    r = run_brdfkit(["interpolate", tmp_path / "a.emb", tmp_path / "b.emb", "--t", "1.5",
-                     "-o", tmp_path / "c.emb"])
+def test_interpolate_outside_0_1_names_the_cli_flag(tmp_path, capsys):
+    r = run_here(capsys, ["interpolate", tmp_path / "a.emb", tmp_path / "b.emb", "--t", "1.5",
+                          "-o", tmp_path / "c.emb"])
     assert r.returncode == 2
     assert "--allow-extrapolation" in r.stderr and "allow_extrapolation=" not in r.stderr, r.stderr
 
@@ -213,12 +210,13 @@ def test_your_data_example_csv_is_a_valid_sample_set(doc, tmp_path):
         assert len(s) >= 4
 
 
-def test_help_and_docs_do_not_send_users_to_a_folder_beside_the_checkout():
+def test_help_and_docs_do_not_send_users_to_a_folder_beside_the_checkout(capsys):
     """``../shared`` exists only beside the development checkout: help texts and docs
     speak of the reference proxies and ``merl-test.txt`` (``docs/data.md`` gives the
     command that makes the proxies; ``docs/notes/results.md`` records the runs as made)."""
     for cmd in ("fit", "bench"):
-        r = run_brdfkit([cmd, "--help"])
+        code, out, _ = run_cli(capsys, [cmd, "--help"])
+        r = types.SimpleNamespace(returncode=code, stdout=out)
         assert r.returncode == 0 and "../shared" not in r.stdout, (cmd, r.stdout)
     allowed = {"data.md", "results.md"}
     for doc in [REPO / "README.md", *sorted((REPO / "docs").glob("*.md"))]:
