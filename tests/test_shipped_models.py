@@ -76,8 +76,6 @@ def test_sparse_encode_decode_without_m(shipped, tmp_path, capsys, monkeypatch):
     r = _run(capsys, monkeypatch, "sparse", "s.csv", "-o", "out.binary", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "prior" in r.stderr and "merl-rgl-l40" in r.stderr
-    r = _run(capsys, monkeypatch, "sparse", "s.csv", "-m", "merl80-l40", "--method", "ipca", "-o", "ipca.binary", cwd=tmp_path)
-    assert r.returncode == 0, r.stderr
     # The projection alone: the refinement of a basis embedding is the next test's
     r = _run(capsys, monkeypatch, "encode", "ref.binary", "-o", "emb", "--steps", "0", cwd=tmp_path)
     assert r.returncode == 0, r.stderr
@@ -133,14 +131,15 @@ def test_default_encode_is_a_residual_embedding_with_the_same_bytes_on_any_threa
     try:
         for threads in (2, 1):
             torch.set_num_threads(threads)
-            write_embedding(tmp_path / f"t{threads}.emb", encode(ref, model, source="m.binary", steps=10))
+            # 3 steps: another thread count's other sums show in the first step's bytes
+            write_embedding(tmp_path / f"t{threads}.emb", encode(ref, model, source="m.binary", steps=3))
             got.append((tmp_path / f"t{threads}.emb").read_bytes())
     finally:
         torch.set_num_threads(before)
     assert got[0] == got[1]
     doc = json.loads(got[0])
     assert doc["size"] == 39 and doc["kind"] == "residual" and len(doc["decoder"]) == 64
-    assert doc["refinement"]["steps"] <= 10
+    assert doc["refinement"]["steps"] <= 3
 
 
 def test_merl80_l40_encodes_a_residual_embedding_at_the_sizes_offered(shipped):
