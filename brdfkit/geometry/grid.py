@@ -93,12 +93,16 @@ def cell_index(theta_h, theta_d, phi_d):
     return fl(u_p, N_PHI_D) + N_PHI_D * (fl(u_d, N_THETA_D) + N_THETA_D * fl(u_h, N_THETA_H))
 
 
-def valid_mask():
+@functools.lru_cache(maxsize=1)
+def valid_mask() -> np.ndarray:
     """Boolean ``(90, 90, 180)``: cells whose ``wi`` and ``wo`` are both above the horizon
-    (the cells a MERL file can hold a measurement for)."""
+    (the cells a MERL file can hold a measurement for); read-only, computed once per
+    process (0.3 s of directions each time otherwise)."""
     th, td, pd = np.meshgrid(*grid_angles(), indexing="ij")
     wi, wo = io_from_half_diff(th, td, pd)
-    return (wi[..., 2] > 0) & (wo[..., 2] > 0)
+    mask = (wi[..., 2] > 0) & (wo[..., 2] > 0)
+    mask.setflags(write=False)
+    return mask
 
 
 @functools.lru_cache(maxsize=1)
