@@ -16,6 +16,7 @@ import os
 import re
 import subprocess
 import sys
+import types
 
 import numpy as np
 import pytest
@@ -365,11 +366,7 @@ def test_real_demo_without_render_keeps_no_table(quick, monkeypatch, capsys, tmp
     assert doc["columns"] == res.columns and doc["errors"]["chrome-steel"]["ipca 40"] == res.errors[0][1][2]
     assert doc["errors"]["chrome-steel"][LABELS[1]] == res.errors[0][1][5]
     assert ("write the MERL tables the sheet renders, to a temporary folder (0)", 0.0) in res.times
-
-    calls.clear()
-    res = run_real_demo(tmp_path / "e", only=["teflon"], render=False, device="cpu", steps=0)
-    assert calls == [("hypernet", 40, False, 0), ("hypernet", 7, False, 0), ("basis", 9, False, 0)]  # no refinement
-    assert res.times[2 + 2][0] == f"encode (encoder pass only), {LABELS[0]} (mean)"
+    # steps=0 (no refinement): the sheet test's runs
 
 
 def test_compression_labels():
@@ -397,23 +394,38 @@ def _interrupted_sheet(monkeypatch, seen):
 
 
 @pytest.mark.slow
-def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, tmp_path):
+def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, tmp_path, capsys):
     """The sheet's six inputs are named by their tiles' labels (the sheet labels its tiles
     with the file stems): the reference, the default method from both sample counts and
     the three compressions, in-sample and unseen. Without --keep-tables they go to a
     temporary folder in OUT that is removed at the end, and on Ctrl-C during the sheet
     too; with it, they are links to the kept tables, in a temporary folder likewise. (The
-    sheets themselves: ``demo_run``.)"""
+    sheets themselves: ``demo_run``.) At steps=0 every compression is the encoder's pass
+    alone, and said so."""
+    import brdfkit.api
     from brdfkit.demos.real_materials import run_real_demo
+    from brdfkit.demos.real_outputs import StepClock, step_times
 
+    calls = []
+    encode = brdfkit.api.encode
+
+    def recording_encode(data, model, **kw):
+        calls.append((model.kind, model.sizes[-1], kw.get("refine", True), kw.get("steps")))
+        return encode(data, model, **kw)
+
+    monkeypatch.setattr(brdfkit.api, "encode", recording_encode)
     tiles = ["teflon.binary", "prior, 40 samples.binary", "prior, 400 samples.binary",
              *(f"{t}.binary" for t in TILES)]
     for keep, out in ((False, tmp_path / "d"), (True, tmp_path / "k")):
         seen = []
+        calls.clear()
         _interrupted_sheet(monkeypatch, seen)
         with pytest.raises(KeyboardInterrupt):
             # steps=0: the refinements change no table's place on the sheet, and cost seconds each
             run_real_demo(out, only=["teflon"], device="cpu", keep_tables=keep, resolution=8, steps=0)
+        assert calls == [("hypernet", 40, False, 0), ("hypernet", 7, False, 0), ("basis", 9, False, 0)]  # no refinement
+        assert "teflon: decoding its NBRDF network, reconstructing, compressing (encoder pass only)" in re.sub(
+            r"\s+", " ", capsys.readouterr().err)
         tables = seen.pop()
         assert [os.path.basename(p) for p in seen] == tiles
         assert all(os.path.basename(os.path.dirname(p)).startswith(".brdfkit-tmp-demo-") for p in seen)
@@ -427,6 +439,10 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, t
                 np.testing.assert_array_equal(tables[path], read_merl(k))
         else:
             assert sorted(os.listdir(out)) == ["embeddings", "plot-teflon.png", "samples"]
+    # The times' label of a run at steps=0 (the interrupted runs return none)
+    files = types.SimpleNamespace(keep_tables=False, n_tables=0, scratch=None)
+    times = step_times(StepClock(), [], [("merl-rgl-l40", "in-sample", LABELS[0], TILES[0])], 1, 2, files, 0, 6, 8)
+    assert times[2][0] == f"encode (encoder pass only), {LABELS[0]} (mean)"
 
 
 def test_sheets_render_at_128_px_by_default():
