@@ -67,6 +67,11 @@ def kind_routes():
             for name, kinds, _ in shipped() for kind, (_, default) in kinds.items()]
 
 
+def model_routes():
+    """The name of every shipped built-in."""
+    return [pytest.param(name, id=name) for name, _, _ in shipped()]
+
+
 def method_routes():
     """``(built-in, method, served)`` of every sparse method that takes a model against
     every built-in, and ``(None, method, True)`` of each that takes none."""

@@ -1,24 +1,21 @@
-"""The route matrix, what the other commands take: for every shipped built-in x every
-kind it offers, two embeddings -> ``interpolate`` -> the blend decoded; ``view``,
-``export --glsl`` (or its one-line refusal, for a kind no shader decodes), ``plot``,
-``compare``, ``render`` and ``convert`` of an embedding; ``convert`` MERL -> RGL ``.bsdf``
--> MERL; and every file a ``brdfkit fit --method ...`` writes, taken by the commands that
-take its part (``encode -m FILE``, ``sparse -m FILE``), through the CLI and real files.
+"""The route matrix, the files that are not a built-in's embeddings: ``convert`` MERL ->
+RGL ``.bsdf`` -> MERL; and every file a ``brdfkit fit --method ...`` writes, taken by the
+commands that take its part (``encode -m FILE``, ``sparse -m FILE``), through the CLI and
+real files. (What the commands do with a built-in's embedding of each kind, interpolate,
+view, export, plot, compare, render and convert, is in ``tests/test_routes_encode.py``,
+which makes those embeddings.)
 
-The parameters come from the registries (``helpers_routes``; ``FITTERS``, ``KINDS`` and
-``METHODS`` for the recipes' files)."""
+The parameters come from the registries (``FITTERS``, ``KINDS`` and ``METHODS`` for the
+recipes' files)."""
 
 from __future__ import annotations
-
-import json
 
 import numpy as np
 import pytest
 
-from conftest import one_error_line, run_cli, run_cli_uncaptured, tiny_cli_options
-from helpers_routes import FLOOR_DB, MATERIALS, kind_routes, materials, ok, psnr
+from conftest import run_cli_uncaptured, tiny_cli_options
+from helpers_routes import FLOOR_DB, MATERIALS, materials, ok, psnr
 from helpers_training import synthetic_library
-from helpers_view import shipped_models  # noqa: F401  (a fixture)
 
 # The matrix takes minutes in all: CI runs it (the suite), `-m "not slow"` leaves it out.
 pytestmark = pytest.mark.slow
@@ -33,56 +30,6 @@ def _read(path):
     from brdfkit.io.merl import read_merl
 
     return read_merl(path)
-
-
-@pytest.mark.usefixtures("shipped_models")
-@pytest.mark.parametrize("model, kind, default", kind_routes())
-def test_interpolate_and_the_blend_decoded(tables, tmp_path, capsys, model, kind, default):
-    """Two embeddings of a kind blended (``interpolate --binary`` and ``decode`` of the
-    written blend give the same table), and ``t = 0`` decodes to the first."""
-    from brdfkit.io.embedding import read_embedding
-
-    a, b = (tables / f"{m}.binary" for m in MATERIALS[:2])
-    ok(capsys, ["encode", a, b, "-m", model, "--kind", kind, "--no-refine", "-o", tmp_path])
-    ea, eb = tmp_path / f"{a.stem}.emb", tmp_path / f"{b.stem}.emb"
-    ok(capsys, ["interpolate", ea, eb, "--t", "0.5", "-o", tmp_path / "mid.emb", "--binary", tmp_path / "mid.binary"])
-    assert read_embedding(tmp_path / "mid.emb").kind == kind
-    ok(capsys, ["decode", tmp_path / "mid.emb", "-o", tmp_path / "mid-decoded.binary"])
-    np.testing.assert_array_equal(_read(tmp_path / "mid.binary"), _read(tmp_path / "mid-decoded.binary"))
-    ok(capsys, ["interpolate", ea, eb, "--t", "0", "-o", tmp_path / "zero.emb"])
-    ok(capsys, ["decode", tmp_path / "zero.emb", "-o", tmp_path / "zero.binary"])
-    ok(capsys, ["decode", ea, "-o", tmp_path / "a.binary"])
-    np.testing.assert_array_equal(_read(tmp_path / "zero.binary"), _read(tmp_path / "a.binary"))
-
-
-@pytest.mark.usefixtures("shipped_models")
-@pytest.mark.parametrize("model, kind, default", kind_routes())
-def test_an_embedding_through_every_command_that_takes_one(tables, tmp_path, capsys, model, kind, default):
-    """``view``, ``export --glsl``, ``plot``, ``compare``, ``render`` and ``convert`` of an
-    embedding of each kind (the decoder found from the file: no ``-m``)."""
-    from brdfkit.render.image import read_exr
-    from brdfkit.view.live import LIVE_KINDS
-
-    truth = tables / f"{MATERIALS[0]}.binary"
-    ok(capsys, ["encode", truth, "-m", model, "--kind", kind, "--no-refine", "-o", tmp_path])
-    emb = tmp_path / f"{MATERIALS[0]}.emb"
-    ok(capsys, ["view", emb, "-o", tmp_path / "page.html"])
-    assert (tmp_path / "page.html").stat().st_size > 1000
-    code, _, err = run_cli(capsys, ["export", emb, "--glsl", tmp_path / "glsl"])
-    if kind in LIVE_KINDS:
-        assert code == 0, err
-        doc = json.loads((tmp_path / "glsl" / "material.json").read_text())
-        assert doc["kind"] == kind and doc["size"] == default
-    else:
-        assert code == 2 and "no GLSL decoder" in one_error_line(err) and not (tmp_path / "glsl").exists()
-    ok(capsys, ["plot", truth, emb, "-o", tmp_path / "plot.png"])
-    ok(capsys, ["compare", truth, emb, "-o", tmp_path / "sheet.png", "--resolution", "16", "--quiet"])
-    ok(capsys, ["render", emb, "-o", tmp_path / "emb.exr", "--resolution", "16", "--quiet"])
-    assert np.isfinite(read_exr(tmp_path / "emb.exr")).all()
-    ok(capsys, ["convert", emb, "-o", tmp_path / "converted.binary"])
-    assert psnr(capsys, truth, tmp_path / "converted.binary") >= FLOOR_DB
-    for png in ("plot.png", "sheet.png"):
-        assert (tmp_path / png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
 def test_convert_merl_to_rgl_and_back(tables, tmp_path, capsys):
