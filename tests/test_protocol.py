@@ -118,14 +118,21 @@ def test_bench_and_eval_sparse_reconstruct_the_same_samples(lib, tmp_path, monke
 
 @pytest.mark.slow
 def test_bench_cli_planned_and_uniform_rows(lib, tmp_path, capsys, monkeypatch):
-    from conftest import brdfkit_command, run_cli
+    """``brdfkit bench --sampling uniform,planned``: a row of each sampling and N, the
+    plan's command in bench.md; merged with a uniform run of the same seeds, two samplings,
+    not duplicates. In this process (the command line's entry point; what is checked is
+    the rows, not a process) without the figures (tests/test_bench.py's end-to-end test
+    draws them)."""
+    from conftest import run_cli
 
+    no_bench_plots(monkeypatch)  # the records are counted and merged, not the figures
     out = tmp_path / "out"
-    cmd = [*brdfkit_command(), "bench", "--data", lib["lib"], "--test-list", lib["test"], "--methods", "ipca",
-           "--plan-model", lib["basis"], "--plan-design", "nielsen", "--ipca", lib["basis"], "--n", "9,20", "--seeds", "1",
-           "--sampling", "uniform,planned", "--resolution", "8", "--threads", "1", "-o", out]
-    proc = subprocess.run([str(c) for c in cmd], capture_output=True, text=True, timeout=300, env=quiet_env())
-    assert proc.returncode == 0, proc.stderr[-3000:]
+    args = ["bench", "--data", lib["lib"], "--test-list", lib["test"], "--methods", "ipca",
+            "--plan-model", lib["basis"], "--plan-design", "nielsen", "--ipca", lib["basis"], "--n", "9,20", "--seeds",
+            "1", "--sampling", "uniform,planned", "--resolution", "8", "--threads", "1", "-o", out]
+    args = [str(a) for a in args]
+    code, _, err = run_cli(capsys, args)
+    assert code == 0, err[-3000:]
     result = json.loads((out / "bench.json").read_text())
     assert result["config"]["sampling"] == ["uniform", "planned"]
     rows = {(r["method"], r["sampling"], r["n"]) for r in result["summary"]["sparse"]}
@@ -135,12 +142,11 @@ def test_bench_cli_planned_and_uniform_rows(lib, tmp_path, capsys, monkeypatch):
     assert f"`brdfkit plan -n N -m {lib['basis'].name} --design nielsen --seed DRAW`" in md
 
     # Merging: a planned run and a uniform run of the same seeds are two samplings, not
-    # duplicates (the second run and the merge in this process: the first ran as users run it).
+    # duplicates.
     other = tmp_path / "other"
-    args = [str(c) for c in cmd[len(brdfkit_command()):-1]] + [str(other)]
+    args = args[:-1] + [str(other)]
     args[args.index("uniform,planned")] = "uniform"
     args[args.index("--n") + 1] = "9"
-    no_bench_plots(monkeypatch)  # the records are merged and counted, not the figures
     for argv in (args + ["--first-seed", "1"], ["bench", "--merge", str(out), "--merge", str(other),
                                                 "-o", str(tmp_path / "merged")]):
         code, _, err = run_cli(capsys, argv)
