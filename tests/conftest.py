@@ -87,7 +87,8 @@ def no_model_env(monkeypatch, no_builtin_models):
 
 # --- the order the two workers take the files in -------------------------------------------
 
-HEAVY_FIRST = ("test_batch_bytes.py", "test_view_browser.py", "test_routes_*.py", "test_demo_real.py",
+HEAVY_FIRST = ("test_batch_bytes.py", "test_view_browser.py", "test_routes_encode.py", "test_routes_sizes.py",
+               "test_routes_*.py", "test_demo_real.py",
                "test_reproducible.py", "test_residual.py", "test_baselines.py", "test_shipped_models.py",
                "test_training.py", "test_torch_free.py", "test_prior.py", "test_demo.py", "test_bench.py")
 """The test files (``fnmatch`` patterns) that take longest in the suite's 2-worker run,

@@ -9,7 +9,8 @@ matrix without an edit here; a recipe without a tiny setting below fails its rou
 message saying so.
 
 The inputs are the materials the package ships (``brdfkit material``), written once per
-run for both pytest-xdist workers.
+run for both pytest-xdist workers; a module's encodes, decodes and scores are made once
+and shared by its tests (:class:`Routes`).
 """
 
 from __future__ import annotations
@@ -54,11 +55,12 @@ def shipped():
             for s in installed_services()]
 
 
-def encode_routes():
-    """``(built-in, kind, size, default size)`` of every size of every kind of every
-    shipped built-in."""
+def encode_routes(at_default: bool):
+    """``(built-in, kind, size, default size)`` of every shipped built-in's kinds: at each
+    kind's default size (``at_default``), or at each of its other sizes."""
     return [pytest.param(name, kind, size, default, id=f"{name}-{kind}-{size}")
-            for name, kinds, _ in shipped() for kind, (sizes, default) in kinds.items() for size in sizes]
+            for name, kinds, _ in shipped() for kind, (sizes, default) in kinds.items() for size in sizes
+            if (size == default) == at_default]
 
 
 def kind_routes():
@@ -105,6 +107,69 @@ def materials(tmp_path_factory) -> Path:
         except OSError:  # the other worker wrote them first: the same tables
             shutil.rmtree(part, ignore_errors=True)
     return folder
+
+
+REFINED = ("--steps", "2")
+"""The refinement of the default size's encodes (Levenberg-Marquardt iterations or Adam
+steps): the refinement's code runs, at a fraction of the default budget; the route and
+the bytes, not the score, are what is checked."""
+
+
+def route_material(size: int) -> str:
+    """The material of a size's route: it changes with the size, so that every shipped
+    material is taken."""
+    return MATERIALS[(size // 3) % len(MATERIALS)]
+
+
+class Routes:
+    """A module's files, each made once through the CLI and kept by what made it: an
+    encode alone (``model, kind, size, material``: refined at the default size,
+    :data:`REFINED`, else not), a decode of an ``.emb``, a score of a table against its
+    truth. The encode of a route is the one the batch, the blend and the other commands
+    take: each test redoing it was most of the matrix's time."""
+
+    def __init__(self, tables, folder):
+        self.tables, self.folder = tables, folder
+        self._embs, self._decoded, self._scores = {}, {}, {}
+
+    def encode(self, capsys, model, kind, size, default, material):
+        """``brdfkit encode TABLE -m MODEL --kind KIND --size SIZE OPTIONS``, alone."""
+        options = REFINED if size == default else ("--no-refine",)
+        key = (model, kind, size, material)
+        if key not in self._embs:
+            out = self.folder / f"{model}-{kind}-{size}"
+            ok(capsys, ["encode", self.tables / f"{material}.binary", "-m", model, "--kind", kind, "--size", size,
+                        "-o", out, *options])
+            self._embs[key] = out / f"{material}.emb"
+        return self._embs[key]
+
+    def decode(self, capsys, emb):
+        """``brdfkit decode EMB -o TABLE``: the table."""
+        if emb not in self._decoded:
+            out = emb.with_name(f"{emb.stem}-decoded.binary")
+            ok(capsys, ["decode", emb, "-o", out])
+            self._decoded[emb] = out
+        return self._decoded[emb]
+
+    def score(self, capsys, material, table):
+        """``brdfkit metrics --ref TRUTH TABLE``'s PSNR."""
+        if table not in self._scores:
+            self._scores[table] = psnr(capsys, self.tables / f"{material}.binary", table)
+        return self._scores[table]
+
+    def route(self, capsys, model, kind, size, default):
+        """encode -> decode -> metrics of a size's route, on its material, checked: the
+        embedding, the material and the score."""
+        from brdfkit.io.embedding import read_embedding
+
+        name = route_material(size)
+        emb = self.encode(capsys, model, kind, size, default, name)
+        got = read_embedding(emb)
+        assert (got.kind, got.size) == (kind, size)
+        assert bool(got.refinement) == (size == default), f"{model} {kind} {size}: refined {got.refinement}"
+        score = self.score(capsys, name, self.decode(capsys, emb))
+        assert score >= floor(size), f"{model} {kind} {size} on {name}: {score:.2f} dB"
+        return emb
 
 
 def psnr(capsys, ref, pred, *extra) -> float:

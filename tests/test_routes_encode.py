@@ -1,23 +1,22 @@
-"""The route matrix, compression and what takes an embedding: every shipped built-in x
-every kind it offers x every size, through the CLI and real files: ``encode`` -> ``.emb``
--> ``decode`` -> ``.binary`` -> ``metrics`` against the material's own table, with a floor
-on the PSNR; a batch of two with ``--jobs 2``, byte for byte the encodes alone, each
-decoded; and for every built-in x kind: two embeddings -> ``interpolate`` -> the blend
-decoded; ``view``, ``export --glsl`` (or its one-line refusal, for a kind no shader
-decodes), ``render`` and ``convert`` of an embedding, ``plot`` and ``compare`` of each
-built-in's kinds against their truth.
+"""The route matrix, compression at the default size and what takes an embedding: every
+shipped built-in x every kind it offers at its default size, through the CLI and real
+files: ``encode`` (refined) -> ``.emb`` -> ``decode`` -> ``.binary`` -> ``metrics``
+against the material's own table, with a floor on the PSNR; a batch of two with
+``--jobs 2``, byte for byte the encodes alone, each decoded; two embeddings ->
+``interpolate`` -> the blend decoded; ``view``, ``export --glsl`` (or its one-line
+refusal, for a kind no shader decodes), ``render`` and ``convert`` of an embedding,
+``plot`` and ``compare`` of each built-in's kinds against their truth.
 
-The parameters come from the registries (``helpers_routes``): a new built-in, kind, size
-or residual member is covered without an edit here. A size other than the kind's default
-is encoded without refinement (the projection, or the encoder's pass: the refinement is
-the same code at every size); the default size is refined at a short budget
-(:data:`REFINED`: the route and the bytes, not the score, are what is checked; the
-default budget is the same code with more iterations).
+The other sizes, unrefined: ``tests/test_routes_sizes.py``. The parameters come from the
+registries (``helpers_routes``): a new built-in, kind or residual member is covered
+without an edit here. The default size is refined at a short budget
+(``helpers_routes.REFINED``: the route and the bytes, not the score, are what is
+checked; the default budget is the same code with more iterations).
 
-The files are made once per module and shared (:class:`Routes`): the default size's
-encodes alone are the ones the batch is compared with and the ones interpolated, viewed,
-exported, plotted, compared, rendered and converted; a table decoded once is scored
-once. Each test asks for what it needs, so that any one of them runs alone."""
+The files are made once per module and shared (``helpers_routes.Routes``): the default
+size's encodes alone are the ones the batch is compared with and the ones interpolated,
+viewed, exported, plotted, compared, rendered and converted; a table decoded once is
+scored once. Each test asks for what it needs, so that any one of them runs alone."""
 
 from __future__ import annotations
 
@@ -27,22 +26,12 @@ import numpy as np
 import pytest
 
 from conftest import one_error_line, run_cli
-from helpers_routes import (MATERIALS, encode_routes, floor, kind_routes, materials, model_routes, ok, psnr,
-                            shipped)
+from helpers_routes import (MATERIALS, REFINED, Routes, encode_routes, floor, kind_routes, materials, model_routes,
+                            ok, route_material, shipped)
 from helpers_view import shipped_models  # noqa: F401  (a fixture)
 
 # The matrix takes minutes in all: CI runs it (the suite), `-m "not slow"` leaves it out.
 pytestmark = [pytest.mark.usefixtures("shipped_models"), pytest.mark.slow]
-
-REFINED = ("--steps", "2")
-"""The refinement of the default size's encodes (Levenberg-Marquardt iterations or Adam
-steps): the refinement's code runs, at a fraction of the default budget."""
-
-
-def route_material(size: int) -> str:
-    """The material of a size's route: it changes with the size, so that every shipped
-    material is taken."""
-    return MATERIALS[(size // 3) % len(MATERIALS)]
 
 
 def pair(default: int) -> list[str]:
@@ -53,64 +42,15 @@ def pair(default: int) -> list[str]:
     return [MATERIALS[i - 1], MATERIALS[i]]
 
 
-class Routes:
-    """The module's files, each made once through the CLI and kept by what made it: an
-    encode alone (``model, kind, size, material, options``), a decode of an ``.emb``, a
-    score of a table against its truth. The encode of a route is the one the batch,
-    the blend and the other commands take: each test redoing it was most of the matrix's
-    time."""
-
-    def __init__(self, tables, folder):
-        self.tables, self.folder = tables, folder
-        self._embs, self._decoded, self._scores = {}, {}, {}
-
-    def options(self, size: int, default: int) -> tuple:
-        """The encode options of a size: refined at the default size, else not."""
-        return REFINED if size == default else ("--no-refine",)
-
-    def encode(self, capsys, model, kind, size, default, material):
-        """``brdfkit encode TABLE -m MODEL --kind KIND --size SIZE OPTIONS``, alone."""
-        options = self.options(size, default)
-        key = (model, kind, size, material, options)
-        if key not in self._embs:
-            out = self.folder / f"{model}-{kind}-{size}-{'refined' if options == REFINED else 'projected'}"
-            ok(capsys, ["encode", self.tables / f"{material}.binary", "-m", model, "--kind", kind, "--size", size,
-                        "-o", out, *options])
-            self._embs[key] = out / f"{material}.emb"
-        return self._embs[key]
-
-    def decode(self, capsys, emb):
-        """``brdfkit decode EMB -o TABLE``: the table."""
-        if emb not in self._decoded:
-            out = emb.with_name(f"{emb.stem}-decoded.binary")
-            ok(capsys, ["decode", emb, "-o", out])
-            self._decoded[emb] = out
-        return self._decoded[emb]
-
-    def score(self, capsys, material, table):
-        """``brdfkit metrics --ref TRUTH TABLE``'s PSNR."""
-        if table not in self._scores:
-            self._scores[table] = psnr(capsys, self.tables / f"{material}.binary", table)
-        return self._scores[table]
-
-
 @pytest.fixture(scope="module")
 def routes(tmp_path_factory):
     return Routes(materials(tmp_path_factory), tmp_path_factory.mktemp("routes"))
 
 
-@pytest.mark.parametrize("model, kind, size, default", encode_routes())
+@pytest.mark.parametrize("model, kind, size, default", encode_routes(at_default=True))
 def test_encode_decode_metrics(routes, capsys, model, kind, size, default):
-    """encode -> decode -> metrics at one size, on a material that changes with the size."""
-    from brdfkit.io.embedding import read_embedding
-
-    name = route_material(size)
-    emb = routes.encode(capsys, model, kind, size, default, name)
-    assert (read_embedding(emb).kind, read_embedding(emb).size) == (kind, size)
-    if size == default:
-        assert read_embedding(emb).refinement, f"{model} {kind} {size}: the default size's encode was not refined"
-    score = routes.score(capsys, name, routes.decode(capsys, emb))
-    assert score >= floor(size), f"{model} {kind} {size} on {name}: {score:.2f} dB"
+    """encode (refined) -> decode -> metrics at the kind's default size."""
+    routes.route(capsys, model, kind, size, default)
 
 
 @pytest.mark.parametrize("model, kind, default", kind_routes())
