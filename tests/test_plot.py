@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import subprocess
@@ -21,6 +22,15 @@ MIRROR = synthetic.Material("mirror-0.01", "conductor", 0.01, ior=synthetic.META
                             k=synthetic.METALS["silver"][1])
 
 
+@functools.lru_cache(maxsize=1)
+def _mirror():
+    """``synthetic.table(MIRROR)``, read-only, computed once a module (half a second or
+    more a table; ten tests and cases use it)."""
+    t = synthetic.table(MIRROR)
+    t.setflags(write=False)
+    return t
+
+
 def _lambert(albedo=(0.6, 0.5, 0.4)):
     t = np.empty(GRID_SHAPE + (3,))
     t[:] = np.asarray(albedo) / math.pi
@@ -33,7 +43,7 @@ def tables(tmp_path_factory):
     """A Lambertian table and a sharp silver mirror, as MERL files."""
     folder = tmp_path_factory.mktemp("plot")
     write_merl(folder / "lambert.binary", _lambert())
-    write_merl(folder / "mirror.binary", synthetic.table(MIRROR))
+    write_merl(folder / "mirror.binary", _mirror())
     return folder
 
 
@@ -60,7 +70,7 @@ def test_lambertian_lobe_is_flat_and_cosine_weighted_lobe_is_a_cosine():
 
 @pytest.mark.parametrize("theta_i", [0.0, 30.0, 60.0])
 def test_mirror_lobe_peaks_in_the_mirror_direction(theta_i):
-    to, v = inplane_lobe(synthetic.table(MIRROR), theta_i)
+    to, v = inplane_lobe(_mirror(), theta_i)
     assert abs(to[np.nanargmax(v)] - theta_i) <= 1.0
     assert np.nanmax(v) > 100 * np.nanmedian(v)
 
@@ -99,7 +109,7 @@ def test_layout_cuts_and_overlaps_nothing(n, options):
     import matplotlib.pyplot as plt
 
     labels = ["lambert", "mirror-silver-reconstructed-from-40-samples", "c", "d", "e-with-a-long-name-too"][:n]
-    tabs = {lab: (_lambert() if i % 2 == 0 else synthetic.table(MIRROR)) for i, lab in enumerate(labels)}
+    tabs = {lab: (_lambert() if i % 2 == 0 else _mirror()) for i, lab in enumerate(labels)}
     fig = plot_figure(tabs, **options)
     try:
         fig.canvas.draw()
