@@ -218,11 +218,17 @@ class Compact:
         self._lock = threading.Lock()  # an encode's pieces ask from several threads: restored once
 
     def rows(self, k: int) -> np.ndarray:
-        """The ``k`` leading stored components, float32 ``(k, Ps)`` (kept)."""
+        """The ``k`` leading stored components, float32 ``(k, Ps)``: the most restored so
+        far are kept, and fewer are their leading rows (each row is restored on its own,
+        from its own bytes and scales, so they are the same values as restored alone; a
+        process that takes several sizes, largest first, restores once, where keeping
+        only the last ``k`` restored 30 components again for every size)."""
         with self._lock:
-            if k not in self._rows:
+            kept = next(iter(self._rows.values()), None)
+            if kept is None or kept.shape[0] < k:
                 self._rows = {k: self.stored_rows(k)}
-            return self._rows[k]
+                kept = self._rows[k]
+            return kept[:k]
 
     def rows_at(self, k: int, positions) -> np.ndarray:
         """The ``k`` leading restored components at ``positions`` among the restored
