@@ -24,9 +24,18 @@ For each of the 20 unseen MERL test proxies and every ``--every``-th RGL proxy:
 * once, per component: the old and new component's cosine and each one's share of its
   energy in each region, and the overlap of the leading subspaces.
 
+With ``--encode SIZES``, the same for ``merl80-l40``'s default ``encode`` (the residual
+kind) in place of the projection: each table encoded and decoded with the old bundle's
+residual and basis (``--old-rev``) and with today's, each with and without the refinement
+on renders (``encode_with(..., refine=False)``: projection and fit through the
+correction), scored and swapped by region at ``--resolution`` px.
+
     python benchmarks/studies/study_grazing_cost.py --old-rev 8c3b76b --merl proxies/merl \\
         --test-list ../shared/data/merl-test.txt --rgl proxies/rgl --every 3 --jobs 2 \\
         -o benchmarks/results/2026-12-01-grazing-cost-64.json
+    python benchmarks/studies/study_grazing_cost.py --encode 21 39 --old-rev 8c3b76b --merl proxies/merl \\
+        --test-list ../shared/data/merl-test.txt --rgl proxies/rgl --every 3 --jobs 1 --full-resolution 0 \\
+        --resolution 32 -o benchmarks/results/2026-12-02-grazing-cost-encode-32.json
 """
 
 from __future__ import annotations
@@ -46,6 +55,7 @@ ROWS = {"grazing": (85, 90), "60-80": (74, 85), "peak": (0, 14), "rest": (14, 74
 """Regions of ``theta_h`` rows ``[first, last)`` (row ``i`` at ``(i / 90)^2 90 deg``)."""
 REGIONS = (*ROWS, "share")
 NEW_BASIS = "brdfkit/models/merl80-basis.safetensors"
+NEW_RESIDUAL = "brdfkit/models/merl80-residual.safetensors"
 
 _STATE: dict = {}
 
@@ -54,6 +64,19 @@ def _old_basis(rev: str, folder: str) -> str:
     """The ``merl80`` basis file of a git revision, written to ``folder``."""
     out = os.path.join(folder, f"merl80-basis-{rev}.safetensors")
     with open(out, "wb") as f:
+        subprocess.run(["git", "show", f"{rev}:{NEW_BASIS}"], stdout=f, check=True)
+    return out
+
+
+def _old_residual(rev: str, folder: str) -> str:
+    """The ``merl80`` residual file of a git revision, written to ``folder`` with the basis
+    it corrects beside it under the name its header records."""
+    from brdfkit.residual.residual_file import read_header
+
+    out = os.path.join(folder, "merl80-residual.safetensors")
+    with open(out, "wb") as f:
+        subprocess.run(["git", "show", f"{rev}:{NEW_RESIDUAL}"], stdout=f, check=True)
+    with open(os.path.join(folder, read_header(out)["basis_file"]), "wb") as f:
         subprocess.run(["git", "show", f"{rev}:{NEW_BASIS}"], stdout=f, check=True)
     return out
 
@@ -74,7 +97,7 @@ def _masks(basis) -> dict:
     return out
 
 
-def _init(old_path, new_path, resolutions):
+def _init(old_path, new_path, resolutions, residuals=None):
     from brdfkit.basis.basis_file import load_basis
     from brdfkit.bench.config import BenchConfig
     from brdfkit.bench.worker import Worker
@@ -87,6 +110,10 @@ def _init(old_path, new_path, resolutions):
     _STATE["workers"] = {r: Worker(BenchConfig(output=tempfile.gettempdir(), scenes=tuple(SUITE), resolution=r,
                                                threads=1)) for r in resolutions}
     _STATE["masks"] = _masks(_STATE["bases"]["new"])
+    if residuals:
+        from brdfkit.embeddings import load_decoder
+
+        _STATE["decoders"] = {which: load_decoder("residual", path, "cpu") for which, path in residuals.items()}
 
 
 def _scores(worker, table, refs) -> dict:
@@ -150,6 +177,125 @@ def _material(task) -> dict:
         rec["full"] = full
     rec["seconds"] = time.time() - t0
     return rec
+
+
+def _encoded(task) -> dict:
+    """One material through ``merl80-l40``'s residual encode, old and new (``--encode``)."""
+    lab, name, path, sizes, res = task
+    from brdfkit.embeddings import encode_with, open_embedding
+    from brdfkit.io.merl import read_merl
+
+    t0 = time.time()
+    table = read_merl(path)
+    w, masks, decs = _STATE["workers"][res], _STATE["masks"], _STATE["decoders"]
+    refs = w.render(table)
+    rec = {"lab": lab, "material": name, "encode": {}, "unrefined": {}, "swaps": {}, "ratios": {}, "chosen": {}}
+    for size in sizes:
+        k = str(size)
+        decoded = {}
+        for which, dec in decs.items():
+            for refine, into in ((False, "unrefined"), (True, "encode")):
+                emb = encode_with(dec, table, source=name, size=size, refine=refine)
+                tab = open_embedding(emb, dec, name).to_table()
+                rec[into].setdefault(which, {})[k] = _scores(w, tab, refs)
+                if refine:
+                    decoded[which] = tab
+                    rec["ratios"].setdefault(which, {})[k] = _ratios(tab, table, masks)
+                    rec["chosen"].setdefault(which, {})[k] = emb.options
+        rec["swaps"][k] = {}
+        for region, m in masks.items():
+            swap = decoded["new"].copy()
+            swap[m] = decoded["old"][m]
+            rec["swaps"][k][region] = _scores(w, swap, refs)
+    rec["seconds"] = time.time() - t0
+    return rec
+
+
+def summarise_encode(doc) -> dict:
+    """Per lab and size: old and new encode (refined and not), the gap, each scene's gap,
+    the region swaps and the materials that lose most."""
+    out = {}
+    scenes = doc["scenes"]
+    for lab in sorted({r["lab"] for r in doc["materials"].values()}):
+        recs = [r for r in doc["materials"].values() if r["lab"] == lab]
+        s = {"count": len(recs)}
+        for k in map(str, doc["encode"]):
+            row = {}
+            for into in ("unrefined", "encode"):
+                for which in ("old", "new"):
+                    row[f"{into}_{which}"] = {m: _mean([r[into][which][k][m] for r in recs]) for m in ("psnr", "delta_e")}
+                    row[f"{into}_{which}"]["scenes"] = {
+                        sc: _mean([r[into][which][k]["scenes"][sc]["psnr"] for r in recs]) for sc in scenes}
+            row["gap"] = row["encode_new"]["psnr"] - row["encode_old"]["psnr"]
+            row["gap_unrefined"] = row["unrefined_new"]["psnr"] - row["unrefined_old"]["psnr"]
+            row["swaps"] = {reg: _mean([r["swaps"][k][reg]["psnr"] - r["encode"]["new"][k]["psnr"] for r in recs])
+                            for reg in REGIONS}
+            row["swap_scenes"] = {
+                reg: {sc: _mean([r["swaps"][k][reg]["scenes"][sc]["psnr"] - r["encode"]["new"][k]["scenes"][sc]["psnr"]
+                                 for r in recs]) for sc in scenes} for reg in REGIONS}
+            row["ratios"] = {which: {reg: _mean([r["ratios"][which][k][reg] for r in recs]) for reg in REGIONS}
+                             for which in ("old", "new")}
+            gaps = sorted((r["encode"]["new"][k]["psnr"] - r["encode"]["old"][k]["psnr"], r["material"]) for r in recs)
+            row["worst"] = [{"material": n, "gap": g} for g, n in gaps[:5]]
+            s[k] = row
+        out[lab] = s
+    return out
+
+
+def report_encode(doc) -> str:
+    lines = []
+    for lab, s in doc["summary"].items():
+        lines.append(f"\n## {lab} ({s['count']} materials), encode, {doc['resolution']} px, six scenes")
+        lines.append("| numbers | unrefined old | new | gap | encode old | new | gap | dE old | dE new | "
+                     + " | ".join(doc["scenes"]) + " |")
+        lines.append("| --- " * (9 + len(doc["scenes"])) + "|")
+        for k in map(str, doc["encode"]):
+            r = s[k]
+            per = " | ".join(f"{r['encode_new']['scenes'][sc] - r['encode_old']['scenes'][sc]:+.2f}" for sc in doc["scenes"])
+            lines.append(f"| {k} | {r['unrefined_old']['psnr']:.2f} | {r['unrefined_new']['psnr']:.2f} | "
+                         f"{r['gap_unrefined']:+.2f} | {r['encode_old']['psnr']:.2f} | {r['encode_new']['psnr']:.2f} | "
+                         f"{r['gap']:+.2f} | {r['encode_old']['delta_e']:.3f} | {r['encode_new']['delta_e']:.3f} | {per} |")
+        lines.append("\nswap (old values back in one region) - new, PSNR dB:")
+        lines.append("| numbers | " + " | ".join(REGIONS) + " |")
+        for k in map(str, doc["encode"]):
+            lines.append(f"| {k} | " + " | ".join(f"{s[k]['swaps'][r]:+.3f}" for r in REGIONS) + " |")
+        for k in map(str, doc["encode"]):
+            lines.append(f"{k} numbers, lose most: " + ", ".join(f"{w['material']} {w['gap']:+.2f}" for w in s[k]["worst"]))
+    return "\n".join(lines)
+
+
+def brightness(doc, merl: str, rgl: str, new_path: str) -> str:
+    """Per material of a projection record: the median of its weighted value over the
+    reference, ``x / x_ref``, at the cells whose mapping the share changed (``x_ref <
+    eps``, channels averaged), beside its old-new gap at the largest swept ``K`` and what
+    the old values put back in those cells gained; Spearman's rank correlation of each with
+    the logarithm of the ratio (``--brightness``, reads the tables again)."""
+    from scipy.stats import spearmanr
+
+    from brdfkit.basis.basis_file import load_basis
+    from brdfkit.basis.mapping import EPS
+    from brdfkit.geometry import N_CELLS
+    from brdfkit.io.merl import read_merl
+
+    basis = load_basis(new_path)
+    share = basis.reference < EPS
+    cells, ref, w = basis.cells[share], basis.reference[share].astype(np.float64), basis.cell_weight()[share]
+    k = str(doc["sweep"])
+    rows = []
+    for r in doc["materials"].values():
+        table = read_merl(os.path.join(merl if r["lab"] == "merl-test" else rgl, r["material"] + ".binary"))
+        x = table.reshape(N_CELLS, 3)[cells].mean(axis=1) * w
+        new = r["sweep"]["new"][k]["psnr"]
+        rows.append((float(np.nanmedian(x / ref)), new - r["sweep"]["old"][k]["psnr"],
+                     r["swaps"][k]["share"]["psnr"] - new, f"{r['lab']}:{r['material']}"))
+    rows.sort()
+    lines = [f"| material | median x / x_ref (share cells) | gap at K = {k} | share swap |", "| --- | ---: | ---: | ---: |"]
+    lines += [f"| {n} | {ratio:.2f} | {gap:+.2f} | {swap:+.2f} |" for ratio, gap, swap, n in rows]
+    logr = np.log(np.maximum([r[0] for r in rows], 1e-3))
+    for i, what in ((1, "gap"), (2, "share swap")):
+        rho, p = spearmanr(logr, [r[i] for r in rows])
+        lines.append(f"Spearman({what}, log ratio) = {rho:+.2f} (p = {p:.3f}, {len(rows)} materials)")
+    return "\n".join(lines)
 
 
 def _components(old, new, sweep, masks) -> dict:
@@ -298,7 +444,13 @@ def main(argv=None):
     ap.add_argument("--full-resolution", type=int, default=128, help="0: none")
     ap.add_argument("--full-k", type=int, default=13)
     ap.add_argument("--jobs", type=int, default=2)
+    ap.add_argument("--encode", type=int, nargs="+", default=None,
+                    help="sizes of merl80-l40's residual encode to compare (old and new) instead of the projections")
+    ap.add_argument("--new-residual", default=NEW_RESIDUAL)
     ap.add_argument("--report", action="store_true", help="only print the tables of the record -o")
+    ap.add_argument("--brightness", action="store_true",
+                    help="only print, per material of the projection record -o, its brightness over the reference "
+                         "at the cells the share changed beside its gap and share swap")
     ap.add_argument("--compare", nargs=2, metavar=("BEFORE", "AFTER"),
                     help="only compare two brdfkit bench records' residual rows (no -o)")
     ap.add_argument("-o", "--output")
@@ -310,7 +462,10 @@ def main(argv=None):
         ap.error("-o is required")
     if a.report:
         doc = json.load(open(a.output, encoding="utf-8"))
-        print(report(doc))
+        print(report_encode(doc) if doc.get("encode") else report(doc))
+        return
+    if a.brightness:
+        print(brightness(json.load(open(a.output, encoding="utf-8")), a.merl, a.rgl, a.new))
         return
     from brdfkit.basis.basis_file import load_basis
     from brdfkit.render.scene_suite import SUITE
@@ -323,7 +478,11 @@ def main(argv=None):
         names = sorted(f[:-7] for f in os.listdir(a.rgl) if f.endswith(".binary"))[a.offset::a.every]
         items += [("rgl", n, os.path.join(a.rgl, n + ".binary")) for n in names][:a.first]
     old, new = load_basis(old_path), load_basis(a.new)
+    residuals = None
+    if a.encode:
+        residuals = {"old": _old_residual(a.old_rev, tmp), "new": a.new_residual}
     doc = {"format": "brdfkit-study-grazing-cost", "command": "python " + " ".join(sys.argv),
+           "encode": a.encode, "new_residual": a.new_residual if a.encode else None,
            "old": {"rev": None if a.old else a.old_rev, "file": NEW_BASIS if not a.old else a.old,
                    "mapping": old.mapping.record()},
            "new": {"file": a.new, "mapping": new.mapping.record()},
@@ -334,21 +493,27 @@ def main(argv=None):
            "components": _components(old, new, a.sweep, _masks(new)), "materials": {}}
     del old, new
     res = [a.resolution] + ([a.full_resolution] if a.full_resolution else [])
-    tasks = [(lab, n, p, a.k, a.sweep, a.resolution, a.full_resolution or None, a.full_k) for lab, n, p in items]
+    if a.encode:
+        tasks = [(lab, n, p, a.encode, a.resolution) for lab, n, p in items]
+        run, summ, rep = _encoded, summarise_encode, report_encode
+    else:
+        tasks = [(lab, n, p, a.k, a.sweep, a.resolution, a.full_resolution or None, a.full_k) for lab, n, p in items]
+        run, summ, rep = _material, summarise, report
     t0 = time.time()
-    with concurrent.futures.ProcessPoolExecutor(a.jobs, initializer=_init, initargs=(old_path, a.new, res)) as ex:
-        futures = [ex.submit(_material, t) for t in tasks]
+    with concurrent.futures.ProcessPoolExecutor(a.jobs, initializer=_init,
+                                                initargs=(old_path, a.new, res, residuals)) as ex:
+        futures = [ex.submit(run, t) for t in tasks]
         for i, fut in enumerate(concurrent.futures.as_completed(futures), 1):
             rec = fut.result()
             doc["materials"][f"{rec['lab']}:{rec['material']}"] = rec
             doc["elapsed_s"], doc["load_end"] = time.time() - t0, os.getloadavg()
             doc["complete"] = i == len(tasks)
-            doc["summary"] = summarise(doc)
+            doc["summary"] = summ(doc)
             with open(a.output + ".tmp", "w", encoding="utf-8") as f:
                 json.dump(doc, f, indent=1)
             os.replace(a.output + ".tmp", a.output)
             print(f"[{i}/{len(tasks)}] {rec['lab']} {rec['material']} {rec['seconds']:.0f} s", flush=True)
-    print(report(doc))
+    print(rep(doc))
 
 
 if __name__ == "__main__":
