@@ -1,7 +1,8 @@
 """The route matrix, sparse reconstruction: every shipped built-in x every sparse method,
 through the CLI and real files: ``sample`` -> ``.csv`` -> ``sparse`` -> ``.binary`` ->
 ``metrics`` against the material's own table where the built-in serves the method (and
-``--emb`` -> ``decode`` where the method makes an embedding), a one-line refusal with
+``--emb`` -> ``decode`` where the method makes an embedding, ``Method.embedding_kind``,
+and ``--emb`` refused in one line where it makes none), a one-line refusal with
 exit code 2 and nothing written where it does not.
 
 The parameters come from the registries (``helpers_routes``)."""
@@ -44,7 +45,8 @@ def test_sparse_route(measured, tmp_path, capsys, model, method, served):
 
     truth, samples = measured
     out = tmp_path / "out.binary"
-    emb = ["--emb", tmp_path / "out.emb"] if getattr(METHODS[method], "embeds", method == "hypernet") else []
+    kind = METHODS[method].embedding_kind
+    emb = ["--emb", tmp_path / "out.emb"] if kind else []
     given = ["-m", model] if model else []
     args = ["sparse", samples, *given, "--method", method, "-o", out, *emb, *QUICK.get(method, [])]
     if not served:
@@ -53,9 +55,16 @@ def test_sparse_route(measured, tmp_path, capsys, model, method, served):
         assert code == 2 and model in line, line
         assert sorted(p.name for p in tmp_path.iterdir()) == [] and not tmp_leftovers(tmp_path)
         return
+    if not kind:  # --emb refused in one line before any work, nothing written
+        code, _, err = run_cli(capsys, [*args, "--emb", tmp_path / "out.emb"])
+        assert code == 2 and "makes no embedding" in one_error_line(err)
+        assert sorted(p.name for p in tmp_path.iterdir()) == [] and not tmp_leftovers(tmp_path)
     ok(capsys, args)
     score = psnr(capsys, truth, out)
     assert score >= FLOOR_DB, f"{model} {method}: {score:.2f} dB"
     if emb:
+        from brdfkit.io.embedding import read_embedding
+
+        assert read_embedding(tmp_path / "out.emb").kind == kind
         ok(capsys, ["decode", tmp_path / "out.emb", "-o", tmp_path / "emb.binary"])
         assert psnr(capsys, out, tmp_path / "emb.binary") >= floor(40)
