@@ -333,6 +333,7 @@ def test_real_demo_without_render_keeps_no_table(quick, monkeypatch, capsys, tmp
         return encode(data, model, **kw)
 
     monkeypatch.setattr(brdfkit.api, "encode", recording_encode)
+    _no_plot(monkeypatch)
     # the command's own result, kept (the command imports the function when it runs)
     monkeypatch.setattr(brdfkit.demos.real_materials, "run_real_demo",
                         lambda *a, **kw: results.append(run_real_demo(*a, **kw)) or results[-1])
@@ -382,6 +383,14 @@ def test_compression_labels():
                                     ("unseen 16-D (merl80-l40)",) * 2]
 
 
+def _no_plot(monkeypatch):
+    """The demo's plot in this process from now on an empty file at its path (the
+    matplotlib figure takes seconds; ``demo_run``'s tests check the plot drawn)."""
+    import brdfkit.figures.brdf_plot
+
+    monkeypatch.setattr(brdfkit.figures.brdf_plot, "plot_brdfs", lambda shown, path, **kw: open(path, "wb").close())
+
+
 def _interrupted_sheet(monkeypatch, seen):
     import brdfkit.figures.comparison_sheet
 
@@ -414,6 +423,7 @@ def test_real_demo_sheet_tables_are_temporary_and_labelled(quick, monkeypatch, t
         return encode(data, model, **kw)
 
     monkeypatch.setattr(brdfkit.api, "encode", recording_encode)
+    _no_plot(monkeypatch)
     tiles = ["teflon.binary", "prior, 40 samples.binary", "prior, 400 samples.binary",
              *(f"{t}.binary" for t in TILES)]
     for keep, out in ((False, tmp_path / "d"), (True, tmp_path / "k")):
