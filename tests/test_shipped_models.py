@@ -7,6 +7,7 @@ read the package's own folder.
 
 from __future__ import annotations
 
+import functools
 import json
 import os
 
@@ -167,6 +168,17 @@ GRAZING_MISSES = {("chrome-steel", "encode"): (0.5, 5.0), ("chrome-steel", "spar
                   ("blue-metallic-paint", "sparse"): (0.5, 2.6), ("violet-rubber", "encode"): (0.4, 2.0)}
 
 
+@functools.lru_cache(maxsize=None)
+def _material(name: str):
+    """``material_table(name)``, read-only, decoded once a module (two tests take the four
+    shipped materials: 4 NBRDF decodes fewer)."""
+    from brdfkit.materials.nbrdf_networks import material_table
+
+    table = material_table(name)
+    table.setflags(write=False)
+    return table
+
+
 @pytest.mark.slow
 def test_the_shipped_materials_decode_with_their_grazing_rows_and_nothing_black(shipped):
     """Issue 50: on the four real materials `brdfkit material` ships, the default `encode`
@@ -178,10 +190,10 @@ def test_the_shipped_materials_decode_with_their_grazing_rows_and_nothing_black(
     import brdfkit
     from brdfkit.acquisition.sampling import draw_samples
     from brdfkit.evaluation.metrics import grazing_ratio
-    from brdfkit.materials.nbrdf_networks import material_names, material_table
+    from brdfkit.materials.nbrdf_networks import material_names
 
     for name in material_names():
-        ref = material_table(name)
+        ref = _material(name)
         ok = np.isfinite(ref) & (ref > 0)
         for route, pred in (("encode", brdfkit.decode(brdfkit.encode(ref, source=name))),
                             ("sparse", brdfkit.sparse(draw_samples(ref, 400, seed=0))[0])):
@@ -210,12 +222,12 @@ def test_the_7d_latent_decodes_nothing_black(shipped):
     measures the same on the MERL test materials)."""
     import brdfkit
     from brdfkit.embeddings import choose_decoder
-    from brdfkit.materials.nbrdf_networks import material_names, material_table
+    from brdfkit.materials.nbrdf_networks import material_names
 
     dec = choose_decoder("hypernet", "merl-rgl-l7")
     assert set(L7_BELOW) == set(material_names())
     for name in material_names():
-        ref = material_table(name)
+        ref = _material(name)
         pred = brdfkit.decode(brdfkit.encode(ref, dec, source=name), dec)
         ok = np.isfinite(ref) & (ref > 0)
         bright = ok & (ref >= 1.0)
