@@ -96,6 +96,6 @@ def test_the_test_proxies_give_the_same_bytes_alone_and_in_a_batch(tmp_path, mon
     with ThreadPoolExecutor(max_workers=2) as pool:
         list(pool.map(lambda p: _encode([p, "-o", tmp_path / "alone"], tmp_path), drifted))
     _encode([*paths, "-o", tmp_path / "batch"], tmp_path)
-    differ = [p.stem for p in drifted
-              if (tmp_path / "batch" / f"{p.stem}.emb").read_bytes() != (tmp_path / "alone" / f"{p.stem}.emb").read_bytes()]
+    emb = lambda how, p: (tmp_path / how / f"{p.stem}.emb").read_bytes()  # noqa: E731
+    differ = [p.stem for p in drifted if emb("batch", p) != emb("alone", p)]
     assert differ == [], f"other bytes in a batch than alone ({bundle.name}): {differ}"

@@ -52,7 +52,8 @@ def test_bench_cli_end_to_end(setup, tmp_path, capsys, monkeypatch):
     # The compressions' refinement on screen, 3 steps instead of the default's (seconds a
     # table): the records, not the scores, are checked (as hypernet.steps=20 below)
     encode_with = brdfkit.embeddings.encode_with
-    monkeypatch.setattr(brdfkit.embeddings, "encode_with", lambda *a, **kw: encode_with(*a, **{**kw, "steps": 3}))
+    monkeypatch.setattr(brdfkit.embeddings, "encode_with",
+                        lambda *a, **kw: encode_with(*a, **{**kw, "steps": 3}))
     out = tmp_path / "out"
     comp = tmp_path / "comp"
     comp.mkdir()
