@@ -48,7 +48,7 @@ rest), ``rounds-4+4``, ``rounds-8+8``, ``rounds-4+4+4+4`` (``--within`` and ``--
 and random subsets of 8, 16 and 40 of the rest (the first ``N`` of its random order, as
 ``brdfkit validate -n N`` takes them), for each seed.
 
-    flock /tmp/brdfkit-heavy.lock python benchmarks/rounds.py --resolution 128 \\
+    python benchmarks/rounds.py --resolution 128 \\
         --json benchmarks/results/2026-12-01-rounds-128.json
 
 Prints the markdown table of the means (of the six scenes, each scene, Delta E, seconds).
