@@ -26,6 +26,16 @@ import pytest
 # ``fit_basis``) spins for tens of seconds instead of taking milliseconds.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
 
+# glibc's malloc: freed memory kept for the next allocation in the suite's worker processes
+# and the commands they start (set here, before pytest-xdist starts its workers; glibc
+# reads the variables when a process starts). A MERL table (35 MB in float64) is above
+# the largest size glibc serves from its heap (32 MiB), so each one was mapped and
+# unmapped again and its pages faulted in zeroed: the suite's processes spent 147 s of
+# their 822 s of CPU in the kernel. Kept, test_routes_sizes.py's merl80 half takes 30 s
+# instead of 41 (sys 4.5 s instead of 13.3; 2026-12-02). Values do not depend on it.
+os.environ.setdefault("MALLOC_MMAP_MAX_", "0")
+os.environ.setdefault("MALLOC_TRIM_THRESHOLD_", str(4 << 30))
+
 # Hypothesis draws the same examples on every run (the property tests and the fuzzer):
 # a result depends on the code, not on the draw; BRDFKIT_FUZZ_RANDOM=1 explores.
 try:
