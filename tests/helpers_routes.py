@@ -123,6 +123,17 @@ def route_material(size: int) -> str:
     return MATERIALS[(size // 3) % len(MATERIALS)]
 
 
+def module_routes(folder: str):
+    """A module-scoped fixture ``routes``: the module's :class:`Routes` on the shipped
+    materials, its files in a temporary folder named ``folder``."""
+
+    @pytest.fixture(scope="module")
+    def routes(tmp_path_factory):
+        return Routes(materials(tmp_path_factory), tmp_path_factory.mktemp(folder))
+
+    return routes
+
+
 class Routes:
     """A module's files, each made once through the CLI and kept by what made it: an
     encode alone (``model, kind, size, material``: refined at the default size,

@@ -26,7 +26,7 @@ import numpy as np
 import pytest
 
 from conftest import one_error_line, run_cli
-from helpers_routes import (MATERIALS, REFINED, Routes, encode_routes, floor, kind_routes, materials, model_routes,
+from helpers_routes import (MATERIALS, REFINED, encode_routes, floor, kind_routes, model_routes, module_routes,
                             ok, route_material, shipped)
 from helpers_view import shipped_models  # noqa: F401  (a fixture)
 
@@ -42,9 +42,7 @@ def pair(default: int) -> list[str]:
     return [MATERIALS[i - 1], MATERIALS[i]]
 
 
-@pytest.fixture(scope="module")
-def routes(tmp_path_factory):
-    return Routes(materials(tmp_path_factory), tmp_path_factory.mktemp("routes"))
+routes = module_routes("routes")
 
 
 @pytest.mark.parametrize("model, kind, size, default", encode_routes(at_default=True))

@@ -14,16 +14,14 @@ from __future__ import annotations
 
 import pytest
 
-from helpers_routes import Routes, encode_routes, materials
+from helpers_routes import encode_routes, module_routes
 from helpers_view import shipped_models  # noqa: F401  (a fixture)
 
 # The matrix takes minutes in all: CI runs it (the suite), `-m "not slow"` leaves it out.
 pytestmark = [pytest.mark.usefixtures("shipped_models"), pytest.mark.slow]
 
 
-@pytest.fixture(scope="module")
-def routes(tmp_path_factory):
-    return Routes(materials(tmp_path_factory), tmp_path_factory.mktemp("sizes"))
+routes = module_routes("sizes")
 
 
 @pytest.mark.parametrize("model, kind, size, default", encode_routes(at_default=False))

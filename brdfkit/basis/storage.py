@@ -213,7 +213,7 @@ class Compact:
         import threading
 
         self.stored_rows, self.mean, self.how = rows, np.asarray(mean, np.float32), how
-        self._rows: dict = {}
+        self._kept: np.ndarray | None = None  # the most leading components restored so far
         self._gram: dict = {}
         self._lock = threading.Lock()  # an encode's pieces ask from several threads: restored once
 
@@ -224,11 +224,9 @@ class Compact:
         process that takes several sizes, largest first, restores once, where keeping
         only the last ``k`` restored 30 components again for every size)."""
         with self._lock:
-            kept = next(iter(self._rows.values()), None)
-            if kept is None or kept.shape[0] < k:
-                self._rows = {k: self.stored_rows(k)}
-                kept = self._rows[k]
-            return kept[:k]
+            if self._kept is None or self._kept.shape[0] < k:
+                self._kept = self.stored_rows(k)
+            return self._kept[:k]
 
     def rows_at(self, k: int, positions) -> np.ndarray:
         """The ``k`` leading restored components at ``positions`` among the restored
