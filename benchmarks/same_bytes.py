@@ -52,6 +52,8 @@ def main(argv=None) -> int:
     ap.add_argument("--routes", nargs="+", default=list(ROUTES), help="MODEL:KIND:SIZE")
     ap.add_argument("--materials", nargs="+", default=["teflon", "chrome-steel"])
     a = ap.parse_args(argv)
+    if subprocess.run(["git", "rev-parse", "--verify", "--quiet", f"{a.rev}^{{commit}}"], capture_output=True).returncode:
+        ap.error(f"{a.rev}: not a commit of this repository")
     tmp = tempfile.mkdtemp(prefix="same-bytes-")
     old = os.path.join(tmp, "rev")
     subprocess.run(["git", "worktree", "add", "--detach", old, a.rev], check=True, capture_output=True)
